@@ -1,0 +1,1 @@
+"""irloc: the `irloc` command-line entry point."""

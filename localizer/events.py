@@ -1,0 +1,117 @@
+"""What goes into the localizer state machine, and what comes out of it.
+
+The localizer is sans-I/O (as h11 is for HTTP): its owner feeds it these events in time order
+through `Localizer.handle(event)` and acts on the outputs it returns. Time is always an integer
+count of nanoseconds on the owner's clock (the recording's clock in a replay).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+import numpy.typing as npt
+
+Mode = Literal["identifying", "landmark", "dead_reckoning", "lost"]
+MODES: tuple[Mode, ...] = ("identifying", "landmark", "dead_reckoning", "lost")
+
+
+@dataclass(frozen=True, eq=False)
+class FrameObserved:
+    """An 8-bit grayscale IR frame, shape (height, width), taken at `t_ns`."""
+
+    t_ns: int
+    image: npt.NDArray[np.uint8]
+
+
+@dataclass(frozen=True, eq=False)
+class SpotsObserved:
+    """Spots already detected in a frame taken at `t_ns` (a robot that detects on board).
+
+    Attributes:
+        pixels: sub-pixel centroids (col, row), shape (N, 2).
+        intensities: summed background-free brightness per spot, shape (N,).
+        areas: pixel count per spot, shape (N,).
+    """
+
+    t_ns: int
+    pixels: npt.NDArray[np.float64]
+    intensities: npt.NDArray[np.float64]
+    areas: npt.NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class OdometryMeasured:
+    """Wheel speeds measured at `t_ns` (v_l, v_r of eq. 6), m/s."""
+
+    t_ns: int
+    v_left: float
+    v_right: float
+
+
+@dataclass(frozen=True)
+class LedsChanged:
+    """The LED state in force from `t_ns` on (confirmed applied by the radio).
+
+    Attributes:
+        lit: IDs of the lit landmarks; all others are dark. Ignored when `all_lit`.
+        all_lit: every landmark is lit (the normal tracking state).
+    """
+
+    t_ns: int
+    lit: frozenset[int] = field(default_factory=frozenset)
+    all_lit: bool = False
+
+
+@dataclass(frozen=True)
+class RelocalizeRequested:
+    """Forget the pose and identify from scratch (operator's request), at `t_ns`."""
+
+    t_ns: int
+
+
+Event = FrameObserved | SpotsObserved | OdometryMeasured | LedsChanged | RelocalizeRequested
+
+
+@dataclass(frozen=True, eq=False)
+class PoseEstimate:
+    """The body pose at `t_ns` (odometry integrated up to it).
+
+    Attributes:
+        x, y: metres in the world frame; theta: REP-103 heading in (-pi, pi].
+        covariance: of (x, y, theta), shape (3, 3), SI units.
+        mode: the localizer's mode when this estimate was made.
+        landmark_ids: the landmarks whose spots were used in this frame (empty in dead
+            reckoning).
+    """
+
+    t_ns: int
+    x: float
+    y: float
+    theta: float
+    covariance: npt.NDArray[np.float64]
+    mode: Mode
+    landmark_ids: tuple[int, ...] = ()
+
+
+@dataclass(frozen=True)
+class NoPose:
+    """A frame for which there is no pose yet (identifying, or lost with no prior)."""
+
+    t_ns: int
+    mode: Mode
+
+
+@dataclass(frozen=True)
+class LedRequest:
+    """The localizer asks its owner to light exactly `lit` (or every LED when `all_lit`).
+
+    The owner answers with a `LedsChanged` once the radio confirms the change.
+    """
+
+    lit: frozenset[int] = field(default_factory=frozenset)
+    all_lit: bool = False
+
+
+Output = PoseEstimate | NoPose | LedRequest

@@ -1,0 +1,107 @@
+"""The landmark map as the localizer sees it: IDs and 3D LED positions in the world frame."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+
+class DuplicateLandmarkError(ValueError):
+    """Two landmarks of one map share an ID."""
+
+
+@dataclass(frozen=True, eq=False)
+class LandmarkMap:
+    """Landmark IDs and positions.
+
+    Attributes:
+        ids: landmark IDs, shape (N,), unique integers.
+        positions: LED positions in the world frame, metres, shape (N, 3).
+    """
+
+    ids: npt.NDArray[np.int64]
+    positions: npt.NDArray[np.float64]
+    _index: dict[int, int] = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        ids = np.asarray(self.ids, dtype=np.int64).reshape(-1)
+        pos = np.asarray(self.positions, dtype=np.float64).reshape(-1, 3)
+        if len(ids) != len(pos):
+            raise ValueError(f"landmark map: {len(ids)} ids but {len(pos)} positions")
+        if not np.all(np.isfinite(pos)):
+            bad = int(ids[~np.all(np.isfinite(pos), axis=1)][0])
+            raise ValueError(f"landmark map: landmark {bad} has a non-finite coordinate")
+        index: dict[int, int] = {}
+        for i, lid in enumerate(ids.tolist()):
+            if lid in index:
+                raise DuplicateLandmarkError(f"landmark map: duplicate landmark id {lid}")
+            index[lid] = i
+        ids.setflags(write=False)
+        pos.setflags(write=False)
+        object.__setattr__(self, "ids", ids)
+        object.__setattr__(self, "positions", pos)
+        object.__setattr__(self, "_index", index)
+
+    def __len__(self) -> int:
+        return len(self.ids)
+
+    def __contains__(self, landmark_id: object) -> bool:
+        return landmark_id in self._index
+
+    def index_of(self, landmark_id: int) -> int:
+        """Row of `landmark_id` in `ids`/`positions`; KeyError names an unknown ID."""
+        try:
+            return self._index[int(landmark_id)]
+        except KeyError:
+            raise KeyError(f"unknown landmark id {landmark_id}") from None
+
+    def position(self, landmark_id: int) -> npt.NDArray[np.float64]:
+        """World position of one landmark, shape (3,)."""
+        return self.positions[self.index_of(landmark_id)]
+
+    @classmethod
+    def from_records(
+        cls, records: Iterable[Mapping[str, Any]], *, source: str = "map"
+    ) -> LandmarkMap:
+        """Build a map from `{"id", "x", "y", "z"}` records (map.json's `landmarks`).
+
+        Raises:
+            ValueError: naming `source`, the record index and the bad key or value.
+        """
+        ids: list[int] = []
+        pos: list[tuple[float, float, float]] = []
+        for i, rec in enumerate(records):
+            if not isinstance(rec, Mapping):
+                raise ValueError(f"{source}: landmark #{i} is not an object")
+            if "id" not in rec:
+                raise ValueError(f"{source}: landmark #{i} has no 'id'")
+            lid = rec["id"]
+            if isinstance(lid, bool) or not isinstance(lid, int):
+                raise ValueError(f"{source}: landmark #{i}: 'id' must be an integer, got {lid!r}")
+            xyz = []
+            for key in ("x", "y", "z"):
+                if key not in rec:
+                    raise ValueError(f"{source}: landmark {lid}: missing '{key}'")
+                v = rec[key]
+                if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
+                    raise ValueError(
+                        f"{source}: landmark {lid}: '{key}' must be a finite number, got {v!r}"
+                    )
+                xyz.append(float(v))
+            if lid in ids:
+                raise DuplicateLandmarkError(f"{source}: duplicate landmark id {lid}")
+            ids.append(lid)
+            pos.append((xyz[0], xyz[1], xyz[2]))
+        return cls(np.array(ids, dtype=np.int64), np.array(pos, dtype=np.float64).reshape(-1, 3))
+
+    def to_records(self) -> list[dict[str, float | int]]:
+        """The inverse of `from_records`."""
+        return [
+            {"id": int(i), "x": float(p[0]), "y": float(p[1]), "z": float(p[2])}
+            for i, p in zip(self.ids, self.positions, strict=True)
+        ]

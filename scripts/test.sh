@@ -1,0 +1,18 @@
+#!/usr/bin/env bash
+# Set everything up and run the test suite. Extra arguments go to pytest.
+# The browser tests need Debian's Chromium: as root with apt available (CI) it is installed
+# here; elsewhere they are skipped with a message saying how to install it.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+bash scripts/setup.sh
+if ! command -v chromium >/dev/null 2>&1 && [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then
+  echo "installing Debian's chromium for the browser tests..."
+  (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium >/dev/null) \
+    || echo "warning: could not install chromium; browser tests will be skipped" >&2
+fi
+set +e
+.venv/bin/python -m pytest "$@"
+status=$?
+set -e
+# pytest's exit status 5 means "no tests collected": that is a failure of the suite here.
+exit $status
