@@ -1,0 +1,107 @@
+"""Dead reckoning of a differential-drive robot from wheel speeds (paper Sec. IV-B).
+
+`integrate_odometry` is the paper's eqs. (5)-(6) (a straight chord along the midpoint
+heading); `integrate_arc` is the exact motion under constant wheel speeds over the step (a
+circular arc, or a straight line when the wheels turn at the same speed). They differ by
+O(dR^3) per step. `odometry_jacobians` gives the derivatives of eqs. (5)-(6) that the pose
+filter needs. All functions accept scalars or equally shaped arrays (vectorised).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import numpy.typing as npt
+
+from localizer.geometry import wrap_angle
+
+FloatArray = npt.NDArray[np.float64]
+Scalar = float | FloatArray
+
+
+def odometry_increments(
+    v_left: Scalar, v_right: Scalar, dt: Scalar, wheel_base: Scalar
+) -> tuple[Scalar, Scalar]:
+    """The translation and rotation over one step, eq. (6).
+
+    Args:
+        v_left, v_right: wheel ground speeds, m/s.
+        dt: step, seconds.
+        wheel_base: distance between the wheels W, metres.
+
+    Returns:
+        (dT metres, dR radians): dT = (v_l + v_r) / 2 dt, dR = (v_r - v_l) / W dt.
+    """
+    return 0.5 * (v_left + v_right) * dt, (v_right - v_left) / wheel_base * dt
+
+
+def integrate_odometry(
+    x: Scalar,
+    y: Scalar,
+    theta: Scalar,
+    v_left: Scalar,
+    v_right: Scalar,
+    dt: Scalar,
+    wheel_base: Scalar,
+) -> tuple[Scalar, Scalar, Scalar]:
+    """One dead-reckoning step, the paper's eqs. (5)-(6) (midpoint heading).
+
+    x_t = x + dT cos(theta + dR/2), y_t = y + dT sin(theta + dR/2), theta_t = theta + dR.
+
+    Args:
+        x, y: position, metres; theta: REP-103 heading, radians.
+        v_left, v_right: wheel speeds, m/s; dt: seconds; wheel_base: W, metres.
+
+    Returns:
+        (x, y, theta) after the step, theta wrapped to (-pi, pi]. Floats for float inputs,
+        arrays of the broadcast shape otherwise.
+    """
+    dT, dR = odometry_increments(v_left, v_right, dt, wheel_base)
+    heading = theta + 0.5 * dR
+    return x + dT * np.cos(heading), y + dT * np.sin(heading), wrap_angle(theta + dR)
+
+
+def integrate_arc(
+    x: Scalar,
+    y: Scalar,
+    theta: Scalar,
+    v_left: Scalar,
+    v_right: Scalar,
+    dt: Scalar,
+    wheel_base: Scalar,
+) -> tuple[Scalar, Scalar, Scalar]:
+    """One exact step under constant wheel speeds: a circular arc of turn dR and length dT.
+
+    The chord of the arc has the midpoint heading of eq. (5) and the length
+    dT sin(dR/2) / (dR/2), which tends to dT in the straight-line limit (dR -> 0; numpy's
+    `sinc` handles it without a special case).
+
+    Args and returns: as `integrate_odometry`.
+    """
+    dT, dR = odometry_increments(v_left, v_right, dt, wheel_base)
+    chord = dT * np.sinc(dR / (2.0 * np.pi))  # np.sinc(u) = sin(pi u) / (pi u)
+    heading = theta + 0.5 * dR
+    return x + chord * np.cos(heading), y + chord * np.sin(heading), wrap_angle(theta + dR)
+
+
+def odometry_jacobians(
+    theta: float, v_left: float, v_right: float, dt: float, wheel_base: float
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Derivatives of eqs. (5)-(6) at one step (scalars).
+
+    Returns:
+        (F_pose shape (3, 3): d(x, y, theta)_t / d(x, y, theta),
+         F_wheels shape (3, 2): d(x, y, theta)_t / d(v_left, v_right),
+         F_base shape (3,): d(x, y, theta)_t / d wheel_base).
+    """
+    dT, dR = odometry_increments(v_left, v_right, dt, wheel_base)
+    heading = theta + 0.5 * dR
+    c, s = float(np.cos(heading)), float(np.sin(heading))
+    F_pose = np.array([[1.0, 0.0, -dT * s], [0.0, 1.0, dT * c], [0.0, 0.0, 1.0]])
+    # d/d dT and d/d dR of (x, y, theta)_t
+    d_dT = np.array([c, s, 0.0])
+    d_dR = np.array([-0.5 * dT * s, 0.5 * dT * c, 1.0])
+    dT_dv = 0.5 * dt  # same for both wheels
+    dR_dvr = dt / wheel_base
+    F_wheels = np.column_stack([d_dT * dT_dv - d_dR * dR_dvr, d_dT * dT_dv + d_dR * dR_dvr])
+    F_base = d_dR * (-dR / wheel_base)
+    return F_pose, F_wheels, F_base
