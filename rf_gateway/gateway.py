@@ -1,0 +1,454 @@
+"""The gateway: one shared LED truth for the whole site, over any `Transport`.
+
+`set_leds(lit_ids)` lights exactly those landmarks and darkens the others it controls; once
+every landmark confirmed, a `localizer.events.LedsChanged` stamped with the time of the last
+confirmation is published to every subscriber (each robot's localizer), so one robot's
+identification sweep is seen by all. LED changes are serialised (`async with gw.sweep():`
+holds the site for a whole identification sweep).
+
+Reliability: every radio command takes an in-flight slot granted by priority (identification,
+then LED housekeeping, then battery polls; `PrioritySlots`), is retried with exponential
+backoff, and a landmark that fails `max_tries` in a row is marked unreachable (event) while the
+others carry on. LED commands are latest-wins per landmark: each request gets a sequence
+number, one syncer task per landmark sends the newest desired level and confirms only the
+sequence number it sent, so a retry crossing a late reply neither loses nor double-counts a
+change (the pin level itself is idempotent).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+import time
+from collections.abc import AsyncIterator, Awaitable, Callable, Iterable, Mapping
+from contextlib import asynccontextmanager
+from contextvars import ContextVar
+from dataclasses import dataclass, field
+from typing import TypeVar
+
+from localizer.events import LedsChanged
+from rf_gateway.battery import BatteryConfig, BatteryHistory, BatteryReading
+from rf_gateway.errors import (
+    LandmarkUnreachableError,
+    RadioTimeout,
+    RemoteCommandError,
+    TransportUnavailable,
+    UnknownLandmarkError,
+)
+from rf_gateway.events import (
+    GatewayEvent,
+    LandmarkReachable,
+    LandmarkUnreachable,
+    LowBattery,
+    TransportStateChanged,
+)
+from rf_gateway.scheduler import Priority, PrioritySlots
+from rf_gateway.subscription import Hub, Subscription
+from rf_gateway.transport import DiscoveredRadio, Transport, TransportState, normalize_address
+
+log = logging.getLogger(__name__)
+T = TypeVar("T")
+_SWEEP_OWNER: ContextVar[int | None] = ContextVar("rf_gateway_sweep_owner", default=None)
+
+
+@dataclass(frozen=True)
+class GatewayConfig:
+    """Gateway tuning.
+
+    Attributes:
+        max_in_flight: radio commands on the air at once.
+        max_waiting: commands allowed to wait for a slot (more raise QueueFullError).
+        max_tries: sends per command before the landmark is declared unreachable.
+        retry_backoff_s: wait before the first retry; doubles at each further retry.
+        command_timeout_s: gateway-side safety timeout per command (transports have their
+            own, shorter, timeouts).
+        skip_confirmed: do not resend a level the landmark already confirmed.
+        blink_count, blink_period_s: `blink` toggles the LED this many times, one period each.
+        low_battery_hysteresis_mv: a low landmark must read this much above `low_mv` to clear.
+        subscriber_queue: events buffered per subscriber.
+        battery: battery monitoring settings.
+    """
+
+    max_in_flight: int = 4
+    max_waiting: int = 512
+    max_tries: int = 3
+    retry_backoff_s: float = 0.05
+    command_timeout_s: float = 10.0
+    skip_confirmed: bool = True
+    blink_count: int = 3
+    blink_period_s: float = 0.4
+    low_battery_hysteresis_mv: int = 50
+    subscriber_queue: int = 256
+    battery: BatteryConfig = field(default_factory=BatteryConfig)
+
+
+@dataclass
+class GatewayStats:
+    """Counters for the metrics page."""
+
+    commands: int = 0
+    retries: int = 0
+    failures: int = 0
+    skipped: int = 0
+    published: int = 0
+
+
+def _validated(landmarks: Mapping[int, str]) -> dict[int, str]:
+    out: dict[int, str] = {}
+    seen: dict[str, int] = {}
+    for lid, address in landmarks.items():
+        canonical = normalize_address(address, source=f"landmark {lid} radio")
+        if canonical in seen:
+            raise ValueError(f"landmarks {seen[canonical]} and {lid} share radio {canonical}")
+        seen[canonical] = int(lid)
+        out[int(lid)] = canonical
+    return out
+
+
+class Gateway:
+    """Switch and read the site's landmarks through `transport`.
+
+    Args:
+        transport: the radio link (`SimTransport`, `XBeeTransport`).
+        landmarks: landmark id -> 64-bit radio address (16 hex digits).
+        config: tuning.
+        clock_ns: the clock stamping events, nanoseconds (default `time.monotonic_ns`).
+    """
+
+    def __init__(
+        self,
+        transport: Transport,
+        landmarks: Mapping[int, str],
+        config: GatewayConfig | None = None,
+        *,
+        clock_ns: Callable[[], int] = time.monotonic_ns,
+    ) -> None:
+        self.transport = transport
+        self.config = config or GatewayConfig()
+        self.clock_ns = clock_ns
+        self.stats = GatewayStats()
+        self.batteries = BatteryHistory(self.config.battery)
+        self._addresses = _validated(landmarks)
+        self._slots = PrioritySlots(self.config.max_in_flight, self.config.max_waiting)
+        self._desired: dict[int, tuple[bool, int]] = {}  # id -> (level, seq)
+        self._confirmed: dict[int, tuple[bool, int, int]] = {}  # id -> (level, seq, t_ns)
+        self._waiters: dict[int, list[tuple[int, asyncio.Future[int]]]] = {}
+        self._led_priority: dict[int, Priority] = {}
+        self._syncers: dict[int, asyncio.Task[None]] = {}
+        self._seq = 0
+        self._failures: dict[int, int] = {}
+        self._unreachable: set[int] = set()
+        self._low: set[int] = set()
+        self._sweep_lock = asyncio.Lock()
+        self._leds_hub: Hub[LedsChanged] = Hub(self.config.subscriber_queue)
+        self._events_hub: Hub[GatewayEvent] = Hub(self.config.subscriber_queue)
+        self._last_leds: LedsChanged | None = None
+        self._battery_task: asyncio.Task[None] | None = None
+
+    # -- lifecycle -------------------------------------------------------------------------
+    async def start(self) -> None:
+        """Open the transport (a failure leaves it reopening in the background) and start
+        the battery schedule."""
+        listen = getattr(self.transport, "on_state_change", None)
+        if listen is not None:
+            listen(self._on_transport_state)
+        try:
+            await self.transport.open()
+        except TransportUnavailable as exc:
+            log.warning("radio not available yet: %s", exc)
+        if self.config.battery.interval_s is not None:
+            self._battery_task = asyncio.get_running_loop().create_task(self._battery_loop())
+
+    async def close(self) -> None:
+        """Stop the schedule and the syncers, close the transport."""
+        tasks = [t for t in [self._battery_task, *self._syncers.values()] if t is not None]
+        for task in tasks:
+            task.cancel()
+        for task in tasks:
+            with contextlib.suppress(asyncio.CancelledError, Exception):
+                await task
+        await self.transport.close()
+
+    def _on_transport_state(self, state: TransportState) -> None:
+        self._events_hub.publish(TransportStateChanged(self.clock_ns(), state))
+
+    # -- landmarks -----------------------------------------------------------------------
+    @property
+    def landmarks(self) -> dict[int, str]:
+        """Landmark id -> radio address (a copy)."""
+        return dict(self._addresses)
+
+    @property
+    def unreachable(self) -> frozenset[int]:
+        return frozenset(self._unreachable)
+
+    def address_of(self, landmark_id: int) -> str:
+        """Radio address of a landmark; UnknownLandmarkError names an unknown id."""
+        try:
+            return self._addresses[landmark_id]
+        except KeyError:
+            raise UnknownLandmarkError(landmark_id) from None
+
+    def update_landmarks(self, landmarks: Mapping[int, str]) -> None:
+        """Replace the id -> address map (after a map edit); forgets removed landmarks."""
+        new = _validated(landmarks)
+        for lid in set(self._addresses) - set(new):
+            task = self._syncers.pop(lid, None)
+            if task is not None:
+                task.cancel()
+            self._fail_waiters(lid, 1 << 62, UnknownLandmarkError(lid))
+            self._desired.pop(lid, None)
+            self._confirmed.pop(lid, None)
+            self._failures.pop(lid, None)
+            self._unreachable.discard(lid)
+            self._low.discard(lid)
+            self.batteries.forget(lid)
+        for lid, address in new.items():
+            if self._addresses.get(lid) not in (None, address):
+                self._confirmed.pop(lid, None)  # a new radio: its LED state is unknown
+        self._addresses = new
+
+    # -- subscriptions ---------------------------------------------------------------------
+    def subscribe(self) -> Subscription[LedsChanged]:
+        """LED state events for one consumer; the current state (if any) comes first."""
+        return self._leds_hub.subscribe(self._last_leds)
+
+    def subscribe_events(self) -> Subscription[GatewayEvent]:
+        """Gateway events: unreachable/reachable landmarks, low battery, transport state."""
+        return self._events_hub.subscribe()
+
+    @property
+    def leds(self) -> LedsChanged | None:
+        """The last published LED state."""
+        return self._last_leds
+
+    # -- LED control -------------------------------------------------------------------------
+    @asynccontextmanager
+    async def sweep(self) -> AsyncIterator[Gateway]:
+        """Hold the site's LEDs for one identification sweep (re-entrant in one task)."""
+        if _SWEEP_OWNER.get() == id(self):
+            yield self
+            return
+        async with self._sweep_lock:
+            token = _SWEEP_OWNER.set(id(self))
+            try:
+                yield self
+            finally:
+                _SWEEP_OWNER.reset(token)
+
+    async def set_leds(
+        self, lit_ids: Iterable[int], *, priority: Priority = Priority.IDENTIFY
+    ) -> LedsChanged:
+        """Light exactly `lit_ids`, darken every other controlled landmark.
+
+        Returns:
+            The published state, stamped with the time the last landmark confirmed.
+
+        Raises:
+            UnknownLandmarkError: an id without a radio address (nothing is sent).
+            LandmarkUnreachableError: a landmark did not confirm (the others were applied and
+                the confirmed state was published).
+            TransportUnavailable: the radio link is down.
+        """
+        lit = {int(i) for i in lit_ids}
+        for lid in sorted(lit):
+            self.address_of(lid)
+        targets = {lid: lid in lit for lid in self._addresses}
+        async with self.sweep():
+            return await self._apply(targets, priority)
+
+    async def led(self, landmark_id: int, on: bool) -> LedsChanged:
+        """Switch one landmark's LED (housekeeping priority); raises as `set_leds`."""
+        self.address_of(landmark_id)
+        async with self.sweep():
+            return await self._apply({landmark_id: on}, Priority.HOUSEKEEPING)
+
+    async def blink(self, landmark_id: int) -> LedsChanged:
+        """Toggle one LED `blink_count` times (to find it on the ceiling), then restore it."""
+        self.address_of(landmark_id)
+        async with self.sweep():
+            level = self._desired.get(landmark_id, (True, 0))[0]
+            half = self.config.blink_period_s / 2.0
+            event = self._last_leds
+            for _ in range(self.config.blink_count):
+                for target in (not level, level):
+                    event = await self._apply({landmark_id: target}, Priority.HOUSEKEEPING)
+                    await asyncio.sleep(half)
+            return event if event is not None else self._publish_state()
+
+    async def _apply(self, targets: Mapping[int, bool], priority: Priority) -> LedsChanged:
+        waits: list[tuple[int, asyncio.Future[int]]] = []
+        loop = asyncio.get_running_loop()
+        for lid, level in targets.items():
+            confirmed = self._confirmed.get(lid)
+            pending = lid in self._syncers
+            if (
+                self.config.skip_confirmed
+                and not pending
+                and confirmed is not None
+                and confirmed[0] == level
+            ):
+                self.stats.skipped += 1
+                continue
+            self._seq += 1
+            self._desired[lid] = (level, self._seq)
+            fut: asyncio.Future[int] = loop.create_future()
+            self._waiters.setdefault(lid, []).append((self._seq, fut))
+            self._led_priority[lid] = min(self._led_priority.get(lid, priority), priority)
+            waits.append((lid, fut))
+            if not pending:
+                self._syncers[lid] = loop.create_task(self._sync_led(lid))
+        results = await asyncio.gather(*(f for _, f in waits), return_exceptions=True)
+        event = self._publish_state()
+        errors = [r for r in results if isinstance(r, BaseException)]
+        if errors:
+            raise errors[0]
+        return event
+
+    def _publish_state(self) -> LedsChanged:
+        ids = set(self._addresses)
+        lit = frozenset(lid for lid in ids if self._confirmed.get(lid, (False, 0, 0))[0])
+        times = [c[2] for lid, c in self._confirmed.items() if lid in ids]
+        t_ns = max(times) if times else self.clock_ns()
+        if self._last_leds is not None:
+            t_ns = max(t_ns, self._last_leds.t_ns)
+        event = LedsChanged(t_ns, all_lit=True) if ids and lit == ids else LedsChanged(t_ns, lit)
+        self._last_leds = event
+        self.stats.published += 1
+        self._leds_hub.publish(event)
+        return event
+
+    async def _sync_led(self, lid: int) -> None:
+        """Send the newest desired level of one landmark until it is confirmed."""
+        try:
+            while lid in self._addresses:
+                level, seq = self._desired[lid]
+                confirmed = self._confirmed.get(lid)
+                if confirmed is not None and confirmed[1] >= seq:
+                    break
+                priority = self._led_priority.pop(lid, Priority.HOUSEKEEPING)
+                address = self._addresses[lid]
+                try:
+                    await self._command(
+                        lid, priority, lambda a=address, v=level: self.transport.set_pin(a, v)
+                    )
+                except Exception as exc:
+                    self._fail_waiters(lid, seq, exc)
+                    if self._desired[lid][1] == seq:
+                        break
+                    continue
+                t_ns = self.clock_ns()
+                self._confirmed[lid] = (level, seq, t_ns)
+                self._resolve_waiters(lid, seq, t_ns)
+        finally:
+            self._syncers.pop(lid, None)
+
+    def _resolve_waiters(self, lid: int, seq: int, t_ns: int) -> None:
+        keep = []
+        for wanted, fut in self._waiters.get(lid, []):
+            if wanted <= seq:
+                if not fut.done():
+                    fut.set_result(t_ns)
+            else:
+                keep.append((wanted, fut))
+        self._waiters[lid] = keep
+
+    def _fail_waiters(self, lid: int, seq: int, exc: BaseException) -> None:
+        keep = []
+        for wanted, fut in self._waiters.get(lid, []):
+            if wanted <= seq:
+                if not fut.done():
+                    fut.set_exception(exc)
+            else:
+                keep.append((wanted, fut))
+        self._waiters[lid] = keep
+
+    # -- commands with retries ------------------------------------------------------------------
+    async def _command(self, lid: int, priority: Priority, send: Callable[[], Awaitable[T]]) -> T:
+        address = self._addresses[lid]
+        last: Exception | None = None
+        radio_failures = 0
+        tries = self.config.max_tries
+        for attempt in range(tries):
+            if attempt:
+                self.stats.retries += 1
+                await asyncio.sleep(self.config.retry_backoff_s * 2 ** (attempt - 1))
+            try:
+                async with self._slots.slot(priority):
+                    self.stats.commands += 1
+                    result = await asyncio.wait_for(send(), self.config.command_timeout_s)
+            except (RadioTimeout, TimeoutError) as exc:
+                last, radio_failures = exc, radio_failures + 1
+            except RemoteCommandError as exc:
+                last, radio_failures = exc, radio_failures + 1
+                if not exc.retryable:
+                    break
+            except TransportUnavailable as exc:
+                last = exc
+            else:
+                self._mark_reachable(lid)
+                return result
+        self.stats.failures += 1
+        if radio_failures == 0 and isinstance(last, TransportUnavailable):
+            raise last
+        self._mark_unreachable(lid, radio_failures)
+        cause = str(last) if last is not None and str(last) else type(last).__name__
+        raise LandmarkUnreachableError(lid, address, radio_failures, cause)
+
+    def _mark_reachable(self, lid: int) -> None:
+        self._failures[lid] = 0
+        if lid in self._unreachable:
+            self._unreachable.discard(lid)
+            event = LandmarkReachable(self.clock_ns(), lid, self._addresses[lid])
+            self._events_hub.publish(event)
+
+    def _mark_unreachable(self, lid: int, tries: int) -> None:
+        self._failures[lid] = self._failures.get(lid, 0) + tries
+        if lid not in self._unreachable and tries > 0:
+            self._unreachable.add(lid)
+            event = LandmarkUnreachable(self.clock_ns(), lid, self._addresses[lid], tries)
+            self._events_hub.publish(event)
+
+    # -- battery and discovery ----------------------------------------------------------------
+    async def battery(self, landmark_id: int) -> BatteryReading:
+        """Read one landmark's supply now (battery-poll priority), record it, and raise a
+        LowBattery event at or below the threshold; raises as `set_leds`."""
+        address = self.address_of(landmark_id)
+        mv = await self._command(
+            landmark_id, Priority.BATTERY, lambda: self.transport.read_supply_mv(address)
+        )
+        reading = self.batteries.add(landmark_id, self.clock_ns(), int(mv))
+        cfg = self.config.battery
+        if reading.supply_mv <= cfg.low_mv and landmark_id not in self._low:
+            self._low.add(landmark_id)
+            event = LowBattery(reading.t_ns, landmark_id, reading.supply_mv, reading.days_left)
+            self._events_hub.publish(event)
+        elif reading.supply_mv > cfg.low_mv + self.config.low_battery_hysteresis_mv:
+            self._low.discard(landmark_id)
+        return reading
+
+    async def poll_batteries(self) -> list[BatteryReading]:
+        """Read every landmark once (a landmark that fails is skipped, its event raised)."""
+        readings = []
+        ids = sorted(self._addresses)
+        batch = self.config.max_in_flight
+        for start in range(0, len(ids), batch):
+            chunk = ids[start : start + batch]
+            results = await asyncio.gather(
+                *(self.battery(lid) for lid in chunk), return_exceptions=True
+            )
+            readings += [r for r in results if isinstance(r, BatteryReading)]
+        return readings
+
+    async def _battery_loop(self) -> None:
+        while self.config.battery.interval_s is not None:
+            await self.poll_batteries()
+            await asyncio.sleep(self.config.battery.interval_s)
+
+    async def discover(self) -> list[DiscoveredRadio]:
+        """Radios that answer node discovery and are not in the landmark map."""
+        async with self._slots.slot(Priority.HOUSEKEEPING):
+            radios = await self.transport.discover()
+        known = set(self._addresses.values())
+        return [r for r in radios if r.address not in known]

@@ -1,0 +1,131 @@
+"""The small protocol every radio transport implements, and the radio spec parser.
+
+A transport moves single commands to single remote radios; retries, priorities, in-flight
+limits and LED bookkeeping live in the `Gateway` above it.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+from typing import Literal, Protocol, runtime_checkable
+
+TransportState = Literal["closed", "opening", "open", "reopening"]
+TRANSPORT_STATES: tuple[TransportState, ...] = ("closed", "opening", "open", "reopening")
+
+_ADDRESS_RE = re.compile(r"^[0-9A-F]{16}$")
+DEFAULT_BAUD = 9600
+
+
+def normalize_address(address: str, *, source: str = "radio address") -> str:
+    """Canonical 64-bit radio address: 16 uppercase hex digits.
+
+    Accepts lower case, a `0x` prefix and `:`/`-`/space separators (as printed on labels).
+
+    Raises:
+        ValueError: naming `source` and the bad value.
+    """
+    if not isinstance(address, str):
+        raise ValueError(f"{source}: {address!r} is not a string of 16 hex digits")
+    text = address.strip().upper()
+    text = text.removeprefix("0X")
+    text = re.sub(r"[\s:\-]", "", text)
+    if not _ADDRESS_RE.match(text):
+        raise ValueError(f"{source}: {address!r} is not a 64-bit address (16 hex digits)")
+    return text
+
+
+@dataclass(frozen=True)
+class DiscoveredRadio:
+    """A radio that answered node discovery.
+
+    Attributes:
+        address: 64-bit address, 16 uppercase hex digits.
+        node_id: its node identifier (NI), possibly empty.
+    """
+
+    address: str
+    node_id: str = ""
+
+
+@runtime_checkable
+class Transport(Protocol):
+    """One radio link to the landmarks (simulated site or XBee coordinator).
+
+    Every method is a coroutine and may be called concurrently; a transport serialises what
+    its hardware cannot do in parallel.
+    """
+
+    @property
+    def state(self) -> TransportState:
+        """ "closed", "opening", "open" or "reopening" (port lost, trying again)."""
+        ...
+
+    async def open(self) -> None:
+        """Open the link. Raises TransportUnavailable when it cannot."""
+        ...
+
+    async def close(self) -> None:
+        """Close the link; idempotent."""
+        ...
+
+    async def set_pin(self, address: str, high: bool) -> None:
+        """Drive the landmark's LED pin high (LED on) or low and wait for the acknowledgement.
+
+        Raises:
+            RadioTimeout: no answer within the transport's command timeout.
+            RemoteCommandError: the command was refused or could not be delivered.
+            TransportUnavailable: the link is not open.
+        """
+        ...
+
+    async def read_supply_mv(self, address: str) -> int:
+        """The landmark's supply voltage in millivolts (remote `%V`); raises as `set_pin`."""
+        ...
+
+    async def discover(self) -> list[DiscoveredRadio]:
+        """Every radio that answers node discovery (the coordinator excluded)."""
+        ...
+
+
+@dataclass(frozen=True)
+class SimRadioSpec:
+    """`--radio sim`: the virtual site's simulated radio."""
+
+    kind: Literal["sim"] = "sim"
+
+
+@dataclass(frozen=True)
+class XBeeRadioSpec:
+    """`--radio xbee:PORT[@BAUD]`: an XBee coordinator on a serial port."""
+
+    port: str
+    baud: int = DEFAULT_BAUD
+    kind: Literal["xbee"] = "xbee"
+
+
+RadioSpec = SimRadioSpec | XBeeRadioSpec
+
+
+def parse_radio_spec(spec: str) -> RadioSpec:
+    """Parse `sim`, `xbee:/dev/ttyUSB0` or `xbee:/dev/ttyUSB0@115200`.
+
+    Raises:
+        ValueError: naming the spec and what is wrong with it.
+    """
+    text = spec.strip()
+    if text == "sim":
+        return SimRadioSpec()
+    if not text.startswith("xbee:"):
+        raise ValueError(f"radio spec {spec!r}: expected 'sim' or 'xbee:PORT[@BAUD]'")
+    rest = text.removeprefix("xbee:")
+    port, sep, baud_text = rest.rpartition("@")
+    if not sep:
+        port, baud_text = rest, ""
+    if not port:
+        raise ValueError(f"radio spec {spec!r}: no serial port after 'xbee:'")
+    if not baud_text:
+        return XBeeRadioSpec(port=port)
+    if not baud_text.isdigit() or int(baud_text) <= 0:
+        raise ValueError(f"radio spec {spec!r}: baud rate {baud_text!r} is not a positive integer")
+    return XBeeRadioSpec(port=port, baud=int(baud_text))
