@@ -1,0 +1,299 @@
+"""Read a recording folder (`../shared/contracts/recording.md`) into arrays and events.
+
+Nothing here decodes PNGs: frames are listed as `FrameEntry` (time, path, line of
+`cam0/data.csv`) and the caller decodes them when it gets there, so a long recording costs
+little memory and a listed file that cannot be read is the caller's to report.
+
+Every file problem raises `RecordingError`, whose message reads "FILE:LINE: what is wrong"
+(or "FILE: what is wrong" when no line applies).
+"""
+
+from __future__ import annotations
+
+import heapq
+import json
+import math
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, TypeVar
+
+import numpy as np
+import numpy.typing as npt
+import yaml
+
+from localizer.camera import CameraModel, camera_from_sensor
+from localizer.events import LedsChanged, OdometryMeasured
+from localizer.landmark_map import LandmarkMap
+from localizer.robot import RobotGeometry, robot_from_yaml_dict
+from recording import layout
+
+T = TypeVar("T")
+
+
+class RecordingError(ValueError):
+    """A recording file is missing or malformed.
+
+    Attributes:
+        file: the file's path.
+        line: 1-based line number, or None when the problem is not on one line.
+    """
+
+    def __init__(self, file: Path | str, line: int | None, what: str) -> None:
+        self.file = str(file)
+        self.line = line
+        self.what = what
+        where = self.file if line is None else f"{self.file}:{line}"
+        super().__init__(f"{where}: {what}")
+
+
+@dataclass(frozen=True)
+class FrameEntry:
+    """One line of `cam0/data.csv`.
+
+    Attributes:
+        t_ns: the frame's timestamp, ns.
+        path: the PNG file (it may be missing or unreadable).
+        line: the line of `cam0/data.csv` that lists it, 1-based.
+    """
+
+    t_ns: int
+    path: Path
+    line: int
+
+
+@dataclass(frozen=True, eq=False)
+class Recording:
+    """A whole recording, frames not decoded.
+
+    Attributes:
+        root: the recording folder.
+        landmark_map: the surveyed map.
+        landmark_records: map.json's landmark objects as read, extra keys (e.g. `radio`) kept.
+        robot: wheel geometry.
+        camera: the nominal camera (cam0/sensor.yaml).
+        frames: in file order (timestamps non-decreasing).
+        odom_t_ns: odometry timestamps, ns, int64 shape (N,).
+        odom_v: measured wheel speeds (v_left, v_right), m/s, shape (N, 2).
+        leds: LED states in force from their timestamps on, in time order.
+    """
+
+    root: Path
+    landmark_map: LandmarkMap
+    landmark_records: list[dict[str, Any]]
+    robot: RobotGeometry
+    camera: CameraModel
+    frames: list[FrameEntry]
+    odom_t_ns: npt.NDArray[np.int64]
+    odom_v: npt.NDArray[np.float64]
+    leds: list[LedsChanged]
+
+
+Item = OdometryMeasured | LedsChanged | FrameEntry
+
+
+def _data_lines(path: Path) -> Iterator[tuple[int, list[str]]]:
+    """(1-based line number, comma-separated fields) of every non-blank, non-# line."""
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise RecordingError(path, None, "missing file") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise RecordingError(path, None, f"cannot read: {exc}") from None
+    for number, raw in enumerate(text.splitlines(), start=1):
+        line = raw.strip()
+        if line and not line.startswith("#"):
+            yield number, [f.strip() for f in line.split(",")]
+
+
+def _fields(path: Path, number: int, fields: list[str], count: int, names: str) -> list[str]:
+    if len(fields) < count:
+        raise RecordingError(path, number, f"expected {count} fields ({names}), got {fields}")
+    return fields[:count]
+
+
+def _timestamp(path: Path, number: int, text: str, previous: int) -> int:
+    try:
+        t_ns = int(text)
+    except ValueError:
+        raise RecordingError(path, number, f"timestamp must be integer ns, got {text!r}") from None
+    if t_ns < 0:
+        raise RecordingError(path, number, f"timestamp must be >= 0, got {t_ns}")
+    if t_ns < previous:
+        raise RecordingError(path, number, f"timestamp {t_ns} is earlier than {previous}")
+    return t_ns
+
+
+def _finite(path: Path, number: int, text: str, name: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise RecordingError(path, number, f"{name} must be a number, got {text!r}") from None
+    if not math.isfinite(v):
+        raise RecordingError(path, number, f"{name} must be finite, got {text!r}")
+    return v
+
+
+def _load_structured(path: Path, loader: Callable[[str], Any]) -> Any:
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise RecordingError(path, None, "missing file") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise RecordingError(path, None, f"cannot read: {exc}") from None
+    try:
+        return loader(text)
+    except json.JSONDecodeError as exc:
+        raise RecordingError(path, exc.lineno, f"invalid JSON: {exc.msg}") from None
+    except yaml.MarkedYAMLError as exc:
+        line = exc.problem_mark.line + 1 if exc.problem_mark is not None else None
+        raise RecordingError(path, line, f"invalid YAML: {exc.problem}") from None
+    except yaml.YAMLError as exc:
+        raise RecordingError(path, None, f"invalid YAML: {exc}") from None
+
+
+def _checked(path: Path, build: Callable[[], T]) -> T:
+    """Run a builder that raises ValueError prefixed "PATH: ", re-raised as RecordingError."""
+    try:
+        return build()
+    except ValueError as exc:
+        what = str(exc).removeprefix(f"{path}: ")
+        raise RecordingError(path, None, what) from None
+
+
+def read_map(path: Path) -> tuple[LandmarkMap, list[dict[str, Any]]]:
+    """map.json -> (map, the landmark objects as read)."""
+    data = _load_structured(path, json.loads)
+    if not isinstance(data, dict) or not isinstance(data.get("landmarks"), list):
+        raise RecordingError(path, None, "expected an object with a 'landmarks' list")
+    records = data["landmarks"]
+    landmark_map = _checked(path, lambda: LandmarkMap.from_records(records, source=str(path)))
+    return landmark_map, [dict(r) for r in records]
+
+
+def read_frames(path: Path, frames_dir: Path) -> list[FrameEntry]:
+    """cam0/data.csv -> frame entries (paths inside `frames_dir`)."""
+    out: list[FrameEntry] = []
+    previous = 0
+    for number, fields in _data_lines(path):
+        t_text, name = _fields(path, number, fields, 2, "timestamp, filename")
+        previous = _timestamp(path, number, t_text, previous)
+        if not name:
+            raise RecordingError(path, number, "empty filename")
+        out.append(FrameEntry(previous, frames_dir / name, number))
+    return out
+
+
+def read_odometry(path: Path) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.float64]]:
+    """odom0/data.csv -> (t_ns (N,), (v_left, v_right) (N, 2)); empty when the file is absent."""
+    if not path.exists():
+        return np.zeros(0, dtype=np.int64), np.zeros((0, 2))
+    times: list[int] = []
+    speeds: list[tuple[float, float]] = []
+    previous = 0
+    for number, fields in _data_lines(path):
+        t_text, vl, vr = _fields(path, number, fields, 3, "timestamp, v_left, v_right")
+        previous = _timestamp(path, number, t_text, previous)
+        times.append(previous)
+        speeds.append((_finite(path, number, vl, "v_left"), _finite(path, number, vr, "v_right")))
+    return np.array(times, dtype=np.int64), np.array(speeds, dtype=np.float64).reshape(-1, 2)
+
+
+def read_leds(path: Path, landmark_map: LandmarkMap) -> list[LedsChanged]:
+    """leds.csv -> LED states; empty when the file is absent. Unknown IDs are errors."""
+    if not path.exists():
+        return []
+    out: list[LedsChanged] = []
+    previous = 0
+    for number, fields in _data_lines(path):
+        t_text, on = _fields(path, number, fields, 2, "timestamp, on")
+        previous = _timestamp(path, number, t_text, previous)
+        if on == layout.LEDS_ALL:
+            out.append(LedsChanged(previous, all_lit=True))
+            continue
+        if on == layout.LEDS_NONE:
+            out.append(LedsChanged(previous))
+            continue
+        lit: set[int] = set()
+        for token in on.split():
+            try:
+                lid = int(token)
+            except ValueError:
+                raise RecordingError(
+                    path, number, f"expected 'all', 'none' or landmark IDs, got {token!r}"
+                ) from None
+            if lid not in landmark_map:
+                raise RecordingError(path, number, f"landmark {lid} is not in the map")
+            lit.add(lid)
+        if not lit:
+            raise RecordingError(path, number, "empty LED state (write 'none')")
+        out.append(LedsChanged(previous, frozenset(lit)))
+    return out
+
+
+def read_groundtruth(root: Path | str) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.float64]]:
+    """groundtruth.csv of a simulated recording -> (t_ns (N,), (x, y, theta) (N, 3))."""
+    path = Path(root) / layout.GROUNDTRUTH_FILE
+    times: list[int] = []
+    poses: list[tuple[float, float, float]] = []
+    previous = 0
+    for number, fields in _data_lines(path):
+        if number == 1 and fields[0] == "timestamp_ns":
+            continue
+        t_text, x, y, th = _fields(path, number, fields, 4, "timestamp_ns, x, y, theta")
+        previous = _timestamp(path, number, t_text, previous)
+        times.append(previous)
+        poses.append(
+            (
+                _finite(path, number, x, "x"),
+                _finite(path, number, y, "y"),
+                _finite(path, number, th, "theta"),
+            )
+        )
+    return np.array(times, dtype=np.int64), np.array(poses, dtype=np.float64).reshape(-1, 3)
+
+
+def read_recording(root: Path | str) -> Recording:
+    """Read a recording folder (frames listed, not decoded).
+
+    Required: map.json, robot.yaml, cam0/sensor.yaml, cam0/data.csv. odom0/data.csv and
+    leds.csv may be absent (no odometry; no LED information). Extra files and extra CSV columns
+    are ignored.
+
+    Raises:
+        RecordingError: naming the file (and line) of the first problem found.
+    """
+    base = Path(root)
+    if not base.is_dir():
+        raise RecordingError(base, None, "not a recording folder")
+    landmark_map, records = read_map(base / layout.MAP_FILE)
+    robot_path = base / layout.ROBOT_FILE
+    robot_data = _load_structured(robot_path, yaml.safe_load)
+    robot = _checked(robot_path, lambda: robot_from_yaml_dict(robot_data, source=str(robot_path)))
+    sensor_path = base / layout.SENSOR_FILE
+    sensor_data = _load_structured(sensor_path, yaml.safe_load)
+    camera = _checked(sensor_path, lambda: camera_from_sensor(sensor_data, source=str(sensor_path)))
+    frames = read_frames(base / layout.FRAMES_FILE, base / layout.FRAMES_DIR)
+    odom_t_ns, odom_v = read_odometry(base / layout.ODOMETRY_FILE)
+    leds = read_leds(base / layout.LEDS_FILE, landmark_map)
+    return Recording(base, landmark_map, records, robot, camera, frames, odom_t_ns, odom_v, leds)
+
+
+def iter_timeline(recording: Recording) -> Iterator[Item]:
+    """Odometry samples, LED changes and frame entries merged into one time-ordered stream.
+
+    At equal timestamps odometry comes first, then LED changes, then the frame (a frame shows
+    the LED state in force at its timestamp and the pose with odometry integrated up to it).
+    Frames are yielded as `FrameEntry`; the caller decodes the PNG.
+    """
+
+    def odometry() -> Iterator[tuple[int, int, Item]]:
+        for t, (vl, vr) in zip(
+            recording.odom_t_ns.tolist(), recording.odom_v.tolist(), strict=True
+        ):
+            yield t, 0, OdometryMeasured(t, vl, vr)
+
+    leds = ((e.t_ns, 1, e) for e in recording.leds)
+    frames = ((f.t_ns, 2, f) for f in recording.frames)
+    for _, _, item in heapq.merge(odometry(), leds, frames, key=lambda x: (x[0], x[1])):
+        yield item

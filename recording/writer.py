@@ -1,0 +1,163 @@
+"""Write a recording folder (`../shared/contracts/recording.md`): the simulator's output and
+the live recorder's.
+
+The static files (map.json, robot.yaml, cam0/sensor.yaml) are written when the writer is
+made; the CSV files grow line by line. Timestamps must not go backwards within a file.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Iterable, Mapping
+from pathlib import Path
+from types import TracebackType
+from typing import Any, TextIO
+
+import cv2
+import numpy as np
+import numpy.typing as npt
+import yaml
+
+from localizer.camera import CameraModel, sensor_from_camera
+from localizer.events import LedsChanged
+from localizer.landmark_map import LandmarkMap
+from localizer.robot import RobotGeometry
+from recording import layout
+
+
+def _number(v: float) -> str:
+    """Shortest text that reads back to the same float."""
+    return repr(float(v))
+
+
+class _CsvFile:
+    """One CSV file of the recording, opened lazily, timestamps checked non-decreasing."""
+
+    def __init__(self, path: Path, header: str) -> None:
+        self.path = path
+        self.header = header
+        self._file: TextIO | None = None
+        self._last_t_ns = -1
+
+    def write(self, t_ns: int, fields: Iterable[str]) -> None:
+        t = int(t_ns)
+        if t < 0 or t < self._last_t_ns:
+            raise ValueError(f"{self.path}: timestamp {t} is before {self._last_t_ns} or negative")
+        file = self.open_empty()
+        self._last_t_ns = t
+        file.write(",".join([str(t), *fields]) + "\n")
+
+    def open_empty(self) -> TextIO:
+        """Create the file with its header (if not yet open) and return it."""
+        if self._file is None:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+            self._file = self.path.open("w", encoding="utf-8", newline="\n")
+            self._file.write(self.header + "\n")
+        return self._file
+
+    def close(self) -> None:
+        if self._file is not None:
+            self._file.close()
+            self._file = None
+
+
+class RecordingWriter:
+    """Write one recording folder.
+
+    Args:
+        root: the folder (created; existing files of the same names are overwritten).
+        camera: the nominal camera, written to cam0/sensor.yaml.
+        robot: the wheel geometry, written to robot.yaml.
+        landmark_records: map.json's landmark objects (`id`, `x`, `y`, `z`, extra keys kept).
+
+    Raises:
+        ValueError: the landmark records do not make a valid map.
+    """
+
+    def __init__(
+        self,
+        root: Path | str,
+        camera: CameraModel,
+        robot: RobotGeometry,
+        landmark_records: Iterable[Mapping[str, Any]],
+    ) -> None:
+        self.root = Path(root)
+        records = [dict(r) for r in landmark_records]
+        self.landmark_map = LandmarkMap.from_records(records, source="landmark_records")
+        (self.root / layout.FRAMES_DIR).mkdir(parents=True, exist_ok=True)
+        (self.root / layout.MAP_FILE).write_text(
+            json.dumps({"landmarks": records}, indent=1) + "\n", encoding="utf-8"
+        )
+        robot_data = {"wheel_base": float(robot.wheel_base), "max_speed": float(robot.max_speed)}
+        (self.root / layout.ROBOT_FILE).write_text(
+            yaml.safe_dump(robot_data, sort_keys=False), encoding="utf-8"
+        )
+        (self.root / layout.SENSOR_FILE).write_text(
+            yaml.safe_dump(sensor_from_camera(camera), sort_keys=False, default_flow_style=None),
+            encoding="utf-8",
+        )
+        self._frames = _CsvFile(self.root / layout.FRAMES_FILE, layout.FRAMES_HEADER)
+        self._odometry = _CsvFile(self.root / layout.ODOMETRY_FILE, layout.ODOMETRY_HEADER)
+        self._leds = _CsvFile(self.root / layout.LEDS_FILE, layout.LEDS_HEADER)
+        self._groundtruth = _CsvFile(self.root / layout.GROUNDTRUTH_FILE, layout.GROUNDTRUTH_HEADER)
+        for f in (self._frames, self._odometry, self._leds):
+            f.open_empty()
+
+    def add_frame(self, t_ns: int, image: npt.NDArray[np.uint8]) -> Path:
+        """Write an 8-bit grayscale frame as `cam0/data/<t_ns>.png` and list it; returns the path.
+
+        Raises:
+            ValueError: the image is not a 2-D uint8 array, or time went backwards.
+        """
+        img = np.asarray(image)
+        if img.dtype != np.uint8 or img.ndim != 2:
+            raise ValueError(
+                f"frame {t_ns}: expected a 2-D uint8 image, got {img.dtype} {img.shape}"
+            )
+        name = f"{int(t_ns)}.png"
+        self._frames.write(t_ns, [name])
+        path = self.root / layout.FRAMES_DIR / name
+        if not cv2.imwrite(str(path), img):
+            raise OSError(f"{path}: could not write the PNG")
+        return path
+
+    def add_odometry(self, t_ns: int, v_left: float, v_right: float) -> None:
+        """Add measured wheel speeds (m/s) at `t_ns`."""
+        self._odometry.write(t_ns, [_number(v_left), _number(v_right)])
+
+    def add_leds(self, event: LedsChanged) -> None:
+        """Add the LED state in force from `event.t_ns` on.
+
+        Raises:
+            ValueError: a lit ID is not in the map.
+        """
+        if event.all_lit:
+            on = layout.LEDS_ALL
+        elif not event.lit:
+            on = layout.LEDS_NONE
+        else:
+            unknown = sorted(i for i in event.lit if i not in self.landmark_map)
+            if unknown:
+                raise ValueError(f"leds: landmarks {unknown} are not in the map")
+            on = " ".join(str(i) for i in sorted(event.lit))
+        self._leds.write(event.t_ns, [on])
+
+    def add_groundtruth(self, t_ns: int, x: float, y: float, theta: float) -> None:
+        """Add the true body pose at `t_ns` to groundtruth.csv (simulated recordings)."""
+        self._groundtruth.write(t_ns, [_number(x), _number(y), _number(theta)])
+
+    def close(self) -> None:
+        """Flush and close every file; idempotent."""
+        for f in (self._frames, self._odometry, self._leds, self._groundtruth):
+            f.close()
+
+    def __enter__(self) -> RecordingWriter:
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        self.close()
