@@ -139,7 +139,8 @@ def _find_chessboard(
     flags = cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE
     found, corners = cv2.findChessboardCorners(gray, pattern, flags=flags)
     if found and corners is not None:
-        corners = cv2.cornerSubPix(gray, corners, (11, 11), (-1, -1), _SUBPIX_CRITERIA)
+        half = _subpix_half_window(np.asarray(corners).reshape(pattern[1], pattern[0], 2))
+        corners = cv2.cornerSubPix(gray, corners, (half, half), (-1, -1), _SUBPIX_CRITERIA)
     else:
         found, corners = cv2.findChessboardCornersSB(
             gray, pattern, flags=cv2.CALIB_CB_EXHAUSTIVE | cv2.CALIB_CB_ACCURACY
@@ -150,6 +151,16 @@ def _find_chessboard(
     if len(pts) != len(object_points):
         return None
     return BoardCorners(image_points=pts, object_points=object_points.copy())
+
+
+def _subpix_half_window(grid: npt.NDArray[np.floating]) -> int:
+    """Half-size of the `cornerSubPix` window: OpenCV's usual 11 px, but at most half the
+    smallest spacing between neighbouring corners (shape (rows, cols, 2)), so that the window
+    never reaches the next corner of a small or distant board (a bias of pixels otherwise).
+    """
+    dx = np.linalg.norm(np.diff(grid, axis=1), axis=2).min()
+    dy = np.linalg.norm(np.diff(grid, axis=0), axis=2).min()
+    return int(np.clip(np.floor(0.5 * min(dx, dy)), 2, 11))
 
 
 def _find_charuco(gray: npt.NDArray[np.uint8], board: BoardSpec) -> BoardCorners | None:
