@@ -1,0 +1,104 @@
+"""The simulated radio link to the landmarks (what the RF gateway's sim transport wraps).
+
+Each command takes a random latency, may be lost on the way out or back, and a landmark
+that cannot answer (broken radio, flat battery, unknown address) lets the caller wait for a
+timeout. A delivered command switches the world's LED at once; the cameras see it in their
+next frame.
+"""
+
+from __future__ import annotations
+
+import asyncio
+
+import numpy as np
+
+from sim.world import SimLandmark, World
+
+
+class SimRadio:
+    """Radio link to the landmarks of a `World`.
+
+    Args:
+        world: the landmarks.
+        rng: draws latencies and losses.
+        latency_s: (min, max) one-way-and-back latency of a delivered command, seconds.
+        loss: probability that a packet is lost, each way.
+        timeout_s: how long a caller waits for an answer that never comes, seconds.
+        discover_s: how long a node discovery listens, seconds.
+    """
+
+    def __init__(
+        self,
+        world: World,
+        *,
+        rng: np.random.Generator,
+        latency_s: tuple[float, float] = (0.01, 0.04),
+        loss: float = 0.02,
+        timeout_s: float = 0.3,
+        discover_s: float = 0.2,
+    ) -> None:
+        lo, hi = latency_s
+        if not 0 <= lo <= hi or not 0 <= loss < 1 or timeout_s < hi:
+            raise ValueError(
+                f"SimRadio: need 0 <= latency min <= max <= timeout and 0 <= loss < 1, "
+                f"got latency {latency_s}, loss {loss}, timeout {timeout_s}"
+            )
+        self.world = world
+        self.rng = rng
+        self.latency_s = (float(lo), float(hi))
+        self.loss = float(loss)
+        self.timeout_s = float(timeout_s)
+        self.discover_s = float(discover_s)
+
+    def _lost(self) -> bool:
+        return bool(self.rng.random() < self.loss)
+
+    async def _exchange(self, address: str) -> SimLandmark | None:
+        """Deliver one command: the landmark if it arrived; None after a timeout otherwise.
+
+        The command's effect is applied by the caller between delivery and the answer.
+        """
+        latency = float(self.rng.uniform(*self.latency_s))
+        lm = self.world.by_address(address)
+        if lm is None or not lm.reachable or self._lost():
+            await asyncio.sleep(self.timeout_s)
+            return None
+        await asyncio.sleep(latency / 2)
+        return lm
+
+    async def _answer(self, latency_started: float) -> bool:
+        """The answer's way back: True when it arrives."""
+        if self._lost():
+            await asyncio.sleep(self.timeout_s - latency_started)
+            return False
+        await asyncio.sleep(float(self.rng.uniform(*self.latency_s)) / 2)
+        return True
+
+    async def set_pin(self, address: str, high: bool) -> bool:
+        """Drive a landmark's LED pin; True when the acknowledgement arrives.
+
+        A lost acknowledgement returns False although the LED did switch (as on a real
+        radio).
+        """
+        lm = await self._exchange(address)
+        if lm is None:
+            return False
+        self.world.set_led(lm.id, high)
+        return await self._answer(self.latency_s[0] / 2)
+
+    async def read_supply_mv(self, address: str) -> int | None:
+        """The landmark's supply voltage in mV, or None when it does not answer."""
+        lm = await self._exchange(address)
+        if lm is None:
+            return None
+        mv = round(lm.battery.supply_v(lm.led_on) * 1000.0)
+        return mv if await self._answer(self.latency_s[0] / 2) else None
+
+    async def discover(self) -> list[tuple[str, str]]:
+        """(address, node identifier) of every landmark that answers a node discovery."""
+        await asyncio.sleep(self.discover_s)
+        return [
+            (lm.address, lm.node_id)
+            for lm in sorted(self.world.landmarks.values(), key=lambda lm: lm.id)
+            if lm.reachable and not self._lost()
+        ]

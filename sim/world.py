@@ -1,0 +1,199 @@
+"""The virtual building: landmarks (true and surveyed positions, LEDs, batteries, radios),
+other IR sources (lamps, sunlight, glints) and people walking under the landmarks.
+
+The world is advanced by its owner (`LiveSite` or the offline simulator) with `advance(t_ns)`;
+the simulated radio switches LEDs from another thread, so LED state sits behind a lock.
+"""
+
+from __future__ import annotations
+
+import threading
+from dataclasses import dataclass, field
+
+import numpy as np
+import numpy.typing as npt
+
+from sim.battery import Battery
+from sim.render import ExtendedSource
+
+FloatArray = npt.NDArray[np.float64]
+
+
+@dataclass
+class SimLandmark:
+    """One landmark as it really is.
+
+    Attributes:
+        id: landmark ID.
+        p_true: the LED's true position, metres, shape (3,).
+        p_surveyed: where the survey (map.json) puts it, metres, shape (3,).
+        address: radio address, 16 hex digits.
+        battery: its cells.
+        radio_dead: the radio never answers (a broken landmark).
+        led_on: the LED pin is high.
+    """
+
+    id: int
+    p_true: FloatArray
+    p_surveyed: FloatArray
+    address: str
+    battery: Battery
+    radio_dead: bool = False
+    led_on: bool = True
+
+    @property
+    def node_id(self) -> str:
+        return f"LM{self.id}"
+
+    @property
+    def reachable(self) -> bool:
+        return not self.radio_dead and self.battery.alive
+
+
+@dataclass(frozen=True)
+class Glint:
+    """A small non-landmark IR point source (a smoke detector's LED, a reflection).
+
+    Attributes:
+        p_world: position, metres, shape (3,).
+        intensity: 1.0 = a nominal landmark LED.
+        blink_period_s: 0 for steady, else on for the first half of each period.
+    """
+
+    p_world: tuple[float, float, float]
+    intensity: float
+    blink_period_s: float = 0.0
+
+
+@dataclass(frozen=True)
+class Person:
+    """Someone walking back and forth along a path: a vertical cylinder that blocks rays.
+
+    Attributes:
+        path: corners of the walk, metres, shape (M, 2), walked there and back.
+        speed_mps: walking speed.
+        radius_m: the cylinder's radius; height_m: its height.
+    """
+
+    path: tuple[tuple[float, float], ...]
+    speed_mps: float = 1.0
+    radius_m: float = 0.25
+    height_m: float = 1.8
+
+    def position(self, t_s: float) -> FloatArray:
+        """Where the person stands at `t_s`, shape (2,)."""
+        pts = np.asarray(self.path, dtype=np.float64)
+        seg = np.linalg.norm(np.diff(pts, axis=0), axis=1)
+        total = float(seg.sum())
+        if total == 0:
+            return pts[0]
+        s = (t_s * self.speed_mps) % (2 * total)
+        s = 2 * total - s if s > total else s
+        cum = np.concatenate([[0.0], np.cumsum(seg)])
+        return np.array([np.interp(s, cum, pts[:, 0]), np.interp(s, cum, pts[:, 1])])
+
+    def blocks(self, t_s: float, p_from: FloatArray, p_to: FloatArray) -> npt.NDArray[np.bool_]:
+        """Which segments p_from -> p_to[i] (shape (N, 3)) pass through the person."""
+        c = self.position(t_s)
+        a = np.asarray(p_from, dtype=np.float64)
+        b = np.asarray(p_to, dtype=np.float64).reshape(-1, 3)
+        # Clip each segment to the part below the person's height.
+        dz = b[:, 2] - a[2]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            s_top = np.where(dz > 1e-9, (self.height_m - a[2]) / dz, 1.0)
+        s_top = np.clip(s_top, 0.0, 1.0)
+        a2 = a[:2]
+        d2 = (b[:, :2] - a2) * s_top[:, None]
+        # Distance from c to the 2-D segment a2 -> a2 + d2.
+        len2 = np.maximum((d2**2).sum(axis=1), 1e-12)
+        s = np.clip(((c - a2) * d2).sum(axis=1) / len2, 0.0, 1.0)
+        nearest = a2 + d2 * s[:, None]
+        return (np.linalg.norm(nearest - c, axis=1) < self.radius_m) & (a[2] < self.height_m)
+
+
+@dataclass
+class World:
+    """Landmarks, other IR sources and occluders.
+
+    Attributes:
+        landmarks: by ID.
+        glints: non-landmark point sources.
+        extended: lamps and sunlight patches.
+        people: occluders.
+        t_ns: the time the world has been advanced to.
+    """
+
+    landmarks: dict[int, SimLandmark]
+    glints: list[Glint] = field(default_factory=list)
+    extended: list[ExtendedSource] = field(default_factory=list)
+    people: list[Person] = field(default_factory=list)
+    t_ns: int = 0
+    _lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
+
+    def __post_init__(self) -> None:
+        self._by_address = {lm.address: lm for lm in self.landmarks.values()}
+
+    def by_address(self, address: str) -> SimLandmark | None:
+        return self._by_address.get(address.upper())
+
+    def set_led(self, landmark_id: int, on: bool) -> None:
+        """Switch one landmark's LED pin (what a delivered radio command does)."""
+        with self._lock:
+            self.landmarks[landmark_id].led_on = on
+
+    def set_lit(self, lit: set[int] | None) -> None:
+        """Light exactly `lit` (None: all), as a script would."""
+        with self._lock:
+            for lm in self.landmarks.values():
+                lm.led_on = lit is None or lm.id in lit
+
+    def lit_ids(self) -> set[int]:
+        with self._lock:
+            return {lm.id for lm in self.landmarks.values() if lm.led_on}
+
+    def advance(self, t_ns: int) -> None:
+        """Advance the batteries to `t_ns` (earlier times are ignored)."""
+        dt_s = (t_ns - self.t_ns) * 1e-9
+        if dt_s <= 0:
+            return
+        with self._lock:
+            for lm in self.landmarks.values():
+                lm.battery.advance(dt_s, lm.led_on)
+        self.t_ns = t_ns
+
+    def point_sources(self, p_camera_world: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """Lit point sources seen from a camera position (people block them).
+
+        Args:
+            p_camera_world: the camera's optical centre, metres, shape (3,).
+
+        Returns:
+            (positions shape (N, 3), intensities shape (N,)), 1.0 = a nominal LED.
+        """
+        t_s = self.t_ns * 1e-9
+        with self._lock:
+            pos = [lm.p_true for lm in self.landmarks.values() if lm.led_on]
+            inten = [lm.battery.led_brightness() for lm in self.landmarks.values() if lm.led_on]
+        for g in self.glints:
+            if g.blink_period_s <= 0 or (t_s % g.blink_period_s) < g.blink_period_s / 2:
+                pos.append(np.asarray(g.p_world, dtype=np.float64))
+                inten.append(g.intensity)
+        p = np.array(pos, dtype=np.float64).reshape(-1, 3)
+        i = np.array(inten, dtype=np.float64)
+        for person in self.people:
+            if len(p):
+                i = np.where(person.blocks(t_s, p_camera_world, p), 0.0, i)
+        return p, i
+
+    def landmark_records(self) -> list[dict[str, object]]:
+        """The surveyed map (map.json's `landmarks`), with each landmark's `radio` address."""
+        return [
+            {
+                "id": lm.id,
+                "x": float(lm.p_surveyed[0]),
+                "y": float(lm.p_surveyed[1]),
+                "z": float(lm.p_surveyed[2]),
+                "radio": lm.address,
+            }
+            for lm in sorted(self.landmarks.values(), key=lambda lm: lm.id)
+        ]
