@@ -1,0 +1,343 @@
+"""IR spot detection (Sec. III-A): threshold, connected components, shape filters, centroid.
+
+Behind the IR band-pass filter a landmark LED is a small bright spot on a dark background, so
+detection is thresholding. The threshold is fixed or derived from the frame's background
+(median + k * MAD of a subsample). Connected components that are too small (specks), too
+large (a sunlight patch, a lamp), badly filled or elongated (edges of extended sources) or too
+faint are dropped. A spot's position is the intensity-weighted centroid of the background-free
+pixel values on a small patch around the component, which is unbiased for a symmetric
+point-spread function.
+
+`detect_spots_in_windows` is the tracking fast path: it only looks inside given search windows
+(array slices, no full-frame operation).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+import numpy.typing as npt
+
+FloatArray = npt.NDArray[np.float64]
+ImageU8 = npt.NDArray[np.uint8]
+
+
+@dataclass(frozen=True)
+class DetectionConfig:
+    """Tuning of the spot detector.
+
+    Attributes:
+        threshold_counts: fixed threshold (pixel value); None derives it from the background.
+        threshold_k_mad: adaptive threshold = background + k * 1.4826 * MAD.
+        min_contrast_counts: the adaptive threshold is at least background + this.
+        background_step_px: subsample stride for the background estimate, pixels.
+        min_area_px: smallest component kept (specks below), pixels.
+        max_area_px: largest component kept (lamps, sunlight patches above), pixels.
+        min_fill_ratio: area / bounding-box area below which a component is dropped.
+        max_elongation: longer / shorter bounding-box side above which it is dropped.
+        min_peak_contrast_counts: brightest pixel must exceed the background by this.
+        centroid_margin_px: the centroid patch extends the component's box by this, pixels.
+        max_spots: keep at most this many spots (the brightest), a guard on pathological frames.
+    """
+
+    threshold_counts: float | None = None
+    threshold_k_mad: float = 8.0
+    min_contrast_counts: float = 12.0
+    background_step_px: int = 8
+    min_area_px: int = 2
+    max_area_px: int = 400
+    min_fill_ratio: float = 0.3
+    max_elongation: float = 3.0
+    min_peak_contrast_counts: float = 20.0
+    centroid_margin_px: int = 2
+    max_spots: int = 64
+
+    def __post_init__(self) -> None:
+        if self.threshold_counts is not None and not 0 <= self.threshold_counts < 255:
+            raise ValueError(
+                "DetectionConfig: threshold_counts must be in [0, 255), "
+                f"got {self.threshold_counts}"
+            )
+        if self.background_step_px < 1 or self.min_area_px < 1 or self.max_spots < 1:
+            raise ValueError("DetectionConfig: step, min_area_px and max_spots must be >= 1")
+        if self.max_area_px < self.min_area_px:
+            raise ValueError("DetectionConfig: max_area_px must be >= min_area_px")
+        if not 0 <= self.min_fill_ratio <= 1 or self.max_elongation < 1:
+            raise ValueError("DetectionConfig: fill ratio in [0, 1], elongation >= 1")
+
+
+@dataclass(frozen=True, eq=False)
+class Spots:
+    """Detected spots.
+
+    Attributes:
+        pixels: sub-pixel centroids (col, row), shape (N, 2).
+        intensities: summed background-free brightness, counts, shape (N,).
+        areas: pixels above the threshold, shape (N,).
+    """
+
+    pixels: FloatArray
+    intensities: FloatArray
+    areas: FloatArray
+
+    def __len__(self) -> int:
+        return len(self.pixels)
+
+    @classmethod
+    def empty(cls) -> Spots:
+        """No spots."""
+        return cls(np.zeros((0, 2)), np.zeros(0), np.zeros(0))
+
+    @classmethod
+    def from_lists(cls, rows: list[tuple[float, float, float, float]]) -> Spots:
+        """Build from (col, row, intensity, area) tuples."""
+        if not rows:
+            return cls.empty()
+        a = np.asarray(rows, dtype=np.float64)
+        return cls(a[:, :2].copy(), a[:, 2].copy(), a[:, 3].copy())
+
+
+def estimate_background(image: ImageU8, config: DetectionConfig) -> tuple[float, float]:
+    """Background level and robust noise of a frame from a strided subsample.
+
+    Returns:
+        (median, 1.4826 * MAD), counts.
+    """
+    step = config.background_step_px
+    sub = image[step // 2 :: step, step // 2 :: step]
+    med = float(np.median(sub))
+    mad = float(np.median(np.abs(sub.astype(np.float32) - med))) * 1.4826
+    return med, mad
+
+
+def threshold_for(background: float, noise: float, config: DetectionConfig) -> float:
+    """The binarisation level for a background and noise (or the fixed threshold)."""
+    if config.threshold_counts is not None:
+        return float(config.threshold_counts)
+    return min(
+        max(background + config.threshold_k_mad * noise, background + config.min_contrast_counts),
+        254.0,
+    )
+
+
+def _spots_in_region(
+    region: ImageU8,
+    origin: tuple[int, int],
+    background: float,
+    threshold: float,
+    config: DetectionConfig,
+    out: list[tuple[float, float, float, float]],
+    *,
+    cut_sides: tuple[bool, bool, bool, bool] = (False, False, False, False),
+) -> None:
+    """Detect spots in one image region and append (col, row, intensity, area) to `out`.
+
+    Args:
+        region: a view of the image, uint8 (h, w).
+        origin: (col, row) of the region's top-left pixel in the full image.
+        cut_sides: (left, top, right, bottom) region sides that cut the image (a search
+            window's edge, not the image border): a component touching one is dropped, as
+            its centroid would be biased.
+    """
+    _, binary = cv2.threshold(region, threshold, 255, cv2.THRESH_BINARY)
+    n, _, stats, _ = cv2.connectedComponentsWithStats(binary, connectivity=8)
+    if n <= 1:
+        return
+    st = stats[1:]
+    x0s = st[:, cv2.CC_STAT_LEFT]
+    y0s = st[:, cv2.CC_STAT_TOP]
+    w = st[:, cv2.CC_STAT_WIDTH]
+    h = st[:, cv2.CC_STAT_HEIGHT]
+    area = st[:, cv2.CC_STAT_AREA]
+    fill = area / (w * h)
+    elong = np.maximum(w, h) / np.minimum(w, h)
+    keep = (
+        (area >= config.min_area_px)
+        & (area <= config.max_area_px)
+        & (fill >= config.min_fill_ratio)
+        & (elong <= config.max_elongation)
+    )
+    rh, rw = region.shape
+    if any(cut_sides):
+        keep &= ~((x0s == 0) & cut_sides[0])
+        keep &= ~((y0s == 0) & cut_sides[1])
+        keep &= ~((x0s + w == rw) & cut_sides[2])
+        keep &= ~((y0s + h == rh) & cut_sides[3])
+    m = config.centroid_margin_px
+    for i in np.flatnonzero(keep):
+        x0, y0 = int(x0s[i]), int(y0s[i])
+        c0, r0 = max(x0 - m, 0), max(y0 - m, 0)
+        c1, r1 = min(x0 + int(w[i]) + m, rw), min(y0 + int(h[i]) + m, rh)
+        patch = region[r0:r1, c0:c1].astype(np.float32) - np.float32(background)
+        if float(patch.max()) < config.min_peak_contrast_counts:
+            continue
+        np.maximum(patch, 0.0, out=patch)
+        total = float(patch.sum())
+        col = float(patch.sum(axis=0) @ np.arange(c0, c1, dtype=np.float32)) / total
+        row = float(patch.sum(axis=1) @ np.arange(r0, r1, dtype=np.float32)) / total
+        out.append((col + origin[0], row + origin[1], total, float(area[i])))
+
+
+def _runs(mask: npt.NDArray[np.bool_]) -> list[tuple[int, int]]:
+    """Start and end (exclusive) of the runs of True in a 1-D mask."""
+    d = np.diff(np.concatenate(([0], mask.view(np.int8), [0])))
+    starts = np.flatnonzero(d == 1)
+    ends = np.flatnonzero(d == -1)
+    return list(zip(starts.tolist(), ends.tolist(), strict=True))
+
+
+def bright_boxes(image: ImageU8, threshold: float, margin_px: int) -> FloatArray:
+    """Boxes that hold every pixel above `threshold`, found by row and column maxima.
+
+    Each connected component lies inside one box (a band of rows whose maximum exceeds the
+    threshold, cut into runs of columns), so detection only has to label these boxes.
+
+    Returns:
+        centres and half sizes, shape (K, 4) as (col, row, half_w, half_h), pixels, grown
+        by `margin_px` on each side.
+    """
+    row_max = cv2.reduce(image, 1, cv2.REDUCE_MAX).reshape(-1)
+    boxes: list[tuple[float, float, float, float]] = []
+    for r0, r1 in _runs(row_max > threshold):
+        col_max = cv2.reduce(image[r0:r1], 0, cv2.REDUCE_MAX).reshape(-1)
+        for c0, c1 in _runs(col_max > threshold):
+            boxes.append(
+                (
+                    (c0 + c1 - 1) / 2.0,
+                    (r0 + r1 - 1) / 2.0,
+                    (c1 - c0 - 1) / 2.0 + margin_px,
+                    (r1 - r0 - 1) / 2.0 + margin_px,
+                )
+            )
+    return np.asarray(boxes, dtype=np.float64).reshape(-1, 4)
+
+
+def _brightest(rows: list[tuple[float, float, float, float]], limit: int) -> Spots:
+    if len(rows) > limit:
+        rows = sorted(rows, key=lambda r: -r[2])[:limit]
+    return Spots.from_lists(rows)
+
+
+def detect_spots(
+    image: ImageU8, config: DetectionConfig, *, background: tuple[float, float] | None = None
+) -> Spots:
+    """Detect the IR spots of a whole frame (Sec. III-A).
+
+    Args:
+        image: 8-bit grayscale frame, shape (H, W).
+        config: detector tuning.
+        background: (level, noise) counts if already known; estimated from the frame if None.
+
+    Returns:
+        The spots that pass the area, shape and brightness filters (at most
+        `config.max_spots`, the brightest).
+
+    Raises:
+        ValueError: when the image is not a 2-D uint8 array.
+    """
+    _check_image(image)
+    bg, noise = estimate_background(image, config) if background is None else background
+    thr = threshold_for(bg, noise, config)
+    boxes = bright_boxes(image, thr, config.centroid_margin_px)
+    H, W = image.shape
+    rows: list[tuple[float, float, float, float]] = []
+    for c0, r0, c1, r1 in window_boxes(boxes[:, :2], boxes[:, 2:], W, H):
+        _spots_in_region(image[r0:r1, c0:c1], (c0, r0), bg, thr, config, rows)
+    return _brightest(rows, config.max_spots)
+
+
+def detect_spots_in_windows(
+    image: ImageU8,
+    centers: npt.ArrayLike,
+    half_sizes: npt.ArrayLike,
+    config: DetectionConfig,
+    *,
+    background: tuple[float, float] | None = None,
+) -> Spots:
+    """Detect spots only inside search windows (the tracking fast path, Sec. IV-A.1).
+
+    Overlapping windows are merged into their bounding box so that a spot is found once.
+
+    Args:
+        image: 8-bit grayscale frame, shape (H, W).
+        centers: window centres (col, row), pixels, shape (M, 2).
+        half_sizes: half widths and heights of the windows, pixels, shape (M, 2).
+        config: detector tuning.
+        background: (level, noise) counts; None estimates them from the frame (a strided
+            subsample, not a full-frame pass); pass the last known values to save that.
+
+    Returns:
+        The spots inside the windows.
+    """
+    _check_image(image)
+    c = np.asarray(centers, dtype=np.float64).reshape(-1, 2)
+    hs = np.asarray(half_sizes, dtype=np.float64).reshape(-1, 2)
+    if len(c) != len(hs):
+        raise ValueError(f"detect_spots_in_windows: {len(c)} centers but {len(hs)} half sizes")
+    if len(c) == 0:
+        return Spots.empty()
+    bg, noise = estimate_background(image, config) if background is None else background
+    thr = threshold_for(bg, noise, config)
+    H, W = image.shape
+    boxes = window_boxes(c, hs, W, H)
+    rows: list[tuple[float, float, float, float]] = []
+    for c0, r0, c1, r1 in boxes:
+        region = image[r0:r1, c0:c1]
+        if int(region.max()) <= thr:
+            continue
+        cut = (c0 > 0, r0 > 0, c1 < W, r1 < H)
+        _spots_in_region(region, (c0, r0), bg, thr, config, rows, cut_sides=cut)
+    return _brightest(rows, config.max_spots)
+
+
+def window_boxes(
+    centers: FloatArray, half_sizes: FloatArray, width: int, height: int
+) -> list[tuple[int, int, int, int]]:
+    """Integer boxes (c0, r0, c1, r1), end-exclusive, clipped to the image, overlaps merged.
+
+    Args:
+        centers: shape (M, 2); half_sizes: shape (M, 2), pixels.
+    """
+    lo = np.floor(centers - half_sizes).astype(np.int64)
+    hi = np.ceil(centers + half_sizes).astype(np.int64) + 1
+    lo = np.maximum(lo, 0)
+    hi = np.minimum(hi, [width, height])
+    boxes = [
+        [int(a), int(b), int(c), int(d)]
+        for (a, b), (c, d) in zip(lo, hi, strict=True)
+        if c > a and d > b
+    ]
+    merged = True
+    while merged and len(boxes) > 1:
+        merged = False
+        for i in range(len(boxes)):
+            for j in range(i + 1, len(boxes)):
+                a, b = boxes[i], boxes[j]
+                if a[0] < b[2] and b[0] < a[2] and a[1] < b[3] and b[1] < a[3]:
+                    boxes[i] = [min(a[0], b[0]), min(a[1], b[1]), max(a[2], b[2]), max(a[3], b[3])]
+                    del boxes[j]
+                    merged = True
+                    break
+            if merged:
+                break
+    return [(b[0], b[1], b[2], b[3]) for b in boxes]
+
+
+def _check_image(image: ImageU8) -> None:
+    if not isinstance(image, np.ndarray) or image.ndim != 2 or image.dtype != np.uint8:
+        shape = getattr(image, "shape", None)
+        dtype = getattr(image, "dtype", None)
+        raise ValueError(f"spots: expected a 2-D uint8 image, got shape {shape} dtype {dtype}")
+
+
+__all__ = [
+    "DetectionConfig",
+    "Spots",
+    "detect_spots",
+    "detect_spots_in_windows",
+    "estimate_background",
+    "threshold_for",
+    "window_boxes",
+]

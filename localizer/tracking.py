@@ -1,0 +1,160 @@
+"""Landmark tracking (Sec. IV-A.1): search windows and the min-max (bottleneck) assignment.
+
+A tracked landmark is searched for only inside a window around where it is expected. The
+window's size follows the paper: the largest image motion between two frames, from the robot's
+maximum speed, the frame interval, the image scale (focal length over the ceiling distance)
+and the spot's radial distance from the image centre (rotation moves far spots faster), plus
+the pose uncertainty propagated to pixels. When windows overlap two landmarks could claim the
+same spot (Fig. 8b); the assignment below gives every spot to at most one landmark and
+minimises the largest displacement, for any number of landmarks.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+from scipy.optimize import linear_sum_assignment
+
+FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.int64]
+
+
+@dataclass(frozen=True)
+class TrackingConfig:
+    """Tuning of the search windows.
+
+    Attributes:
+        min_half_size_px: smallest window half size, pixels (spot radius plus centroid noise).
+        max_half_size_px: beyond this half size the localizer searches the full frame.
+        sigma_gate: windows and gates extend this many standard deviations of the predicted
+            pixel.
+        max_angular_speed_rad_s: fastest turn rate; None derives it from the robot's maximum
+            speed and wheel base (2 v_max / W).
+        odometry_speed_fraction: when odometry is fresh the unmodelled motion between two
+            frames is at most this fraction of the maximum (the rest is predicted).
+    """
+
+    min_half_size_px: float = 6.0
+    max_half_size_px: float = 80.0
+    sigma_gate: float = 4.0
+    max_angular_speed_rad_s: float | None = None
+    odometry_speed_fraction: float = 0.25
+
+    def __post_init__(self) -> None:
+        if not 0 < self.min_half_size_px <= self.max_half_size_px:
+            raise ValueError("TrackingConfig: need 0 < min_half_size_px <= max_half_size_px")
+        if self.sigma_gate <= 0 or not 0 <= self.odometry_speed_fraction <= 1:
+            raise ValueError("TrackingConfig: sigma_gate > 0, odometry_speed_fraction in [0, 1]")
+
+
+def motion_bound_px(
+    radial_px: FloatArray,
+    *,
+    max_speed_m_s: float,
+    max_angular_speed_rad_s: float,
+    dt_s: float,
+    scale_px_per_m: float,
+) -> FloatArray:
+    """Largest image displacement of a spot over `dt_s` (the paper's window size).
+
+    A translation by v dt moves every ceiling spot by v dt * scale pixels; a turn by w dt
+    moves a spot at radial distance r from the image centre by about w dt r.
+
+    Args:
+        radial_px: distance of each spot from the image centre, pixels, shape (M,).
+        max_speed_m_s: the robot's maximum speed.
+        max_angular_speed_rad_s: its maximum turn rate.
+        dt_s: time since the spot's position was last known, seconds.
+        scale_px_per_m: focal length / distance of the ceiling above the camera.
+
+    Returns:
+        shape (M,), pixels.
+    """
+    dt = max(dt_s, 0.0)
+    r = np.asarray(radial_px, dtype=np.float64)
+    return max_speed_m_s * dt * scale_px_per_m + max_angular_speed_rad_s * dt * r
+
+
+def window_half_sizes(
+    radial_px: FloatArray,
+    sigma_px: FloatArray,
+    *,
+    config: TrackingConfig,
+    max_speed_m_s: float,
+    max_angular_speed_rad_s: float,
+    dt_unpredicted_s: float,
+    scale_px_per_m: float,
+) -> FloatArray:
+    """Half sizes of square search windows, shape (M, 2), pixels.
+
+    half = min_half + sigma_gate * sigma_px + motion bound over the unpredicted interval.
+
+    Args:
+        radial_px: shape (M,), distance of each predicted spot from the image centre.
+        sigma_px: shape (M,), standard deviation of each predicted pixel.
+        dt_unpredicted_s: time over which motion was not predicted by odometry.
+    """
+    motion = motion_bound_px(
+        radial_px,
+        max_speed_m_s=max_speed_m_s,
+        max_angular_speed_rad_s=max_angular_speed_rad_s,
+        dt_s=dt_unpredicted_s,
+        scale_px_per_m=scale_px_per_m,
+    )
+    half = config.min_half_size_px + config.sigma_gate * np.asarray(sigma_px) + motion
+    return np.repeat(half[:, None], 2, axis=1)
+
+
+def bottleneck_assignment(cost: FloatArray, gate: FloatArray | float) -> list[tuple[int, int]]:
+    """Match rows (landmarks) to columns (spots) one-to-one, minimising the largest cost.
+
+    Among all matchings with the most pairs within their gates, it picks one whose largest
+    cost is smallest (binary search over the sorted costs with a maximum-cardinality matching
+    check), then, at that bottleneck, the one with the least total cost. No two rows share a
+    column (Sec. IV-A.1, Fig. 8b).
+
+    Args:
+        cost: displacement of spot j from landmark i's prediction, shape (M, N).
+        gate: largest allowed cost per row, shape (M,) or a scalar.
+
+    Returns:
+        (row, column) pairs, sorted by row.
+    """
+    c = np.asarray(cost, dtype=np.float64)
+    if c.size == 0:
+        return []
+    g = np.broadcast_to(np.asarray(gate, dtype=np.float64), (c.shape[0],))
+    allowed = c <= g[:, None]
+    if not allowed.any():
+        return []
+    best = _matching_size(allowed)
+    levels = np.unique(c[allowed])
+    lo, hi = 0, len(levels) - 1
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if _matching_size(allowed & (c <= levels[mid])) == best:
+            hi = mid
+        else:
+            lo = mid + 1
+    ok = allowed & (c <= levels[lo])
+    big = 1e9
+    rows, cols = linear_sum_assignment(np.where(ok, c, big))
+    return sorted((int(r), int(k)) for r, k in zip(rows, cols, strict=True) if ok[r, k])
+
+
+def _matching_size(allowed: npt.NDArray[np.bool_]) -> int:
+    """Size of a maximum matching in a bipartite graph given as a boolean matrix."""
+    rows, cols = linear_sum_assignment(~allowed)
+    return int(np.count_nonzero(allowed[rows, cols]))
+
+
+def scale_px_per_m(focal_px: float, ceiling_above_camera_m: float) -> float:
+    """Image scale of the ceiling: pixels per metre at `ceiling_above_camera_m` (1 / s, eq. 2)."""
+    return focal_px / max(ceiling_above_camera_m, 1e-3)
+
+
+def default_angular_speed(max_speed_m_s: float, wheel_base_m: float) -> float:
+    """Fastest turn of a differential drive: one wheel forward, one back at v_max."""
+    return 2.0 * max_speed_m_s / max(wheel_base_m, 1e-3)

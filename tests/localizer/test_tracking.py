@@ -1,0 +1,81 @@
+"""Search windows and the bottleneck (min-max) assignment of Sec. IV-A.1."""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pytest
+
+from localizer.tracking import (
+    TrackingConfig,
+    bottleneck_assignment,
+    default_angular_speed,
+    motion_bound_px,
+    scale_px_per_m,
+    window_half_sizes,
+)
+
+
+def test_fig_8b_two_landmarks_never_take_the_same_spot() -> None:
+    # Nearest neighbour would give spot 0 to both landmarks.
+    cost = np.array([[1.0, 9.0], [2.0, 3.0]])
+    assert bottleneck_assignment(cost, 10.0) == [(0, 0), (1, 1)]
+
+
+def test_minimises_the_largest_displacement_not_the_sum() -> None:
+    # Sum-optimal: (0,0)+(1,1) = 0 + 10 = 10; min-max: (0,1)+(1,0) = 6 + 6 = 12, max 6.
+    cost = np.array([[0.0, 6.0], [6.0, 10.0]])
+    assert bottleneck_assignment(cost, 20.0) == [(0, 1), (1, 0)]
+
+
+def test_gate_excludes_far_spots_and_keeps_most_pairs() -> None:
+    cost = np.array([[1.0, 50.0], [40.0, 60.0]])
+    assert bottleneck_assignment(cost, np.array([5.0, 5.0])) == [(0, 0)]
+    assert bottleneck_assignment(np.zeros((0, 3)), 1.0) == []
+    assert bottleneck_assignment(np.full((2, 2), 9.0), 1.0) == []
+
+
+@pytest.mark.parametrize("seed", range(20))
+def test_matches_brute_force_for_random_costs(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    m, n = int(rng.integers(1, 5)), int(rng.integers(1, 6))
+    cost = rng.uniform(0, 10, size=(m, n))
+    gate = 7.0
+    pairs = bottleneck_assignment(cost, gate)
+    assert len({c for _, c in pairs}) == len(pairs)
+    best = (0, -np.inf)
+    for perm in itertools.permutations(range(max(m, n)), m):
+        chosen = [(r, c) for r, c in enumerate(perm) if c < n and cost[r, c] <= gate]
+        key = (len(chosen), -max((cost[r, c] for r, c in chosen), default=0.0))
+        best = max(best, key)
+    got = (len(pairs), -max((cost[r, c] for r, c in pairs), default=0.0))
+    assert got == pytest.approx(best)
+
+
+def test_window_size_grows_with_speed_interval_radius_and_uncertainty() -> None:
+    cfg = TrackingConfig()
+    scale = scale_px_per_m(300.0, 2.2)
+    w = default_angular_speed(1.0, 0.36)
+    assert w == pytest.approx(2.0 / 0.36)
+    radial = np.array([0.0, 200.0])
+    bound = motion_bound_px(
+        radial, max_speed_m_s=1.0, max_angular_speed_rad_s=w, dt_s=1 / 30, scale_px_per_m=scale
+    )
+    np.testing.assert_allclose(bound, [scale / 30, scale / 30 + w / 30 * 200])
+    half = window_half_sizes(
+        radial,
+        np.array([0.5, 0.5]),
+        config=cfg,
+        max_speed_m_s=1.0,
+        max_angular_speed_rad_s=w,
+        dt_unpredicted_s=1 / 30,
+        scale_px_per_m=scale,
+    )
+    np.testing.assert_allclose(half[:, 0], cfg.min_half_size_px + cfg.sigma_gate * 0.5 + bound)
+    np.testing.assert_allclose(half[:, 0], half[:, 1])
+
+
+def test_config_is_validated() -> None:
+    with pytest.raises(ValueError):
+        TrackingConfig(min_half_size_px=0.0)
