@@ -1,0 +1,198 @@
+"""Database tables and API models, one SQLModel family per resource.
+
+Table classes (`table=True`) are what the database holds; `*Create`, `*Update` and `*Public`
+are what the API accepts and returns. Validation lives in the API models (SQLModel tables do
+not validate on construction).
+"""
+
+from __future__ import annotations
+
+import math
+from datetime import UTC, datetime
+from typing import Any, Literal
+
+from pydantic import field_validator
+from sqlalchemy import JSON, Column, ForeignKey, Integer
+from sqlmodel import Field, SQLModel
+
+from rf_gateway.transport import normalize_address
+
+Role = Literal["viewer", "operator", "admin"]
+ROLES: tuple[Role, ...] = ("viewer", "operator", "admin")
+
+MAX_LANDMARK_ID = 2**31 - 1
+MAX_ABS_XY_M = 10_000.0
+"""Floor coordinates beyond this (10 km) are refused as absurd."""
+MAX_Z_M = 100.0
+"""LED heights above this are refused as absurd (ceilings, not towers)."""
+
+
+def utcnow() -> datetime:
+    """Now, UTC, without tzinfo (as the database stores it)."""
+    return datetime.now(UTC).replace(tzinfo=None)
+
+
+def check_coordinate(name: str, value: float | None) -> float | None:
+    """A finite coordinate within the site's bounds; ValueError names the field."""
+    if value is None:
+        return None
+    if not math.isfinite(value):
+        raise ValueError(f"{name} must be a finite number of metres, got {value!r}")
+    limit = MAX_Z_M if name == "z" else MAX_ABS_XY_M
+    low = 0.0 if name == "z" else -limit
+    if not low <= value <= limit:
+        raise ValueError(f"{name} = {value} m is outside [{low}, {limit}] m")
+    return value
+
+
+def check_radio(value: str | None) -> str | None:
+    """A 64-bit radio address (16 hex digits, normalised) or None."""
+    if value is None:
+        return None
+    return normalize_address(value, source="radio")
+
+
+# -- landmarks ---------------------------------------------------------------------------
+class LandmarkBase(SQLModel):
+    x: float
+    y: float
+    z: float
+    radio: str | None = Field(default=None, description="64-bit radio address, 16 hex digits")
+    locked: bool = Field(default=False, description="surveyed: not moved by commissioning")
+    note: str = Field(default="", max_length=1000)
+
+
+class Landmark(LandmarkBase, table=True):
+    __tablename__ = "landmarks"
+    id: int = Field(primary_key=True, sa_column_kwargs={"autoincrement": False})
+    radio: str | None = Field(default=None, unique=True, index=True)
+    created_at: datetime = Field(default_factory=utcnow)
+    updated_at: datetime = Field(default_factory=utcnow)
+
+
+class LandmarkCreate(LandmarkBase):
+    id: int = Field(ge=0, le=MAX_LANDMARK_ID)
+
+    @field_validator("x", "y", "z")
+    @classmethod
+    def _coord(cls, v: float, info: Any) -> float:
+        return check_coordinate(info.field_name, v)  # type: ignore[return-value]
+
+    @field_validator("radio")
+    @classmethod
+    def _radio(cls, v: str | None) -> str | None:
+        return check_radio(v)
+
+
+class LandmarkUpdate(SQLModel):
+    x: float | None = None
+    y: float | None = None
+    z: float | None = None
+    radio: str | None = None
+    locked: bool | None = None
+    note: str | None = Field(default=None, max_length=1000)
+
+    @field_validator("x", "y", "z")
+    @classmethod
+    def _coord(cls, v: float | None, info: Any) -> float | None:
+        return check_coordinate(info.field_name, v)
+
+    @field_validator("radio")
+    @classmethod
+    def _radio(cls, v: str | None) -> str | None:
+        return check_radio(v)
+
+
+class LandmarkPublic(LandmarkBase):
+    id: int
+    created_at: datetime
+    updated_at: datetime
+
+
+class MapDocument(SQLModel):
+    """map.json: `{"landmarks": [{"id", "x", "y", "z", "radio"?, ...}]}`."""
+
+    landmarks: list[LandmarkCreate]
+
+
+# -- robots ------------------------------------------------------------------------------
+class RobotBase(SQLModel):
+    source: Literal["sim", "camera", "remote"] = "sim"
+    device: str | None = Field(default=None, description="camera index or video file (camera)")
+    wheel_base: float = Field(gt=0, le=10, description="metres between the wheels")
+    max_speed: float = Field(default=1.0, gt=0, le=20, description="m/s")
+    camera: dict[str, Any] = Field(
+        default_factory=dict,
+        sa_column=Column(JSON, nullable=False),
+        description="cam0/sensor.yaml as JSON (intrinsics, distortion, T_BS mounting)",
+    )
+
+
+class Robot(RobotBase, table=True):
+    __tablename__ = "robots"
+    name: str = Field(primary_key=True, max_length=64)
+    created_at: datetime = Field(default_factory=utcnow)
+    updated_at: datetime = Field(default_factory=utcnow)
+
+
+class RobotCreate(RobotBase):
+    name: str = Field(min_length=1, max_length=64, pattern=r"^[A-Za-z0-9_.-]+$")
+
+
+class RobotPublic(RobotBase):
+    name: str
+
+
+# -- battery, events, audit ----------------------------------------------------------------
+class BatteryRecord(SQLModel, table=True):
+    __tablename__ = "battery_readings"
+    id: int | None = Field(default=None, primary_key=True)
+    landmark_id: int = Field(
+        sa_column=Column(Integer, ForeignKey("landmarks.id", ondelete="CASCADE"), index=True)
+    )
+    t: datetime = Field(default_factory=utcnow, index=True)
+    supply_mv: int
+
+
+class EventRecord(SQLModel, table=True):
+    __tablename__ = "events"
+    id: int | None = Field(default=None, primary_key=True)
+    t: datetime = Field(default_factory=utcnow, index=True)
+    kind: str = Field(index=True)
+    robot: str | None = None
+    landmark_id: int | None = None
+    message: str = ""
+    data: dict[str, Any] = Field(default_factory=dict, sa_column=Column(JSON, nullable=False))
+
+
+class AuditRecord(SQLModel, table=True):
+    __tablename__ = "audit_log"
+    id: int | None = Field(default=None, primary_key=True)
+    t: datetime = Field(default_factory=utcnow, index=True)
+    actor: str
+    action: str
+    landmark_id: int | None = Field(default=None, index=True)
+    before: dict[str, Any] | None = Field(default=None, sa_column=Column(JSON, nullable=True))
+    after: dict[str, Any] | None = Field(default=None, sa_column=Column(JSON, nullable=True))
+
+
+# -- API keys ------------------------------------------------------------------------------
+class ApiKey(SQLModel, table=True):
+    __tablename__ = "api_keys"
+    id: int | None = Field(default=None, primary_key=True)
+    name: str = ""
+    role: str
+    prefix: str = Field(description="first characters of the key, to recognise it")
+    hash: str = Field(unique=True, index=True, description="sha256 of the key, hex")
+    created_at: datetime = Field(default_factory=utcnow)
+    revoked: bool = False
+    last_used_at: datetime | None = None
+
+
+class ApiKeyPublic(SQLModel):
+    id: int
+    name: str
+    role: str
+    prefix: str
+    created_at: datetime
+    revoked: bool

@@ -1,0 +1,83 @@
+"""What the pose bus carries and what the API returns for a robot's pose."""
+
+from __future__ import annotations
+
+import json
+import time
+from dataclasses import dataclass, field
+from functools import cached_property
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+from pydantic import BaseModel
+
+from localizer.events import Mode, PoseEstimate
+
+
+@dataclass(frozen=True, eq=False)
+class PoseUpdate:
+    """One robot's localizer result for one frame, as published on the pose bus.
+
+    Attributes:
+        robot: the robot's name.
+        t_ns: the frame's time on the site clock, nanoseconds.
+        mode: the localizer's mode.
+        x, y, theta: metres, metres, radians (REP-103); None while there is no pose.
+        covariance: of (x, y, theta), shape (3, 3), or None.
+        landmark_ids: landmarks used in this frame.
+        computed_wall_ns: wall clock (`time.time_ns`) when the pose was computed, for ages
+            and latency measurements.
+    """
+
+    robot: str
+    t_ns: int
+    mode: Mode
+    x: float | None = None
+    y: float | None = None
+    theta: float | None = None
+    covariance: npt.NDArray[np.float64] | None = None
+    landmark_ids: tuple[int, ...] = ()
+    computed_wall_ns: int = field(default_factory=time.time_ns)
+
+    @classmethod
+    def from_estimate(cls, robot: str, est: PoseEstimate) -> PoseUpdate:
+        return cls(robot, est.t_ns, est.mode, float(est.x), float(est.y), float(est.theta),
+                   np.asarray(est.covariance, dtype=np.float64), tuple(est.landmark_ids))
+
+    def to_dict(self) -> dict[str, Any]:
+        cov = None if self.covariance is None else self.covariance.tolist()
+        return {
+            "robot": self.robot, "t_ns": self.t_ns, "mode": self.mode, "x": self.x,
+            "y": self.y, "theta": self.theta, "covariance": cov,
+            "landmark_ids": list(self.landmark_ids), "computed_wall_ns": self.computed_wall_ns,
+        }
+
+    @cached_property
+    def json(self) -> str:
+        """The JSON text sent on the WebSocket (encoded once, shared by every client)."""
+        return json.dumps(self.to_dict(), separators=(",", ":"))
+
+
+class PosePublic(BaseModel):
+    """`GET /robots/{name}/pose`: the latest result of a robot's localizer."""
+
+    robot: str
+    mode: Mode
+    t_ns: int | None = None
+    x: float | None = None
+    y: float | None = None
+    theta: float | None = None
+    covariance: list[list[float]] | None = None
+    landmark_ids: list[int] = []
+    age_s: float | None = None
+
+    @classmethod
+    def from_update(cls, robot: str, mode: Mode, upd: PoseUpdate | None) -> PosePublic:
+        if upd is None:
+            return cls(robot=robot, mode=mode)
+        d = upd.to_dict()
+        d.pop("computed_wall_ns")
+        d["mode"] = mode
+        d["age_s"] = max(0.0, (time.time_ns() - upd.computed_wall_ns) / 1e9)
+        return cls(**d)

@@ -1,0 +1,112 @@
+"""Server settings: environment variables `IRLOC_*`, an optional settings file, CLI flags.
+
+Precedence (highest first): values passed to `Settings(...)` (the CLI flags), environment
+variables (`IRLOC_PORT=8001`), the settings file named by `IRLOC_SETTINGS_FILE` (JSON or YAML
+with the same field names), the defaults below.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+from typing import Any, Literal
+
+import yaml
+from pydantic import Field, field_validator
+from pydantic_settings import BaseSettings, PydanticBaseSettingsSource, SettingsConfigDict
+
+Source = Literal["sim", "camera", "remote"]
+
+
+def default_data_dir() -> Path:
+    """Per-user data folder: `$XDG_DATA_HOME/irloc`, else `~/.local/share/irloc`."""
+    base = os.environ.get("XDG_DATA_HOME") or str(Path.home() / ".local" / "share")
+    return Path(base) / "irloc"
+
+
+class _FileSource(PydanticBaseSettingsSource):
+    """Reads the settings file named by `IRLOC_SETTINGS_FILE` (JSON or YAML)."""
+
+    def get_field_value(self, field: Any, field_name: str) -> tuple[Any, str, bool]:
+        return None, field_name, False
+
+    def __call__(self) -> dict[str, Any]:
+        path = os.environ.get("IRLOC_SETTINGS_FILE")
+        if not path:
+            return {}
+        text = Path(path).read_text(encoding="utf-8")
+        data = json.loads(text) if path.endswith(".json") else yaml.safe_load(text)
+        if data is None:
+            return {}
+        if not isinstance(data, dict):
+            raise ValueError(f"settings file {path}: expected a mapping at the top level")
+        return data
+
+
+class Settings(BaseSettings):
+    """Everything the server can be told.
+
+    Attributes:
+        host, port: where the API listens (loopback by default).
+        data_dir: database, recordings; created when missing.
+        database_url: SQLAlchemy URL; default `sqlite:///<data_dir>/irloc.db`.
+        scenario: the virtual site's scenario (robots with source `sim`).
+        radio: `sim` or `xbee:PORT[@BAUD]`.
+        map_file: a map.json imported at start (replaces the map), or None.
+        seed: the virtual site's random seed.
+        site_enabled: run the live site (robots, radio, clock); off for bare API tests.
+        viewer_enabled, viewer_port: the viser viewer (port 0: ephemeral).
+        pose_queue: poses buffered per pose-bus subscriber before it drops.
+        battery_interval_s: time between battery polls of every landmark; None: never.
+        serial_sink: serial port (or file path) for the pose line output, or None.
+        serial_baud: its baud rate.
+        allow_remote_viewer_without_auth: never set this on a shared network.
+    """
+
+    model_config = SettingsConfigDict(env_prefix="IRLOC_", extra="ignore")
+
+    host: str = "127.0.0.1"
+    port: int = Field(8000, ge=0, le=65535)
+    data_dir: Path = Field(default_factory=default_data_dir)
+    database_url: str | None = None
+    scenario: str = "demo"
+    radio: str = "sim"
+    map_file: Path | None = None
+    seed: int = 0
+    site_enabled: bool = True
+    viewer_enabled: bool = True
+    viewer_port: int = Field(8080, ge=0, le=65535)
+    pose_queue: int = Field(256, ge=1)
+    battery_interval_s: float | None = 3600.0
+    serial_sink: str | None = None
+    serial_baud: int = 115200
+    allow_remote_viewer_without_auth: bool = False
+
+    @field_validator("radio")
+    @classmethod
+    def _check_radio(cls, value: str) -> str:
+        text = value.strip()
+        if text != "sim" and not text.startswith("xbee:"):
+            raise ValueError(f"radio: expected 'sim' or 'xbee:PORT[@BAUD]', got {value!r}")
+        return text
+
+    @classmethod
+    def settings_customise_sources(
+        cls,
+        settings_cls: type[BaseSettings],
+        init_settings: PydanticBaseSettingsSource,
+        env_settings: PydanticBaseSettingsSource,
+        dotenv_settings: PydanticBaseSettingsSource,
+        file_secret_settings: PydanticBaseSettingsSource,
+    ) -> tuple[PydanticBaseSettingsSource, ...]:
+        return (init_settings, env_settings, _FileSource(settings_cls))
+
+    @property
+    def db_url(self) -> str:
+        """The database URL in force."""
+        return self.database_url or f"sqlite:///{self.data_dir / 'irloc.db'}"
+
+    @property
+    def recordings_dir(self) -> Path:
+        return self.data_dir / "recordings"

@@ -1,0 +1,1 @@
+"""The live site: robots (one localizer each), their sources, the LED coordinator."""
