@@ -48,6 +48,8 @@ class EmulatedRemote:
         reachable: False: the coordinator answers status 4 (transmission failure).
         silent: True: no answer at all (the host times out).
         delay_s: extra reply latency of this radio (e.g. a sleeping end device), seconds.
+        late_replies: the next this many replies come `late_delay_s` late (a reply crossing
+            the host's retry).
         pins: DIO configuration values by command ("D4" -> 5 means output high).
         applied: every parameter write applied, as (command, value) in order.
     """
@@ -58,6 +60,8 @@ class EmulatedRemote:
     reachable: bool = True
     silent: bool = False
     delay_s: float = 0.0
+    late_replies: int = 0
+    late_delay_s: float = 0.5
     pins: dict[str, int] = field(default_factory=dict)
     applied: list[tuple[str, int]] = field(default_factory=list)
 
@@ -347,7 +351,12 @@ class XBeeEmulator:
         answer = fr.RemoteAtResponse(
             frame.frame_id, frame.address64, 0x1000, frame.command, status, data
         )
-        self._faulty_reply(answer, remote.delay_s)
+        delay = remote.delay_s
+        if remote.late_replies > 0:
+            remote.late_replies -= 1
+            delay += remote.late_delay_s
+            self.counts["late"] += 1
+        self._faulty_reply(answer, delay)
 
     def _handle_transmit(self, frame: fr.TransmitRequest) -> None:
         remote = self.remotes.get(f"{frame.address64:016X}")

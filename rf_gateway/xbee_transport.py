@@ -133,6 +133,7 @@ class XBeeTransport:
         try:
             self._device = await self._call(self._open_device)
         except Exception as exc:
+            self._set_state("reopening")
             self._start(self._reopen_loop())
             raise TransportUnavailable(f"cannot open XBee on {self.port}: {exc}") from exc
         self._remotes.clear()

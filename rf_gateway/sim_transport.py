@@ -1,0 +1,89 @@
+"""The simulated transport: the virtual site's radio (`sim.radio.SimRadio`) behind `Transport`."""
+
+from __future__ import annotations
+
+import asyncio
+from collections.abc import Callable
+from typing import Protocol
+
+from rf_gateway.errors import RadioTimeout, TransportUnavailable
+from rf_gateway.transport import DiscoveredRadio, TransportState, normalize_address
+
+
+class SimRadioLike(Protocol):
+    """What `sim.radio.SimRadio` offers (docs/architecture.md)."""
+
+    async def set_pin(self, address: str, high: bool) -> bool: ...
+
+    async def read_supply_mv(self, address: str) -> int | None: ...
+
+    async def discover(self) -> list[tuple[str, str]]: ...
+
+
+class SimTransport:
+    """`Transport` over a simulated radio.
+
+    Args:
+        radio: the virtual site's radio (a `SimRadio`).
+        command_timeout_s: longest wait for one answer; a command not acknowledged (False /
+            None from the radio) or not answered in time raises `RadioTimeout`.
+    """
+
+    def __init__(self, radio: SimRadioLike, *, command_timeout_s: float = 0.5) -> None:
+        self.radio = radio
+        self.command_timeout_s = command_timeout_s
+        self._state: TransportState = "closed"
+        self._listeners: list[Callable[[TransportState], None]] = []
+
+    @property
+    def state(self) -> TransportState:
+        return self._state
+
+    def on_state_change(self, callback: Callable[[TransportState], None]) -> None:
+        """Call `callback(state)` at every state change."""
+        self._listeners.append(callback)
+
+    def _set_state(self, state: TransportState) -> None:
+        if state != self._state:
+            self._state = state
+            for callback in list(self._listeners):
+                callback(state)
+
+    async def open(self) -> None:
+        self._set_state("open")
+
+    async def close(self) -> None:
+        self._set_state("closed")
+
+    def _check_open(self) -> None:
+        if self._state != "open":
+            raise TransportUnavailable(f"simulated radio is {self._state}")
+
+    async def set_pin(self, address: str, high: bool) -> None:
+        address = normalize_address(address)
+        self._check_open()
+        try:
+            ok = await asyncio.wait_for(self.radio.set_pin(address, high), self.command_timeout_s)
+        except TimeoutError:
+            raise RadioTimeout(address) from None
+        if not ok:
+            raise RadioTimeout(address, f"radio {address} did not acknowledge")
+
+    async def read_supply_mv(self, address: str) -> int:
+        address = normalize_address(address)
+        self._check_open()
+        try:
+            mv = await asyncio.wait_for(self.radio.read_supply_mv(address), self.command_timeout_s)
+        except TimeoutError:
+            raise RadioTimeout(address) from None
+        if mv is None:
+            raise RadioTimeout(address)
+        return int(mv)
+
+    async def discover(self) -> list[DiscoveredRadio]:
+        self._check_open()
+        found = await self.radio.discover()
+        radios = [
+            DiscoveredRadio(normalize_address(a, source="simulated radio"), ni) for a, ni in found
+        ]
+        return sorted(radios, key=lambda r: r.address)

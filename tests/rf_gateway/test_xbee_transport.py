@@ -1,0 +1,236 @@
+"""XBeeTransport through digi-xbee and pyserial against the emulated coordinator (no mocks)."""
+
+from __future__ import annotations
+
+import asyncio
+import itertools
+import os
+import time
+from collections.abc import Awaitable, Callable, Iterator
+from pathlib import Path
+
+import pytest
+import serial
+
+from localizer.events import LedsChanged
+from rf_gateway import frames as fr
+from rf_gateway.battery import BatteryConfig
+from rf_gateway.emulator import EmulatedRemote, FaultConfig, XBeeEmulator
+from rf_gateway.errors import RadioTimeout, RemoteCommandError, TransportUnavailable
+from rf_gateway.events import TransportStateChanged
+from rf_gateway.gateway import Gateway, GatewayConfig
+from rf_gateway.transport import DiscoveredRadio
+from rf_gateway.xbee_transport import XBeeTransport, XBeeTransportConfig
+
+ADDR = {i: f"0013A20040A000{i:02X}" for i in (1, 2, 3, 4)}
+CONFIG = XBeeTransportConfig(command_timeout_s=0.2, reopen_initial_s=0.05, reopen_max_s=0.2)
+GW_CONFIG = GatewayConfig(max_tries=8, retry_backoff_s=0.01, battery=BatteryConfig(interval_s=None))
+
+
+def remotes() -> list[EmulatedRemote]:
+    return [
+        EmulatedRemote(ADDR[1], "LM-1", 3100),
+        EmulatedRemote(ADDR[2], "LM-2", 2950),
+        EmulatedRemote(ADDR[3], "LM-3", reachable=False),
+        EmulatedRemote(ADDR[4], "LM-4", silent=True),
+    ]
+
+
+@pytest.fixture(params=[False, True], ids=["api1", "api2-escaped"])
+def emulator(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[XBeeEmulator]:
+    emu = XBeeEmulator(tmp_path / "ttyXBEE", remotes(), escaped=request.param)
+    emu.start()
+    yield emu
+    emu.stop()
+
+
+async def until(predicate: Callable[[], bool], timeout_s: float = 5.0) -> None:
+    deadline = time.monotonic() + timeout_s
+    while not predicate():
+        if time.monotonic() > deadline:
+            raise AssertionError("condition not reached")
+        await asyncio.sleep(0.02)
+
+
+def with_transport(emu: XBeeEmulator, body: Callable[[XBeeTransport], Awaitable[None]]) -> None:
+    async def main() -> None:
+        transport = XBeeTransport(str(emu.port), 115200, pin="D4", config=CONFIG)
+        await transport.open()
+        try:
+            await body(transport)
+        finally:
+            await transport.close()
+
+    asyncio.run(main())
+
+
+def test_pin_supply_and_discovery_through_digi_xbee(emulator: XBeeEmulator) -> None:
+    async def body(t: XBeeTransport) -> None:
+        assert t.state == "open"
+        await t.set_pin(ADDR[1].lower(), True)
+        await t.set_pin(ADDR[2], True)
+        await t.set_pin(ADDR[2], False)
+        assert await t.read_supply_mv(ADDR[1]) == 3100
+        assert await t.read_supply_mv(ADDR[2]) == 2950
+        assert await t.discover() == [
+            DiscoveredRadio(ADDR[1], "LM-1"),
+            DiscoveredRadio(ADDR[2], "LM-2"),
+        ]
+
+    with_transport(emulator, body)
+    assert emulator.remote(ADDR[1]).applied == [("D4", 5)]
+    assert emulator.remote(ADDR[2]).applied == [("D4", 5), ("D4", 4)]
+    assert emulator.counts["LocalAtCommand"] >= 8  # AP HV VR SH SL NI MY CE on open, ND...
+
+
+def test_unreachable_and_silent_remotes(emulator: XBeeEmulator) -> None:
+    async def body(t: XBeeTransport) -> None:
+        with pytest.raises(RemoteCommandError) as failure:
+            await t.set_pin(ADDR[3], True)
+        assert (failure.value.status, failure.value.retryable) == (4, True)
+        with pytest.raises(RadioTimeout, match=ADDR[4]):
+            await t.read_supply_mv(ADDR[4])
+        with pytest.raises(ValueError, match="16 hex digits"):
+            await t.set_pin("12345", True)
+        await t.set_pin(ADDR[1], True)  # the link is still fine
+
+    with_transport(emulator, body)
+    assert emulator.counts["tx_failures"] == 1
+    assert emulator.counts["silent"] == 1
+
+
+def test_bad_pin_name_is_rejected() -> None:
+    with pytest.raises(ValueError, match="LED pin 'A4'"):
+        XBeeTransport("/dev/null", pin="A4")
+
+
+def run_gateway_sequence(
+    emu: XBeeEmulator, sequence: list[list[int]]
+) -> tuple[Gateway, list[LedsChanged]]:
+    async def main() -> tuple[Gateway, list[LedsChanged]]:
+        transport = XBeeTransport(str(emu.port), config=CONFIG)
+        gw = Gateway(transport, {1: ADDR[1], 2: ADDR[2]}, GW_CONFIG)
+        await gw.start()
+        sub = gw.subscribe()
+        try:
+            for lit in sequence:
+                await gw.set_leds(lit)
+        finally:
+            await gw.close()
+        events = []
+        while (ev := sub.get_nowait()) is not None:
+            events.append(ev)
+        return gw, events
+
+    return asyncio.run(main())
+
+
+SEQUENCE = [[1], [2], [1, 2], [], [2], [1]]
+FINAL_PINS = {ADDR[1]: {"D4": 5}, ADDR[2]: {"D4": 4}}
+
+
+@pytest.mark.parametrize(
+    "faults, counter",
+    [
+        (FaultConfig(drop=0.3, seed=1), "dropped"),
+        (FaultConfig(corrupt=0.3, seed=2), "corrupted"),
+        (FaultConfig(duplicate=1.0, seed=3), "duplicated"),
+        (FaultConfig(delay_s=0.03, jitter_s=0.02, seed=4), None),
+        (FaultConfig(garbage=1.0, seed=5), "garbage_sent"),
+        (FaultConfig(truncated=0.3, seed=6), "truncated_sent"),
+        (FaultConfig(unknown=1.0, seed=7), "unknown_sent"),
+    ],
+    ids=["drop", "corrupt", "duplicate", "delay", "garbage", "truncated", "unknown"],
+)
+def test_gateway_over_faulty_link_applies_every_change_once(
+    emulator: XBeeEmulator, faults: FaultConfig, counter: str | None
+) -> None:
+    emulator.faults = faults
+    emulator._rng.seed(faults.seed)
+    gw, events = run_gateway_sequence(emulator, SEQUENCE)
+    assert {a: emulator.remote(a).pins for a in FINAL_PINS} == FINAL_PINS
+    assert [e.lit if not e.all_lit else frozenset({1, 2}) for e in events] == [
+        frozenset(s) for s in SEQUENCE
+    ]
+    assert all(b.t_ns >= a.t_ns for a, b in itertools.pairwise(events))
+    if counter is not None:
+        assert emulator.counts[counter] > 0
+    if counter in ("dropped", "corrupted"):
+        # each lost reply cost one timeout and one retry, nothing else
+        assert gw.stats.retries >= emulator.counts[counter]
+    assert gw.unreachable == frozenset()
+
+
+def test_late_reply_crossing_a_retry_is_not_taken_for_a_newer_command(
+    emulator: XBeeEmulator,
+) -> None:
+    remote = emulator.remote(ADDR[1])
+    remote.late_replies = 1
+    remote.late_delay_s = 0.35  # longer than the 0.2 s command timeout
+    gw, events = run_gateway_sequence(emulator, [[1], [], [1]])
+    assert gw.stats.retries == 1
+    # the first command was applied when it arrived and again by the retry (idempotent);
+    # the late reply to it, received while the next command waited, confirmed nothing
+    assert remote.applied == [("D4", 5), ("D4", 5), ("D4", 4), ("D4", 5)]
+    assert [e.lit for e in events] == [frozenset({1}), frozenset(), frozenset({1})]
+
+
+def test_our_parser_counts_and_skips_garbage_sent_over_the_serial_line(
+    emulator: XBeeEmulator,
+) -> None:
+    good = fr.wrap(fr.encode(fr.LocalAtCommand(7, "NI")), escaped=emulator.escaped)
+    bad = bytearray(good)
+    bad[-1] ^= 0x01
+    unknown = fr.wrap(fr.encode(fr.UnknownFrame(0x3F, b"\x00")), escaped=emulator.escaped)
+    with serial.Serial(str(emulator.port), 9600, timeout=1.0) as port:
+        port.write(b"\x00\x41\x42" + bytes(bad) + good[:4] + unknown + good)
+        header = port.read(3)
+        assert header[0] == fr.START
+        reply = fr.StreamParser(escaped=emulator.escaped).feed(header + port.read(64))
+    assert fr.decode(reply[0]) == fr.AtResponse(7, "NI", 0, b"COORDINATOR")
+    stats = emulator.parser.stats
+    assert (stats.garbage_bytes, stats.bad_checksums + stats.truncated, stats.frames) == (3, 2, 2)
+    assert emulator.counts["unknown_frames"] == 1
+
+
+def test_pulled_cable_is_reopened_and_reported(tmp_path: Path) -> None:
+    async def main() -> list[str]:
+        with XBeeEmulator(tmp_path / "ttyXBEE", remotes()) as emu:
+            transport = XBeeTransport(str(emu.port), config=CONFIG)
+            gw = Gateway(transport, {1: ADDR[1]}, GW_CONFIG)
+            events = gw.subscribe_events()
+            await gw.start()
+            await gw.led(1, True)
+            emu.pull_cable()
+            await until(lambda: transport.state == "reopening")
+            with pytest.raises(TransportUnavailable):
+                await transport.set_pin(ADDR[1], False)
+            emu.plug_in()
+            await until(lambda: transport.state == "open")
+            await gw.led(1, False)
+            assert emu.remote(ADDR[1]).pins == {"D4": 4}
+            assert transport.reopen_count == 1
+            await gw.close()
+        states = []
+        while (ev := events.get_nowait()) is not None:
+            assert isinstance(ev, TransportStateChanged)
+            states.append(ev.state)
+        return states
+
+    assert asyncio.run(main()) == ["opening", "open", "reopening", "open", "closed"]
+
+
+def test_missing_port_at_start_keeps_trying_until_it_appears(tmp_path: Path) -> None:
+    async def main() -> None:
+        port = tmp_path / "ttyLATE"
+        transport = XBeeTransport(str(port), config=CONFIG)
+        with pytest.raises(TransportUnavailable, match="cannot open"):
+            await transport.open()
+        assert transport.state == "reopening"
+        with XBeeEmulator(port, remotes()):
+            await until(lambda: transport.state == "open")
+            assert await transport.read_supply_mv(ADDR[1]) == 3100
+            await transport.close()
+        assert not os.path.exists(port)
+
+    asyncio.run(main())
