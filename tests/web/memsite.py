@@ -1,0 +1,135 @@
+"""A small in-memory `ViewerSite` for the viewer's unit tests: true landmark positions, a map
+that may differ from them, robots standing still, LEDs, and camera views computed from the
+truth with `predict_pixels` (no image rendering)."""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Sequence
+from dataclasses import replace
+
+import numpy as np
+
+from localizer.camera import CameraModel, predict_pixels
+from localizer.events import PoseEstimate
+from localizer.geometry import T_world_body_from_pose
+from sim.cameras import wide_angle_camera
+from web.services import CameraView, LandmarkState, RobotState, SiteEvent
+
+
+class MemSite:
+    def __init__(self, truth: dict[int, tuple[float, float, float]], poses: dict[str, tuple]):
+        self.truth = {k: np.array(v, dtype=float) for k, v in truth.items()}
+        self.map = {k: LandmarkState(k, *v) for k, v in truth.items()}
+        self.poses = poses
+        self.camera: CameraModel = wide_angle_camera("pinhole")
+        self._lit = frozenset(truth)
+        self._lit_at = 0
+        self.audit: list[tuple[str, str, int, LandmarkState | None, LandmarkState | None]] = []
+        self.led_log: list[frozenset[int]] = []
+        self.relocalized: list[str] = []
+        self.lock = threading.Lock()
+
+    # -- reads -----------------------------------------------------------------------------
+    def landmarks(self) -> list[LandmarkState]:
+        with self.lock:
+            return sorted(self.map.values(), key=lambda lm: lm.id)
+
+    def _visible_lit(self, name: str) -> list[int]:
+        x, y, th = self.poses[name]
+        ids = sorted(self._lit)
+        if not ids:
+            return []
+        p = np.array([self.truth[i] for i in ids])
+        _, ok = predict_pixels(self.camera, T_world_body_from_pose(x, y, th), p)
+        return [i for i, v in zip(ids, ok, strict=True) if v]
+
+    def robots(self) -> list[RobotState]:
+        now = time.monotonic_ns()
+        out = []
+        for name, (x, y, th) in self.poses.items():
+            used = self._visible_lit(name)
+            fixed = len(used) >= 2
+            pose = PoseEstimate(now, x, y, th, np.diag([1e-4, 4e-4, 1e-4]), "landmark", tuple(used))
+            last_fix = now if fixed else self._lit_at
+            out.append(RobotState(name, self.camera, pose, "landmark" if fixed else
+                                  "dead_reckoning", last_fix, now))  # fmt: skip
+        return out
+
+    def lit(self) -> frozenset[int]:
+        return self._lit
+
+    def events(self, limit: int) -> list[SiteEvent]:
+        return [SiteEvent(0, "map_changed", f"{a} {act} {i}") for a, act, i, _, _ in self.audit][
+            ::-1
+        ][:limit]
+
+    def camera_view(self, robot: str) -> CameraView | None:
+        x, y, th = self.poses[robot]
+        ids = sorted(self._lit)
+        p = np.array([self.truth[i] for i in ids]).reshape(-1, 3)
+        px, ok = predict_pixels(self.camera, T_world_body_from_pose(x, y, th), p)
+        img = np.zeros((self.camera.height, self.camera.width), np.uint8)
+        return CameraView(time.monotonic_ns(), img, px[ok])
+
+    def ceiling_height(self) -> float:
+        return 2.5
+
+    # -- actions -----------------------------------------------------------------------------
+    def relocalize(self, robot: str, *, actor: str) -> None:
+        self.relocalized.append(robot)
+
+    def set_leds(self, lit: frozenset[int], *, actor: str) -> None:
+        self._lit = frozenset(lit)
+        self._lit_at = time.monotonic_ns()
+        self.led_log.append(self._lit)
+
+    def add_landmark(self, landmark_id: int, x: float, y: float, z: float, *, actor: str):
+        with self.lock:
+            if landmark_id in self.map:
+                raise ValueError(f"landmark {landmark_id} exists")
+            lm = self.map[landmark_id] = LandmarkState(landmark_id, x, y, z)
+            self.audit.append((actor, "create", landmark_id, None, lm))
+            return lm
+
+    def update_landmark(self, landmark_id: int, *, actor: str, **fields):
+        with self.lock:
+            old = self.map[landmark_id]
+            if old.locked and any(fields.get(k) is not None for k in "xyz"):
+                raise ValueError(f"landmark {landmark_id} is locked (surveyed)")
+            lm = replace(old, **{k: v for k, v in fields.items() if v is not None})
+            self.map[landmark_id] = lm
+            self.audit.append((actor, "update", landmark_id, old, lm))
+            return lm
+
+    def delete_landmark(self, landmark_id: int, *, actor: str) -> None:
+        with self.lock:
+            old = self.map.pop(landmark_id)
+            self.audit.append((actor, "delete", landmark_id, old, None))
+
+    def undo_last(self, *, actor: str) -> str:
+        with self.lock:
+            if not self.audit:
+                raise ValueError("nothing to undo")
+            who, act, lid, before, _after = self.audit.pop()
+            if before is None:
+                del self.map[lid]
+            else:
+                self.map[lid] = before
+            return f"undid {act} of landmark {lid} by {who}"
+
+    def to_identify(self) -> Sequence[int]:
+        return [i for i, lm in self.map.items() if not lm.locked and not lm.seen]
+
+
+def grid_site(*, doubted: dict[int, tuple[float, float]] | None = None) -> MemSite:
+    """A 4x3 grid of landmarks 1 m apart at 2.5 m; robots r1 at (1.5, 1, 0.3) and r2."""
+    truth = {
+        10 + 4 * j + i: (float(i), float(j), 2.5 + 0.01 * i) for j in range(3) for i in range(4)
+    }
+    site = MemSite(truth, {"r1": (1.5, 1.0, 0.3), "r2": (0.5, 0.2, -2.0)})
+    for lid, (dx, dy) in (doubted or {}).items():
+        lm = site.map[lid]
+        site.map[lid] = replace(lm, x=lm.x + dx, y=lm.y + dy, seen=False)
+    return site

@@ -1,0 +1,273 @@
+"""The 3D scene: floor, ceiling, landmarks and robots, kept in step with site snapshots.
+
+Node names are hierarchical: `/landmarks/17` (sphere), `/landmarks/17/label`,
+`/landmarks/17/glow` (shown while lit), `/robots/r1/body`, `/robots/r1/trail`,
+`/robots/r1/ellipse`, `/robots/r1/footprint`, `/robots/r1/rays`, `/coverage/*`.
+`/robots/<name>` itself stays at the world origin so that its children are in world
+coordinates. Only one thread (the viewer's update loop) calls `update`; it diffs against
+the last snapshot and sends only what changed, inside `server.atomic()`.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+import viser
+
+from web.colors import (
+    LIT_COLOR,
+    RGB,
+    UNKNOWN_COLOR,
+    battery_color,
+    battery_percent,
+    landmark_color,
+    mode_color,
+)
+from web.coverage import Coverage, SpacingFlag
+from web.geometry import camera_footprint, ellipse_points
+from web.services import LandmarkState, RobotState
+
+FloatArray = npt.NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class SceneConfig:
+    """Look of the scene.
+
+    Attributes:
+        landmark_radius_m: radius of a landmark's sphere, metres.
+        trail_len: poses kept in a robot's trail.
+        trail_every: append to the trail every this many updates.
+        ellipse_sigma: the uncertainty ellipse's scale, standard deviations.
+        ellipse_min_m: ellipses are drawn at least this large, metres (to stay visible).
+    """
+
+    landmark_radius_m: float = 0.06
+    trail_len: int = 300
+    trail_every: int = 3
+    ellipse_sigma: float = 3.0
+    ellipse_min_m: float = 0.02
+
+
+def wxyz_from_heading(theta: float) -> tuple[float, float, float, float]:
+    """Quaternion (w, x, y, z) of a rotation by `theta` about world +z."""
+    return (math.cos(theta / 2.0), 0.0, 0.0, math.sin(theta / 2.0))
+
+
+def polyline_segments(points: FloatArray) -> FloatArray:
+    """Consecutive points as line segments: (N, 3) -> (N - 1, 2, 3)."""
+    p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    if len(p) < 2:
+        return np.zeros((0, 2, 3))
+    return np.stack([p[:-1], p[1:]], axis=1)
+
+
+def landmark_label(lm: LandmarkState) -> str:
+    """The text next to a landmark: its ID and what is wrong with it."""
+    text = str(lm.id)
+    if not lm.reachable:
+        text += " unreachable"
+    elif not lm.seen:
+        text += " never seen"
+    if lm.locked:
+        text += " (surveyed)"
+    return text
+
+
+class _RobotNodes:
+    def __init__(self, scene: viser.SceneApi, name: str, cfg: SceneConfig) -> None:
+        root = f"/robots/{name}"
+        self.root = scene.add_frame(root, show_axes=False)
+        self.body = scene.add_box(
+            f"{root}/body", color=UNKNOWN_COLOR, dimensions=(0.45, 0.35, 0.25),
+            position=(0.0, 0.0, 0.125),
+        )  # fmt: skip
+        self.nose = scene.add_box(
+            f"{root}/body/nose", color=(30, 30, 30), dimensions=(0.15, 0.08, 0.05),
+            position=(0.25, 0.0, 0.1),
+        )  # fmt: skip
+        self.label = scene.add_label(f"{root}/body/label", name, position=(0.0, 0.0, 0.35))
+        empty = np.zeros((0, 2, 3))
+        self.trail = scene.add_line_segments(f"{root}/trail", empty, (90, 90, 200), thickness=0.01)
+        self.ellipse = scene.add_line_segments(f"{root}/ellipse", empty, UNKNOWN_COLOR)
+        self.footprint = scene.add_line_segments(f"{root}/footprint", empty, (80, 160, 200))
+        self.rays = scene.add_line_segments(f"{root}/rays", empty, (250, 220, 90), thickness=0.005)
+        self.history: deque[tuple[float, float]] = deque(maxlen=cfg.trail_len)
+        self.updates = 0
+        self.mode = ""
+
+    def remove(self) -> None:
+        self.root.remove()
+
+
+class SiteScene:
+    """The shared 3D scene of a viser server."""
+
+    def __init__(self, server: viser.ViserServer, config: SceneConfig | None = None) -> None:
+        self.server = server
+        self.config = config or SceneConfig()
+        self._landmarks: dict[int, tuple[LandmarkState, bool]] = {}
+        self._spheres: dict[int, tuple[viser.SceneNodeHandle, ...]] = {}
+        self._robots: dict[str, _RobotNodes] = {}
+        self._positions: dict[int, FloatArray] = {}
+        self.ceiling_z = 2.5
+        server.scene.set_up_direction("+z")
+
+    def set_site(self, bounds: tuple[float, float, float, float], ceiling_z: float) -> None:
+        """Floor grid, ceiling grid and the starting camera for a site's extent (metres)."""
+        x0, x1, y0, y1 = bounds
+        cx, cy = (x0 + x1) / 2.0, (y0 + y1) / 2.0
+        w, h = max(x1 - x0, 1.0), max(y1 - y0, 1.0)
+        self.ceiling_z = ceiling_z
+        scene = self.server.scene
+        scene.add_grid("/floor", w, h, plane="xy", position=(cx, cy, 0.0), cell_size=0.5)
+        scene.add_grid(
+            "/ceiling", w, h, plane="xy", position=(cx, cy, ceiling_z), cell_size=0.5,
+            cell_color=(215, 215, 235), section_color=(180, 180, 210), plane_opacity=0.0,
+            shadow_opacity=0.0,
+        )  # fmt: skip
+        span = max(w, h)
+        cam = self.server.initial_camera
+        cam.position = (cx - 0.35 * span, cy - 0.9 * span, ceiling_z + 0.7 * span)
+        cam.look_at = (cx, cy, 0.5)
+        cam.up = (0.0, 0.0, 1.0)
+
+    # -- landmarks ---------------------------------------------------------------------------
+    def update_landmarks(self, landmarks: list[LandmarkState], lit: frozenset[int]) -> None:
+        """Add, move, recolour and remove landmark nodes to match `landmarks`."""
+        scene = self.server.scene
+        r = self.config.landmark_radius_m
+        seen_ids = set()
+        for lm in landmarks:
+            if not lm.position_known:
+                continue
+            seen_ids.add(lm.id)
+            state = (lm, lm.id in lit)
+            if self._landmarks.get(lm.id) == state:
+                continue
+            color = landmark_rgb(lm)
+            pos = (lm.x, lm.y, lm.z)
+            self._positions[lm.id] = np.array(pos)
+            name = f"/landmarks/{lm.id}"
+            old = self._spheres.pop(lm.id, None)
+            if old is not None:
+                old[0].remove()
+            sphere = scene.add_icosphere(name, r, color, position=pos, subdivisions=2)
+            label = scene.add_label(
+                f"{name}/label", landmark_label(lm), position=(0.0, 0.0, -2.0 * r),
+                anchor="top-center", font_screen_scale=0.8,
+            )  # fmt: skip
+            glow = scene.add_icosphere(
+                f"{name}/glow", 2.2 * r, LIT_COLOR, opacity=0.45, subdivisions=2,
+                visible=lm.id in lit, cast_shadow=False,
+            )  # fmt: skip
+            self._spheres[lm.id] = (sphere, label, glow)
+            self._landmarks[lm.id] = state
+        for gone in set(self._landmarks) - seen_ids:
+            self._spheres.pop(gone)[0].remove()
+            del self._landmarks[gone]
+            self._positions.pop(gone, None)
+
+    def landmark_ids(self) -> list[int]:
+        """IDs of the landmarks in the scene, sorted."""
+        return sorted(self._landmarks)
+
+    def is_lit(self, landmark_id: int) -> bool:
+        """Whether the landmark's glow is shown."""
+        return self._landmarks[landmark_id][1]
+
+    # -- robots ------------------------------------------------------------------------------
+    def update_robots(self, robots: list[RobotState]) -> None:
+        """Move every robot and redraw its trail, ellipse, footprint and rays."""
+        scene = self.server.scene
+        names = {r.name for r in robots}
+        for gone in set(self._robots) - names:
+            self._robots.pop(gone).remove()
+        for rb in robots:
+            nodes = self._robots.get(rb.name)
+            if nodes is None:
+                nodes = self._robots[rb.name] = _RobotNodes(scene, rb.name, self.config)
+            self._update_robot(nodes, rb)
+
+    def _update_robot(self, nodes: _RobotNodes, rb: RobotState) -> None:
+        cfg = self.config
+        color = mode_color(rb.mode)
+        if rb.mode != nodes.mode:
+            nodes.body.color = color
+            nodes.ellipse.colors = color
+            nodes.mode = rb.mode
+        pose = rb.pose
+        nodes.body.visible = pose is not None
+        if pose is None:
+            return
+        nodes.body.position = (pose.x, pose.y, 0.125)
+        nodes.body.wxyz = wxyz_from_heading(pose.theta)
+        nodes.updates += 1
+        if nodes.updates % cfg.trail_every == 1 or cfg.trail_every == 1:
+            nodes.history.append((pose.x, pose.y))
+            trail = np.array(nodes.history)
+            nodes.trail.points = polyline_segments(
+                np.column_stack([trail, np.full(len(trail), 0.01)])
+            )
+        cov = np.asarray(pose.covariance)[:2, :2]
+        cov = 0.5 * (cov + cov.T) + np.eye(2) * (cfg.ellipse_min_m / cfg.ellipse_sigma) ** 2
+        ring = ellipse_points((pose.x, pose.y), cov, n_sigma=cfg.ellipse_sigma, n_points=24)
+        nodes.ellipse.points = polyline_segments(np.column_stack([ring, np.full(len(ring), 0.02)]))
+        foot = camera_footprint(rb.camera, pose.x, pose.y, pose.theta, self.ceiling_z, per_edge=4)
+        nodes.footprint.points = polyline_segments(foot)
+        cam_world = np.array([pose.x, pose.y, 0.0]) + np.array(
+            [[math.cos(pose.theta), -math.sin(pose.theta), 0.0],
+             [math.sin(pose.theta), math.cos(pose.theta), 0.0], [0.0, 0.0, 1.0]]
+        ) @ rb.camera.T_body_camera[:3, 3]  # fmt: skip
+        used = [self._positions[i] for i in pose.landmark_ids if i in self._positions]
+        nodes.rays.points = (
+            np.stack([np.stack([cam_world, p]) for p in used]) if used else np.zeros((0, 2, 3))
+        )
+
+    # -- coverage ----------------------------------------------------------------------------
+    def show_coverage(
+        self, coverage: Coverage | None, flags: list[SpacingFlag], *, by: str = "count"
+    ) -> None:
+        """Colour the floor by landmarks in view ("count") or expected error ("error").
+
+        None removes the layer. Count: 0 red, 1 amber, 2+ green. Error: green at <= 1 cm to
+        red at >= 5 cm, red where there is no fix.
+        """
+        scene = self.server.scene
+        if coverage is None:
+            scene.remove_by_name("/coverage")
+            return
+        gx, gy = np.meshgrid(coverage.xs, coverage.ys)
+        pts = np.column_stack([gx.ravel(), gy.ravel(), np.full(gx.size, 0.005)])
+        if by == "error":
+            err = coverage.error_m.ravel()
+            pct = np.where(np.isnan(err), 0.0, 100.0 * np.clip((0.05 - err) / 0.04, 0.0, 1.0))
+            colors = np.array([battery_color(float(p)) for p in pct], dtype=np.uint8)
+        else:
+            palette = np.array([(210, 40, 40), (230, 160, 20), (40, 160, 60)], dtype=np.uint8)
+            colors = palette[np.clip(coverage.counts.ravel(), 0, 2)]
+        scene.add_frame("/coverage", show_axes=False)
+        step = float(coverage.xs[1] - coverage.xs[0]) if len(coverage.xs) > 1 else 0.25
+        scene.add_point_cloud(
+            "/coverage/floor", pts, colors, point_size=0.9 * step, point_shape="square",
+            point_shading="flat",
+        )  # fmt: skip
+        segs = [
+            (self._positions[f.a], self._positions[f.b])
+            for f in flags
+            if f.a in self._positions and f.b in self._positions
+        ]
+        if segs:
+            scene.add_line_segments(
+                "/coverage/spacing", np.array(segs), (230, 60, 160), thickness=0.03
+            )
+
+
+def landmark_rgb(lm: LandmarkState) -> RGB:
+    """The colour `SiteScene` gives a landmark (for panels and tests)."""
+    pct = None if lm.supply_mv is None else battery_percent(lm.supply_mv)
+    return landmark_color(pct, reachable=lm.reachable, seen=lm.seen)

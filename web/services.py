@@ -1,0 +1,152 @@
+"""What the viewer needs from the site: the `ViewerSite` protocol and the snapshots it returns.
+
+The viewer never touches the database, radio or localizers directly: it reads snapshots and
+calls the same data layer as the REST API through an object of this protocol
+(`web.adapter.SiteAdapter` wraps the server's `SiteServices`). Tests drive the viewer through
+the same protocol.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Protocol
+
+import numpy as np
+import numpy.typing as npt
+
+from localizer.camera import CameraModel
+from localizer.events import PoseEstimate
+
+
+@dataclass(frozen=True)
+class LandmarkState:
+    """One landmark as shown.
+
+    Attributes:
+        id: landmark ID; x, y, z: LED position in the world frame, metres.
+        locked: surveyed, not to be moved by commissioning.
+        radio: 64-bit radio address (16 hex digits) or None.
+        supply_mv: latest battery reading, millivolts, None when never read.
+        days_left: estimated days until the cut-off voltage, None when unknown.
+        reachable: False once the radio stopped answering.
+        seen: False when no robot has ever used it for a fix.
+        position_known: False for a radio found by discovery with no surveyed position yet.
+    """
+
+    id: int
+    x: float
+    y: float
+    z: float
+    locked: bool = False
+    radio: str | None = None
+    supply_mv: int | None = None
+    days_left: float | None = None
+    reachable: bool = True
+    seen: bool = True
+    position_known: bool = True
+
+
+@dataclass(frozen=True, eq=False)
+class RobotState:
+    """One robot as shown.
+
+    Attributes:
+        name: robot name.
+        camera: its camera model with mounting.
+        pose: the latest estimate, None before the first fix.
+        mode: the localizer's mode now.
+        last_fix_t_ns: time of the latest landmark fix, None before one.
+        now_ns: the site clock when this snapshot was taken.
+    """
+
+    name: str
+    camera: CameraModel
+    pose: PoseEstimate | None
+    mode: str
+    last_fix_t_ns: int | None
+    now_ns: int
+
+
+@dataclass(frozen=True)
+class SiteEvent:
+    """A line of the event list (low battery, landmark unreachable, robot lost, map changed)."""
+
+    t_ns: int
+    kind: str
+    message: str
+
+
+@dataclass(frozen=True, eq=False)
+class CameraView:
+    """A robot's latest frame and the spots detected in it.
+
+    Attributes:
+        t_ns: when it was taken.
+        image: 8-bit grayscale, shape (H, W).
+        spots: spot centroids (col, row), shape (N, 2).
+    """
+
+    t_ns: int
+    image: npt.NDArray[np.uint8]
+    spots: npt.NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 2)))
+
+
+class ViewerSite(Protocol):
+    """The site as the viewer sees it. Every method is thread-safe and returns promptly."""
+
+    def landmarks(self) -> list[LandmarkState]:
+        """Every landmark of the map, with battery and radio state."""
+        ...
+
+    def robots(self) -> list[RobotState]:
+        """Every robot's latest state."""
+        ...
+
+    def lit(self) -> frozenset[int]:
+        """IDs of the landmarks whose LED is lit now."""
+        ...
+
+    def events(self, limit: int) -> list[SiteEvent]:
+        """The most recent events, newest first."""
+        ...
+
+    def camera_view(self, robot: str) -> CameraView | None:
+        """The robot's latest frame with its detections; None when it has none."""
+        ...
+
+    def ceiling_height(self) -> float:
+        """The nominal ceiling (LED) height, metres."""
+        ...
+
+    # -- actions (role checked by the caller); ValueError/KeyError carry the reason --------
+    def relocalize(self, robot: str, *, actor: str) -> None: ...
+
+    def set_leds(self, lit: frozenset[int], *, actor: str) -> None:
+        """Light exactly `lit`, darken the others (waits for the radio)."""
+        ...
+
+    def add_landmark(
+        self, landmark_id: int, x: float, y: float, z: float, *, actor: str
+    ) -> LandmarkState: ...
+
+    def update_landmark(
+        self,
+        landmark_id: int,
+        *,
+        actor: str,
+        x: float | None = None,
+        y: float | None = None,
+        z: float | None = None,
+        locked: bool | None = None,
+    ) -> LandmarkState: ...
+
+    def delete_landmark(self, landmark_id: int, *, actor: str) -> None: ...
+
+    def undo_last(self, *, actor: str) -> str:
+        """Revert the last map change made by anyone; returns a description of it."""
+        ...
+
+    def to_identify(self) -> Sequence[int]:
+        """Landmarks to identify: new radios from discovery, unknown or doubted positions."""
+        ...

@@ -1,0 +1,273 @@
+"""The one-at-a-time LED identification wizard (the logic; `web.panels.wizard` is its GUI).
+
+For each landmark to identify it darkens the others and lights that one alone, takes the
+chosen robot's next camera frame, finds the spot and, when the robot is localized, computes
+the landmark's position on the ceiling: the spot's ray from the camera, placed by the
+robot's pose, intersected with the LED's height (`web.geometry.landmark_from_spot`). Staff
+confirm (saved through the site's data layer and audit log), skip, retry or type the
+position by hand. Cancelling, or finishing, restores every LED to its state before the start.
+
+Methods are called from viser's callback threads: one lock serialises them. Waiting for the
+radio and for a fresh frame happens in the caller's thread.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+import numpy.typing as npt
+
+from web.geometry import landmark_from_spot
+from web.services import CameraView, LandmarkState, ViewerSite
+
+Phase = Literal["idle", "measured", "done", "cancelled"]
+
+
+@dataclass(frozen=True)
+class WizardConfig:
+    """Wizard settings.
+
+    Attributes:
+        frame_timeout_s: how long to wait for a frame taken after the LED change, seconds.
+        settle_s: a frame counts once taken this long after the radio confirmed the change.
+        max_fix_age_s: the robot's last landmark fix must be this recent, seconds.
+        poll_s: polling period while waiting for a frame, seconds.
+    """
+
+    frame_timeout_s: float = 3.0
+    settle_s: float = 0.05
+    max_fix_age_s: float = 3.0
+    poll_s: float = 0.03
+
+
+@dataclass(frozen=True, eq=False)
+class Measurement:
+    """What one lighting of a landmark gave.
+
+    Attributes:
+        landmark_id: the landmark lit alone.
+        view: the frame used, with its detected spots (None when no frame came).
+        spot: the chosen spot's pixel (col, row), None when no spot was seen.
+        position: the computed LED position in the world frame, shape (3,), or None.
+        robot_pose: (x, y, theta) used, or None when the robot was not localized.
+        message: what happened, for the staff.
+    """
+
+    landmark_id: int
+    view: CameraView | None
+    spot: npt.NDArray[np.float64] | None
+    position: npt.NDArray[np.float64] | None
+    robot_pose: tuple[float, float, float] | None
+    message: str
+
+
+@dataclass
+class WizardState:
+    """Where the wizard stands (a copy is handed to the GUI)."""
+
+    phase: Phase = "idle"
+    queue: list[int] = field(default_factory=list)
+    index: int = 0
+    robot: str = ""
+    measurement: Measurement | None = None
+    saved: list[int] = field(default_factory=list)
+    skipped: list[int] = field(default_factory=list)
+
+    @property
+    def current(self) -> int | None:
+        return self.queue[self.index] if self.phase == "measured" else None
+
+    @property
+    def progress(self) -> float:
+        """Percent of the queue dealt with."""
+        return 100.0 * self.index / len(self.queue) if self.queue else 0.0
+
+
+class IdentificationWizard:
+    """One wizard per site (the LEDs are shared)."""
+
+    def __init__(self, site: ViewerSite, config: WizardConfig | None = None) -> None:
+        self.site = site
+        self.config = config or WizardConfig()
+        self._lock = threading.RLock()
+        self._state = WizardState()
+        self._previous_lit: frozenset[int] | None = None
+
+    @property
+    def state(self) -> WizardState:
+        with self._lock:
+            s = self._state
+            return WizardState(
+                s.phase, list(s.queue), s.index, s.robot, s.measurement, list(s.saved),
+                list(s.skipped),
+            )  # fmt: skip
+
+    @property
+    def active(self) -> bool:
+        return self.state.phase == "measured"
+
+    def start(self, robot: str, landmark_ids: Sequence[int], *, actor: str) -> Measurement:
+        """Remember the LEDs, then light the first landmark alone and measure it.
+
+        Raises:
+            ValueError: when already running, the queue is empty, or the robot is unknown.
+        """
+        with self._lock:
+            if self._state.phase == "measured":
+                raise ValueError("the identification wizard is already running")
+            if not landmark_ids:
+                raise ValueError("nothing to identify")
+            if robot not in {r.name for r in self.site.robots()}:
+                raise ValueError(f"unknown robot {robot!r}")
+            self._previous_lit = self.site.lit()
+            self._state = WizardState(phase="measured", queue=list(landmark_ids), robot=robot)
+            return self._measure(actor)
+
+    def retry(self, *, actor: str) -> Measurement:
+        """Measure the current landmark anew (the others are lit first so the robot re-fixes)."""
+        with self._lock:
+            self._need_running()
+            return self._measure(actor)
+
+    def confirm(self, *, actor: str, position: npt.ArrayLike | None = None) -> Measurement | None:
+        """Save the measured position (or `position`, typed by hand), then go to the next.
+
+        Returns:
+            the next landmark's measurement, or None when the queue is finished.
+
+        Raises:
+            ValueError: when there is no position to save.
+        """
+        with self._lock:
+            self._need_running()
+            m = self._state.measurement
+            p = None if position is None else np.asarray(position, dtype=np.float64).reshape(3)
+            if p is None:
+                if m is None or m.position is None:
+                    raise ValueError("no measured position to save: retry or type it by hand")
+                p = m.position
+            lid = self._state.queue[self._state.index]
+            self.site.update_landmark(lid, actor=actor, x=float(p[0]), y=float(p[1]), z=float(p[2]))
+            self._state.saved.append(lid)
+            return self._advance(actor)
+
+    def skip(self, *, actor: str) -> Measurement | None:
+        """Leave the current landmark as it is and go to the next."""
+        with self._lock:
+            self._need_running()
+            self._state.skipped.append(self._state.queue[self._state.index])
+            return self._advance(actor)
+
+    def cancel(self, *, actor: str) -> None:
+        """Stop and restore every LED to its state before `start`."""
+        with self._lock:
+            if self._state.phase != "measured":
+                return
+            self._state.phase = "cancelled"
+            self._restore(actor)
+
+    # -- internals -------------------------------------------------------------------------
+    def _need_running(self) -> None:
+        if self._state.phase != "measured":
+            raise ValueError("the identification wizard is not running")
+
+    def _advance(self, actor: str) -> Measurement | None:
+        self._state.index += 1
+        self._state.measurement = None
+        if self._state.index >= len(self._state.queue):
+            self._state.phase = "done"
+            self._restore(actor)
+            return None
+        return self._measure(actor)
+
+    def _restore(self, actor: str) -> None:
+        if self._previous_lit is not None:
+            self.site.set_leds(self._previous_lit, actor=actor)
+        self._previous_lit = None
+
+    def _robot_pose(self) -> tuple[tuple[float, float, float] | None, str]:
+        rb = next((r for r in self.site.robots() if r.name == self._state.robot), None)
+        if rb is None:
+            return None, f"robot {self._state.robot!r} is gone"
+        if rb.pose is None or rb.last_fix_t_ns is None:
+            return None, f"robot {rb.name} has no landmark fix"
+        age = (rb.now_ns - rb.last_fix_t_ns) * 1e-9
+        if age > self.config.max_fix_age_s:
+            return None, f"robot {rb.name}'s last landmark fix is {age:.1f} s old"
+        return (rb.pose.x, rb.pose.y, rb.pose.theta), ""
+
+    def _wait_frame(self, after_ns: int) -> CameraView | None:
+        deadline = time.monotonic() + self.config.frame_timeout_s
+        while time.monotonic() < deadline:
+            view = self.site.camera_view(self._state.robot)
+            if view is not None and view.t_ns >= after_ns:
+                return view
+            time.sleep(self.config.poll_s)
+        return None
+
+    def _wait_fix(self, after_ns: int) -> None:
+        deadline = time.monotonic() + self.config.frame_timeout_s
+        while time.monotonic() < deadline:
+            rb = next((r for r in self.site.robots() if r.name == self._state.robot), None)
+            if rb is None or (rb.last_fix_t_ns is not None and rb.last_fix_t_ns >= after_ns):
+                return
+            time.sleep(self.config.poll_s)
+
+    def _now_ns(self) -> int:
+        rb = next((r for r in self.site.robots() if r.name == self._state.robot), None)
+        return 0 if rb is None else rb.now_ns
+
+    def _measure(self, actor: str) -> Measurement:
+        lid = self._state.queue[self._state.index]
+        landmarks = {lm.id: lm for lm in self.site.landmarks()}
+        if self._previous_lit is not None and self.site.lit() != self._previous_lit:
+            # light the others again so that the robot fixes its pose from them
+            self.site.set_leds(self._previous_lit, actor=actor)
+            self._wait_fix(self._now_ns())
+        self.site.set_leds(frozenset({lid}), actor=actor)
+        view = self._wait_frame(self._now_ns() + int(self.config.settle_s * 1e9))
+        pose, why = self._robot_pose()  # dead reckoning since the last fix, at this frame
+        m = measure_landmark(self.site, self._state.robot, lid, landmarks.get(lid), view, pose, why)
+        self._state.measurement = m
+        return m
+
+
+def measure_landmark(
+    site: ViewerSite,
+    robot: str,
+    landmark_id: int,
+    landmark: LandmarkState | None,
+    view: CameraView | None,
+    pose: tuple[float, float, float] | None,
+    why_no_pose: str,
+) -> Measurement:
+    """Turn a frame with one lit LED into a proposed landmark position."""
+    if view is None:
+        return Measurement(landmark_id, None, None, None, pose, f"no new frame from {robot}")
+    if len(view.spots) == 0:
+        return Measurement(
+            landmark_id, view, None, None, pose,
+            f"no spot seen: is landmark {landmark_id} in {robot}'s view? Move it, or retry",
+        )  # fmt: skip
+    spot = np.asarray(view.spots[0], dtype=np.float64)
+    extra = f" ({len(view.spots)} spots; the brightest is used)" if len(view.spots) > 1 else ""
+    if pose is None:
+        return Measurement(landmark_id, view, spot, None, None, why_no_pose + extra)
+    height = landmark.z if landmark is not None and landmark.position_known else None
+    if height is None or not math.isfinite(height):
+        height = site.ceiling_height()
+    cam = next(r.camera for r in site.robots() if r.name == robot)
+    p = landmark_from_spot(cam, *pose, spot, height)
+    if p is None:
+        return Measurement(landmark_id, view, spot, None, pose, "the spot's ray misses the ceiling")
+    text = f"landmark {landmark_id} at ({p[0]:.3f}, {p[1]:.3f}, {p[2]:.3f}) m{extra}"
+    if landmark is not None and landmark.position_known:
+        d = math.hypot(p[0] - landmark.x, p[1] - landmark.y)
+        text += f", {100 * d:.1f} cm from the map"
+    return Measurement(landmark_id, view, spot, p, pose, text)
