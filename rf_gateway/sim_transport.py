@@ -26,11 +26,14 @@ class SimTransport:
     Args:
         radio: the virtual site's radio (a `SimRadio`).
         command_timeout_s: longest wait for one answer; a command not acknowledged (False /
-            None from the radio) or not answered in time raises `RadioTimeout`.
+            None from the radio) or not answered in time raises `RadioTimeout`. Default: the
+            radio's own `timeout_s` plus 0.2 s (0.5 s when it has none).
     """
 
-    def __init__(self, radio: SimRadioLike, *, command_timeout_s: float = 0.5) -> None:
+    def __init__(self, radio: SimRadioLike, *, command_timeout_s: float | None = None) -> None:
         self.radio = radio
+        if command_timeout_s is None:
+            command_timeout_s = float(getattr(radio, "timeout_s", 0.3)) + 0.2
         self.command_timeout_s = command_timeout_s
         self._state: TransportState = "closed"
         self._listeners: list[Callable[[TransportState], None]] = []
