@@ -1,0 +1,189 @@
+"""A simulated differential-drive robot: true motion, wheel odometry, floor bumps and the
+times its upward camera takes frames.
+
+Motion: the controller sets (v, omega) at every control tick (the odometry rate); between
+ticks the wheels turn at constant speed, so the body follows an exact circular arc
+(`localizer.odometry.integrate_arc` with the *true* wheel base). Odometry: each sample at tick
+t_k reports the wheel speeds averaged over (t_{k-1}, t_k], as counted by encoders that assume
+the nominal wheel radius (so unequal true radii scale each wheel's speed), plus noise
+proportional to the wheel speed (a parked robot reads exactly zero). Floor bumps lift and tilt
+the body (and so the camera) without changing the planar pose.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from localizer.events import OdometryMeasured
+from localizer.geometry import rotation_z
+from localizer.odometry import integrate_arc
+from sim.routes import DriveLimits, Route, RouteFollower
+
+FloatArray = npt.NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class FloorBump:
+    """A smooth hump (or dip, for negative height) in the floor: raised cosine of `radius_m`."""
+
+    x: float
+    y: float
+    radius_m: float
+    height_m: float
+
+
+def floor_height(bumps: tuple[FloorBump, ...], x: float, y: float) -> tuple[float, float, float]:
+    """Floor height and its gradient at (x, y): (h metres, dh/dx, dh/dy)."""
+    h = gx = gy = 0.0
+    for b in bumps:
+        dx, dy = x - b.x, y - b.y
+        r = math.hypot(dx, dy)
+        if r >= b.radius_m:
+            continue
+        a = math.pi * r / b.radius_m
+        h += b.height_m * 0.5 * (1.0 + math.cos(a))
+        if r > 1e-12:
+            dh_dr = -b.height_m * 0.5 * math.sin(a) * math.pi / b.radius_m
+            gx += dh_dr * dx / r
+            gy += dh_dr * dy / r
+    return h, gx, gy
+
+
+@dataclass(frozen=True)
+class OdometryModel:
+    """How the wheel odometry errs.
+
+    Attributes:
+        rate_hz: odometry samples (and control ticks) per second.
+        wheel_scale: (left, right) measured / true wheel speed (nominal over true radius).
+        wheel_base_true_m: the real distance between the wheels' contact points.
+        noise_rel: standard deviation of each sample's speed noise, relative to the speed.
+    """
+
+    rate_hz: float
+    wheel_scale: tuple[float, float]
+    wheel_base_true_m: float
+    noise_rel: float = 0.01
+
+
+@dataclass(frozen=True)
+class FramePose:
+    """A frame due at `t_ns` taken from the body pose `T_world_body` (4, 4)."""
+
+    t_ns: int
+    T_world_body: FloatArray
+
+
+class SimRobot:
+    """One simulated robot.
+
+    Args:
+        name: its name.
+        start: (x, y, theta) at `t0_ns`.
+        route: what it drives.
+        odometry: its odometry errors and rate.
+        camera_rate_hz: frames per second.
+        frame_drop: probability that a frame is lost.
+        bumps: floor bumps.
+        rng: draws odometry noise and dropped frames.
+        t0_ns: start time; frames start at `t0_ns + frame_offset_ns`.
+        limits: controller limits.
+    """
+
+    def __init__(
+        self,
+        name: str,
+        *,
+        start: tuple[float, float, float],
+        route: Route,
+        odometry: OdometryModel,
+        camera_rate_hz: float,
+        frame_drop: float,
+        bumps: tuple[FloorBump, ...],
+        rng: np.random.Generator,
+        t0_ns: int = 0,
+        frame_offset_ns: int = 0,
+        limits: DriveLimits | None = None,
+    ) -> None:
+        self.name = name
+        self.odometry = odometry
+        self.bumps = bumps
+        self.frame_drop = frame_drop
+        self.rng = rng
+        self.tick_ns = round(1e9 / odometry.rate_hz)
+        self.frame_period_ns = round(1e9 / camera_rate_hz)
+        self.follower = RouteFollower(route, limits, tick_s=self.tick_ns * 1e-9)
+        self.x, self.y, self.theta = (float(v) for v in start)
+        self.t_ns = t0_ns  # time of the state above (always a control tick)
+        self._command = (0.0, 0.0)
+        self._next_frame_ns = t0_ns + frame_offset_ns
+        self.paused_until_ns = t0_ns
+
+    def _true_wheels(self, v: float, omega: float) -> tuple[float, float]:
+        half = 0.5 * self.odometry.wheel_base_true_m * omega
+        return v - half, v + half
+
+    def _arc(self, dt_s: float) -> tuple[float, float, float]:
+        vl, vr = self._true_wheels(*self._command)
+        x, y, th = integrate_arc(
+            self.x, self.y, self.theta, vl, vr, dt_s, self.odometry.wheel_base_true_m
+        )
+        return float(x), float(y), float(th)
+
+    def pose_at(self, t_ns: int) -> tuple[float, float, float]:
+        """True planar pose at `t_ns` >= the last tick (the current arc, extended)."""
+        return self._arc((t_ns - self.t_ns) * 1e-9)
+
+    def T_world_body(self, x: float, y: float, theta: float) -> FloatArray:
+        """Body pose (4, 4) on the floor at (x, y, theta): lifted and tilted by bumps."""
+        h, gx, gy = floor_height(self.bumps, x, y)
+        T = np.eye(4)
+        R = rotation_z(theta)
+        if gx or gy:
+            c, s = math.cos(theta), math.sin(theta)
+            pitch = -math.atan(gx * c + gy * s)  # nose up going uphill (REP-103: +pitch = down)
+            roll = math.atan(-gx * s + gy * c)  # left side up when the floor rises to the left
+            cp, sp, cr, sr = math.cos(pitch), math.sin(pitch), math.cos(roll), math.sin(roll)
+            Ry = np.array([[cp, 0, sp], [0, 1, 0], [-sp, 0, cp]])
+            Rx = np.array([[1, 0, 0], [0, cr, -sr], [0, sr, cr]])
+            R = R @ Ry @ Rx
+        T[:3, :3] = R
+        T[:3, 3] = [x, y, h]
+        return T
+
+    def _measure(self) -> tuple[float, float]:
+        vl, vr = self._true_wheels(*self._command)
+        sl, sr = self.odometry.wheel_scale
+        noise = self.rng.normal(0.0, self.odometry.noise_rel, 2)
+        return vl * sl * (1.0 + noise[0]), vr * sr * (1.0 + noise[1])
+
+    def advance_to(self, t_ns: int) -> list[OdometryMeasured | FramePose]:
+        """Drive up to `t_ns`; the odometry samples and (not dropped) frames due, in time order.
+
+        At equal times the odometry sample comes before the frame.
+        """
+        out: list[OdometryMeasured | FramePose] = []
+        while True:
+            tick = self.t_ns + self.tick_ns
+            while self._next_frame_ns < tick and self._next_frame_ns <= t_ns:
+                self._add_frame(out, self._next_frame_ns)
+            if tick > t_ns:
+                return out
+            self.x, self.y, self.theta = self._arc(self.tick_ns * 1e-9)
+            self.t_ns = tick
+            vl, vr = self._measure()
+            out.append(OdometryMeasured(tick, vl, vr))
+            if tick >= self.paused_until_ns:
+                self._command = self.follower.command(tick * 1e-9, self.x, self.y, self.theta)
+            else:
+                self._command = (0.0, 0.0)
+
+    def _add_frame(self, out: list[OdometryMeasured | FramePose], t_ns: int) -> None:
+        self._next_frame_ns += self.frame_period_ns
+        if self.frame_drop > 0 and self.rng.random() < self.frame_drop:
+            return
+        out.append(FramePose(t_ns, self.T_world_body(*self.pose_at(t_ns))))
