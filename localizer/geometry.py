@@ -23,6 +23,8 @@ def wrap_angle(angle: float | FloatArray) -> float | FloatArray:
         The same angle(s) in (-pi, pi]; a float for a float input.
     """
     wrapped = np.pi - np.mod(np.pi - np.asarray(angle, dtype=np.float64), 2.0 * np.pi)
+    # np.mod can round up to exactly 2 pi for angles a hair above pi, giving -pi: fold it back
+    wrapped = np.where(wrapped <= -np.pi, wrapped + 2.0 * np.pi, wrapped)
     if np.ndim(wrapped) == 0:
         return float(wrapped)
     return wrapped

@@ -23,10 +23,12 @@ from localizer.geometry import (
         (2 * np.pi + 0.1, 0.1),
         (-np.pi - 0.1, np.pi - 0.1),
         (np.pi + 1e-12, -np.pi + 1e-12),
+        (3.1415926535897936, np.pi),  # a hair above pi: np.mod rounds to 2 pi
     ],
 )
 def test_wrap_angle_maps_into_half_open_interval(angle: float, expected: float) -> None:
     assert wrap_angle(angle) == pytest.approx(expected, abs=1e-9)
+    assert -np.pi < wrap_angle(angle) <= np.pi
 
 
 def test_wrap_angle_on_arrays_stays_in_range() -> None:

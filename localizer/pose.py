@@ -1,0 +1,342 @@
+"""The robot's pose from identified ceiling landmarks (paper Sec. III-B).
+
+Two solvers:
+
+* `pose_from_landmark_pair`: the paper's closed form, eqs. (1)-(2), kept as the baseline. It
+  works in the image plane with one scale s = D/d and needs undistorted pixels, landmarks at
+  one height and the camera on the axle. `pixels_from_pose_paper` is its inverse, the paper's
+  eq. (3) with the bracket put where it belongs.
+* `solve_pose`: the production solver. Gauss-Newton on the reprojection error of every
+  identified landmark in undistorted normalised image coordinates, whitened by the pixel noise
+  mapped through the lens, with each landmark's own height and the real camera mounting;
+  optionally it also estimates the body's tilt (roll, pitch). It starts from a closed form
+  (weighted 2D Procrustes of the rays' intersections with each landmark's height plane),
+  which is already exact for noise-free pixels without tilt.
+
+Frames: see docs/conventions.md and docs/estimation.md.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+import numpy.typing as npt
+
+from localizer.camera import CameraModel, normalized_from_pixels
+from localizer.geometry import wrap_angle
+from localizer.pose_model import jacob_h, observation_model
+from localizer.pose_planar import floor_points, procrustes_2d, solve_planar
+
+FloatArray = npt.NDArray[np.float64]
+
+_JACOBIAN_STEP_PX = 0.5  # forward-difference step for d(normalised)/d(pixel)
+
+
+# ---------------------------------------------------------------------------------------------
+# The paper's closed form (baseline)
+
+
+def pose_from_landmark_pair(
+    px_i: npt.ArrayLike,
+    px_j: npt.ArrayLike,
+    P_i: npt.ArrayLike,
+    P_j: npt.ArrayLike,
+    image_center: npt.ArrayLike,
+) -> tuple[float, float, float]:
+    """Robot position and heading from two landmarks, the paper's eqs. (1)-(2).
+
+    cos(theta) = (dx dX + dy dY) / (d D),  sin(theta) = (dx dY - dy dX) / (d D),   (1)
+    (r_x, r_y) = s R(theta) ((c_x, c_y) - (x_i, y_i)) + (X_i, Y_i),  s = D / d,     (2)
+
+    with (dx, dy) = p_j - p_i in the image, (dX, dY) = P_j - P_i in the world, d and D their
+    lengths. theta is the rotation that turns image directions into world directions.
+
+    Frame mapping (derived in docs/estimation.md). With OpenCV pixels (col, row) of an upward
+    camera, the map from the image to the floor is a proper similarity (no mirror): the camera
+    frame (x right, y down, z up) is right-handed with z along world z, so (col, row) turn into
+    world (x, y) by a rotation. Only an image *displayed* with rows down and read as a map with
+    y up looks mirrored. For the mounting `T_body_camera_upward(yaw=gamma)` the image's
+    "up" direction (-row) is the robot's forward axis rotated by gamma, and the paper's theta
+    relates to our REP-103 heading by heading = theta - gamma - pi/2 (see
+    `heading_from_paper_angle`). (r_x, r_y) is the floor point under the optical centre: the
+    robot's position only when the camera sits on the axle.
+
+    Exact only for undistorted pixels of an ideal pinhole, both landmarks at one height, the
+    optical axis vertical and `image_center` the principal point (cu, cv).
+
+    Args:
+        px_i, px_j: pixels (col, row) of landmarks i and j, shape (2,).
+        P_i, P_j: their world positions, shape (2,) or (3,) (z is ignored), metres.
+        image_center: (c_x, c_y), pixels.
+
+    Returns:
+        (r_x, r_y) metres and the paper's theta, radians in (-pi, pi].
+
+    Raises:
+        ValueError: when the two landmarks coincide in the image or in the world.
+    """
+    p_i, p_j = np.asarray(px_i, float)[:2], np.asarray(px_j, float)[:2]
+    W_i, W_j = np.asarray(P_i, float)[:2], np.asarray(P_j, float)[:2]
+    dx, dy = p_j - p_i
+    dX, dY = W_j - W_i
+    d, D = math.hypot(dx, dy), math.hypot(dX, dY)
+    if d == 0.0 or D == 0.0:
+        raise ValueError(f"pose_from_landmark_pair: landmarks coincide (d={d} px, D={D} m)")
+    cos_t = (dx * dX + dy * dY) / (d * D)
+    sin_t = (dx * dY - dy * dX) / (d * D)
+    s = D / d
+    R = np.array([[cos_t, -sin_t], [sin_t, cos_t]])
+    r = s * R @ (np.asarray(image_center, float)[:2] - p_i) + W_i
+    return float(r[0]), float(r[1]), float(wrap_angle(math.atan2(sin_t, cos_t)))
+
+
+def heading_from_paper_angle(theta_paper: float, camera_yaw: float = 0.0) -> float:
+    """REP-103 heading from the paper's theta, for `T_body_camera_upward(yaw=camera_yaw)`.
+
+    heading = theta_paper - camera_yaw - pi/2, wrapped to (-pi, pi].
+    """
+    return float(wrap_angle(theta_paper - camera_yaw - 0.5 * math.pi))
+
+
+def pixels_from_pose_paper(
+    r_xy: npt.ArrayLike,
+    theta_paper: float,
+    scale: float,
+    image_center: npt.ArrayLike,
+    P_world: npt.ArrayLike,
+) -> FloatArray:
+    """Predicted pixels of landmarks, the paper's eq. (3) with its bracket corrected.
+
+    (x_k', y_k') = (c_x, c_y) - (1/s) R(theta)^T ((r_x, r_y) - (X_k, Y_k)),
+
+    the inverse of eq. (2). (The printed eq. (3) closes the bracket after (r_x, r_y), which
+    subtracts a world position from a pixel.)
+
+    Args:
+        r_xy: (r_x, r_y), metres; theta_paper: radians; scale: s of eq. (2), metres/pixel.
+        image_center: (c_x, c_y), pixels.
+        P_world: landmark positions, shape (N, 2) or (N, 3) (z ignored).
+
+    Returns:
+        shape (N, 2), pixels.
+    """
+    c, s = math.cos(theta_paper), math.sin(theta_paper)
+    Rt = np.array([[c, s], [-s, c]])
+    P = np.asarray(P_world, dtype=np.float64)
+    diff = np.asarray(r_xy, dtype=np.float64)[:2] - P.reshape(P.shape[0], -1)[:, :2]
+    out: FloatArray = np.asarray(image_center, dtype=np.float64)[:2] - (diff @ Rt.T) / scale
+    return out
+
+
+# ---------------------------------------------------------------------------------------------
+# The production solver
+
+
+@dataclass(frozen=True, eq=False)
+class PoseFix:
+    """One pose measurement from the landmarks seen in one frame.
+
+    Attributes:
+        x, y: body position (axle midpoint on the floor), metres, world frame.
+        theta: REP-103 heading, radians in (-pi, pi].
+        covariance: of (x, y, theta), shape (3, 3), SI units (tilt marginalised out).
+        tilt: body (roll, pitch), radians, shape (2,); zeros unless estimated.
+        residual_rms_px: root mean square of the landmarks' reprojection errors, pixels
+            (sqrt of the mean over landmarks of the squared pixel distance).
+        landmark_ids: the landmarks used, in the order given.
+        n_landmarks: how many landmarks were used.
+    """
+
+    x: float
+    y: float
+    theta: float
+    covariance: FloatArray
+    tilt: FloatArray = field(default_factory=lambda: np.zeros(2))
+    residual_rms_px: float = 0.0
+    landmark_ids: tuple[int, ...] = ()
+    n_landmarks: int = 0
+
+
+def solve_pose(
+    camera: CameraModel,
+    pixels: npt.ArrayLike,
+    p_world: npt.ArrayLike,
+    *,
+    initial: PoseFix | tuple[float, float, float] | None = None,
+    estimate_tilt: bool = False,
+    pixel_sigma_px: float = 0.3,
+    landmark_ids: tuple[int, ...] = (),
+    tilt_sigma_rad: float | None = None,
+    min_separation_px: float = 2.0,
+    max_iterations: int = 20,
+) -> PoseFix | None:
+    """Least-squares body pose from two or more identified landmarks.
+
+    Minimises sum_i |B_i (m_i - h_i(params))|^2, where m_i is landmark i's pixel undistorted
+    to normalised coordinates, h_i the observation model (`pose_model.observation_model`) and
+    B_i = (sigma A_i)^-1 with A_i = d m / d pixel, so each term is the reprojection error in
+    pixels over the pixel noise. Gauss-Newton; covariance (J^T J)^-1 of the whitened problem.
+
+    Args:
+        camera: lens and mounting (`camera.T_body_camera`).
+        pixels: measured spot centres (col, row), shape (N, 2), distorted (raw) pixels.
+        p_world: the landmarks' world positions, shape (N, 3), metres (own heights).
+        initial: a starting pose (a previous fix, or (x, y, theta)); without it the solver
+            starts from the closed form.
+        estimate_tilt: with 3+ landmarks also estimate the body's roll and pitch; ignored
+            with fewer.
+        pixel_sigma_px: standard deviation of a spot centre per axis, pixels.
+        landmark_ids: IDs to carry into the fix.
+        tilt_sigma_rad: optional zero-mean prior on roll and pitch (None: no prior).
+        min_separation_px: spots closer than this in the image count as coincident.
+        max_iterations: Gauss-Newton iterations before giving up.
+
+    Returns:
+        The fix, or None when degenerate: fewer than 2 landmarks, coincident landmarks, a
+        landmark not above the camera, a singular problem or no convergence.
+
+    Raises:
+        ValueError: when `pixels` and `p_world` have mismatched or wrong shapes.
+    """
+    px = np.asarray(pixels, dtype=np.float64)
+    P = np.asarray(p_world, dtype=np.float64)
+    if px.ndim != 2 or px.shape[1] != 2 or P.shape != (len(px), 3):
+        raise ValueError(
+            f"solve_pose: pixels must be (N, 2) and p_world (N, 3), got {px.shape} and {P.shape}"
+        )
+    n = len(px)
+    pl = px.tolist()
+    Pl = P.tolist()
+    # a sum is finite only if every term is (inf - inf is nan)
+    if n < 2 or not math.isfinite(sum(map(sum, pl)) + sum(map(sum, Pl))):
+        return None
+    min_sep2 = min_separation_px**2
+    for i in range(n):
+        for j in range(i + 1, n):
+            if (pl[i][0] - pl[j][0]) ** 2 + (pl[i][1] - pl[j][1]) ** 2 < min_sep2:
+                return None
+
+    # Undistort the pixels and two offset copies in one call: m and A = d m / d pixel.
+    h = _JACOBIAN_STEP_PX
+    shifted = pl + [[c + h, r] for c, r in pl] + [[c, r + h] for c, r in pl]
+    nl = normalized_from_pixels(camera, np.array(shifted)).tolist()
+    m = [(mx, my) for mx, my in nl[:n]]
+    A = [
+        ((ux - mx) / h, (vx - mx) / h, (uy - my) / h, (vy - my) / h)
+        for (mx, my), (ux, uy), (vx, vy) in zip(m, nl[n : 2 * n], nl[2 * n :], strict=True)
+    ]
+    floor = floor_points(m, A, [p[2] for p in Pl], camera.T_body_camera.tolist())
+    if floor is None:
+        return None
+    q, G = floor
+    P_xy = [(p[0], p[1]) for p in Pl]
+    if initial is None:
+        weights = [
+            1.0 / (g00 * g00 + g01 * g01 + g10 * g10 + g11 * g11) for g00, g01, g10, g11 in G
+        ]
+        start = procrustes_2d(q, P_xy, weights)
+        if start is None:
+            return None
+    elif isinstance(initial, PoseFix):
+        start = (initial.x, initial.y, initial.theta)
+    else:
+        start = (float(initial[0]), float(initial[1]), float(initial[2]))
+    planar = solve_planar(q, G, P_xy, start, pixel_sigma_px, max_iterations)
+    if planar is None:
+        return None
+    (x, y, theta), c, rms = planar
+    covariance = np.array([[c[0], c[1], c[2]], [c[1], c[3], c[4]], [c[2], c[4], c[5]]])
+    tilt = np.zeros(2)
+    if estimate_tilt and n >= 3:
+        tilt0 = initial.tilt if isinstance(initial, PoseFix) else np.zeros(2)
+        tilted = _solve_tilted(
+            camera,
+            np.array(m),
+            np.array(A).reshape(n, 2, 2),
+            P,
+            np.array([x, y, theta, *tilt0]),
+            pixel_sigma_px,
+            tilt_sigma_rad,
+            max_iterations,
+        )
+        if tilted is None:
+            return None
+        params, cov_full, rms = tilted
+        x, y, theta = float(params[0]), float(params[1]), float(params[2])
+        covariance, tilt = cov_full[:3, :3].copy(), params[3:5].copy()
+    if not -math.pi < theta <= math.pi:
+        theta = float(wrap_angle(theta))
+    return PoseFix(
+        x=x,
+        y=y,
+        theta=theta,
+        covariance=covariance,
+        tilt=tilt,
+        residual_rms_px=rms,
+        landmark_ids=tuple(int(i) for i in landmark_ids),
+        n_landmarks=n,
+    )
+
+
+def _solve_tilted(
+    camera: CameraModel,
+    m: FloatArray,
+    A: FloatArray,
+    P: FloatArray,
+    params: FloatArray,
+    sigma_px: float,
+    tilt_sigma_rad: float | None,
+    max_iterations: int,
+) -> tuple[FloatArray, FloatArray, float] | None:
+    """Gauss-Newton over (x, y, theta, roll, pitch) on the whitened reprojection error.
+
+    Returns:
+        (params shape (5,), covariance shape (5, 5), residual RMS in pixels) or None.
+    """
+    n = len(m)
+    T_bc = camera.T_body_camera
+    A_inv = _inverse_2x2(A)
+    B = A_inv / sigma_px
+    prior = 0.0 if tilt_sigma_rad is None else 1.0 / tilt_sigma_rad**2
+    for _ in range(max_iterations):
+        p_camera, m_pred = observation_model(params, P, T_bc)
+        if np.any(p_camera[:, 2] <= 1e-6):
+            return None
+        J = np.matmul(B, jacob_h(params, P, T_bc, p_camera)).reshape(2 * n, -1)
+        e = np.matmul(B, (m - m_pred)[:, :, None]).reshape(2 * n)
+        H = J.T @ J
+        g = J.T @ e
+        if prior:
+            H[3:, 3:] += prior * np.eye(2)
+            g[3:] -= prior * params[3:]
+        try:
+            delta = np.linalg.solve(H, g)
+        except np.linalg.LinAlgError:
+            return None
+        params = params + delta
+        if float(delta @ g) < 1e-4:  # the step is under 1 % of a standard deviation
+            break
+    else:
+        return None
+    try:
+        cov = np.linalg.inv(H)
+    except np.linalg.LinAlgError:
+        return None
+    if not np.all(np.isfinite(cov)) or np.any(np.diag(cov) <= 0):
+        return None
+    _, m_pred = observation_model(params, P, T_bc)
+    e_px = np.matmul(A_inv, (m - m_pred)[:, :, None])
+    return params, cov, math.sqrt(float(np.sum(e_px**2)) / n)
+
+
+def _inverse_2x2(A: FloatArray) -> FloatArray:
+    """Inverses of a stack of 2x2 matrices, shape (N, 2, 2)."""
+    det = A[:, 0, 0] * A[:, 1, 1] - A[:, 0, 1] * A[:, 1, 0]
+    inv = np.empty_like(A)
+    inv[:, 0, 0] = A[:, 1, 1]
+    inv[:, 1, 1] = A[:, 0, 0]
+    inv[:, 0, 1] = -A[:, 0, 1]
+    inv[:, 1, 0] = -A[:, 1, 0]
+    return inv / det[:, None, None]

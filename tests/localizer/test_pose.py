@@ -1,0 +1,280 @@
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from localizer.camera import CameraModel, T_body_camera_upward, predict_pixels
+from localizer.geometry import T_world_body_from_pose, wrap_angle
+from localizer.pose import (
+    PoseFix,
+    heading_from_paper_angle,
+    pixels_from_pose_paper,
+    pose_from_landmark_pair,
+    solve_pose,
+)
+from localizer.pose_model import jacob_h, observation_model, rotation_world_body
+
+LENSES = {
+    "pinhole": ("radial-tangential", [0.0, 0.0, 0.0, 0.0]),
+    "radial-tangential": ("radial-tangential", [-0.28, 0.07, 2e-4, -3e-4, -0.008]),
+    "equidistant": ("equidistant", [-0.013, 0.021, -0.019, 0.0068]),
+}
+MOUNTINGS = {
+    "upward": T_body_camera_upward(),
+    "offset-yaw90": T_body_camera_upward(yaw=math.pi / 2, offset_xy=(0.1, 0.0), height=0.35),
+    "offset-tilted": T_body_camera_upward(yaw=-2.0, offset_xy=(-0.05, 0.1), tilt_xy=(0.01, -0.015)),
+}
+# Four landmarks at different heights around the robot's position (1.5, 2.3).
+LANDMARKS = np.array([[1.0, 2.0, 2.5], [2.2, 2.0, 2.62], [1.6, 3.0, 2.45], [2.0, 1.6, 2.55]])
+HEADINGS = [0.3, -1.9, math.pi, math.pi - 1e-4, -math.pi + 1e-4]
+
+
+def make_camera(lens: str = "radial-tangential", mounting: str = "upward") -> CameraModel:
+    model, dist = LENSES[lens]
+    return CameraModel(
+        width=640,
+        height=480,
+        fu=300.0,
+        fv=300.5,
+        cu=321.3,
+        cv=238.7,
+        distortion_model=model,  # type: ignore[arg-type]
+        distortion=np.array(dist),
+        T_body_camera=MOUNTINGS[mounting],
+    )
+
+
+def observe(
+    cam: CameraModel, pose: tuple[float, float, float], P: np.ndarray, tilt=(0.0, 0.0)
+) -> np.ndarray:
+    T = T_world_body_from_pose(*pose)
+    T[:3, :3] = rotation_world_body(pose[2], *tilt)
+    px, valid = predict_pixels(cam, T, P)
+    assert valid.all(), "test geometry puts a landmark out of view"
+    return px
+
+
+def assert_pose(fix: PoseFix | None, pose: tuple[float, float, float], atol: float) -> None:
+    assert fix is not None
+    np.testing.assert_allclose([fix.x, fix.y], pose[:2], atol=atol)
+    assert abs(wrap_angle(fix.theta - pose[2])) < atol
+    assert -math.pi < fix.theta <= math.pi
+
+
+# --- the paper's closed form (eqs. 1-3) ------------------------------------------------------
+
+
+@pytest.mark.parametrize("heading", HEADINGS)
+@pytest.mark.parametrize("yaw", [0.0, 0.7, -math.pi / 2])
+def test_paper_closed_form_is_exact_for_an_ideal_camera_on_the_axle(
+    heading: float, yaw: float
+) -> None:
+    model, dist = LENSES["pinhole"]
+    cam = CameraModel(640, 480, 300.0, 300.0, 320.0, 240.0, model, np.array(dist),
+                      T_body_camera_upward(yaw=yaw))  # fmt: skip
+    P = LANDMARKS[:2].copy()
+    P[:, 2] = 2.5
+    px = observe(cam, (1.5, 2.3, heading), P)
+    rx, ry, theta_paper = pose_from_landmark_pair(px[0], px[1], P[0], P[1], (cam.cu, cam.cv))
+    np.testing.assert_allclose([rx, ry], [1.5, 2.3], atol=1e-9)
+    assert heading_from_paper_angle(theta_paper, yaw) == pytest.approx(
+        float(wrap_angle(heading)), abs=1e-9
+    ) or abs(heading_from_paper_angle(theta_paper, yaw) - float(wrap_angle(heading))) == (
+        pytest.approx(2 * math.pi, abs=1e-9)
+    )
+    # The scale is D / d (eq. 2), metres per pixel: (ceiling - camera height) / f.
+    d = np.linalg.norm(px[1] - px[0])
+    assert np.linalg.norm(P[1, :2] - P[0, :2]) / d == pytest.approx((2.5 - 0.3) / 300.0)
+
+
+def test_paper_heading_is_measured_from_the_world_y_axis_for_an_upright_image() -> None:
+    # Robot facing world +y (REP-103 heading pi/2): the paper's theta is pi (yaw-0 mounting,
+    # image "up" = robot forward, and the image's up is (0, -1) in OpenCV pixels).
+    assert heading_from_paper_angle(math.pi) == pytest.approx(math.pi / 2)
+    assert heading_from_paper_angle(math.pi / 2) == pytest.approx(0.0)
+
+
+def test_corrected_eq_3_inverts_eq_2_and_matches_predict_pixels() -> None:
+    model, dist = LENSES["pinhole"]
+    cam = CameraModel(640, 480, 300.0, 300.0, 320.0, 240.0, model, np.array(dist),
+                      T_body_camera_upward())  # fmt: skip
+    P = LANDMARKS.copy()
+    P[:, 2] = 2.5
+    pose = (1.5, 2.3, 2.0)
+    px = observe(cam, pose, P)
+    rx, ry, th = pose_from_landmark_pair(px[0], px[1], P[0], P[1], (320.0, 240.0))
+    s = np.linalg.norm(P[1, :2] - P[0, :2]) / np.linalg.norm(px[1] - px[0])
+    np.testing.assert_allclose(pixels_from_pose_paper((rx, ry), th, s, (320, 240), P), px,
+                               atol=1e-9)  # fmt: skip
+
+
+def test_paper_closed_form_rejects_coincident_landmarks() -> None:
+    with pytest.raises(ValueError, match="coincide"):
+        pose_from_landmark_pair((10, 10), (10, 10), (0, 0), (1, 0), (320, 240))
+
+
+# --- the observation model's Jacobian --------------------------------------------------------
+
+
+@pytest.mark.parametrize("params", [[1.5, 2.3, 0.4], [1.5, 2.3, -3.0, 0.03, -0.02]])
+def test_jacob_h_matches_finite_differences(params: list[float]) -> None:
+    p = np.array(params)
+    T = MOUNTINGS["offset-tilted"]
+    pc, _ = observation_model(p, LANDMARKS, T)
+    J = jacob_h(p, LANDMARKS, T, pc)
+    eps = 1e-7
+    for k in range(len(p)):
+        dp = np.zeros(len(p))
+        dp[k] = eps
+        num = (
+            observation_model(p + dp, LANDMARKS, T)[1] - observation_model(p - dp, LANDMARKS, T)[1]
+        ) / (2 * eps)
+        np.testing.assert_allclose(J[:, :, k], num, atol=1e-7)
+
+
+def test_rotation_world_body_is_yaw_pitch_roll() -> None:
+    R = rotation_world_body(0.3, 0.02, -0.05)
+    cz, sz = math.cos(0.3), math.sin(0.3)
+    Rz = np.array([[cz, -sz, 0], [sz, cz, 0], [0, 0, 1]])
+    Ry = np.array(
+        [[math.cos(-0.05), 0, math.sin(-0.05)], [0, 1, 0], [-math.sin(-0.05), 0, math.cos(-0.05)]]
+    )
+    Rx = np.array(
+        [[1, 0, 0], [0, math.cos(0.02), -math.sin(0.02)], [0, math.sin(0.02), math.cos(0.02)]]
+    )
+    np.testing.assert_allclose(R, Rz @ Ry @ Rx, atol=1e-15)
+
+
+# --- the production solver: exact recovery ---------------------------------------------------
+
+
+@pytest.mark.parametrize("lens", ["radial-tangential", "equidistant"])
+@pytest.mark.parametrize("mounting", list(MOUNTINGS))
+@pytest.mark.parametrize("heading", HEADINGS)
+@pytest.mark.parametrize("n", [2, 3, 4])
+def test_solve_pose_recovers_the_pose_exactly(
+    lens: str, mounting: str, heading: float, n: int
+) -> None:
+    cam = make_camera(lens, mounting)
+    pose = (1.5, 2.3, heading)
+    px = observe(cam, pose, LANDMARKS[:n])
+    fix = solve_pose(cam, px, LANDMARKS[:n], landmark_ids=tuple(range(10, 10 + n)))
+    assert_pose(fix, pose, 1e-8)
+    assert fix is not None
+    assert fix.residual_rms_px < 1e-6
+    assert fix.landmark_ids == tuple(range(10, 10 + n))
+    assert fix.n_landmarks == n
+    np.testing.assert_array_equal(fix.tilt, [0.0, 0.0])
+    assert fix.covariance.shape == (3, 3)
+    np.testing.assert_allclose(fix.covariance, fix.covariance.T)
+    assert np.all(np.linalg.eigvalsh(fix.covariance) > 0)
+
+
+@pytest.mark.parametrize("start", ["tuple", "fix"])
+def test_solve_pose_from_an_initial_guess(start: str) -> None:
+    cam = make_camera("equidistant", "offset-yaw90")
+    pose = (1.5, 2.3, -math.pi + 1e-3)
+    px = observe(cam, pose, LANDMARKS[:3])
+    guess = (1.45, 2.4, math.pi - 0.1)  # across the +-pi cut
+    initial = guess if start == "tuple" else PoseFix(*guess, covariance=np.eye(3))
+    assert_pose(solve_pose(cam, px, LANDMARKS[:3], initial=initial), pose, 1e-8)
+
+
+@pytest.mark.parametrize("lens", ["radial-tangential", "equidistant"])
+@pytest.mark.parametrize("n", [3, 4])
+def test_solve_pose_estimates_the_body_tilt(lens: str, n: int) -> None:
+    cam = make_camera(lens, "offset-yaw90")
+    pose, tilt = (1.5, 2.3, 2.5), (0.03, -0.04)  # ~2 deg: a floor bump
+    px = observe(cam, pose, LANDMARKS[:n], tilt)
+    fix = solve_pose(cam, px, LANDMARKS[:n], estimate_tilt=True)
+    assert_pose(fix, pose, 1e-7)
+    assert fix is not None
+    np.testing.assert_allclose(fix.tilt, tilt, atol=1e-8)
+    # Ignoring the tilt shifts the position by about (ceiling height) x (tilt).
+    level = solve_pose(cam, px, LANDMARKS[:n])
+    assert level is not None
+    assert math.hypot(level.x - pose[0], level.y - pose[1]) > 0.05
+    assert level.residual_rms_px > fix.residual_rms_px
+
+
+def test_tilt_needs_three_landmarks_and_a_prior_pulls_it_to_zero() -> None:
+    cam = make_camera()
+    pose = (1.5, 2.3, 0.3)
+    px = observe(cam, pose, LANDMARKS[:2])
+    fix = solve_pose(cam, px, LANDMARKS[:2], estimate_tilt=True)
+    assert fix is not None
+    np.testing.assert_array_equal(fix.tilt, [0.0, 0.0])
+    px4 = observe(cam, pose, LANDMARKS, (0.02, 0.0))
+    free = solve_pose(cam, px4, LANDMARKS, estimate_tilt=True)
+    tight = solve_pose(cam, px4, LANDMARKS, estimate_tilt=True, tilt_sigma_rad=1e-4)
+    assert free is not None and tight is not None
+    assert abs(tight.tilt[0]) < 0.5 * abs(free.tilt[0])
+
+
+# --- statistics ------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(("n", "tilt"), [(2, False), (4, False), (4, True)])
+def test_covariance_matches_monte_carlo_scatter(n: int, tilt: bool) -> None:
+    rng = np.random.default_rng(7)
+    cam = make_camera("equidistant", "offset-yaw90")
+    pose = (1.5, 2.3, 1.0)
+    px = observe(cam, pose, LANDMARKS[:n])
+    errors = []
+    for _ in range(300):
+        fix = solve_pose(cam, px + rng.normal(0, 0.3, px.shape), LANDMARKS[:n], estimate_tilt=tilt)
+        assert fix is not None
+        errors.append([fix.x - pose[0], fix.y - pose[1], wrap_angle(fix.theta - pose[2])])
+    reported = solve_pose(cam, px, LANDMARKS[:n], estimate_tilt=tilt)
+    assert reported is not None
+    ratio = np.std(errors, axis=0) / np.sqrt(np.diag(reported.covariance))
+    assert np.all((ratio > 1 / 1.5) & (ratio < 1.5)), ratio
+
+
+def test_accuracy_under_pixel_noise_at_a_2_5_m_ceiling() -> None:
+    rng = np.random.default_rng(11)
+    cam = make_camera("radial-tangential", "upward")
+    P = LANDMARKS[:2].copy()
+    P[:, 2] = 2.5
+    pos_err, head_err, rms = [], [], []
+    for heading in np.linspace(-math.pi, math.pi, 40, endpoint=False):
+        pose = (1.6, 2.0, float(heading))
+        px = observe(cam, pose, P)
+        fix = solve_pose(cam, px + rng.normal(0, 0.3, px.shape), P)
+        assert fix is not None
+        pos_err.append(math.hypot(fix.x - pose[0], fix.y - pose[1]))
+        head_err.append(abs(wrap_angle(fix.theta - pose[2])))
+        rms.append(fix.residual_rms_px)
+    assert np.mean(pos_err) < 0.003  # metres: well under 1 cm
+    assert np.degrees(np.mean(head_err)) < 0.3
+    assert 0.02 < np.mean(rms) < 0.6
+
+
+# --- degenerate and bad input ----------------------------------------------------------------
+
+
+def test_degenerate_inputs_give_none() -> None:
+    cam = make_camera()
+    px = observe(cam, (1.5, 2.3, 0.3), LANDMARKS)
+    assert solve_pose(cam, px[:1], LANDMARKS[:1]) is None
+    assert solve_pose(cam, np.zeros((0, 2)), np.zeros((0, 3))) is None
+    same = np.vstack([px[0], px[0] + 0.5])
+    assert solve_pose(cam, same, LANDMARKS[:2]) is None  # coincident in the image
+    twin = np.vstack([LANDMARKS[0], LANDMARKS[0]])
+    assert solve_pose(cam, px[:2], twin) is None  # coincident in the world
+    low = LANDMARKS[:2].copy()
+    low[0, 2] = 0.2  # below the camera
+    assert solve_pose(cam, px[:2], low) is None
+    bad = px[:2].copy()
+    bad[0, 0] = np.nan
+    assert solve_pose(cam, bad, LANDMARKS[:2]) is None
+
+
+def test_mismatched_shapes_raise() -> None:
+    cam = make_camera()
+    with pytest.raises(ValueError, match="p_world"):
+        solve_pose(cam, np.zeros((3, 2)), np.zeros((2, 3)))
+    with pytest.raises(ValueError, match="pixels"):
+        solve_pose(cam, np.zeros(4), np.zeros((2, 3)))
