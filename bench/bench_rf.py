@@ -11,15 +11,14 @@ import argparse
 import asyncio
 import tempfile
 import time
-from collections.abc import Awaitable, Callable
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from rf_gateway import Gateway, GatewayConfig
 from rf_gateway.battery import BatteryConfig
 from rf_gateway.emulator import EmulatedRemote, FaultConfig, XBeeEmulator
-from rf_gateway.gateway import Gateway, GatewayConfig
 from rf_gateway.sim_transport import SimTransport
 from rf_gateway.transport import Transport
 from rf_gateway.xbee_transport import XBeeTransport
@@ -149,11 +148,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--sim-loss", type=float, default=0.0)
     args = parser.parse_args(argv)
     with tempfile.TemporaryDirectory() as tmp:
-        jobs: list[Callable[[], Awaitable[list[Row]]]] = [
-            lambda: run_xbee(args, Path(tmp)),
-            lambda: run_sim(args),
-        ]
-        rows = [r for job in jobs for r in asyncio.run(job())]
+        rows = asyncio.run(run_xbee(args, Path(tmp))) + asyncio.run(run_sim(args))
     print_table(rows)
     return 0
 

@@ -1,6 +1,7 @@
 """rf_gateway: switch and read the landmarks over the virtual site's radio or an XBee network."""
 
 from rf_gateway.battery import BatteryConfig, BatteryReading
+from rf_gateway.config import GatewayConfig
 from rf_gateway.errors import (
     LandmarkUnreachableError,
     RadioTimeout,
@@ -17,7 +18,7 @@ from rf_gateway.events import (
     TransportStateChanged,
 )
 from rf_gateway.factory import make_transport
-from rf_gateway.gateway import Gateway, GatewayConfig
+from rf_gateway.gateway import Gateway
 from rf_gateway.scheduler import Priority, QueueFullError
 from rf_gateway.sim_transport import SimTransport
 from rf_gateway.transport import (

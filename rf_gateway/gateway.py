@@ -24,11 +24,12 @@ import time
 from collections.abc import AsyncIterator, Awaitable, Callable, Iterable, Mapping
 from contextlib import asynccontextmanager
 from contextvars import ContextVar
-from dataclasses import dataclass, field
+from functools import partial
 from typing import TypeVar
 
 from localizer.events import LedsChanged
-from rf_gateway.battery import BatteryConfig, BatteryHistory, BatteryReading
+from rf_gateway.battery import BatteryHistory, BatteryReading
+from rf_gateway.config import GatewayConfig, GatewayStats
 from rf_gateway.errors import (
     LandmarkUnreachableError,
     RadioTimeout,
@@ -45,65 +46,16 @@ from rf_gateway.events import (
 )
 from rf_gateway.scheduler import Priority, PrioritySlots
 from rf_gateway.subscription import Hub, Subscription
-from rf_gateway.transport import DiscoveredRadio, Transport, TransportState, normalize_address
+from rf_gateway.transport import (
+    DiscoveredRadio,
+    Transport,
+    TransportState,
+    normalize_landmark_radios,
+)
 
 log = logging.getLogger(__name__)
 T = TypeVar("T")
 _SWEEP_OWNER: ContextVar[int | None] = ContextVar("rf_gateway_sweep_owner", default=None)
-
-
-@dataclass(frozen=True)
-class GatewayConfig:
-    """Gateway tuning.
-
-    Attributes:
-        max_in_flight: radio commands on the air at once.
-        max_waiting: commands allowed to wait for a slot (more raise QueueFullError).
-        max_tries: sends per command before the landmark is declared unreachable.
-        retry_backoff_s: wait before the first retry; doubles at each further retry.
-        command_timeout_s: gateway-side safety timeout per command (transports have their
-            own, shorter, timeouts).
-        skip_confirmed: do not resend a level the landmark already confirmed.
-        blink_count, blink_period_s: `blink` toggles the LED this many times, one period each.
-        low_battery_hysteresis_mv: a low landmark must read this much above `low_mv` to clear.
-        subscriber_queue: events buffered per subscriber.
-        battery: battery monitoring settings.
-    """
-
-    max_in_flight: int = 4
-    max_waiting: int = 512
-    max_tries: int = 3
-    retry_backoff_s: float = 0.05
-    command_timeout_s: float = 10.0
-    skip_confirmed: bool = True
-    blink_count: int = 3
-    blink_period_s: float = 0.4
-    low_battery_hysteresis_mv: int = 50
-    subscriber_queue: int = 256
-    battery: BatteryConfig = field(default_factory=BatteryConfig)
-
-
-@dataclass
-class GatewayStats:
-    """Counters for the metrics page."""
-
-    commands: int = 0
-    retries: int = 0
-    failures: int = 0
-    skipped: int = 0
-    published: int = 0
-
-
-def _validated(landmarks: Mapping[int, str]) -> dict[int, str]:
-    out: dict[int, str] = {}
-    seen: dict[str, int] = {}
-    for lid, address in landmarks.items():
-        canonical = normalize_address(address, source=f"landmark {lid} radio")
-        if canonical in seen:
-            raise ValueError(f"landmarks {seen[canonical]} and {lid} share radio {canonical}")
-        seen[canonical] = int(lid)
-        out[int(lid)] = canonical
-    return out
 
 
 class Gateway:
@@ -129,7 +81,7 @@ class Gateway:
         self.clock_ns = clock_ns
         self.stats = GatewayStats()
         self.batteries = BatteryHistory(self.config.battery)
-        self._addresses = _validated(landmarks)
+        self._addresses = normalize_landmark_radios(landmarks)
         self._slots = PrioritySlots(self.config.max_in_flight, self.config.max_waiting)
         self._desired: dict[int, tuple[bool, int]] = {}  # id -> (level, seq)
         self._confirmed: dict[int, tuple[bool, int, int]] = {}  # id -> (level, seq, t_ns)
@@ -192,7 +144,7 @@ class Gateway:
 
     def update_landmarks(self, landmarks: Mapping[int, str]) -> None:
         """Replace the id -> address map (after a map edit); forgets removed landmarks."""
-        new = _validated(landmarks)
+        new = normalize_landmark_radios(landmarks)
         for lid in set(self._addresses) - set(new):
             task = self._syncers.pop(lid, None)
             if task is not None:
@@ -331,7 +283,7 @@ class Gateway:
                 address = self._addresses[lid]
                 try:
                     await self._command(
-                        lid, priority, lambda a=address, v=level: self.transport.set_pin(a, v)
+                        lid, priority, partial(self.transport.set_pin, address, level)
                     )
                 except Exception as exc:
                     self._fail_waiters(lid, seq, exc)

@@ -7,6 +7,7 @@ limits and LED bookkeeping live in the `Gateway` above it.
 from __future__ import annotations
 
 import re
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Literal, Protocol, runtime_checkable
 
@@ -33,6 +34,19 @@ def normalize_address(address: str, *, source: str = "radio address") -> str:
     if not _ADDRESS_RE.match(text):
         raise ValueError(f"{source}: {address!r} is not a 64-bit address (16 hex digits)")
     return text
+
+
+def normalize_landmark_radios(landmarks: Mapping[int, str]) -> dict[int, str]:
+    """Landmark id -> canonical radio address; ValueError names a bad or shared address."""
+    out: dict[int, str] = {}
+    seen: dict[str, int] = {}
+    for lid, address in landmarks.items():
+        canonical = normalize_address(address, source=f"landmark {lid} radio")
+        if canonical in seen:
+            raise ValueError(f"landmarks {seen[canonical]} and {lid} share radio {canonical}")
+        seen[canonical] = int(lid)
+        out[int(lid)] = canonical
+    return out
 
 
 @dataclass(frozen=True)

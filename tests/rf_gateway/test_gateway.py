@@ -7,6 +7,7 @@ import pytest
 
 from localizer.events import LedsChanged
 from rf_gateway.battery import NS_PER_DAY, BatteryConfig
+from rf_gateway.config import GatewayConfig
 from rf_gateway.errors import LandmarkUnreachableError, TransportUnavailable, UnknownLandmarkError
 from rf_gateway.events import (
     LandmarkReachable,
@@ -14,7 +15,7 @@ from rf_gateway.events import (
     LowBattery,
     TransportStateChanged,
 )
-from rf_gateway.gateway import Gateway, GatewayConfig
+from rf_gateway.gateway import Gateway
 from rf_gateway.scheduler import Priority
 from rf_gateway.transport import DiscoveredRadio
 from tests.rf_gateway.scripted import ScriptedTransport

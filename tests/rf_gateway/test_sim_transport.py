@@ -9,9 +9,10 @@ import pytest
 
 from localizer.events import LedsChanged
 from rf_gateway.battery import BatteryConfig
+from rf_gateway.config import GatewayConfig
 from rf_gateway.errors import LandmarkUnreachableError, RadioTimeout, TransportUnavailable
 from rf_gateway.factory import make_transport
-from rf_gateway.gateway import Gateway, GatewayConfig
+from rf_gateway.gateway import Gateway
 from rf_gateway.sim_transport import SimTransport
 from rf_gateway.transport import DiscoveredRadio
 from rf_gateway.xbee_transport import XBeeTransport

@@ -15,10 +15,11 @@ import serial
 from localizer.events import LedsChanged
 from rf_gateway import frames as fr
 from rf_gateway.battery import BatteryConfig
+from rf_gateway.config import GatewayConfig
 from rf_gateway.emulator import EmulatedRemote, FaultConfig, XBeeEmulator
 from rf_gateway.errors import RadioTimeout, RemoteCommandError, TransportUnavailable
 from rf_gateway.events import TransportStateChanged
-from rf_gateway.gateway import Gateway, GatewayConfig
+from rf_gateway.gateway import Gateway
 from rf_gateway.transport import DiscoveredRadio
 from rf_gateway.xbee_transport import XBeeTransport, XBeeTransportConfig
 

@@ -1,0 +1,49 @@
+"""Gateway tuning and counters."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from rf_gateway.battery import BatteryConfig
+
+
+@dataclass(frozen=True)
+class GatewayConfig:
+    """Gateway tuning.
+
+    Attributes:
+        max_in_flight: radio commands on the air at once.
+        max_waiting: commands allowed to wait for a slot (more raise QueueFullError).
+        max_tries: sends per command before the landmark is declared unreachable.
+        retry_backoff_s: wait before the first retry; doubles at each further retry.
+        command_timeout_s: gateway-side safety timeout per command (transports have their
+            own, shorter, timeouts).
+        skip_confirmed: do not resend a level the landmark already confirmed.
+        blink_count, blink_period_s: `blink` toggles the LED this many times, one period each.
+        low_battery_hysteresis_mv: a low landmark must read this much above `low_mv` to clear.
+        subscriber_queue: events buffered per subscriber.
+        battery: battery monitoring settings.
+    """
+
+    max_in_flight: int = 4
+    max_waiting: int = 512
+    max_tries: int = 3
+    retry_backoff_s: float = 0.05
+    command_timeout_s: float = 10.0
+    skip_confirmed: bool = True
+    blink_count: int = 3
+    blink_period_s: float = 0.4
+    low_battery_hysteresis_mv: int = 50
+    subscriber_queue: int = 256
+    battery: BatteryConfig = field(default_factory=BatteryConfig)
+
+
+@dataclass
+class GatewayStats:
+    """Counters for the metrics page."""
+
+    commands: int = 0
+    retries: int = 0
+    failures: int = 0
+    skipped: int = 0
+    published: int = 0
