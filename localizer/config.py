@@ -1,0 +1,55 @@
+"""`LocalizerConfig`: every tuning value of the localizer, grouped by stage, with units."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from localizer.handoff import HandoffConfig
+from localizer.identification import IdentificationConfig
+from localizer.spots import DetectionConfig
+from localizer.tracking import TrackingConfig
+
+
+@dataclass(frozen=True)
+class FusionConfig:
+    """Pose solving, fusion and the mode logic.
+
+    Attributes:
+        pixel_sigma_px: standard deviation of a spot centre per axis, pixels (solver weight).
+        max_residual_px: a fix whose reprojection RMS exceeds this is inconsistent, pixels.
+        nis_gate: a fix whose normalised innovation squared (3 dof) exceeds this is rejected
+            (16.3 is the 99.9 % point of chi-square with 3 dof).
+        tilt_from_landmarks: with 3+ landmarks also estimate the body tilt.
+        lost_sigma_m: position standard deviation beyond which the localizer is lost, metres.
+        lost_after_rejections: this many consecutive rejected fixes (observations that
+            disagree with the map) make the localizer lost.
+        initial_sigma_m: position standard deviation of `set_initial_pose`, metres.
+        initial_sigma_rad: heading standard deviation of `set_initial_pose`, radians.
+        full_frame_every_s: in landmark or dead-reckoning mode with no tracked landmark,
+            search the whole frame for new landmarks at most this often, seconds (0: every
+            frame).
+        odometry_history_s: how much raw odometry is kept to carry identification sightings
+            to the current frame, seconds.
+    """
+
+    pixel_sigma_px: float = 0.3
+    max_residual_px: float = 2.0
+    nis_gate: float = 16.3
+    tilt_from_landmarks: bool = True
+    lost_sigma_m: float = 1.0
+    lost_after_rejections: int = 30
+    initial_sigma_m: float = 0.5
+    initial_sigma_rad: float = 0.3
+    full_frame_every_s: float = 0.0
+    odometry_history_s: float = 5.0
+
+
+@dataclass(frozen=True)
+class LocalizerConfig:
+    """All tuning of `Localizer`, one sub-config per stage."""
+
+    detection: DetectionConfig = field(default_factory=DetectionConfig)
+    identification: IdentificationConfig = field(default_factory=IdentificationConfig)
+    tracking: TrackingConfig = field(default_factory=TrackingConfig)
+    handoff: HandoffConfig = field(default_factory=HandoffConfig)
+    fusion: FusionConfig = field(default_factory=FusionConfig)

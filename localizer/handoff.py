@@ -1,0 +1,231 @@
+"""Hand-off (Sec. IV-A.2, eqs. 3-4): predict landmark pixels from a pose, gate, and check
+a re-acquisition against the map's geometry.
+
+Eq. (3) predicts where landmark k appears from the latest pose; here that is
+`camera.predict_pixels` (the 3D generalisation, with the lens model, the mounting and each
+landmark's own height). Eq. (4) takes the nearest prediction; we gate it by the pose
+uncertainty propagated to pixels, so an unmapped IR source beside a landmark is not taken for
+it. After a long dead-reckoning stretch the predictions are poor and nearest-prediction alone
+could swap landmarks: `consistent_hypotheses` accepts only assignments whose spots agree with
+the map's geometry (their mutual distances on the ceiling).
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from localizer.camera import CameraModel, bearings_body_from_pixels, predict_pixels
+from localizer.geometry import T_world_body_from_pose, rotation_2d, wrap_angle
+
+FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.int64]
+
+
+@dataclass(frozen=True)
+class HandoffConfig:
+    """Tuning of hand-off and re-acquisition.
+
+    Attributes:
+        reacquire_sigma_m: position standard deviation above which a landmark match needs
+            the geometric check (the prediction alone is no longer trusted), metres.
+        distance_tolerance_m: allowed mismatch between a spot pair's distance on the ceiling
+            and the map's, metres (plus `distance_tolerance_frac` of the distance).
+        distance_tolerance_frac: relative part of that tolerance.
+        max_candidates: at most this many (landmark, spot) candidates are considered.
+        prior_gate_chi2: a re-acquired pose must agree with the prior within this
+            chi-square value (3 degrees of freedom; 16.3 is 99.9 %).
+    """
+
+    reacquire_sigma_m: float = 0.10
+    distance_tolerance_m: float = 0.04
+    distance_tolerance_frac: float = 0.03
+    max_candidates: int = 40
+    prior_gate_chi2: float = 16.3
+
+
+@dataclass(frozen=True, eq=False)
+class Prediction:
+    """Landmarks predicted in view.
+
+    Attributes:
+        rows: rows of the landmarks in the map, shape (K,).
+        pixels: predicted pixels, shape (K, 2).
+        sigma_px: standard deviation of each predicted pixel, shape (K,).
+    """
+
+    rows: IntArray
+    pixels: FloatArray
+    sigma_px: FloatArray
+
+    def __len__(self) -> int:
+        return len(self.rows)
+
+
+def visible_radius_m(camera: CameraModel, ceiling_above_camera_m: float) -> float:
+    """Horizontal distance from the camera beyond which no ceiling landmark can be seen."""
+    return ceiling_above_camera_m * math.tan(camera.max_angle_rad) + float(
+        np.hypot(*camera.T_body_camera[:2, 3])
+    )
+
+
+def predict_landmarks(
+    camera: CameraModel,
+    pose: tuple[float, float, float],
+    covariance: FloatArray,
+    positions: FloatArray,
+    *,
+    candidates: IntArray | None = None,
+    scale_px_per_m: float,
+    reach_m: float,
+) -> Prediction:
+    """Eq. (3): predict the pixels of the landmarks in view, and their uncertainty.
+
+    The pixel standard deviation is a first-order bound: a position error of sigma_xy moves
+    every spot by about scale * sigma_xy, a heading error of sigma_theta moves a spot at
+    radial distance r from the image centre by about r * sigma_theta.
+
+    Args:
+        pose: (x, y, theta) of the body.
+        covariance: of the pose, shape (3, 3).
+        positions: all landmark positions, shape (N, 3).
+        candidates: rows to consider (e.g. the lit landmarks); None: all.
+        scale_px_per_m: image scale of the ceiling.
+        reach_m: skip landmarks horizontally farther than this from the robot (a cheap
+            pre-filter before projecting).
+    """
+    rows = np.arange(len(positions)) if candidates is None else np.asarray(candidates)
+    x, y, theta = pose
+    if len(rows):
+        d = np.hypot(positions[rows, 0] - x, positions[rows, 1] - y)
+        rows = rows[d <= reach_m]
+    if len(rows) == 0:
+        return Prediction(np.zeros(0, np.int64), np.zeros((0, 2)), np.zeros(0))
+    px, valid = predict_pixels(camera, T_world_body_from_pose(x, y, theta), positions[rows])
+    rows, px = rows[valid], px[valid]
+    cov = np.asarray(covariance, dtype=np.float64)
+    sigma_xy = math.sqrt(max(float(np.linalg.eigvalsh(cov[:2, :2])[-1]), 0.0))
+    sigma_t = math.sqrt(max(float(cov[2, 2]), 0.0))
+    radial = np.hypot(px[:, 0] - camera.cu, px[:, 1] - camera.cv)
+    offset_px = scale_px_per_m * float(np.hypot(*camera.T_body_camera[:2, 3]))
+    sigma = scale_px_per_m * sigma_xy + (radial + offset_px) * sigma_t
+    return Prediction(rows.astype(np.int64), px, sigma)
+
+
+def ceiling_points_body(
+    camera: CameraModel, pixels: FloatArray, heights_m: FloatArray
+) -> FloatArray:
+    """Where each pixel's ray meets the horizontal plane at the given height, body frame.
+
+    Assumes a level body (the check below tolerates the small error of a tilt).
+
+    Args:
+        pixels: shape (N, 2); heights_m: landmark heights above the floor, shape (N,).
+
+    Returns:
+        (x, y) in the body frame, metres, shape (N, 2).
+    """
+    b = bearings_body_from_pixels(camera, pixels)
+    origin = camera.T_body_camera[:3, 3]
+    s = (np.asarray(heights_m) - origin[2]) / np.maximum(b[:, 2], 1e-6)
+    return origin[:2] + b[:, :2] * s[:, None]
+
+
+def pose_from_ceiling_points(
+    q_body: FloatArray, p_world_xy: FloatArray
+) -> tuple[float, float, float]:
+    """Planar rigid transform (x, y, theta) with p_world = R(theta) q_body + (x, y).
+
+    Least squares (2D Kabsch); the heading is that of the body. Needs 2+ points.
+    """
+    qc = q_body.mean(axis=0)
+    pc = p_world_xy.mean(axis=0)
+    a = q_body - qc
+    b = p_world_xy - pc
+    theta = math.atan2(float(np.sum(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0])), float(np.sum(a * b)))
+    t = pc - rotation_2d(theta) @ qc
+    return float(t[0]), float(t[1]), float(wrap_angle(theta))
+
+
+def consistent_hypotheses(
+    camera: CameraModel,
+    prediction: Prediction,
+    positions: FloatArray,
+    spot_pixels: FloatArray,
+    gates_px: FloatArray,
+    config: HandoffConfig,
+) -> list[list[tuple[int, int]]]:
+    """Assignments of spots to predicted landmarks that agree with the map's geometry.
+
+    Every (landmark, spot) pair within the landmark's gate is a candidate; two candidates are
+    compatible when they use different landmarks and spots and the distance between the two
+    spots' ceiling points matches the two landmarks' distance in the map. A hypothesis is a
+    maximal set of mutually compatible candidates (2 or more).
+
+    Args:
+        prediction: landmarks in view (`predict_landmarks`).
+        positions: all landmark positions, shape (N, 3).
+        spot_pixels: shape (S, 2).
+        gates_px: per predicted landmark, shape (K,).
+
+    Returns:
+        Hypotheses as lists of (map row, spot index), the largest first.
+    """
+    k_idx, s_idx = np.nonzero(
+        np.hypot(
+            prediction.pixels[:, None, 0] - spot_pixels[None, :, 0],
+            prediction.pixels[:, None, 1] - spot_pixels[None, :, 1],
+        )
+        <= np.asarray(gates_px)[:, None]
+    )
+    if len(k_idx) < 2:
+        return []
+    cand_rows = prediction.rows[k_idx][: config.max_candidates]
+    cand_spots = s_idx[: config.max_candidates]
+    q = ceiling_points_body(camera, spot_pixels[cand_spots], positions[cand_rows, 2])
+    P = positions[cand_rows, :2]
+    d_seen = np.hypot(q[:, None, 0] - q[None, :, 0], q[:, None, 1] - q[None, :, 1])
+    d_map = np.hypot(P[:, None, 0] - P[None, :, 0], P[:, None, 1] - P[None, :, 1])
+    tol = config.distance_tolerance_m + config.distance_tolerance_frac * d_map
+    compatible = (
+        (np.abs(d_seen - d_map) <= tol)
+        & (cand_rows[:, None] != cand_rows[None, :])
+        & (cand_spots[:, None] != cand_spots[None, :])
+    )
+    found: set[frozenset[int]] = set()
+    n = len(cand_rows)
+    for i, j in itertools.combinations(range(n), 2):
+        if not compatible[i, j]:
+            continue
+        members = [i, j]
+        for k in range(n):
+            if k not in members and all(compatible[k, m] for m in members):
+                members.append(k)
+        found.add(frozenset(members))
+    hyps = sorted(found, key=lambda h: (-len(h), sorted(h)))
+    return [sorted((int(cand_rows[m]), int(cand_spots[m])) for m in h) for h in hyps]
+
+
+def hypothesis_pose(
+    camera: CameraModel, positions: FloatArray, spot_pixels: FloatArray, hyp: list[tuple[int, int]]
+) -> tuple[float, float, float]:
+    """Rough pose of a hypothesis from its ceiling points (for the prior check)."""
+    rows = np.array([r for r, _ in hyp])
+    spots = np.array([s for _, s in hyp])
+    q = ceiling_points_body(camera, spot_pixels[spots], positions[rows, 2])
+    return pose_from_ceiling_points(q, positions[rows, :2])
+
+
+def pose_mahalanobis2(
+    a: tuple[float, float, float], b: tuple[float, float, float], covariance: FloatArray
+) -> float:
+    """Squared Mahalanobis distance between two poses (heading difference wrapped)."""
+    d = np.array([a[0] - b[0], a[1] - b[1], float(wrap_angle(a[2] - b[2]))])
+    try:
+        return float(d @ np.linalg.solve(covariance, d))
+    except np.linalg.LinAlgError:
+        return math.inf

@@ -1,0 +1,444 @@
+"""The localizer: a sans-I/O state machine from IR frames, odometry and LED states to poses.
+
+Feed it events in time order with `handle(event)`; it returns outputs: for every frame exactly
+one `PoseEstimate` (or `NoPose` before the first fix), plus `LedRequest`s when it wants LEDs
+changed (the owner may ignore them, as a replay does).
+
+Pipeline per frame (docs/localizer.md):
+1. odometry up to the frame's time goes through `PoseFilter.predict` (Sec. IV-B, eqs. 5-6);
+2. identifying (no pose yet, or lost): full-frame spots to the `Identifier` (Sec. III-A);
+   two identified landmarks, carried to the frame's time by odometry, give the first fix;
+3. tracking: eq. (3) predicts the lit landmarks' pixels, spots are searched in windows sized
+   from speed, frame interval, scale, radius and uncertainty (Sec. IV-A.1), and assigned by the
+   bottleneck rule; new landmarks are handed off by gated prediction (eq. 4) and, after long
+   dead reckoning, only through a hypothesis that agrees with the map's geometry;
+4. `solve_pose` over every matched landmark (tilt too with 3+), gated by the residual and the
+   normalised innovation, fused by `PoseFilter.update_fix`.
+Modes: identifying -> landmark <-> dead_reckoning; lost when the uncertainty grows past a
+bound or the observations keep disagreeing with the map (then it re-identifies).
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+
+import numpy as np
+import numpy.typing as npt
+
+from localizer.camera import CameraModel, pixels_from_points_camera
+from localizer.config import LocalizerConfig
+from localizer.events import (
+    Event,
+    FrameObserved,
+    LedRequest,
+    LedsChanged,
+    Mode,
+    NoPose,
+    OdometryMeasured,
+    Output,
+    PoseEstimate,
+    RelocalizeRequested,
+    SpotsObserved,
+)
+from localizer.geometry import invert_transform, rotation_2d, transform_points, wrap_angle
+from localizer.handoff import (
+    Prediction,
+    ceiling_points_body,
+    consistent_hypotheses,
+    hypothesis_pose,
+    pose_mahalanobis2,
+    predict_landmarks,
+    visible_radius_m,
+)
+from localizer.identification import Identifier
+from localizer.landmark_map import LandmarkMap
+from localizer.odometry import integrate_arc
+from localizer.pose import PoseFix, solve_pose
+from localizer.pose_filter import PoseFilter
+from localizer.robot import RobotGeometry
+from localizer.spots import Spots, detect_spots, detect_spots_in_windows, estimate_background
+from localizer.tracking import (
+    bottleneck_assignment,
+    default_angular_speed,
+    motion_bound_px,
+    scale_px_per_m,
+)
+
+FloatArray = npt.NDArray[np.float64]
+_NS = 1e-9
+
+
+class Localizer:
+    """IR landmark localizer (the paper's method, with EKF fusion of odometry and fixes).
+
+    Args:
+        camera: lens and mounting of the upward camera.
+        landmark_map: landmark IDs and LED positions.
+        robot: wheel geometry (wheel base, maximum speed).
+        config: tuning; defaults to `LocalizerConfig()`.
+    """
+
+    def __init__(
+        self,
+        camera: CameraModel,
+        landmark_map: LandmarkMap,
+        robot: RobotGeometry,
+        config: LocalizerConfig | None = None,
+    ) -> None:
+        self.camera = camera
+        self.robot = robot
+        self.config = config or LocalizerConfig()
+        self._filter: PoseFilter | None = None
+        self._mode: Mode = "identifying"
+        self._latest: PoseEstimate | None = None
+        self._lit: frozenset[int] | None = None  # None: all lit (or unknown)
+        self._t_state: int | None = None
+        self._speeds = (0.0, 0.0)
+        self._t_odom: int | None = None
+        self._odo = (0.0, 0.0, 0.0)
+        self._odo_hist: deque[tuple[int, float, float, float]] = deque()
+        self._t_frame: int | None = None
+        self._rejections = 0
+        self._background: tuple[float, float] | None = None
+        self._last_request: LedRequest | None = None
+        self.set_map(landmark_map)
+
+    # -- public API ----------------------------------------------------------------------------
+    @property
+    def mode(self) -> Mode:
+        """The current mode."""
+        return self._mode
+
+    @property
+    def latest(self) -> PoseEstimate | None:
+        """The last pose estimate output, if any."""
+        return self._latest
+
+    def set_map(self, landmark_map: LandmarkMap) -> None:
+        """Use a new map (IDs may change): identification starts over, the pose is kept."""
+        self.map = landmark_map
+        heights = landmark_map.positions[:, 2] - self.camera.T_body_camera[2, 3]
+        self._ceiling_m = float(np.median(heights)) if len(heights) else 2.2
+        self._scale = scale_px_per_m(max(self.camera.fu, self.camera.fv), self._ceiling_m)
+        self._reach = visible_radius_m(self.camera, float(np.max(heights, initial=self._ceiling_m)))
+        self._omega_max = self.config.tracking.max_angular_speed_rad_s or default_angular_speed(
+            self.robot.max_speed, self.robot.wheel_base
+        )
+        half_diag = math.hypot(self.camera.width, self.camera.height) / 2
+        self._identifier = Identifier(
+            self.config.identification,
+            landmark_map.ids.tolist(),
+            pixel_speed_px_s=self.robot.max_speed * self._scale + self._omega_max * half_diag,
+        )
+        self._start_identification()
+
+    def set_initial_pose(self, x: float, y: float, theta: float, t_ns: int) -> None:
+        """A prior pose (e.g. from the operator): outputs poses and guides identification."""
+        f = self.config.fusion
+        cov = np.diag([f.initial_sigma_m**2, f.initial_sigma_m**2, f.initial_sigma_rad**2])
+        self._reset_filter(x, y, theta, cov, t_ns)
+        self._start_identification()
+
+    def handle(self, event: Event) -> list[Output]:
+        """Process one event; returns the outputs (see the module docstring)."""
+        if isinstance(event, OdometryMeasured):
+            self._on_odometry(event)
+            return []
+        if isinstance(event, LedsChanged):
+            self._lit = None if event.all_lit else frozenset(event.lit)
+            self._identifier.led_confirmed(event.t_ns, self._lit)
+            return self._requests(event.t_ns)
+        if isinstance(event, RelocalizeRequested):
+            self._filter = None
+            self._mode = "identifying"
+            self._start_identification()
+            return self._requests(event.t_ns)
+        if isinstance(event, FrameObserved | SpotsObserved):
+            out: list[Output] = [self._on_frame(event)]
+            return out + self._requests(event.t_ns)
+        raise TypeError(f"Localizer.handle: unknown event {type(event).__name__}")
+
+    # -- odometry and the filter ---------------------------------------------------------------
+    def _reset_filter(self, x: float, y: float, theta: float, cov: FloatArray, t_ns: int) -> None:
+        if self._filter is None:
+            self._filter = PoseFilter(x, y, theta, cov, wheel_base=self.robot.wheel_base)
+        else:
+            self._filter.reset(x, y, theta, cov)
+        self._t_state = t_ns if self._t_state is None else max(self._t_state, t_ns)
+        self._rejections = 0
+
+    def _advance(self, t_ns: int, v_left: float, v_right: float) -> None:
+        """Integrate odometry (filter and raw) from the last state time to `t_ns`."""
+        if self._t_state is None:
+            self._t_state = t_ns
+        dt = (t_ns - self._t_state) * _NS
+        if dt <= 0:
+            return
+        if self._filter is not None:
+            self._filter.predict(v_left, v_right, dt)
+        x, y, th = integrate_arc(*self._odo, v_left, v_right, dt, self.robot.wheel_base)
+        self._odo = (float(x), float(y), float(th))
+        self._t_state = t_ns
+
+    def _on_odometry(self, e: OdometryMeasured) -> None:
+        vl, vr = (self._speeds[0] + e.v_left) / 2, (self._speeds[1] + e.v_right) / 2
+        if self._t_odom is None:
+            vl, vr = e.v_left, e.v_right
+        self._advance(e.t_ns, vl, vr)
+        self._speeds = (e.v_left, e.v_right)
+        self._t_odom = e.t_ns
+        self._odo_hist.append((e.t_ns, *self._odo))
+        horizon = e.t_ns - int(self.config.fusion.odometry_history_s / _NS)
+        while len(self._odo_hist) > 2 and self._odo_hist[1][0] < horizon:
+            self._odo_hist.popleft()
+
+    def _odo_at(self, t_ns: int) -> tuple[float, float, float]:
+        """Raw odometry pose at `t_ns` (the latest sample at or before it)."""
+        best = self._odo
+        for t, x, y, th in reversed(self._odo_hist):
+            if t <= t_ns:
+                return (x, y, th)
+            best = (x, y, th)
+        return best if self._odo_hist else self._odo
+
+    # -- frames --------------------------------------------------------------------------------
+    def _on_frame(self, e: FrameObserved | SpotsObserved) -> PoseEstimate | NoPose:
+        t = e.t_ns
+        self._advance(t, *self._speeds)
+        dt_frame = min((t - self._t_frame) * _NS, 1.0) if self._t_frame is not None else 0.0
+        self._t_frame = t
+        self._odo_hist.append((t, *self._odo))
+        used: tuple[int, ...] = ()
+        if self._filter is None or self._mode in ("identifying", "lost"):
+            spots = self._full_spots(e)
+            self._identifier.observe(t, self._lit, spots.pixels, spots.intensities)
+            fix = self._fix_from_sightings(t)
+            if fix is not None:
+                self._reset_filter(fix.x, fix.y, fix.theta, fix.covariance, t)
+                self._mode = "landmark"
+                used = fix.landmark_ids
+        else:
+            used = self._track(e, dt_frame)
+            self._mode = "landmark" if used else "dead_reckoning"
+        self._check_lost(t)
+        return self._output(t, used)
+
+    def _full_spots(self, e: FrameObserved | SpotsObserved) -> Spots:
+        if isinstance(e, SpotsObserved):
+            return Spots(np.asarray(e.pixels, float).reshape(-1, 2), e.intensities, e.areas)
+        self._background = estimate_background(e.image, self.config.detection)
+        return detect_spots(e.image, self.config.detection, background=self._background)
+
+    def _fix_from_sightings(self, t_ns: int) -> PoseFix | None:
+        """First fix from identified landmarks, each carried by odometry to the frame time."""
+        sightings = list(self._identifier.sightings.values())
+        if len(sightings) < self.config.identification.landmarks_needed:
+            return None
+        rows = np.array([self.map.index_of(s.landmark_id) for s in sightings])
+        P = self.map.positions[rows]
+        now = self._odo_at(t_ns)
+        pixels = np.array(
+            [
+                _transfer_pixel(self.camera, s.pixel, P[i, 2], self._odo_at(s.t_ns), now)
+                for i, s in enumerate(sightings)
+            ]
+        )
+        fix = solve_pose(
+            self.camera,
+            pixels,
+            P,
+            pixel_sigma_px=self.config.fusion.pixel_sigma_px,
+            landmark_ids=tuple(s.landmark_id for s in sightings),
+        )
+        if fix is None or fix.residual_rms_px > self.config.fusion.max_residual_px:
+            self._start_identification()  # inconsistent sightings: sweep again
+            return None
+        return fix
+
+    def _track(self, e: FrameObserved | SpotsObserved, dt_frame: float) -> tuple[int, ...]:
+        """Find the lit landmarks near their predictions, solve and fuse; returns IDs used."""
+        filt = self._filter
+        if filt is None:
+            return ()
+        state, cov = filt.state, filt.covariance[:3, :3]
+        pose = (float(state[0]), float(state[1]), float(state[2]))
+        cand = None if self._lit is None else self._lit_rows()
+        sigma_xy = math.sqrt(max(float(np.linalg.eigvalsh(cov[:2, :2])[-1]), 0.0))
+        pred = predict_landmarks(
+            self.camera,
+            pose,
+            cov,
+            self.map.positions,
+            candidates=cand,
+            scale_px_per_m=self._scale,
+            reach_m=self._reach + 3 * sigma_xy,
+        )
+        if len(pred) == 0:
+            return ()
+        tc = self.config.tracking
+        fresh_odom = self._t_odom is not None and (e.t_ns - self._t_odom) * _NS < 0.2
+        dt_free = dt_frame * (tc.odometry_speed_fraction if fresh_odom else 1.0)
+        radial = np.hypot(pred.pixels[:, 0] - self.camera.cu, pred.pixels[:, 1] - self.camera.cv)
+        motion = motion_bound_px(
+            radial,
+            max_speed_m_s=self.robot.max_speed,
+            max_angular_speed_rad_s=self._omega_max,
+            dt_s=dt_free,
+            scale_px_per_m=self._scale,
+        )
+        gates = tc.min_half_size_px + tc.sigma_gate * pred.sigma_px + motion
+        reacquire = sigma_xy > self.config.handoff.reacquire_sigma_m
+        if isinstance(e, SpotsObserved):
+            spots = Spots(np.asarray(e.pixels, float).reshape(-1, 2), e.intensities, e.areas)
+        elif reacquire or float(gates.max()) > tc.max_half_size_px:
+            spots = self._full_spots(e)
+        else:
+            half = np.repeat(gates[:, None], 2, axis=1)
+            spots = detect_spots_in_windows(
+                e.image, pred.pixels, half, self.config.detection, background=self._background
+            )
+        if len(spots) == 0:
+            return ()
+        if reacquire:
+            pairs = self._reacquire(pred, spots, gates, pose, cov)
+        else:
+            d = np.hypot(
+                pred.pixels[:, None, 0] - spots.pixels[None, :, 0],
+                pred.pixels[:, None, 1] - spots.pixels[None, :, 1],
+            )
+            pairs = [(int(pred.rows[k]), s) for k, s in bottleneck_assignment(d, gates)]
+        if len(pairs) < 2:
+            return ()
+        return self._fuse(filt, pairs, spots, pose, cov)
+
+    def _reacquire(
+        self,
+        pred: Prediction,
+        spots: Spots,
+        gates: FloatArray,
+        pose: tuple[float, float, float],
+        cov: FloatArray,
+    ) -> list[tuple[int, int]]:
+        """A hand-off after long dead reckoning: the one map-consistent hypothesis, or none."""
+        hc = self.config.handoff
+        hyps = consistent_hypotheses(self.camera, pred, self.map.positions, spots.pixels, gates, hc)
+        if not hyps:
+            return []
+        size = len(hyps[0])
+        prior_cov = cov + np.diag([1e-4, 1e-4, 1e-4])
+        passing = [
+            h
+            for h in hyps
+            if len(h) == size
+            and pose_mahalanobis2(
+                hypothesis_pose(self.camera, self.map.positions, spots.pixels, h), pose, prior_cov
+            )
+            <= hc.prior_gate_chi2
+        ]
+        return passing[0] if len(passing) == 1 else []
+
+    def _fuse(
+        self,
+        filt: PoseFilter,
+        pairs: list[tuple[int, int]],
+        spots: Spots,
+        pose: tuple[float, float, float],
+        cov: FloatArray,
+    ) -> tuple[int, ...]:
+        """Solve the pose from matched landmarks; fuse it when consistent."""
+        fc = self.config.fusion
+        rows = np.array([r for r, _ in pairs])
+        px = spots.pixels[np.array([s for _, s in pairs])]
+        ids = tuple(int(i) for i in self.map.ids[rows])
+        fix = solve_pose(
+            self.camera,
+            px,
+            self.map.positions[rows],
+            initial=pose,
+            estimate_tilt=fc.tilt_from_landmarks and len(pairs) >= 3,
+            pixel_sigma_px=fc.pixel_sigma_px,
+            landmark_ids=ids,
+        )
+        if fix is None or fix.residual_rms_px > fc.max_residual_px:
+            self._rejections += 1
+            return ()
+        nis = pose_mahalanobis2((fix.x, fix.y, fix.theta), pose, cov + fix.covariance)
+        if nis > fc.nis_gate:
+            self._rejections += 1
+            return ()
+        filt.update_fix(fix)
+        self._rejections = 0
+        return ids
+
+    def _lit_rows(self) -> npt.NDArray[np.int64]:
+        lit = self._lit or frozenset()
+        return np.array([self.map.index_of(i) for i in sorted(lit) if i in self.map], np.int64)
+
+    # -- modes and outputs ---------------------------------------------------------------------
+    def _check_lost(self, t_ns: int) -> None:
+        if self._filter is None or self._mode in ("identifying", "lost"):
+            return
+        fc = self.config.fusion
+        cov = self._filter.covariance
+        sigma = math.sqrt(max(float(np.linalg.eigvalsh(cov[:2, :2])[-1]), 0.0))
+        if sigma > fc.lost_sigma_m or self._rejections >= fc.lost_after_rejections:
+            self._mode = "lost"
+            self._start_identification()
+
+    def _start_identification(self) -> None:
+        ids = self.map.ids.tolist()
+        if self._filter is not None:
+            x, y = float(self._filter.state[0]), float(self._filter.state[1])
+            d = np.hypot(self.map.positions[:, 0] - x, self.map.positions[:, 1] - y)
+            ids = [int(self.map.ids[i]) for i in np.argsort(d, kind="stable")]
+        self._identifier.restart(ids)
+        self._last_request = None
+        self._sweeping = True
+
+    def _requests(self, t_ns: int) -> list[Output]:
+        """LED requests of an identification in progress (the last one lights all)."""
+        if not self._sweeping:
+            return []
+        req = self._identifier.next_request(t_ns)
+        if req is None or req == self._last_request:
+            return []
+        self._last_request = req
+        if req.all_lit:
+            self._sweeping = False
+        return [req]
+
+    def _output(self, t_ns: int, used: tuple[int, ...]) -> PoseEstimate | NoPose:
+        if self._filter is None:
+            return NoPose(t_ns, self._mode)
+        s = self._filter.state
+        est = PoseEstimate(
+            t_ns=t_ns,
+            x=float(s[0]),
+            y=float(s[1]),
+            theta=float(wrap_angle(float(s[2]))),
+            covariance=np.array(self._filter.covariance[:3, :3], dtype=np.float64),
+            mode=self._mode,
+            landmark_ids=used,
+        )
+        self._latest = est
+        return est
+
+
+def _transfer_pixel(
+    camera: CameraModel,
+    pixel: tuple[float, float],
+    height_m: float,
+    odo_then: tuple[float, float, float],
+    odo_now: tuple[float, float, float],
+) -> tuple[float, float]:
+    """Where a ceiling spot seen at `pixel` appears after the body moved by odometry."""
+    q = ceiling_points_body(camera, np.array([pixel]), np.array([height_m]))[0]
+    d_world = np.array([odo_now[0] - odo_then[0], odo_now[1] - odo_then[1]])
+    d_body = rotation_2d(-odo_then[2]) @ d_world
+    dth = float(wrap_angle(odo_now[2] - odo_then[2]))
+    q_now = rotation_2d(-dth) @ (q - d_body)
+    p_body = np.array([[q_now[0], q_now[1], height_m]])
+    p_cam = transform_points(invert_transform(camera.T_body_camera), p_body)
+    px, _ = pixels_from_points_camera(camera, p_cam)
+    return float(px[0, 0]), float(px[0, 1])
