@@ -12,3 +12,7 @@ class NotFoundError(KeyError):
 
 class ConflictError(ValueError):
     """The change clashes with what exists: duplicate ID or radio address (HTTP 409)."""
+
+
+class UnavailableError(RuntimeError):
+    """A service the request needs is not running (no radio, site stopped) (HTTP 503)."""

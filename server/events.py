@@ -41,9 +41,15 @@ class SiteEvent:
     data: dict[str, Any] = field(default_factory=dict)
 
     def to_dict(self) -> dict[str, Any]:
-        return {"id": self.id, "t": self.t.isoformat() + "Z", "kind": self.kind,
-                "message": self.message, "robot": self.robot, "landmark_id": self.landmark_id,
-                "data": self.data}
+        return {
+            "id": self.id,
+            "t": self.t.isoformat(),
+            "kind": self.kind,
+            "message": self.message,
+            "robot": self.robot,
+            "landmark_id": self.landmark_id,
+            "data": self.data,
+        }
 
     def json(self) -> str:
         return json.dumps(self.to_dict(), separators=(",", ":"))
@@ -72,5 +78,7 @@ class EventHub:
 
     def recent(self, limit: int = 100) -> list[SiteEvent]:
         """The newest events first."""
-        return [SiteEvent(r.id or 0, r.t, r.kind, r.message, r.robot, r.landmark_id, r.data)
-                for r in self.log.events(limit)]
+        return [
+            SiteEvent(r.id or 0, r.t, r.kind, r.message, r.robot, r.landmark_id, r.data)
+            for r in self.log.events(limit)
+        ]

@@ -28,8 +28,8 @@ MAX_Z_M = 100.0
 
 
 def utcnow() -> datetime:
-    """Now, UTC, without tzinfo (as the database stores it)."""
-    return datetime.now(UTC).replace(tzinfo=None)
+    """Now, UTC (timezone-aware)."""
+    return datetime.now(UTC)
 
 
 def check_coordinate(name: str, value: float | None) -> float | None:
@@ -117,7 +117,7 @@ class MapDocument(SQLModel):
 
 # -- robots ------------------------------------------------------------------------------
 class RobotBase(SQLModel):
-    source: Literal["sim", "camera", "remote"] = "sim"
+    source: str = Field(default="sim", regex=r"^(sim|camera|remote)$")
     device: str | None = Field(default=None, description="camera index or video file (camera)")
     wheel_base: float = Field(gt=0, le=10, description="metres between the wheels")
     max_speed: float = Field(default=1.0, gt=0, le=20, description="m/s")
@@ -136,7 +136,7 @@ class Robot(RobotBase, table=True):
 
 
 class RobotCreate(RobotBase):
-    name: str = Field(min_length=1, max_length=64, pattern=r"^[A-Za-z0-9_.-]+$")
+    name: str = Field(min_length=1, max_length=64, regex=r"^[A-Za-z0-9_.-]+$")
 
 
 class RobotPublic(RobotBase):

@@ -42,15 +42,29 @@ class PoseUpdate:
 
     @classmethod
     def from_estimate(cls, robot: str, est: PoseEstimate) -> PoseUpdate:
-        return cls(robot, est.t_ns, est.mode, float(est.x), float(est.y), float(est.theta),
-                   np.asarray(est.covariance, dtype=np.float64), tuple(est.landmark_ids))
+        return cls(
+            robot,
+            est.t_ns,
+            est.mode,
+            float(est.x),
+            float(est.y),
+            float(est.theta),
+            np.asarray(est.covariance, dtype=np.float64),
+            tuple(est.landmark_ids),
+        )
 
     def to_dict(self) -> dict[str, Any]:
         cov = None if self.covariance is None else self.covariance.tolist()
         return {
-            "robot": self.robot, "t_ns": self.t_ns, "mode": self.mode, "x": self.x,
-            "y": self.y, "theta": self.theta, "covariance": cov,
-            "landmark_ids": list(self.landmark_ids), "computed_wall_ns": self.computed_wall_ns,
+            "robot": self.robot,
+            "t_ns": self.t_ns,
+            "mode": self.mode,
+            "x": self.x,
+            "y": self.y,
+            "theta": self.theta,
+            "covariance": cov,
+            "landmark_ids": list(self.landmark_ids),
+            "computed_wall_ns": self.computed_wall_ns,
         }
 
     @cached_property

@@ -14,6 +14,8 @@ import threading
 import time
 from collections.abc import Coroutine
 from dataclasses import dataclass
+from datetime import UTC, datetime
+from pathlib import Path
 from typing import Any, TypeVar
 
 import numpy as np
@@ -26,7 +28,7 @@ from rf_gateway.transport import DiscoveredRadio
 from server.bus import Bus, Subscription
 from server.crud import EventLog, KeyStore, MapRepository, RobotStore
 from server.db import make_engine, migrate
-from server.errors import NotFoundError
+from server.errors import NotFoundError, UnavailableError
 from server.events import EventHub
 from server.models import LandmarkPublic
 from server.poses import PoseUpdate
@@ -132,7 +134,7 @@ class SiteServices:
         """Run a coroutine on the server's loop from any other thread (viewer callbacks)."""
         if self.loop is None:
             coro.close()
-            raise RuntimeError("the site is not started")
+            raise UnavailableError("the site is not started")
         return asyncio.run_coroutine_threadsafe(coro, self.loop)
 
     def call(self, coro: Coroutine[Any, Any, T], timeout_s: float = 30.0) -> T:
@@ -167,15 +169,18 @@ class SiteServices:
 
     # -- map -------------------------------------------------------------------------------
     def _on_map_changed(self, landmarks: list[LandmarkPublic]) -> None:
-        self.events.emit("map_changed", f"map changed: {len(landmarks)} landmarks",
-                         data={"count": len(landmarks)})
+        self.events.emit(
+            "map_changed",
+            f"map changed: {len(landmarks)} landmarks",
+            data={"count": len(landmarks)},
+        )
         if self.site is not None:
             self.site.on_map_changed(landmarks)
 
     # -- LEDs and radio (coroutines: await on the server loop, or `call` from a thread) -------
     def _gw(self) -> Gateway:
         if self.gateway is None:
-            raise RuntimeError("no radio: the site runs without a gateway")
+            raise UnavailableError("no radio: the site runs without a gateway")
         return self.gateway
 
     async def set_leds(self, lit: frozenset[int] | set[int]) -> LedsChanged:
@@ -227,7 +232,7 @@ class SiteServices:
         t_ns = np.array([(r.t - epoch).total_seconds() * 1e9 for r in rows])
         mvs = np.array([r.supply_mv for r in rows], dtype=np.float64)
         left = days_left(t_ns, mvs, cfg.cutoff_mv, min_span_days=cfg.min_fit_span_days)
-        hist = [(r.t.isoformat() + "Z", r.supply_mv) for r in rows]
+        hist = [(r.t.isoformat(), r.supply_mv) for r in rows]
         return BatteryStatus(landmark_id, mv, pct, left, hist)
 
     # -- robots ----------------------------------------------------------------------------
@@ -240,3 +245,19 @@ class SiteServices:
         """Poses from now on (all robots, or those named), bounded queue (drops counted)."""
         accept = None if not robots else (lambda p: p.robot in robots)
         return self.poses.subscribe(maxsize, accept)
+
+    def start_recording(self, name: str) -> Path:
+        """Record a robot to `<data_dir>/recordings/<name>-<UTC time>/`; returns the folder."""
+        runner = self.robots.get(name)
+        stamp = datetime.now(UTC).strftime("%Y%m%dT%H%M%S")
+        root = self.settings.recordings_dir / f"{name}-{stamp}"
+        records = [
+            lm.model_dump(mode="json", exclude={"created_at", "updated_at", "note"})
+            for lm in self.map.list()
+        ]
+        runner.start_recording(root, records)
+        return root
+
+    def stop_recording(self, name: str) -> Path | None:
+        """Stop a robot's recording; its folder, or None when it was not recording."""
+        return self.robots.get(name).stop_recording()

@@ -37,8 +37,9 @@ class KeyStore:
         if role not in ROLES:
             raise ValueError(f"role: expected one of {', '.join(ROLES)}, got {role!r}")
         token = TOKEN_PREFIX + secrets.token_urlsafe(32)
-        row = ApiKey(name=name, role=role, prefix=token[: len(TOKEN_PREFIX) + 6],
-                     hash=hash_key(token))
+        row = ApiKey(
+            name=name, role=role, prefix=token[: len(TOKEN_PREFIX) + 6], hash=hash_key(token)
+        )
         with Session(self.engine) as s:
             s.add(row)
             s.commit()
@@ -62,8 +63,10 @@ class KeyStore:
 
     def list(self) -> list[ApiKeyPublic]:
         with Session(self.engine) as s:
-            return [ApiKeyPublic.model_validate(r, from_attributes=True)
-                    for r in s.exec(select(ApiKey).order_by(ApiKey.id))]  # type: ignore[arg-type]
+            return [
+                ApiKeyPublic.model_validate(r, from_attributes=True)
+                for r in s.exec(select(ApiKey).order_by(ApiKey.id))
+            ]  # type: ignore[arg-type]
 
     def revoke(self, key_id: int) -> None:
         with Session(self.engine) as s:

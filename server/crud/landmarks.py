@@ -117,8 +117,9 @@ class MapRepository:
             self._check_radio_free(s, data.radio, data.id)
             row = Landmark.model_validate(data.model_dump())
             s.add(row)
-            s.add(AuditRecord(actor=actor, action="create", landmark_id=data.id,
-                              after=_record(row)))
+            s.add(
+                AuditRecord(actor=actor, action="create", landmark_id=data.id, after=_record(row))
+            )
             s.commit()
             s.refresh(row)
             out = _public(row)
@@ -142,8 +143,15 @@ class MapRepository:
                 setattr(row, key, value if key != "note" or value is not None else "")
             row.updated_at = utcnow()
             s.add(row)
-            s.add(AuditRecord(actor=actor, action="update", landmark_id=landmark_id,
-                              before=before, after=_record(row)))
+            s.add(
+                AuditRecord(
+                    actor=actor,
+                    action="update",
+                    landmark_id=landmark_id,
+                    before=before,
+                    after=_record(row),
+                )
+            )
             s.commit()
             s.refresh(row)
             out = _public(row)
@@ -155,8 +163,11 @@ class MapRepository:
             row = s.get(Landmark, landmark_id)
             if row is None:
                 raise NotFoundError(f"landmark {landmark_id} does not exist")
-            s.add(AuditRecord(actor=actor, action="delete", landmark_id=landmark_id,
-                              before=_record(row)))
+            s.add(
+                AuditRecord(
+                    actor=actor, action="delete", landmark_id=landmark_id, before=_record(row)
+                )
+            )
             s.delete(row)
             s.commit()
         self._notify()
@@ -218,8 +229,13 @@ class MapRepository:
                     s.flush()
                 if last.before is not None:
                     s.add(Landmark.model_validate(_from_json(last.before)))
-            undo = AuditRecord(actor=actor, action="undo", landmark_id=last.landmark_id,
-                               before=last.after, after=last.before)
+            undo = AuditRecord(
+                actor=actor,
+                action="undo",
+                landmark_id=last.landmark_id,
+                before=last.after,
+                after=last.before,
+            )
             last.action = f"{last.action}-undone"
             s.add(last)
             s.add(undo)
@@ -243,8 +259,9 @@ class MapRepository:
         writer = csv.DictWriter(out, fieldnames=CSV_FIELDS, lineterminator="\n")
         writer.writeheader()
         for lm in self.list():
-            writer.writerow({k: getattr(lm, k) if getattr(lm, k) is not None else ""
-                             for k in CSV_FIELDS})
+            writer.writerow(
+                {k: getattr(lm, k) if getattr(lm, k) is not None else "" for k in CSV_FIELDS}
+            )
         return out.getvalue()
 
 

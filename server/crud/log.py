@@ -50,8 +50,9 @@ class EventLog:
         data: dict[str, Any] | None = None,
     ) -> EventRecord:
         with Session(self.engine) as s:
-            rec = EventRecord(kind=kind, message=message, robot=robot,
-                              landmark_id=landmark_id, data=data or {})
+            rec = EventRecord(
+                kind=kind, message=message, robot=robot, landmark_id=landmark_id, data=data or {}
+            )
             s.add(rec)
             s.commit()
             s.refresh(rec)

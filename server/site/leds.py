@@ -44,8 +44,10 @@ class LedCoordinator:
         self._tasks: list[asyncio.Task[None]] = []
 
     def start(self) -> None:
-        self._tasks = [self._loop.create_task(self._apply_loop()),
-                       self._loop.create_task(self._forward_loop())]
+        self._tasks = [
+            self._loop.create_task(self._apply_loop()),
+            self._loop.create_task(self._forward_loop()),
+        ]
 
     async def stop(self) -> None:
         for task in self._tasks:

@@ -42,9 +42,7 @@ def upgrade() -> None:
     op.create_table(
         "battery_readings",
         sa.Column("id", sa.Integer, primary_key=True),
-        sa.Column(
-            "landmark_id", sa.Integer, sa.ForeignKey("landmarks.id", ondelete="CASCADE")
-        ),
+        sa.Column("landmark_id", sa.Integer, sa.ForeignKey("landmarks.id", ondelete="CASCADE")),
         sa.Column("t", sa.DateTime, nullable=False),
         sa.Column("supply_mv", sa.Integer, nullable=False),
     )

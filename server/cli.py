@@ -1,0 +1,101 @@
+"""`irloc serve`: run the API, the live site and the viewer.
+
+With no arguments: the `demo` virtual site, the API on http://127.0.0.1:8000 and the viewer.
+"""
+
+from __future__ import annotations
+
+import argparse
+import ipaddress
+import logging
+import sys
+from pathlib import Path
+
+from pydantic import ValidationError
+
+from server.settings import Settings
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="irloc serve", description=__doc__.splitlines()[0])
+    p.add_argument("--host", help="API address (default 127.0.0.1)")
+    p.add_argument("--port", type=int, help="API port (default 8000)")
+    p.add_argument("--viewer-port", type=int, help="viser's own port on 127.0.0.1 (default 8080)")
+    p.add_argument(
+        "--data-dir", type=Path, help="database and recordings (default ~/.local/share/irloc)"
+    )
+    p.add_argument("--map", type=Path, dest="map_file", help="import this map.json at start")
+    p.add_argument("--radio", help="sim | xbee:PORT[@BAUD] (default sim)")
+    p.add_argument("--scenario", help="virtual site scenario name or file (default demo)")
+    p.add_argument("--seed", type=int, help="virtual site seed")
+    p.add_argument("--no-viewer", action="store_true", help="do not start the viewer")
+    p.add_argument("--log-level", default="info", choices=["debug", "info", "warning", "error"])
+    return p
+
+
+def is_loopback(host: str) -> bool:
+    if host == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return False
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = _parser().parse_args(sys.argv[1:] if argv is None else argv)
+    overrides = {
+        k: v
+        for k, v in {
+            "host": args.host,
+            "port": args.port,
+            "viewer_port": args.viewer_port,
+            "data_dir": args.data_dir,
+            "map_file": args.map_file,
+            "radio": args.radio,
+            "scenario": args.scenario,
+            "seed": args.seed,
+        }.items()
+        if v is not None
+    }
+    if args.no_viewer:
+        overrides["viewer_enabled"] = False
+    try:
+        settings = Settings(**overrides)
+    except (ValidationError, ValueError) as exc:
+        print(f"irloc serve: {exc}", file=sys.stderr)
+        return 2
+    if settings.map_file is not None and not settings.map_file.is_file():
+        print(f"irloc serve: --map {settings.map_file}: no such file", file=sys.stderr)
+        return 2
+    logging.basicConfig(
+        level=args.log_level.upper(), format="%(asctime)s %(levelname)s %(name)s: %(message)s"
+    )
+    import uvicorn
+
+    from server.crud.keys import KeyStore
+    from server.db import make_engine, migrate
+    from server.main import create_app
+
+    engine = make_engine(settings.db_url)
+    migrate(engine)
+    first_key = KeyStore(engine).ensure_admin()
+    engine.dispose()
+    base = f"http://{settings.host}:{settings.port}"
+    print(f"irloc: data in {settings.data_dir}")
+    print(f"irloc: API docs  {base}/docs")
+    if settings.viewer_enabled:
+        print(f"irloc: viewer    {base}/viewer/?token=<key>")
+    if first_key is not None:
+        print(f"irloc: first admin API key (shown once, store it): {first_key}")
+    sys.stdout.flush()
+    config = uvicorn.Config(
+        create_app(settings),
+        host=settings.host,
+        port=settings.port,
+        workers=1,
+        log_level=args.log_level,
+        lifespan="on",
+    )
+    uvicorn.Server(config).run()
+    return 0

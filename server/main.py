@@ -1,0 +1,189 @@
+"""The app factory: `create_app(settings) -> FastAPI`. Nothing is built at import time.
+
+The lifespan builds `SiteServices` (database, migrations, first admin key), starts the live
+site (radio, robots, clock) and the viewer, and stops them in reverse order on shutdown.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import logging
+from collections.abc import AsyncIterator
+from contextlib import asynccontextmanager
+from typing import Any
+
+from fastapi import APIRouter, FastAPI, Request
+from fastapi.exceptions import RequestValidationError
+from fastapi.responses import JSONResponse, Response
+from pydantic import BaseModel, ValidationError
+
+from rf_gateway.errors import (
+    LandmarkUnreachableError,
+    RfGatewayError,
+    TransportUnavailable,
+    UnknownLandmarkError,
+)
+from server.auth import Viewer, authenticate
+from server.errors import ConflictError, NotFoundError, UnavailableError
+from server.metrics import make_registry, render
+from server.routes import admin, landmarks, map, robots, streams
+from server.services import SiteServices
+from server.settings import Settings
+
+log = logging.getLogger(__name__)
+API_PREFIX = "/api/v1"
+
+
+class Health(BaseModel):
+    status: str
+    robots: int
+    landmarks: int
+    radio: str
+
+
+def _error_status(exc: Exception) -> tuple[int, str]:
+    if isinstance(exc, LandmarkUnreachableError):
+        return 504, str(exc)
+    if isinstance(exc, UnknownLandmarkError):
+        return 404, str(exc)
+    if isinstance(exc, NotFoundError):
+        return 404, str(exc)
+    if isinstance(exc, ConflictError):
+        return 409, str(exc)
+    if isinstance(exc, TransportUnavailable | UnavailableError):
+        return 503, str(exc)
+    if isinstance(exc, RfGatewayError):
+        return 503, str(exc)
+    if isinstance(exc, ValidationError):
+        err = exc.errors()[0]
+        return 422, f"{'.'.join(str(p) for p in err['loc'])}: {err['msg']}"
+    return 422, str(exc)
+
+
+def _install_error_handlers(app: FastAPI) -> None:
+    async def handle(request: Request, exc: Exception) -> JSONResponse:
+        code, message = _error_status(exc)
+        collector = getattr(request.app.state, "metrics_collector", None)
+        if collector is not None:
+            key = str(code)
+            collector.http_errors[key] = collector.http_errors.get(key, 0) + 1
+        return JSONResponse({"detail": message}, status_code=code)
+
+    for exc_type in (
+        NotFoundError,
+        ConflictError,
+        UnavailableError,
+        RfGatewayError,
+        UnknownLandmarkError,
+        ValidationError,
+        ValueError,
+    ):
+        app.add_exception_handler(exc_type, handle)
+
+    async def bad_request(request: Request, exc: Exception) -> JSONResponse:
+        assert isinstance(exc, RequestValidationError)
+        errors = exc.errors()
+        parts = [f"{'.'.join(str(p) for p in e['loc'])}: {e['msg']}" for e in errors[:5]]
+        return JSONResponse(
+            {"detail": "; ".join(parts), "errors": _jsonable(errors)}, status_code=422
+        )
+
+    app.add_exception_handler(RequestValidationError, bad_request)
+
+
+def _jsonable(errors: Any) -> Any:
+    import json
+
+    return json.loads(json.dumps(errors, default=str))
+
+
+def create_app(settings: Settings | None = None) -> FastAPI:
+    """The irloc API for `settings` (defaults: environment / settings file)."""
+    settings = settings or Settings()
+
+    @asynccontextmanager
+    async def lifespan(app: FastAPI) -> AsyncIterator[None]:
+        services = SiteServices(settings)
+        app.state.services = services
+        registry, collector = make_registry(services)
+        app.state.metrics_registry = registry
+        app.state.metrics_collector = collector
+        await services.start()
+        viewer = _start_viewer(services, settings)
+        app.state.viewer = viewer
+        try:
+            yield
+        finally:
+            if viewer is not None:
+                try:
+                    viewer.stop()
+                except Exception:
+                    log.exception("viewer did not stop cleanly")
+            await services.stop()
+
+    app = FastAPI(
+        title="irloc",
+        version="0.1.0",
+        summary="Indoor localization with IR ceiling landmarks: map, robots, radio",
+        lifespan=lifespan,
+    )
+    _install_error_handlers(app)
+    api = APIRouter(prefix=API_PREFIX)
+    for module in (landmarks, map, robots, admin, streams):
+        api.include_router(module.router)
+    api.add_api_route(
+        "/metrics",
+        _metrics,
+        methods=["GET"],
+        tags=["operations"],
+        response_class=Response,
+        summary="Prometheus metrics",
+    )
+    app.include_router(api)
+    app.add_api_route("/healthz", _healthz, methods=["GET"], tags=["operations"])
+    app.add_api_route(
+        API_PREFIX + "/healthz",
+        _healthz,
+        methods=["GET"],
+        tags=["operations"],
+        include_in_schema=False,
+    )
+    _include_viewer_router(app)
+    return app
+
+
+async def _healthz(request: Request) -> Health:
+    """Liveness (no key needed)."""
+    s: SiteServices = request.app.state.services
+    gw = s.gateway
+    return Health(
+        status="ok",
+        robots=len(s.robots.names()),
+        landmarks=len(s.map.list()),
+        radio="absent" if gw is None else str(gw.transport.state),
+    )
+
+
+async def _metrics(request: Request, _: Viewer) -> Response:
+    return Response(
+        render(request.app.state.metrics_registry), media_type="text/plain; version=0.0.4"
+    )
+
+
+def _start_viewer(services: SiteServices, settings: Settings) -> Any:
+    if not settings.viewer_enabled or importlib.util.find_spec("web.viewer") is None:
+        return None
+    from web.viewer import Viewer as SiteViewer
+
+    viewer = SiteViewer(services, host="127.0.0.1", port=settings.viewer_port)
+    viewer.start()
+    return viewer
+
+
+def _include_viewer_router(app: FastAPI) -> None:
+    """Serve the viewer under `/viewer/` behind the key check when `web.proxy` exists."""
+    if importlib.util.find_spec("web.proxy") is None:
+        return
+    from web.proxy import viewer_router
+
+    app.include_router(viewer_router(lambda: getattr(app.state, "viewer", None), authenticate))

@@ -1,0 +1,79 @@
+"""Prometheus metrics, read from the services at scrape time (own registry per app)."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from typing import TYPE_CHECKING
+
+from prometheus_client import CollectorRegistry, generate_latest
+from prometheus_client.core import CounterMetricFamily, GaugeMetricFamily, Metric
+from prometheus_client.registry import Collector
+
+if TYPE_CHECKING:
+    from server.services import SiteServices
+
+
+class SiteCollector(Collector):
+    """Poses per robot, pose-bus drops, radio queue and failures, HTTP errors."""
+
+    def __init__(self, services: SiteServices) -> None:
+        self.services = services
+        self.http_errors: dict[str, int] = {}
+
+    def collect(self) -> Iterator[Metric]:
+        s = self.services
+        poses = CounterMetricFamily("irloc_poses", "pose estimates computed", labels=["robot"])
+        frames = CounterMetricFamily("irloc_frames", "frames fed to localizers", labels=["robot"])
+        errs = CounterMetricFamily(
+            "irloc_localizer_errors", "localizer exceptions", labels=["robot"]
+        )
+        for r in s.robots.runners():
+            poses.add_metric([r.name], r.poses)
+            frames.add_metric([r.name], r.frames)
+            errs.add_metric([r.name], r.errors)
+        yield poses
+        yield frames
+        yield errs
+        yield CounterMetricFamily(
+            "irloc_pose_bus_published", "pose bus items", value=s.poses.published
+        )
+        yield CounterMetricFamily(
+            "irloc_pose_bus_dropped",
+            "pose bus items dropped for slow subscribers",
+            value=s.poses.dropped,
+        )
+        yield GaugeMetricFamily(
+            "irloc_pose_subscribers", "pose bus subscribers", value=len(s.poses)
+        )
+        gw = s.gateway
+        if gw is not None:
+            yield CounterMetricFamily(
+                "irloc_radio_commands", "radio commands sent", value=gw.stats.commands
+            )
+            yield CounterMetricFamily(
+                "irloc_radio_retries", "radio retries", value=gw.stats.retries
+            )
+            yield CounterMetricFamily(
+                "irloc_radio_failures", "radio commands that failed", value=gw.stats.failures
+            )
+            yield GaugeMetricFamily(
+                "irloc_landmarks_unreachable", "unreachable landmarks", value=len(gw.unreachable)
+            )
+        site = s.site
+        waiting = 0 if site is None or site.leds is None else site.leds.waiting
+        yield GaugeMetricFamily("irloc_radio_queue", "LED requests waiting", value=waiting)
+        http = CounterMetricFamily("irloc_http_errors", "HTTP error answers", labels=["status"])
+        for code, n in sorted(self.http_errors.items()):
+            http.add_metric([code], n)
+        yield http
+
+
+def make_registry(services: SiteServices) -> tuple[CollectorRegistry, SiteCollector]:
+    registry = CollectorRegistry(auto_describe=False)
+    collector = SiteCollector(services)
+    registry.register(collector)
+    return registry, collector
+
+
+def render(registry: CollectorRegistry) -> bytes:
+    return generate_latest(registry)

@@ -1,0 +1,137 @@
+"""`/landmarks`: CRUD, LEDs, blink, battery."""
+
+from __future__ import annotations
+
+from fastapi import APIRouter, HTTPException, Query, Response, status
+from pydantic import BaseModel
+
+from server.auth import Admin, Operator, Viewer
+from server.deps import LandmarkId, ServicesDep
+from server.models import LandmarkCreate, LandmarkPublic, LandmarkUpdate
+
+router = APIRouter(prefix="/landmarks", tags=["landmarks"])
+
+
+class LedCommand(BaseModel):
+    on: bool
+
+
+class LedState(BaseModel):
+    """The site's LED state after a command (confirmed by the radio)."""
+
+    t_ns: int
+    all_lit: bool
+    lit: list[int]
+
+
+class BatteryPublic(BaseModel):
+    landmark_id: int
+    supply_mv: int | None
+    volts: float | None
+    percent: float | None
+    days_left: float | None
+    history: list[tuple[str, int]]
+
+
+class AuditPublic(BaseModel):
+    id: int
+    t: str
+    actor: str
+    action: str
+    landmark_id: int | None
+    before: dict[str, object] | None
+    after: dict[str, object] | None
+
+
+def _leds(services: ServicesDep, event: object) -> LedState:
+    return LedState(
+        t_ns=event.t_ns,
+        all_lit=event.all_lit,  # type: ignore[attr-defined]
+        lit=sorted(services.lit()),
+    )
+
+
+@router.get("")
+async def list_landmarks(services: ServicesDep, _: Viewer) -> list[LandmarkPublic]:
+    return services.map.list()
+
+
+@router.post("", status_code=status.HTTP_201_CREATED)
+async def create_landmark(
+    body: LandmarkCreate, services: ServicesDep, who: Admin
+) -> LandmarkPublic:
+    return services.map.create(body, actor=who.actor)
+
+
+@router.get("/audit")
+async def audit_log(
+    services: ServicesDep, _: Viewer, limit: int = Query(100, ge=1, le=1000)
+) -> list[AuditPublic]:
+    return [
+        AuditPublic(
+            id=r.id or 0,
+            t=r.t.isoformat(),
+            actor=r.actor,
+            action=r.action,
+            landmark_id=r.landmark_id,
+            before=r.before,
+            after=r.after,
+        )
+        for r in services.map.audit(limit)
+    ]
+
+
+@router.get("/{landmark_id}")
+async def get_landmark(landmark_id: LandmarkId, services: ServicesDep, _: Viewer) -> LandmarkPublic:
+    return services.map.get(landmark_id)
+
+
+@router.patch("/{landmark_id}")
+async def update_landmark(
+    landmark_id: LandmarkId, body: LandmarkUpdate, services: ServicesDep, who: Admin
+) -> LandmarkPublic:
+    return services.map.update(landmark_id, body, actor=who.actor)
+
+
+@router.delete("/{landmark_id}", status_code=status.HTTP_204_NO_CONTENT)
+async def delete_landmark(landmark_id: LandmarkId, services: ServicesDep, who: Admin) -> Response:
+    services.map.delete(landmark_id, actor=who.actor)
+    return Response(status_code=status.HTTP_204_NO_CONTENT)
+
+
+@router.post("/{landmark_id}/led")
+async def set_led(
+    landmark_id: LandmarkId, body: LedCommand, services: ServicesDep, _: Operator
+) -> LedState:
+    """Switch one landmark's LED; 504 naming the landmark when its radio does not answer."""
+    return _leds(services, await services.led(landmark_id, body.on))
+
+
+@router.post("/{landmark_id}/blink")
+async def blink(landmark_id: LandmarkId, services: ServicesDep, _: Operator) -> LedState:
+    """Blink the LED a few times (to find it on the ceiling), then restore it."""
+    return _leds(services, await services.blink(landmark_id))
+
+
+@router.get("/{landmark_id}/battery")
+async def battery(
+    landmark_id: LandmarkId,
+    services: ServicesDep,
+    who: Viewer,
+    refresh: bool = Query(False, description="read the supply now (operator role)"),
+) -> BatteryPublic:
+    """Latest reading, history and days left; `?refresh=true` reads the radio first."""
+    if refresh:
+        if not who.allows("operator"):
+            raise HTTPException(status.HTTP_403_FORBIDDEN, "refresh needs the operator role")
+        await services.read_battery(landmark_id)
+    st = services.battery(landmark_id)
+    volts = None if st.supply_mv is None else st.supply_mv / 1000.0
+    return BatteryPublic(
+        landmark_id=landmark_id,
+        supply_mv=st.supply_mv,
+        volts=volts,
+        percent=st.percent,
+        days_left=st.days_left,
+        history=st.history,
+    )

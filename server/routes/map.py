@@ -1,0 +1,61 @@
+"""`/map`: the whole map as map.json (recording format, with `radio`) or CSV."""
+
+from __future__ import annotations
+
+import json
+from typing import Any, Literal
+
+from fastapi import APIRouter, Query, Request
+from fastapi.responses import PlainTextResponse
+from pydantic import BaseModel
+
+from server.auth import Admin, Viewer
+from server.crud.landmarks import parse_map_csv, parse_map_json
+from server.deps import ServicesDep
+from server.models import LandmarkCreate, MapDocument
+
+router = APIRouter(prefix="/map", tags=["map"])
+
+
+class ImportResult(BaseModel):
+    landmarks: int
+
+
+@router.get("", response_model=MapDocument)
+async def export_map(
+    services: ServicesDep, _: Viewer, format: Literal["json", "csv"] = Query("json")
+) -> Any:
+    """The map as map.json (`?format=csv` for CSV: `id,x,y,z,radio,locked,note`)."""
+    if format == "csv":
+        return PlainTextResponse(services.map.export_csv(), media_type="text/csv")
+    return services.map.export_json()
+
+
+@router.put(
+    "",
+    openapi_extra={
+        "requestBody": {
+            "content": {
+                "application/json": {"schema": MapDocument.model_json_schema()},
+                "text/csv": {"schema": {"type": "string"}},
+            },
+            "required": True,
+        }
+    },
+)
+async def import_map(request: Request, services: ServicesDep, who: Admin) -> ImportResult:
+    """Replace the whole map (one transaction, audited): JSON body, or CSV with
+    `Content-Type: text/csv`."""
+    raw = await request.body()
+    ctype = request.headers.get("content-type", "application/json").split(";")[0].strip()
+    text = raw.decode("utf-8", errors="strict") if raw else ""
+    items: list[LandmarkCreate]
+    if ctype == "text/csv":
+        items = parse_map_csv(text, source="map (CSV body)")
+    else:
+        try:
+            data = json.loads(text)
+        except json.JSONDecodeError as exc:
+            raise ValueError(f"map: body is not JSON: {exc}") from None
+        items = parse_map_json(data, source="map")
+    return ImportResult(landmarks=services.map.replace_all(items, actor=who.actor))

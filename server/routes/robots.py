@@ -1,0 +1,113 @@
+"""`/robots`: list, pose, relocalize, configuration, wheel speeds, recordings."""
+
+from __future__ import annotations
+
+from fastapi import APIRouter, status
+from pydantic import BaseModel, Field
+
+from localizer.events import Mode, OdometryMeasured
+from server.auth import Admin, Operator, Viewer
+from server.deps import RobotName, ServicesDep
+from server.models import RobotCreate, RobotPublic
+from server.poses import PosePublic
+
+router = APIRouter(prefix="/robots", tags=["robots"])
+
+
+class RobotStatus(BaseModel):
+    name: str
+    source: str
+    mode: Mode
+    frames: int
+    poses: int
+    errors: int
+    last_fix_t_ns: int | None
+    recording: bool
+
+
+class WheelSpeeds(BaseModel):
+    """Wheel speeds measured now (or at `t_ns` on the site clock), m/s."""
+
+    v_left: float = Field(ge=-20, le=20)
+    v_right: float = Field(ge=-20, le=20)
+    t_ns: int | None = Field(default=None, ge=0, le=2**62)
+
+
+class RecordingStatus(BaseModel):
+    robot: str
+    recording: bool
+    path: str | None = None
+
+
+def _status(services: ServicesDep, name: str) -> RobotStatus:
+    r = services.robots.get(name)
+    return RobotStatus(
+        name=r.name,
+        source=r.source,
+        mode=r.mode,
+        frames=r.frames,
+        poses=r.poses,
+        errors=r.errors,
+        last_fix_t_ns=r.last_fix_t_ns,
+        recording=r.recorder is not None,
+    )
+
+
+@router.get("")
+async def list_robots(services: ServicesDep, _: Viewer) -> list[RobotStatus]:
+    return [_status(services, n) for n in services.robots.names()]
+
+
+@router.get("/{name}")
+async def get_robot(name: RobotName, services: ServicesDep, _: Viewer) -> RobotStatus:
+    return _status(services, name)
+
+
+@router.get("/{name}/pose")
+async def get_pose(name: RobotName, services: ServicesDep, _: Viewer) -> PosePublic:
+    """The latest pose: x, y, theta, covariance, mode, landmarks used, timestamp, age."""
+    runner = services.robots.get(name)
+    return PosePublic.from_update(name, runner.mode, runner.latest)
+
+
+@router.post("/{name}/relocalize", status_code=status.HTTP_202_ACCEPTED)
+async def relocalize(name: RobotName, services: ServicesDep, _: Operator) -> RobotStatus:
+    services.relocalize(name)
+    return _status(services, name)
+
+
+@router.post("/{name}/odometry", status_code=status.HTTP_202_ACCEPTED)
+async def wheel_speeds(
+    name: RobotName, body: WheelSpeeds, services: ServicesDep, _: Operator
+) -> RobotStatus:
+    """Wheel speeds for a robot whose camera is on the server (source `camera`)."""
+    t_ns = body.t_ns if body.t_ns is not None else services.clock_ns()
+    services.robots.get(name).handle(OdometryMeasured(t_ns, body.v_left, body.v_right))
+    return _status(services, name)
+
+
+@router.get("/{name}/config")
+async def get_config(name: RobotName, services: ServicesDep, _: Viewer) -> RobotPublic:
+    return services.robot_store.get(name)
+
+
+@router.put("/{name}/config")
+async def put_config(
+    name: RobotName, body: RobotPublic, services: ServicesDep, _: Admin
+) -> RobotPublic:
+    """Create or replace a robot's configuration (applied at the next start)."""
+    data = RobotCreate.model_validate({**body.model_dump(), "name": name})
+    return services.robot_store.upsert(data)
+
+
+@router.post("/{name}/recording/start")
+async def start_recording(name: RobotName, services: ServicesDep, _: Operator) -> RecordingStatus:
+    """Record this robot's frames, odometry and LED changes (for `irloc replay`)."""
+    path = services.start_recording(name)
+    return RecordingStatus(robot=name, recording=True, path=str(path))
+
+
+@router.post("/{name}/recording/stop")
+async def stop_recording(name: RobotName, services: ServicesDep, _: Operator) -> RecordingStatus:
+    path = services.stop_recording(name)
+    return RecordingStatus(robot=name, recording=False, path=None if path is None else str(path))
