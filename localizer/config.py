@@ -6,6 +6,7 @@ from dataclasses import dataclass, field
 
 from localizer.handoff import HandoffConfig
 from localizer.identification import IdentificationConfig
+from localizer.pose_filter import FilterConfig
 from localizer.spots import DetectionConfig
 from localizer.tracking import TrackingConfig
 
@@ -53,3 +54,4 @@ class LocalizerConfig:
     tracking: TrackingConfig = field(default_factory=TrackingConfig)
     handoff: HandoffConfig = field(default_factory=HandoffConfig)
     fusion: FusionConfig = field(default_factory=FusionConfig)
+    filter: FilterConfig = field(default_factory=FilterConfig)

@@ -140,6 +140,13 @@ class Localizer:
         self._reset_filter(x, y, theta, cov, t_ns)
         self._start_identification()
 
+    def skip_frame(self, t_ns: int) -> PoseEstimate | NoPose:
+        """A frame that could not be read: the pose at `t_ns` from odometry alone."""
+        self._advance(t_ns, *self._speeds)
+        if self._filter is not None and self._mode == "landmark":
+            self._mode = "dead_reckoning"
+        return self._output(t_ns, ())
+
     def handle(self, event: Event) -> list[Output]:
         """Process one event; returns the outputs (see the module docstring)."""
         if isinstance(event, OdometryMeasured):
@@ -162,7 +169,9 @@ class Localizer:
     # -- odometry and the filter ---------------------------------------------------------------
     def _reset_filter(self, x: float, y: float, theta: float, cov: FloatArray, t_ns: int) -> None:
         if self._filter is None:
-            self._filter = PoseFilter(x, y, theta, cov, wheel_base=self.robot.wheel_base)
+            self._filter = PoseFilter(
+                x, y, theta, cov, wheel_base=self.robot.wheel_base, config=self.config.filter
+            )
         else:
             self._filter.reset(x, y, theta, cov)
         self._t_state = t_ns if self._t_state is None else max(self._t_state, t_ns)
@@ -363,11 +372,9 @@ class Localizer:
         if fix is None or fix.residual_rms_px > fc.max_residual_px:
             self._rejections += 1
             return ()
-        nis = pose_mahalanobis2((fix.x, fix.y, fix.theta), pose, cov + fix.covariance)
-        if nis > fc.nis_gate:
+        if not filt.update_fix(fix, max_nis=fc.nis_gate) <= fc.nis_gate:
             self._rejections += 1
             return ()
-        filt.update_fix(fix)
         self._rejections = 0
         return ids
 
@@ -411,7 +418,7 @@ class Localizer:
     def _output(self, t_ns: int, used: tuple[int, ...]) -> PoseEstimate | NoPose:
         if self._filter is None:
             return NoPose(t_ns, self._mode)
-        s = self._filter.state
+        s = self._filter.output_state
         est = PoseEstimate(
             t_ns=t_ns,
             x=float(s[0]),

@@ -1,0 +1,143 @@
+"""`irloc replay REC --out poses.csv`: run the localizer over a recording.
+
+Reads the recording (`../shared/contracts/recording.md`), feeds odometry, LED changes and
+decoded frames to `localizer.Localizer` in time order (its LED requests are ignored: the LED
+states come from `leds.csv`) and writes one row per listed frame:
+
+    timestamp_ns,x,y,theta,mode,cov_xx,cov_yy,cov_tt,landmarks
+
+`x,y,theta` and the covariances are empty while there is no pose; `landmarks` lists the IDs
+used in that frame, space-separated. A missing or unreadable frame is skipped with a warning
+and counted (its row holds the odometry pose). A malformed file ends the run with one line
+naming the file and line and exit status 1.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import TextIO
+
+import cv2
+
+from localizer.config import LocalizerConfig
+from localizer.events import FrameObserved, NoPose, PoseEstimate
+from localizer.localizer import Localizer
+from recording.reader import FrameEntry, RecordingError, iter_timeline, read_recording
+
+HEADER = "timestamp_ns,x,y,theta,mode,cov_xx,cov_yy,cov_tt,landmarks"
+PROG = "irloc replay"
+
+
+def format_row(est: PoseEstimate | NoPose) -> str:
+    """One CSV row of the output."""
+    if isinstance(est, NoPose):
+        return f"{est.t_ns},,,,{est.mode},,,,"
+    c = est.covariance
+    ids = " ".join(str(i) for i in est.landmark_ids)
+    return (
+        f"{est.t_ns},{est.x:.6f},{est.y:.6f},{est.theta:.7f},{est.mode},"
+        f"{c[0, 0]:.3e},{c[1, 1]:.3e},{c[2, 2]:.3e},{ids}"
+    )
+
+
+def replay(
+    root: Path,
+    out: TextIO,
+    *,
+    config: LocalizerConfig | None = None,
+    warn: Callable[[str], None] = lambda _: None,
+    progress: Callable[[int], Iterator[None]] | None = None,
+) -> tuple[int, int]:
+    """Localize a recording, writing rows to `out`.
+
+    Args:
+        root: the recording folder.
+        out: where the CSV goes (the header is written first).
+        config: localizer tuning.
+        warn: called with a message for each skipped frame.
+        progress: optional callback given the frame count, returning an iterator advanced
+            once per frame (a progress bar).
+
+    Returns:
+        (frames written, frames skipped).
+
+    Raises:
+        RecordingError: a malformed file, naming the file and line.
+    """
+    rec = read_recording(root)
+    loc = Localizer(rec.camera, rec.landmark_map, rec.robot, config)
+    ticks = progress(len(rec.frames)) if progress is not None else None
+    out.write(HEADER + "\n")
+    written = skipped = 0
+    for item in iter_timeline(rec):
+        if not isinstance(item, FrameEntry):
+            loc.handle(item)
+            continue
+        image = cv2.imread(str(item.path), cv2.IMREAD_GRAYSCALE)
+        if image is None:
+            skipped += 1
+            warn(f"{item.path}: missing or unreadable frame (cam0/data.csv:{item.line}), skipped")
+            est: PoseEstimate | NoPose = loc.skip_frame(item.t_ns)
+        else:
+            outs = loc.handle(FrameObserved(item.t_ns, image))
+            est = next(o for o in outs if isinstance(o, PoseEstimate | NoPose))
+        out.write(format_row(est) + "\n")
+        written += 1
+        if ticks is not None:
+            next(ticks, None)
+    return written, skipped
+
+
+def _bar(total: int) -> Iterator[None]:
+    from tqdm import tqdm
+
+    with tqdm(total=total, unit="frame", desc="replay", file=sys.stderr) as bar:
+        while True:
+            bar.update(1)
+            yield None
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of `irloc replay`; returns the exit status."""
+    parser = argparse.ArgumentParser(prog=PROG, description=__doc__.splitlines()[0])
+    parser.add_argument("recording", type=Path, help="the recording folder")
+    parser.add_argument("--out", type=Path, required=True, help="poses.csv to write")
+    parser.add_argument("--quiet", action="store_true", help="no progress bar or warnings")
+    args = parser.parse_args(argv)
+    show = not args.quiet and sys.stderr.isatty()
+
+    def warn(msg: str) -> None:
+        if args.quiet:
+            return
+        if show:
+            from tqdm import tqdm
+
+            tqdm.write(f"{PROG}: warning: {msg}", file=sys.stderr)
+        else:
+            print(f"{PROG}: warning: {msg}", file=sys.stderr)
+
+    start = time.perf_counter()
+    tmp = args.out.with_name(args.out.name + ".part")
+    try:
+        with tmp.open("w", encoding="utf-8", newline="\n") as f:
+            written, skipped = replay(args.recording, f, warn=warn, progress=_bar if show else None)
+        tmp.replace(args.out)
+    except RecordingError as exc:
+        tmp.unlink(missing_ok=True)
+        print(f"{PROG}: {exc}", file=sys.stderr)
+        return 1
+    except OSError as exc:
+        tmp.unlink(missing_ok=True)
+        print(f"{PROG}: {exc.filename or args.out}: {exc.strerror or exc}", file=sys.stderr)
+        return 1
+    if not args.quiet:
+        took = time.perf_counter() - start
+        note = f", {skipped} unreadable frames skipped" if skipped else ""
+        print(
+            f"{PROG}: {written} poses written to {args.out} in {took:.1f} s{note}", file=sys.stderr
+        )
+    return 0
