@@ -6,7 +6,6 @@ Colours are RGB tuples of ints in 0-255 (what viser takes).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 from localizer.events import Mode
 
@@ -23,34 +22,6 @@ UNREACHABLE_COLOR: RGB = (120, 40, 160)
 NEVER_SEEN_COLOR: RGB = (90, 90, 90)
 LIT_COLOR: RGB = (255, 255, 200)
 DARK_COLOR: RGB = (50, 50, 60)
-
-
-@dataclass(frozen=True)
-class BatteryScale:
-    """Maps a supply voltage to a charge percentage, linearly between cut-off and full.
-
-    Attributes:
-        full_mv: a fresh pair of AA cells, millivolts (0 % below `cutoff_mv`, 100 % above).
-        cutoff_mv: the supply at which the landmark's radio stops (XBee 3: 2100 mV).
-    """
-
-    full_mv: float = 3200.0
-    cutoff_mv: float = 2100.0
-
-    def __post_init__(self) -> None:
-        if not self.full_mv > self.cutoff_mv > 0:
-            raise ValueError(
-                f"battery scale: need full_mv > cutoff_mv > 0, got {self.full_mv}, {self.cutoff_mv}"
-            )
-
-
-def battery_percent(supply_mv: float, scale: BatteryScale | None = None) -> float:
-    """Charge in percent (0-100) of a supply reading in millivolts."""
-    s = scale or BatteryScale()
-    if not math.isfinite(supply_mv):
-        raise ValueError(f"battery_percent: supply_mv must be finite, got {supply_mv!r}")
-    frac = (supply_mv - s.cutoff_mv) / (s.full_mv - s.cutoff_mv)
-    return 100.0 * min(1.0, max(0.0, frac))
 
 
 def battery_color(percent: float | None) -> RGB:

@@ -23,7 +23,6 @@ from web.colors import (
     RGB,
     UNKNOWN_COLOR,
     battery_color,
-    battery_percent,
     landmark_color,
     mode_color,
 )
@@ -32,6 +31,9 @@ from web.geometry import camera_footprint, ellipse_points
 from web.services import LandmarkState, RobotState
 
 FloatArray = npt.NDArray[np.float64]
+TRAIL_COLOR: RGB = (90, 90, 200)
+FOOTPRINT_COLOR: RGB = (80, 160, 200)
+RAY_COLOR: RGB = (250, 220, 90)
 
 
 @dataclass(frozen=True)
@@ -66,6 +68,13 @@ def polyline_segments(points: FloatArray) -> FloatArray:
     return np.stack([p[:-1], p[1:]], axis=1)
 
 
+def set_segments(handle: viser.LineSegmentsHandle, segments: FloatArray, color: RGB) -> None:
+    """Replace a line-segments node's segments (N, 2, 3), all in one colour."""
+    seg = np.asarray(segments, dtype=np.float32).reshape(-1, 2, 3)
+    handle.points = seg
+    handle.colors = np.broadcast_to(np.array(color, dtype=np.uint8), seg.shape).copy()
+
+
 def landmark_label(lm: LandmarkState) -> str:
     """The text next to a landmark: its ID and what is wrong with it."""
     text = str(lm.id)
@@ -92,10 +101,10 @@ class _RobotNodes:
         )  # fmt: skip
         self.label = scene.add_label(f"{root}/body/label", name, position=(0.0, 0.0, 0.35))
         empty = np.zeros((0, 2, 3))
-        self.trail = scene.add_line_segments(f"{root}/trail", empty, (90, 90, 200), thickness=0.01)
+        self.trail = scene.add_line_segments(f"{root}/trail", empty, TRAIL_COLOR, thickness=0.01)
         self.ellipse = scene.add_line_segments(f"{root}/ellipse", empty, UNKNOWN_COLOR)
-        self.footprint = scene.add_line_segments(f"{root}/footprint", empty, (80, 160, 200))
-        self.rays = scene.add_line_segments(f"{root}/rays", empty, (250, 220, 90), thickness=0.005)
+        self.footprint = scene.add_line_segments(f"{root}/footprint", empty, FOOTPRINT_COLOR)
+        self.rays = scene.add_line_segments(f"{root}/rays", empty, RAY_COLOR, thickness=0.005)
         self.history: deque[tuple[float, float]] = deque(maxlen=cfg.trail_len)
         self.updates = 0
         self.mode = ""
@@ -198,7 +207,6 @@ class SiteScene:
         color = mode_color(rb.mode)
         if rb.mode != nodes.mode:
             nodes.body.color = color
-            nodes.ellipse.colors = color
             nodes.mode = rb.mode
         pose = rb.pose
         nodes.body.visible = pose is not None
@@ -216,58 +224,58 @@ class SiteScene:
         cov = np.asarray(pose.covariance)[:2, :2]
         cov = 0.5 * (cov + cov.T) + np.eye(2) * (cfg.ellipse_min_m / cfg.ellipse_sigma) ** 2
         ring = ellipse_points((pose.x, pose.y), cov, n_sigma=cfg.ellipse_sigma, n_points=24)
-        nodes.ellipse.points = polyline_segments(np.column_stack([ring, np.full(len(ring), 0.02)]))
+        ring3 = np.column_stack([ring, np.full(len(ring), 0.02)])
+        set_segments(nodes.ellipse, polyline_segments(ring3), color)
         foot = camera_footprint(rb.camera, pose.x, pose.y, pose.theta, self.ceiling_z, per_edge=4)
-        nodes.footprint.points = polyline_segments(foot)
+        set_segments(nodes.footprint, polyline_segments(foot), FOOTPRINT_COLOR)
         cam_world = np.array([pose.x, pose.y, 0.0]) + np.array(
             [[math.cos(pose.theta), -math.sin(pose.theta), 0.0],
              [math.sin(pose.theta), math.cos(pose.theta), 0.0], [0.0, 0.0, 1.0]]
         ) @ rb.camera.T_body_camera[:3, 3]  # fmt: skip
         used = [self._positions[i] for i in pose.landmark_ids if i in self._positions]
-        nodes.rays.points = (
-            np.stack([np.stack([cam_world, p]) for p in used]) if used else np.zeros((0, 2, 3))
-        )
+        rays = np.stack([np.stack([cam_world, p]) for p in used]) if used else np.zeros((0, 2, 3))
+        set_segments(nodes.rays, rays, RAY_COLOR)
 
-    # -- coverage ----------------------------------------------------------------------------
-    def show_coverage(
-        self, coverage: Coverage | None, flags: list[SpacingFlag], *, by: str = "count"
-    ) -> None:
-        """Colour the floor by landmarks in view ("count") or expected error ("error").
 
-        None removes the layer. Count: 0 red, 1 amber, 2+ green. Error: green at <= 1 cm to
-        red at >= 5 cm, red where there is no fix.
-        """
-        scene = self.server.scene
-        if coverage is None:
-            scene.remove_by_name("/coverage")
-            return
-        gx, gy = np.meshgrid(coverage.xs, coverage.ys)
-        pts = np.column_stack([gx.ravel(), gy.ravel(), np.full(gx.size, 0.005)])
-        if by == "error":
-            err = coverage.error_m.ravel()
-            pct = np.where(np.isnan(err), 0.0, 100.0 * np.clip((0.05 - err) / 0.04, 0.0, 1.0))
-            colors = np.array([battery_color(float(p)) for p in pct], dtype=np.uint8)
-        else:
-            palette = np.array([(210, 40, 40), (230, 160, 20), (40, 160, 60)], dtype=np.uint8)
-            colors = palette[np.clip(coverage.counts.ravel(), 0, 2)]
-        scene.add_frame("/coverage", show_axes=False)
-        step = float(coverage.xs[1] - coverage.xs[0]) if len(coverage.xs) > 1 else 0.25
-        scene.add_point_cloud(
-            "/coverage/floor", pts, colors, point_size=0.9 * step, point_shape="square",
-            point_shading="flat",
-        )  # fmt: skip
-        segs = [
-            (self._positions[f.a], self._positions[f.b])
-            for f in flags
-            if f.a in self._positions and f.b in self._positions
-        ]
-        if segs:
-            scene.add_line_segments(
-                "/coverage/spacing", np.array(segs), (230, 60, 160), thickness=0.03
-            )
+def draw_coverage(
+    scene: viser.SceneApi,
+    coverage: Coverage | None,
+    flags: list[SpacingFlag],
+    positions: dict[int, FloatArray],
+    *,
+    by: str = "count",
+) -> None:
+    """Colour the floor by landmarks in view ("count") or expected error ("error").
+
+    `scene` may be one browser's (`client.scene`). None removes the layer. Count: 0 red,
+    1 amber, 2+ green. Error: green at <= 1 cm to red at >= 5 cm, red where there is no fix.
+    Landmark pairs in `flags` (positions from `positions`) are joined by magenta lines.
+    """
+    if coverage is None:
+        scene.remove_by_name("/coverage")
+        return
+    gx, gy = np.meshgrid(coverage.xs, coverage.ys)
+    pts = np.column_stack([gx.ravel(), gy.ravel(), np.full(gx.size, 0.005)])
+    if by == "error":
+        err = coverage.error_m.ravel()
+        pct = np.where(np.isnan(err), 0.0, 100.0 * np.clip((0.05 - err) / 0.04, 0.0, 1.0))
+        colors = np.array([battery_color(float(p)) for p in pct], dtype=np.uint8)
+    else:
+        palette = np.array([(210, 40, 40), (230, 160, 20), (40, 160, 60)], dtype=np.uint8)
+        colors = palette[np.clip(coverage.counts.ravel(), 0, 2)]
+    scene.add_frame("/coverage", show_axes=False)
+    step = float(coverage.xs[1] - coverage.xs[0]) if len(coverage.xs) > 1 else 0.25
+    scene.add_point_cloud(
+        "/coverage/floor", pts, colors, point_size=0.9 * step, point_shape="square",
+        point_shading="flat",
+    )  # fmt: skip
+    segs = [
+        (positions[f.a], positions[f.b]) for f in flags if f.a in positions and f.b in positions
+    ]
+    if segs:
+        scene.add_line_segments("/coverage/spacing", np.array(segs), (230, 60, 160), thickness=0.03)
 
 
 def landmark_rgb(lm: LandmarkState) -> RGB:
     """The colour `SiteScene` gives a landmark (for panels and tests)."""
-    pct = None if lm.supply_mv is None else battery_percent(lm.supply_mv)
-    return landmark_color(pct, reachable=lm.reachable, seen=lm.seen)
+    return landmark_color(lm.percent, reachable=lm.reachable, seen=lm.seen)

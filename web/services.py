@@ -28,9 +28,10 @@ class LandmarkState:
         locked: surveyed, not to be moved by commissioning.
         radio: 64-bit radio address (16 hex digits) or None.
         supply_mv: latest battery reading, millivolts, None when never read.
+        percent: rough charge 0-100 (the server's `BatteryStatus.percent`), None when unknown.
         days_left: estimated days until the cut-off voltage, None when unknown.
         reachable: False once the radio stopped answering.
-        seen: False when no robot has ever used it for a fix.
+        seen: False when no robot has used it for a fix since the viewer started.
         position_known: False for a radio found by discovery with no surveyed position yet.
     """
 
@@ -41,6 +42,7 @@ class LandmarkState:
     locked: bool = False
     radio: str | None = None
     supply_mv: int | None = None
+    percent: float | None = None
     days_left: float | None = None
     reachable: bool = True
     seen: bool = True
@@ -69,10 +71,14 @@ class RobotState:
 
 
 @dataclass(frozen=True)
-class SiteEvent:
-    """A line of the event list (low battery, landmark unreachable, robot lost, map changed)."""
+class EventLine:
+    """A line of the event list (low battery, landmark unreachable, robot lost, map changed).
 
-    t_ns: int
+    Attributes:
+        when: UTC time, ISO 8601 text; kind: the event kind; message: for people.
+    """
+
+    when: str
     kind: str
     message: str
 
@@ -107,7 +113,7 @@ class ViewerSite(Protocol):
         """IDs of the landmarks whose LED is lit now."""
         ...
 
-    def events(self, limit: int) -> list[SiteEvent]:
+    def events(self, limit: int) -> list[EventLine]:
         """The most recent events, newest first."""
         ...
 

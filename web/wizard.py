@@ -98,15 +98,19 @@ class IdentificationWizard:
         self._lock = threading.RLock()
         self._state = WizardState()
         self._previous_lit: frozenset[int] | None = None
+        self._snapshot = WizardState()
 
     @property
     def state(self) -> WizardState:
-        with self._lock:
-            s = self._state
-            return WizardState(
-                s.phase, list(s.queue), s.index, s.robot, s.measurement, list(s.saved),
-                list(s.skipped),
-            )  # fmt: skip
+        """A copy of the state as of the last finished step (never waits for a running one)."""
+        return self._snapshot
+
+    def _publish(self) -> None:
+        s = self._state
+        self._snapshot = WizardState(
+            s.phase, list(s.queue), s.index, s.robot, s.measurement, list(s.saved),
+            list(s.skipped),
+        )  # fmt: skip
 
     @property
     def active(self) -> bool:
@@ -127,13 +131,19 @@ class IdentificationWizard:
                 raise ValueError(f"unknown robot {robot!r}")
             self._previous_lit = self.site.lit()
             self._state = WizardState(phase="measured", queue=list(landmark_ids), robot=robot)
-            return self._measure(actor)
+            try:
+                return self._measure(actor)
+            finally:
+                self._publish()
 
     def retry(self, *, actor: str) -> Measurement:
         """Measure the current landmark anew (the others are lit first so the robot re-fixes)."""
         with self._lock:
             self._need_running()
-            return self._measure(actor)
+            try:
+                return self._measure(actor)
+            finally:
+                self._publish()
 
     def confirm(self, *, actor: str, position: npt.ArrayLike | None = None) -> Measurement | None:
         """Save the measured position (or `position`, typed by hand), then go to the next.
@@ -155,14 +165,20 @@ class IdentificationWizard:
             lid = self._state.queue[self._state.index]
             self.site.update_landmark(lid, actor=actor, x=float(p[0]), y=float(p[1]), z=float(p[2]))
             self._state.saved.append(lid)
-            return self._advance(actor)
+            try:
+                return self._advance(actor)
+            finally:
+                self._publish()
 
     def skip(self, *, actor: str) -> Measurement | None:
         """Leave the current landmark as it is and go to the next."""
         with self._lock:
             self._need_running()
             self._state.skipped.append(self._state.queue[self._state.index])
-            return self._advance(actor)
+            try:
+                return self._advance(actor)
+            finally:
+                self._publish()
 
     def cancel(self, *, actor: str) -> None:
         """Stop and restore every LED to its state before `start`."""
@@ -170,7 +186,10 @@ class IdentificationWizard:
             if self._state.phase != "measured":
                 return
             self._state.phase = "cancelled"
-            self._restore(actor)
+            try:
+                self._restore(actor)
+            finally:
+                self._publish()
 
     # -- internals -------------------------------------------------------------------------
     def _need_running(self) -> None:

@@ -15,7 +15,7 @@ from localizer.camera import CameraModel, predict_pixels
 from localizer.events import PoseEstimate
 from localizer.geometry import T_world_body_from_pose
 from sim.cameras import wide_angle_camera
-from web.services import CameraView, LandmarkState, RobotState, SiteEvent
+from web.services import CameraView, EventLine, LandmarkState, RobotState
 
 
 class MemSite:
@@ -60,10 +60,11 @@ class MemSite:
     def lit(self) -> frozenset[int]:
         return self._lit
 
-    def events(self, limit: int) -> list[SiteEvent]:
-        return [SiteEvent(0, "map_changed", f"{a} {act} {i}") for a, act, i, _, _ in self.audit][
-            ::-1
-        ][:limit]
+    def events(self, limit: int) -> list[EventLine]:
+        return [
+            EventLine("2026-01-01T00:00:00Z", "map_changed", f"{a} {act} {i}")
+            for a, act, i, _, _ in self.audit
+        ][::-1][:limit]
 
     def camera_view(self, robot: str) -> CameraView | None:
         x, y, th = self.poses[robot]

@@ -1,0 +1,73 @@
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Iterator
+
+import numpy as np
+import pytest
+
+from tests.web.memsite import MemSite, grid_site
+from web.viewer import Viewer, ViewerConfig, is_loopback
+
+
+@pytest.fixture
+def site_viewer() -> Iterator[tuple[MemSite, Viewer]]:
+    site = grid_site()
+    viewer = Viewer(site, config=ViewerConfig(rate_hz=50.0, landmark_rate_hz=20.0))
+    viewer.start()
+    try:
+        yield site, viewer
+    finally:
+        viewer.stop()
+
+
+def wait_for(cond, timeout_s: float = 5.0) -> None:
+    deadline = time.monotonic() + timeout_s
+    while not cond():
+        if time.monotonic() > deadline:
+            raise AssertionError("condition not met in time")
+        time.sleep(0.02)
+
+
+def test_refuses_a_public_viser_port() -> None:
+    assert is_loopback("127.0.0.1") and is_loopback("::1") and is_loopback("localhost")
+    assert not is_loopback("0.0.0.0")
+    with pytest.raises(ValueError, match="no login"):
+        Viewer(grid_site(), host="0.0.0.0")
+
+
+def test_scene_holds_every_landmark_and_robot(site_viewer: tuple[MemSite, Viewer]) -> None:
+    site, viewer = site_viewer
+    assert viewer.port > 0
+    wait_for(lambda: viewer.ticks > 3)
+    scene = viewer.scene
+    assert scene is not None
+    assert scene.landmark_ids() == sorted(site.truth)
+    h = viewer.server.scene.get_handle_by_name("/landmarks/17")
+    np.testing.assert_allclose(h.position, site.truth[17], atol=1e-6)
+    body = viewer.server.scene.get_handle_by_name("/robots/r1/body")
+    np.testing.assert_allclose(body.position, [1.5, 1.0, 0.125], atol=1e-6)
+    np.testing.assert_allclose(body.wxyz, [math.cos(0.15), 0, 0, math.sin(0.15)], atol=1e-6)
+
+
+def test_map_edits_and_leds_reach_the_scene(site_viewer: tuple[MemSite, Viewer]) -> None:
+    site, viewer = site_viewer
+    scene = viewer.scene
+    assert scene is not None
+    site.delete_landmark(10, actor="t")
+    site.add_landmark(99, 4.0, 4.0, 2.6, actor="t")
+    site.set_leds(frozenset({11}), actor="t")
+    wait_for(lambda: 99 in scene.landmark_ids() and 10 not in scene.landmark_ids())
+    wait_for(lambda: scene.is_lit(11) and not scene.is_lit(12))
+    h = viewer.server.scene.get_handle_by_name("/landmarks/99")
+    np.testing.assert_allclose(h.position, [4.0, 4.0, 2.6])
+
+
+def test_tickets_are_single_use(site_viewer: tuple[MemSite, Viewer]) -> None:
+    from web.roles import Session
+
+    _, viewer = site_viewer
+    t1 = viewer.issue_ticket(Session("admin", "viewer:key:1"))
+    t2 = viewer.issue_ticket(Session("viewer", "viewer:key:2"))
+    assert t1 != t2 and len(t1) >= 24

@@ -1,0 +1,1 @@
+"""The viewer's GUI panels, built per browser (`client.gui`) according to its role."""

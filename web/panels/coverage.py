@@ -1,0 +1,70 @@
+"""The coverage view: colour this browser's floor by landmarks in view or expected error,
+and flag landmark pairs spaced outside the paper's range."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+import viser
+
+from web.coverage import CoverageConfig, coverage_grid, spacing_flags
+from web.scene import draw_coverage
+from web.services import ViewerSite
+
+CHOICES = ("off", "landmarks in view", "expected error")
+
+
+class CoveragePanel:
+    """Coverage controls; the layer is drawn in this browser's scene only."""
+
+    def __init__(
+        self, client: viser.ClientHandle, site: ViewerSite, notify: Callable[[str, str], None]
+    ) -> None:
+        self.client, self.site, self.notify = client, site, notify
+        gui = client.gui
+        with gui.add_folder("Coverage", expand_by_default=False):
+            self.gui_by = gui.add_dropdown("Colour floor by", CHOICES)
+            self.gui_step = gui.add_number("Grid step (m)", 0.25, min=0.05, max=2.0, step=0.05)
+            self.gui_text = gui.add_markdown("")
+        self.gui_by.on_update(lambda _: self.show())
+
+    def show(self) -> str:
+        """Compute and draw the chosen layer; returns the summary shown in the panel."""
+        by = self.gui_by.value
+        if by == "off":
+            draw_coverage(self.client.scene, None, [], {})
+            self.gui_text.content = ""
+            return ""
+        robots = self.site.robots()
+        lms = [lm for lm in self.site.landmarks() if lm.position_known]
+        if not robots or not lms:
+            self.gui_text.content = "needs a robot (for its camera) and landmarks"
+            return self.gui_text.content
+        ids = np.array([lm.id for lm in lms])
+        pos = np.array([[lm.x, lm.y, lm.z] for lm in lms])
+        try:
+            cov = coverage_grid(robots[0].camera, pos, CoverageConfig(step_m=self.gui_step.value))
+        except ValueError as exc:
+            self.notify("Coverage", str(exc))
+            return str(exc)
+        flags = spacing_flags(ids, pos)
+        draw_coverage(
+            self.client.scene, cov, flags, dict(zip(ids.tolist(), pos, strict=True)),
+            by="error" if by == "expected error" else "count",
+        )  # fmt: skip
+        n = cov.counts.size
+        dead = int(np.sum(cov.counts == 0))
+        one = int(np.sum(cov.counts == 1))
+        med = np.nanmedian(cov.error_m) if np.any(np.isfinite(cov.error_m)) else float("nan")
+        lines = [
+            f"camera of **{robots[0].name}**; {n} points, {100 * dead / n:.0f} % see no landmark,"
+            f" {100 * one / n:.0f} % only one; median expected error {100 * med:.1f} cm",
+        ]
+        lines += [
+            f"- pair {f.a}-{f.b}: {100 * f.distance_m:.0f} cm, {f.problem.replace('_', ' ')}"
+            f" (allowed {100 * f.allowed_m[0]:.0f}-{100 * f.allowed_m[1]:.0f} cm)"
+            for f in flags[:20]
+        ]
+        self.gui_text.content = "\n".join(lines)
+        return self.gui_text.content

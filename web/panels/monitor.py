@@ -1,0 +1,157 @@
+"""Monitoring panels: robots, landmark batteries, events, a robot's uncertainty over time."""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from collections.abc import Callable, Sequence
+
+import numpy as np
+import viser
+
+from web.roles import Session
+from web.services import EventLine, LandmarkState, RobotState, ViewerSite
+
+MODE_TEXT = {
+    "landmark": "landmarks",
+    "dead_reckoning": "dead reckoning",
+    "identifying": "identifying",
+    "lost": "LOST",
+}
+
+
+def position_sigma_m(robot: RobotState) -> float | None:
+    """1-sigma position error sqrt(var x + var y) of a robot's estimate, metres."""
+    if robot.pose is None:
+        return None
+    c = np.asarray(robot.pose.covariance)
+    return math.sqrt(max(0.0, float(c[0, 0] + c[1, 1])))
+
+
+def fix_age_s(robot: RobotState) -> float | None:
+    """Seconds since the robot's last landmark fix."""
+    if robot.last_fix_t_ns is None:
+        return None
+    return max(0.0, (robot.now_ns - robot.last_fix_t_ns) * 1e-9)
+
+
+def robots_table(robots: Sequence[RobotState]) -> str:
+    """Markdown table: robot, mode, error estimate, age of the last fix."""
+    rows = ["| robot | mode | error | last fix |", "|---|---|---|---|"]
+    for rb in robots:
+        sigma, age = position_sigma_m(rb), fix_age_s(rb)
+        err = "-" if sigma is None else f"{100 * sigma:.1f} cm"
+        fix = "never" if age is None else f"{age:.1f} s ago"
+        rows.append(f"| {rb.name} | {MODE_TEXT.get(rb.mode, rb.mode)} | {err} | {fix} |")
+    return "\n".join(rows)
+
+
+def batteries_table(landmarks: Sequence[LandmarkState], *, limit: int = 30) -> str:
+    """Markdown table of landmark batteries, worst first (unknown readings last)."""
+
+    def key(lm: LandmarkState) -> tuple[int, float, float, int]:
+        known = lm.percent is not None
+        days = lm.days_left if lm.days_left is not None else math.inf
+        return (0 if known else 1, lm.percent if known else 0.0, days, lm.id)  # type: ignore[return-value]
+
+    rows = ["| id | volts | % | days left |", "|---|---|---|---|"]
+    for lm in sorted(landmarks, key=key)[:limit]:
+        volts = "-" if lm.supply_mv is None else f"{lm.supply_mv / 1000:.2f}"
+        pct = "-" if lm.percent is None else f"{lm.percent:.0f}"
+        days = "-" if lm.days_left is None else f"{lm.days_left:.0f}"
+        flag = "" if lm.reachable else " (unreachable)"
+        rows.append(f"| {lm.id}{flag} | {volts} | {pct} | {days} |")
+    return "\n".join(rows)
+
+
+def events_text(events: Sequence[EventLine]) -> str:
+    """Markdown list of events, newest first."""
+    if not events:
+        return "_no events_"
+    return "\n".join(f"- `{e.when}` **{e.kind}** {e.message}" for e in events)
+
+
+class UncertaintyHistory:
+    """Per robot: (site time s, 1-sigma position error cm), bounded."""
+
+    def __init__(self, maxlen: int = 600) -> None:
+        self.maxlen = maxlen
+        self._data: dict[str, deque[tuple[float, float]]] = {}
+
+    def add(self, robots: Sequence[RobotState]) -> None:
+        for rb in robots:
+            sigma = position_sigma_m(rb)
+            if sigma is not None:
+                q = self._data.setdefault(rb.name, deque(maxlen=self.maxlen))
+                q.append((rb.now_ns * 1e-9, 100.0 * sigma))
+
+    def series(self, robot: str) -> tuple[np.ndarray, np.ndarray]:
+        q = self._data.get(robot)
+        if not q:
+            return np.zeros(0), np.zeros(0)
+        a = np.array(q)
+        return a[:, 0] - a[-1, 0], a[:, 1]
+
+
+class MonitorPanel:
+    """Robots, batteries, events and the uncertainty plot in one browser's GUI."""
+
+    def __init__(
+        self,
+        gui: viser.GuiApi,
+        site: ViewerSite,
+        session: Session,
+        history: UncertaintyHistory,
+        notify: Callable[[str, str], None],
+    ) -> None:
+        self.site, self.session, self.history, self.notify = site, session, history, notify
+        names = [r.name for r in site.robots()] or ["-"]
+        with gui.add_folder("Robots"):
+            self.gui_robots = gui.add_markdown("")
+            self.gui_robot = gui.add_dropdown("Robot", names)
+            if session.can_operate:
+                self.gui_relocalize = gui.add_button("Relocalize")
+                self.gui_relocalize.on_click(lambda _: self._relocalize())
+        with gui.add_folder("Uncertainty"):
+            self.gui_plot = gui.add_uplot(
+                data=(np.zeros(0), np.zeros(0)),
+                series=({"label": "s"}, {"label": "error (cm)", "stroke": "#2a7"}),
+                scales={"x": {"time": False}},
+                aspect=1.6,
+            )
+        with gui.add_folder("Landmark batteries", expand_by_default=False):
+            self.gui_batteries = gui.add_markdown("")
+        with gui.add_folder("Events", expand_by_default=False):
+            self.gui_events = gui.add_markdown("")
+        self._last: dict[str, str] = {}
+
+    def _relocalize(self) -> None:
+        name = self.gui_robot.value
+        try:
+            self.site.relocalize(name, actor=self.session.actor)
+        except (KeyError, ValueError) as exc:
+            self.notify("Relocalize failed", str(exc))
+            return
+        self.notify("Relocalize", f"{name} is identifying its landmarks again")
+
+    def _set(self, key: str, handle: viser.GuiMarkdownHandle, text: str) -> None:
+        if self._last.get(key) != text:
+            handle.content = text
+            self._last[key] = text
+
+    def refresh(
+        self,
+        robots: Sequence[RobotState],
+        landmarks: Sequence[LandmarkState],
+        events: Sequence[EventLine],
+    ) -> None:
+        """Update the tables and the plot (call at a few hertz)."""
+        self._set("robots", self.gui_robots, robots_table(robots))
+        self._set("batteries", self.gui_batteries, batteries_table(landmarks))
+        self._set("events", self.gui_events, events_text(events))
+        names = tuple(r.name for r in robots)
+        if names and tuple(self.gui_robot.options) != names:
+            self.gui_robot.options = names
+        t, e = self.history.series(self.gui_robot.value)
+        if len(t):
+            self.gui_plot.data = (t, e)

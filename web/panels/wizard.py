@@ -1,0 +1,140 @@
+"""The identification wizard's GUI: robot, landmarks to identify, the camera frame with its
+detections, the proposed position, and confirm / retry / skip / type by hand / cancel."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import cv2
+import numpy as np
+import numpy.typing as npt
+import viser
+
+from web.roles import Session
+from web.services import CameraView, ViewerSite
+from web.wizard import IdentificationWizard, Measurement, WizardState
+
+
+def annotated_frame(
+    view: CameraView, chosen: npt.ArrayLike | None, *, width_px: int = 320
+) -> npt.NDArray[np.uint8]:
+    """The frame as RGB, scaled to `width_px`, spots circled (the chosen one in green)."""
+    img = cv2.cvtColor(view.image, cv2.COLOR_GRAY2RGB)
+    scale = width_px / img.shape[1]
+    img = cv2.resize(img, (width_px, round(img.shape[0] * scale)), interpolation=cv2.INTER_AREA)
+    for p in np.asarray(view.spots).reshape(-1, 2):
+        cv2.circle(img, (round(p[0] * scale), round(p[1] * scale)), 7, (230, 60, 60), 1)
+    if chosen is not None:
+        c = np.asarray(chosen).reshape(2)
+        cv2.circle(img, (round(c[0] * scale), round(c[1] * scale)), 10, (60, 230, 60), 2)
+    return img
+
+
+def parse_ids(text: str) -> list[int]:
+    """Landmark IDs from "3, 5 7": ValueError names a bad token."""
+    out = []
+    for tok in text.replace(",", " ").split():
+        try:
+            out.append(int(tok))
+        except ValueError:
+            raise ValueError(f"landmark IDs: {tok!r} is not an integer") from None
+    return out
+
+
+def status_text(state: WizardState) -> str:
+    """What the wizard is doing, in markdown."""
+    if state.phase == "idle":
+        return "Pick a robot that sees the landmarks, then start."
+    if state.phase in ("done", "cancelled"):
+        return (
+            f"**{state.phase}**: saved {state.saved or 'none'}, skipped {state.skipped or 'none'};"
+            " LEDs restored."
+        )
+    m = state.measurement
+    head = f"Landmark **{state.current}** ({state.index + 1} of {len(state.queue)}), lit alone."
+    return head if m is None else f"{head}\n\n{m.message}"
+
+
+class WizardPanel:
+    """One admin browser's view of the (site-wide) wizard."""
+
+    def __init__(
+        self,
+        gui: viser.GuiApi,
+        site: ViewerSite,
+        wizard: IdentificationWizard,
+        session: Session,
+        notify: Callable[[str, str], None],
+    ) -> None:
+        self.site, self.wizard, self.session, self.notify = site, wizard, session, notify
+        names = [r.name for r in site.robots()] or ["-"]
+        with gui.add_folder("Identify landmarks"):
+            self.gui_robot = gui.add_dropdown("Camera of", names)
+            self.gui_ids = gui.add_text("Landmark IDs", "")
+            self.gui_suggest = gui.add_button("Suggest landmarks to identify")
+            self.gui_start = gui.add_button("Start identification")
+            self.gui_progress = gui.add_progress_bar(0.0)
+            self.gui_status = gui.add_markdown(status_text(wizard.state))
+            self.gui_frame = gui.add_image(np.zeros((240, 320, 3), np.uint8), label="camera")
+            self.gui_confirm = gui.add_button("Confirm position")
+            self.gui_retry = gui.add_button("Retry")
+            self.gui_skip = gui.add_button("Skip")
+            self.gui_manual = gui.add_vector3("Position by hand (m)", (0.0, 0.0, 2.5), step=0.01)
+            self.gui_save_manual = gui.add_button("Save position by hand")
+            self.gui_cancel = gui.add_button("Cancel identification", color="red")
+        self.gui_suggest.on_click(lambda _: self._suggest())
+        self.gui_start.on_click(lambda _: self._run(self._start))
+        self.gui_confirm.on_click(
+            lambda _: self._run(lambda: self.wizard.confirm(actor=self.actor))
+        )
+        self.gui_retry.on_click(lambda _: self._run(lambda: self.wizard.retry(actor=self.actor)))
+        self.gui_skip.on_click(lambda _: self._run(lambda: self.wizard.skip(actor=self.actor)))
+        self.gui_save_manual.on_click(
+            lambda _: self._run(
+                lambda: self.wizard.confirm(actor=self.actor, position=self.gui_manual.value)
+            )
+        )
+        self.gui_cancel.on_click(lambda _: self._run(lambda: self.wizard.cancel(actor=self.actor)))
+        self._shown: tuple[str, int, int | None] | None = None
+        self.refresh()
+
+    @property
+    def actor(self) -> str:
+        return self.session.actor
+
+    def _suggest(self) -> None:
+        self.gui_ids.value = " ".join(str(i) for i in self.site.to_identify())
+
+    def _start(self) -> Measurement | None:
+        ids = parse_ids(self.gui_ids.value) or list(self.site.to_identify())
+        return self.wizard.start(self.gui_robot.value, ids, actor=self.actor)
+
+    def _run(self, step: Callable[[], Measurement | None]) -> None:
+        try:
+            m = step()
+        except (KeyError, ValueError, TimeoutError) as exc:
+            self.notify("Identification", str(exc))
+        else:
+            if m is not None and m.position is not None:
+                self.gui_manual.value = tuple(float(v) for v in m.position)
+        self.refresh()
+
+    def refresh(self) -> None:
+        """Show the wizard's state (cheap when unchanged)."""
+        st = self.wizard.state
+        m = st.measurement
+        key = (st.phase, st.index, None if m is None or m.view is None else m.view.t_ns)
+        if key == self._shown:
+            return
+        self._shown = key
+        self.gui_progress.value = (
+            st.progress if st.phase == "measured" else (100.0 if st.phase == "done" else 0.0)
+        )
+        self.gui_status.content = status_text(st)
+        running = st.phase == "measured"
+        for b in (self.gui_confirm, self.gui_retry, self.gui_skip, self.gui_save_manual,
+                  self.gui_cancel):  # fmt: skip
+            b.disabled = not running
+        self.gui_start.disabled = running
+        if m is not None and m.view is not None:
+            self.gui_frame.image = annotated_frame(m.view, m.spot)

@@ -1,0 +1,261 @@
+"""`Viewer`: the viser app of a site, run inside the server process on its services.
+
+It starts a viser server on a loopback port (viser has no login of its own: browsers reach
+it through `web.proxy.viewer_router`, which checks the API key and hands the viewer a
+one-time ticket naming the user's role), keeps the shared 3D scene in step with the site
+from one thread at up to `rate_hz`, and builds each browser's GUI for its role.
+"""
+
+from __future__ import annotations
+
+import ipaddress
+import logging
+import secrets
+import threading
+import time
+from dataclasses import dataclass
+from typing import Any
+from urllib.parse import parse_qs, urlsplit
+
+import numpy as np
+import viser
+
+from web.panels.commission import CommissionPanel
+from web.panels.coverage import CoveragePanel
+from web.panels.monitor import MonitorPanel, UncertaintyHistory
+from web.panels.wizard import WizardPanel
+from web.roles import ANONYMOUS, Session
+from web.scene import SiteScene
+from web.services import ViewerSite
+from web.wizard import IdentificationWizard
+
+log = logging.getLogger(__name__)
+TICKET_PARAM = "irloc_ticket"
+
+
+@dataclass(frozen=True)
+class ViewerConfig:
+    """Viewer settings.
+
+    Attributes:
+        rate_hz: robot updates per second (scene).
+        landmark_rate_hz: landmark/LED refreshes per second.
+        panel_rate_hz: table, plot and wizard refreshes per second.
+        event_limit: events listed.
+        ticket_ttl_s: a proxy ticket must be used within this time, seconds.
+        margin_m: floor and ceiling grids extend this far beyond the landmarks, metres.
+    """
+
+    rate_hz: float = 30.0
+    landmark_rate_hz: float = 2.0
+    panel_rate_hz: float = 2.0
+    event_limit: int = 15
+    ticket_ttl_s: float = 60.0
+    margin_m: float = 2.0
+
+
+def is_loopback(host: str) -> bool:
+    """Whether `host` names only this machine."""
+    if host == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return False
+
+
+class _ClientPanels:
+    def __init__(self, viewer: Viewer, client: viser.ClientHandle, session: Session) -> None:
+        site = viewer.site
+
+        def notify(title: str, body: str) -> None:
+            client.add_notification(title, body, auto_close_seconds=6.0)
+
+        gui = client.gui
+        gui.add_markdown(f"**irloc** - signed in as *{session.role}*")
+        self.monitor: MonitorPanel
+        self.wizard: WizardPanel | None = None
+        self.commission: CommissionPanel | None = None
+        if session.can_commission:
+            tabs = gui.add_tab_group()
+            with tabs.add_tab("Monitor"):
+                self.monitor = MonitorPanel(gui, site, session, viewer.history, notify)
+                self.coverage = CoveragePanel(client, site, notify)
+            with tabs.add_tab("Commission"):
+                self.wizard = WizardPanel(gui, site, viewer.wizard, session, notify)
+                self.commission = CommissionPanel(client, site, session, notify)
+        else:
+            self.monitor = MonitorPanel(gui, site, session, viewer.history, notify)
+            self.coverage = CoveragePanel(client, site, notify)
+
+
+class Viewer:
+    """The site's 3D viewer.
+
+    Args:
+        services: the server's `SiteServices` (wrapped in `web.adapter.SiteAdapter`), or any
+            `web.services.ViewerSite`.
+        host: viser's bind address; only loopback is accepted (use the proxy).
+        port: viser's port; 0 picks a free one (read `port` after `start`).
+        config: rates and limits.
+
+    Raises:
+        ValueError: for a non-loopback `host`.
+    """
+
+    def __init__(
+        self,
+        services: Any,
+        *,
+        host: str = "127.0.0.1",
+        port: int = 0,
+        config: ViewerConfig | None = None,
+    ) -> None:
+        if not is_loopback(host):
+            raise ValueError(
+                f"viewer: refusing to expose viser on {host!r}: it has no login of its own. "
+                "Bind it to 127.0.0.1 and open it through the API's /viewer/ page (API key)"
+            )
+        self.services = services
+        self.host, self._port = host, port
+        self.config = config or ViewerConfig()
+        self.site: ViewerSite = services  # replaced by the adapter in start() for SiteServices
+        self._adapter: Any = None
+        self.server: viser.ViserServer | None = None
+        self.scene: SiteScene | None = None
+        self.history = UncertaintyHistory()
+        self.wizard: IdentificationWizard
+        self._tickets: dict[str, tuple[float, Session]] = {}
+        self._sessions: dict[int, Session] = {}
+        self._panels: dict[int, _ClientPanels] = {}
+        self._lock = threading.Lock()
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        self.ticks = 0
+
+    @property
+    def port(self) -> int:
+        """viser's real port (after `start`)."""
+        return self.server.get_port() if self.server is not None else self._port
+
+    # -- lifecycle ---------------------------------------------------------------------------
+    def start(self) -> None:
+        """Start viser, build the scene and the update thread."""
+        if not hasattr(self.services, "landmarks"):
+            from web.adapter import SiteAdapter
+
+            self._adapter = SiteAdapter(self.services)
+            self.site = self._adapter
+        self.wizard = IdentificationWizard(self.site)
+        self.server = viser.ViserServer(self.host, self._port, label="irloc", verbose=False)
+        self.scene = SiteScene(self.server)
+        lms = self.site.landmarks()
+        pos = np.array([[lm.x, lm.y] for lm in lms]).reshape(-1, 2)
+        m = self.config.margin_m
+        lo = pos.min(axis=0) - m if len(pos) else np.array([-5.0, -5.0])
+        hi = pos.max(axis=0) + m if len(pos) else np.array([5.0, 5.0])
+        self.scene.set_site((lo[0], hi[0], lo[1], hi[1]), self.site.ceiling_height())
+        self.scene.update_landmarks(lms, self.site.lit())
+        self.server.on_client_connect(self._on_connect)
+        self.server.on_client_disconnect(self._on_disconnect)
+        self._stop.clear()
+        self._thread = threading.Thread(target=self._run, name="irloc-viewer", daemon=True)
+        self._thread.start()
+
+    def stop(self) -> None:
+        """Stop the update thread and viser; cancel a running wizard (LEDs restored)."""
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=5.0)
+            self._thread = None
+        if self.server is not None:
+            try:
+                self.wizard.cancel(actor="viewer:shutdown")
+            except Exception:  # the radio may be gone already at shutdown
+                log.exception("viewer: restoring LEDs at shutdown failed")
+            self.server.stop()
+            self.server = None
+        if self._adapter is not None:
+            self._adapter.close()
+
+    # -- sessions ------------------------------------------------------------------------------
+    def issue_ticket(self, session: Session) -> str:
+        """A one-time ticket for the proxy to put in viser's WebSocket URL
+        (`?irloc_ticket=...`): the browser that connects with it gets `session`."""
+        ticket = secrets.token_urlsafe(24)
+        now = time.monotonic()
+        with self._lock:
+            self._tickets = {
+                k: v for k, v in self._tickets.items() if now - v[0] < self.config.ticket_ttl_s
+            }
+            self._tickets[ticket] = (now, session)
+        return ticket
+
+    def _session_for(self, client: viser.ClientHandle) -> Session:
+        # viser 1.1 keeps each client's websockets connection here (private): its request
+        # path carries the proxy's ticket. Without it the browser is read-only.
+        try:
+            conn = self.server._websock_server._live_connections[client.client_id]  # type: ignore[union-attr]
+            query = parse_qs(urlsplit(conn.request.path).query)
+            ticket = query.get(TICKET_PARAM, [""])[0]
+        except (AttributeError, KeyError):
+            return ANONYMOUS
+        with self._lock:
+            hit = self._tickets.pop(ticket, None)
+        if hit is None or time.monotonic() - hit[0] > self.config.ticket_ttl_s:
+            return ANONYMOUS
+        return hit[1]
+
+    def session_of(self, client_id: int) -> Session | None:
+        """The session of a connected browser."""
+        with self._lock:
+            return self._sessions.get(client_id)
+
+    def _on_connect(self, client: viser.ClientHandle) -> None:
+        session = self._session_for(client)
+        with self._lock:
+            self._sessions[client.client_id] = session
+        panels = _ClientPanels(self, client, session)
+        with self._lock:
+            self._panels[client.client_id] = panels
+
+    def _on_disconnect(self, client: viser.ClientHandle) -> None:
+        with self._lock:
+            self._sessions.pop(client.client_id, None)
+            self._panels.pop(client.client_id, None)
+
+    # -- the update loop ---------------------------------------------------------------------
+    def _run(self) -> None:
+        cfg = self.config
+        period = 1.0 / cfg.rate_hz
+        next_lm = next_panel = 0.0
+        while not self._stop.is_set():
+            t0 = time.monotonic()
+            try:
+                self._tick(t0 >= next_lm, t0 >= next_panel)
+            except Exception:  # keep the viewer alive; the site may be restarting
+                log.exception("viewer: update failed")
+            if t0 >= next_lm:
+                next_lm = t0 + 1.0 / cfg.landmark_rate_hz
+            if t0 >= next_panel:
+                next_panel = t0 + 1.0 / cfg.panel_rate_hz
+            self._stop.wait(max(0.0, period - (time.monotonic() - t0)))
+
+    def _tick(self, landmarks_due: bool, panels_due: bool) -> None:
+        assert self.server is not None and self.scene is not None  # started
+        robots = self.site.robots()
+        lms = self.site.landmarks() if landmarks_due or panels_due else None
+        with self.server.atomic():
+            self.scene.update_robots(robots)
+            if landmarks_due and lms is not None:
+                self.scene.update_landmarks(lms, self.site.lit())
+        if panels_due and lms is not None:
+            self.history.add(robots)
+            events = self.site.events(self.config.event_limit)
+            with self._lock:
+                panels = list(self._panels.values())
+            for p in panels:
+                p.monitor.refresh(robots, lms, events)
+                if p.wizard is not None:
+                    p.wizard.refresh()
+        self.ticks += 1
