@@ -15,6 +15,8 @@ class GatewayConfig:
         max_in_flight: radio commands on the air at once.
         max_waiting: commands allowed to wait for a slot (more raise QueueFullError).
         max_tries: sends per command before the landmark is declared unreachable.
+        unreachable_tries: sends per command to a landmark already marked unreachable (one
+            probe, so that a dead landmark does not slow every identification step).
         retry_backoff_s: wait before the first retry; doubles at each further retry.
         command_timeout_s: gateway-side safety timeout per command (transports have their
             own, shorter, timeouts).
@@ -28,6 +30,7 @@ class GatewayConfig:
     max_in_flight: int = 4
     max_waiting: int = 512
     max_tries: int = 3
+    unreachable_tries: int = 1
     retry_backoff_s: float = 0.05
     command_timeout_s: float = 10.0
     skip_confirmed: bool = True

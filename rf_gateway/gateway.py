@@ -297,23 +297,21 @@ class Gateway:
             self._syncers.pop(lid, None)
 
     def _resolve_waiters(self, lid: int, seq: int, t_ns: int) -> None:
-        keep = []
-        for wanted, fut in self._waiters.get(lid, []):
-            if wanted <= seq:
-                if not fut.done():
-                    fut.set_result(t_ns)
-            else:
-                keep.append((wanted, fut))
-        self._waiters[lid] = keep
+        self._settle_waiters(lid, seq, lambda fut: fut.set_result(t_ns))
 
     def _fail_waiters(self, lid: int, seq: int, exc: BaseException) -> None:
+        self._settle_waiters(lid, seq, lambda fut: fut.set_exception(exc))
+
+    def _settle_waiters(
+        self, lid: int, seq: int, settle: Callable[[asyncio.Future[int]], None]
+    ) -> None:
+        """Answer every waiter of `lid` that asked for sequence number `seq` or older."""
         keep = []
         for wanted, fut in self._waiters.get(lid, []):
-            if wanted <= seq:
-                if not fut.done():
-                    fut.set_exception(exc)
-            else:
+            if wanted > seq:
                 keep.append((wanted, fut))
+            elif not fut.done():
+                settle(fut)
         self._waiters[lid] = keep
 
     # -- commands with retries ------------------------------------------------------------------
@@ -321,7 +319,7 @@ class Gateway:
         address = self._addresses[lid]
         last: Exception | None = None
         radio_failures = 0
-        tries = self.config.max_tries
+        tries = self.config.unreachable_tries if lid in self._unreachable else self.config.max_tries
         for attempt in range(tries):
             if attempt:
                 self.stats.retries += 1

@@ -3,11 +3,10 @@
 from __future__ import annotations
 
 import asyncio
-from collections.abc import Callable
 from typing import Protocol
 
 from rf_gateway.errors import RadioTimeout, TransportUnavailable
-from rf_gateway.transport import DiscoveredRadio, TransportState, normalize_address
+from rf_gateway.transport import DiscoveredRadio, StateReporter, normalize_address
 
 
 class SimRadioLike(Protocol):
@@ -20,7 +19,7 @@ class SimRadioLike(Protocol):
     async def discover(self) -> list[tuple[str, str]]: ...
 
 
-class SimTransport:
+class SimTransport(StateReporter):
     """`Transport` over a simulated radio.
 
     Args:
@@ -31,26 +30,11 @@ class SimTransport:
     """
 
     def __init__(self, radio: SimRadioLike, *, command_timeout_s: float | None = None) -> None:
+        super().__init__()
         self.radio = radio
         if command_timeout_s is None:
             command_timeout_s = float(getattr(radio, "timeout_s", 0.3)) + 0.2
         self.command_timeout_s = command_timeout_s
-        self._state: TransportState = "closed"
-        self._listeners: list[Callable[[TransportState], None]] = []
-
-    @property
-    def state(self) -> TransportState:
-        return self._state
-
-    def on_state_change(self, callback: Callable[[TransportState], None]) -> None:
-        """Call `callback(state)` at every state change."""
-        self._listeners.append(callback)
-
-    def _set_state(self, state: TransportState) -> None:
-        if state != self._state:
-            self._state = state
-            for callback in list(self._listeners):
-                callback(state)
 
     async def open(self) -> None:
         self._set_state("open")

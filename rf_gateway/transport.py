@@ -7,7 +7,7 @@ limits and LED bookkeeping live in the `Gateway` above it.
 from __future__ import annotations
 
 import re
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Literal, Protocol, runtime_checkable
 
@@ -60,6 +60,29 @@ class DiscoveredRadio:
 
     address: str
     node_id: str = ""
+
+
+class StateReporter:
+    """The `state` property and state-change listeners shared by the transports."""
+
+    def __init__(self) -> None:
+        self._state: TransportState = "closed"
+        self._listeners: list[Callable[[TransportState], None]] = []
+
+    @property
+    def state(self) -> TransportState:
+        return self._state
+
+    def on_state_change(self, callback: Callable[[TransportState], None]) -> None:
+        """Call `callback(state)` (on the event loop) at every state change."""
+        self._listeners.append(callback)
+
+    def _set_state(self, state: TransportState) -> None:
+        if state == self._state:
+            return
+        self._state = state
+        for callback in list(self._listeners):
+            callback(state)
 
 
 @runtime_checkable

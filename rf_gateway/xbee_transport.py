@@ -24,7 +24,7 @@ from digi.xbee.exception import ATCommandException, TimeoutException
 from digi.xbee.models.address import XBee64BitAddress
 
 from rf_gateway.errors import RadioTimeout, RemoteCommandError, TransportUnavailable
-from rf_gateway.transport import DEFAULT_BAUD, DiscoveredRadio, TransportState, normalize_address
+from rf_gateway.transport import DEFAULT_BAUD, DiscoveredRadio, StateReporter, normalize_address
 
 log = logging.getLogger(__name__)
 T = TypeVar("T")
@@ -52,7 +52,7 @@ class XBeeTransportConfig:
     reopen_max_s: float = 5.0
 
 
-class XBeeTransport:
+class XBeeTransport(StateReporter):
     """`Transport` over a local XBee coordinator in API mode (AP=1 or 2).
 
     Args:
@@ -72,6 +72,8 @@ class XBeeTransport:
     ) -> None:
         if len(pin) != 2 or pin[0] not in "DP" or not pin[1].isdigit():
             raise ValueError(f"XBee LED pin {pin!r}: expected D0..D9 or P0..P9")
+        super().__init__()
+        self.on_state_change(lambda state: log.info("xbee %s: %s", port, state))
         self.port = port
         self.baud = baud
         self.pin = pin
@@ -79,27 +81,8 @@ class XBeeTransport:
         self._executor = ThreadPoolExecutor(max_workers=1, thread_name_prefix="xbee")
         self._device: XBeeDevice | None = None
         self._remotes: dict[str, RemoteXBeeDevice] = {}
-        self._state: TransportState = "closed"
-        self._listeners: list[Callable[[TransportState], None]] = []
         self._tasks: set[asyncio.Task[None]] = set()
         self.reopen_count = 0
-
-    # -- state ---------------------------------------------------------------------------
-    @property
-    def state(self) -> TransportState:
-        return self._state
-
-    def on_state_change(self, callback: Callable[[TransportState], None]) -> None:
-        """Call `callback(state)` on the event loop at every state change."""
-        self._listeners.append(callback)
-
-    def _set_state(self, state: TransportState) -> None:
-        if state == self._state:
-            return
-        log.info("xbee %s: %s -> %s", self.port, self._state, state)
-        self._state = state
-        for callback in list(self._listeners):
-            callback(state)
 
     async def _call(self, fn: Callable[..., T], *args: Any) -> T:
         loop = asyncio.get_running_loop()
