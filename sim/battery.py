@@ -9,13 +9,12 @@ voltage the landmark no longer answers.
 
 from __future__ import annotations
 
+import bisect
 from dataclasses import dataclass
 
-import numpy as np
-
 # Alkaline AA: fraction of capacity drawn -> open-circuit voltage of one cell, volts.
-_DRAWN_FRACTION = np.array([0.0, 0.05, 0.2, 0.5, 0.8, 0.9, 0.97, 1.0])
-_CELL_VOLTS = np.array([1.58, 1.48, 1.38, 1.27, 1.16, 1.09, 1.0, 0.8])
+_DRAWN_FRACTION = (0.0, 0.05, 0.2, 0.5, 0.8, 0.9, 0.97, 1.0)
+_CELL_VOLTS = (1.58, 1.48, 1.38, 1.27, 1.16, 1.09, 1.0, 0.8)
 
 
 @dataclass(frozen=True)
@@ -47,8 +46,16 @@ class BatteryConfig:
 
 
 def cell_voltage(drawn_fraction: float) -> float:
-    """Open-circuit voltage of one alkaline cell after drawing `drawn_fraction` of it, V."""
-    return float(np.interp(drawn_fraction, _DRAWN_FRACTION, _CELL_VOLTS))
+    """Open-circuit voltage of one alkaline cell after drawing `drawn_fraction` of it, V.
+
+    Linear between the points of the tabulated discharge curve (a plain-Python `np.interp`:
+    this runs for every landmark at every frame).
+    """
+    f = min(max(drawn_fraction, 0.0), 1.0)
+    i = min(max(bisect.bisect_right(_DRAWN_FRACTION, f), 1), len(_DRAWN_FRACTION) - 1)
+    f0, f1 = _DRAWN_FRACTION[i - 1], _DRAWN_FRACTION[i]
+    v0, v1 = _CELL_VOLTS[i - 1], _CELL_VOLTS[i]
+    return v0 + (v1 - v0) * (f - f0) / (f1 - f0)
 
 
 def led_current_ma(config: BatteryConfig, supply_v: float) -> float:
@@ -69,6 +76,7 @@ class Battery:
             raise ValueError(f"battery charge must be in [0, 1], got {charge!r}")
         self.config = config or BatteryConfig()
         self.drawn_mah = (1.0 - charge) * self.config.capacity_mah
+        self._ocv_cache = (-1.0, 0.0)  # (drawn_mah, open-circuit volts)
 
     @property
     def drawn_fraction(self) -> float:
@@ -76,7 +84,12 @@ class Battery:
 
     def open_circuit_v(self) -> float:
         """Supply voltage with no load, volts."""
-        return self.config.cells * cell_voltage(self.drawn_fraction)
+        if self._ocv_cache[0] != self.drawn_mah:
+            self._ocv_cache = (
+                self.drawn_mah,
+                self.config.cells * cell_voltage(self.drawn_fraction),
+            )
+        return self._ocv_cache[1]
 
     def supply_v(self, led_on: bool) -> float:
         """Supply voltage under the present load, volts (LED current solved with the sag)."""

@@ -128,9 +128,12 @@ class World:
     extended: list[ExtendedSource] = field(default_factory=list)
     people: list[Person] = field(default_factory=list)
     t_ns: int = 0
+    battery_step_s: float = 0.25
     _lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
+    _battery_t_ns: int = 0
 
     def __post_init__(self) -> None:
+        self._battery_t_ns = self.t_ns
         self._by_address = {lm.address: lm for lm in self.landmarks.values()}
 
     def by_address(self, address: str) -> SimLandmark | None:
@@ -152,14 +155,20 @@ class World:
             return {lm.id for lm in self.landmarks.values() if lm.led_on}
 
     def advance(self, t_ns: int) -> None:
-        """Advance the batteries to `t_ns` (earlier times are ignored)."""
-        dt_s = (t_ns - self.t_ns) * 1e-9
-        if dt_s <= 0:
+        """Advance people and batteries to `t_ns` (earlier times are ignored).
+
+        Batteries discharge slowly: they are stepped once `battery_step_s` has gathered.
+        """
+        if t_ns <= self.t_ns:
+            return
+        self.t_ns = t_ns
+        dt_s = (t_ns - self._battery_t_ns) * 1e-9
+        if dt_s < self.battery_step_s:
             return
         with self._lock:
             for lm in self.landmarks.values():
                 lm.battery.advance(dt_s, lm.led_on)
-        self.t_ns = t_ns
+        self._battery_t_ns = t_ns
 
     def point_sources(self, p_camera_world: FloatArray) -> tuple[FloatArray, FloatArray]:
         """Lit point sources seen from a camera position (people block them).

@@ -1,0 +1,129 @@
+"""The virtual site, clocked from outside: `irloc serve` steps it from its clock thread and
+feeds the frames and odometry to the robots' localizers, while the RF gateway drives the
+site's `SimRadio`. Nothing here sleeps or reads a clock.
+
+Time: the first `step(t_ns)` fixes the site's start; every sample carries the caller's clock.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from localizer.camera import CameraModel
+from localizer.events import FrameObserved, OdometryMeasured
+from localizer.robot import RobotGeometry
+from sim.build import RobotRig, build_robot, build_world, seed_generators
+from sim.radio import SimRadio
+from sim.render import render_frame
+from sim.robot import FramePose
+from sim.scenario import Scenario, load_scenario
+from sim.world import World
+
+
+@dataclass(frozen=True, eq=False)
+class SensorSample:
+    """A frame or an odometry sample of the robot `robot`."""
+
+    robot: str
+    event: FrameObserved | OdometryMeasured
+
+
+class LiveSite:
+    """The simulated site: world, radio and robots, advanced by `step`.
+
+    Args:
+        scenario: a `Scenario` or a built-in name / scenario file path.
+        seed: overrides the scenario's seed.
+        max_frame_lag_s: frames older than this at a `step` are dropped (the caller fell
+            behind); the robots still move through that time.
+    """
+
+    def __init__(
+        self, scenario: Scenario | str, *, seed: int | None = None, max_frame_lag_s: float = 0.2
+    ) -> None:
+        self.scenario = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
+        sc = self.scenario
+        gens = seed_generators(sc.seed if seed is None else seed, 3 + len(sc.robots))
+        self.world: World = build_world(sc, gens[0])
+        self.radio = SimRadio(
+            self.world, rng=gens[1], latency_s=sc.radio_latency_s, loss=sc.radio_loss
+        )
+        self._render_rng = gens[2]
+        self._rigs: dict[str, RobotRig] = {
+            spec.name: build_robot(spec, sc, gens[3 + i], index=i)
+            for i, spec in enumerate(sc.robots)
+        }
+        self._t0_ns: int | None = None
+        self._t_local_ns = 0
+        self._max_lag_ns = round(max_frame_lag_s * 1e9)
+
+    @property
+    def robot_names(self) -> list[str]:
+        return list(self._rigs)
+
+    def rig(self, name: str) -> RobotRig:
+        """A robot's simulation internals; KeyError names an unknown robot."""
+        try:
+            return self._rigs[name]
+        except KeyError:
+            raise KeyError(f"unknown robot {name!r}; robots: {self.robot_names}") from None
+
+    def camera(self, name: str) -> CameraModel:
+        """The robot's nominal (calibrated) camera, as its localizer should use it."""
+        return self.rig(name).camera_nominal
+
+    def robot_geometry(self, name: str) -> RobotGeometry:
+        return self.rig(name).geometry
+
+    def landmark_records(self) -> list[dict[str, object]]:
+        """The surveyed map with each landmark's `radio` address (map.json's landmarks)."""
+        return self.world.landmark_records()
+
+    def true_pose(self, name: str) -> tuple[float, float, float]:
+        """The robot's true (x, y, theta) at the last stepped time."""
+        return self.rig(name).robot.pose_at(self._t_local_ns)
+
+    def render(self, name: str, T_world_body: npt.NDArray[np.float64]) -> npt.NDArray[np.uint8]:
+        """The frame robot `name`'s true camera sees from a body pose, with the world now."""
+        cam = self.rig(name).camera_true
+        p_cam = (T_world_body @ cam.T_body_camera)[:3, 3]
+        sources, intensities = self.world.point_sources(p_cam)
+        return render_frame(
+            cam, T_world_body, sources, intensities, rng=self._render_rng,
+            config=self.scenario.render, extended=self.world.extended,
+        )  # fmt: skip
+
+    def step(self, t_ns: int) -> list[SensorSample]:
+        """Advance robots, batteries and people to `t_ns`; the samples due, in time order.
+
+        The first call only fixes the start time. Frames are rendered with the LEDs lit at
+        the moment of the call.
+        """
+        if self._t0_ns is None:
+            self._t0_ns = t_ns
+            self.world.advance(0)
+            return []
+        local = t_ns - self._t0_ns
+        if local <= self._t_local_ns:
+            return []
+        due: list[tuple[int, int, str, OdometryMeasured | FramePose]] = []
+        for name, rig in self._rigs.items():
+            for item in rig.robot.advance_to(local):
+                kind = 0 if isinstance(item, OdometryMeasured) else 1
+                due.append((item.t_ns, kind, name, item))
+        due.sort(key=lambda d: (d[0], d[1]))
+        out: list[SensorSample] = []
+        for t_local, _, name, item in due:
+            t_out = t_local + self._t0_ns
+            if isinstance(item, OdometryMeasured):
+                out.append(SensorSample(name, OdometryMeasured(t_out, item.v_left, item.v_right)))
+            elif local - t_local <= self._max_lag_ns:
+                self.world.advance(t_local)
+                image = self.render(name, item.T_world_body)
+                out.append(SensorSample(name, FrameObserved(t_out, image)))
+        self.world.advance(local)
+        self._t_local_ns = local
+        return out

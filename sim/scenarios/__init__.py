@@ -1,0 +1,1 @@
+"""Built-in scenario files (YAML), loaded by `sim.scenario.load_scenario`."""
