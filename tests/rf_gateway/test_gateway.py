@@ -82,8 +82,9 @@ def test_unreachable_landmark_raises_event_and_the_others_carry_on() -> None:
         assert gw.unreachable == {3}
         assert [e for e in tr.log if e[1] == ADDR[3]] == [("pin", ADDR[3], True)] * 3
         assert events.get_nowait() == LandmarkUnreachable(3000, 3, ADDR[3], 3)
-        with pytest.raises(LandmarkUnreachableError):
-            await gw.led(3, True)
+        with pytest.raises(LandmarkUnreachableError, match="after 1 tries"):
+            await gw.led(3, True)  # already unreachable: one probe, not max_tries
+        assert len([e for e in tr.log if e[1] == ADDR[3]]) == 4
         assert events.get_nowait() is None  # raised once, not at every failure
         tr.dead.clear()
         await gw.led(3, True)

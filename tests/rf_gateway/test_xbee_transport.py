@@ -235,3 +235,23 @@ def test_missing_port_at_start_keeps_trying_until_it_appears(tmp_path: Path) -> 
         assert not os.path.exists(port)
 
     asyncio.run(main())
+
+
+def test_transmit_requests_get_a_transmit_status(emulator: XBeeEmulator) -> None:
+    esc = emulator.escaped
+    requests = [
+        fr.TransmitRequest(11, int(ADDR[1], 16), b"on"),
+        fr.TransmitRequest(12, int(ADDR[3], 16), b"on"),
+    ]
+    with serial.Serial(str(emulator.port), 9600, timeout=0.5) as port:
+        port.write(b"".join(fr.wrap(fr.encode(r), escaped=esc) for r in requests))
+        parser = fr.StreamParser(escaped=esc)
+        got: list[fr.ApiFrame] = []
+        while len(got) < 2:
+            chunk = port.read(32)
+            assert chunk, "no transmit status"
+            got += [fr.decode(d) for d in parser.feed(chunk)]
+    statuses = sorted(
+        (f.frame_id, f.delivery_status) for f in got if isinstance(f, fr.TransmitStatus)
+    )
+    assert statuses == [(11, 0x00), (12, 0x21)]
