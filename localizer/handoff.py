@@ -164,7 +164,9 @@ def consistent_hypotheses(
     Every (landmark, spot) pair within the landmark's gate is a candidate; two candidates are
     compatible when they use different landmarks and spots and the distance between the two
     spots' ceiling points matches the two landmarks' distance in the map. A hypothesis is a
-    maximal set of mutually compatible candidates (2 or more).
+    maximal set of mutually compatible candidates (2 or more) whose ceiling points fit the
+    map by a rigid motion (not a mirror image). Symmetric landmark layouts leave several
+    hypotheses; the caller decides between them with the prior pose.
 
     Args:
         prediction: landmarks in view (`predict_landmarks`).
@@ -206,7 +208,15 @@ def consistent_hypotheses(
             if k not in members and all(compatible[k, m] for m in members):
                 members.append(k)
         found.add(frozenset(members))
-    hyps = sorted(found, key=lambda h: (-len(h), sorted(h)))
+    rigid = []
+    for h in found:
+        m = sorted(h)
+        x, y, th = pose_from_ceiling_points(q[m], P[m])
+        fitted = q[m] @ rotation_2d(th).T + (x, y)
+        # Mutual distances do not see a mirror image; a rigid fit does.
+        if float(np.max(np.hypot(*(fitted - P[m]).T))) <= config.distance_tolerance_m:
+            rigid.append(h)
+    hyps = sorted(rigid, key=lambda h: (-len(h), sorted(h)))
     return [sorted((int(cand_rows[m]), int(cand_spots[m])) for m in h) for h in hyps]
 
 

@@ -106,6 +106,7 @@ class Identifier:
     def restart(self, order: Sequence[int]) -> None:
         """Forget the identified landmarks and try the candidates in `order`."""
         self.sightings = {}
+        self._verified: set[int] = set()
         self._pending = []
         self._order = deque(int(i) for i in order)
         self._frames_in_state = 0
@@ -138,6 +139,7 @@ class Identifier:
             frame that this one verifies).
         """
         frame = _Frame(t_ns, lit, np.asarray(pixels, float).reshape(-1, 2), np.asarray(intensities))
+        self._verify(frame)
         new: list[Sighting] = []
         still: list[_Frame] = []
         for p in self._pending:
@@ -146,6 +148,7 @@ class Identifier:
                 s = self._identify(p, lid, frame)
                 if s is not None:
                     new.append(s)
+                    self._verified.add(lid)
             elif (t_ns - p.t_ns) * _NS <= self.config.reference_max_age_s:
                 still.append(p)
         self._pending = still
@@ -166,6 +169,22 @@ class Identifier:
         for s in new:
             self.sightings[s.landmark_id] = s
         return new
+
+    def _verify(self, frame: _Frame) -> None:
+        """Drop sightings whose spot is still there in a frame where their LED is dark
+        (a blinking stray source that happened to light with the LED)."""
+        if frame.lit is None:
+            return
+        for lid, s in list(self.sightings.items()):
+            if lid in frame.lit or lid in self._verified:
+                continue
+            dt = abs(frame.t_ns - s.t_ns) * _NS
+            radius = self.config.match_radius_px + self._pixel_speed * dt
+            d = np.hypot(frame.pixels[:, 0] - s.pixel[0], frame.pixels[:, 1] - s.pixel[1])
+            if len(d) and float(d.min()) <= radius:
+                del self.sightings[lid]
+            else:
+                self._verified.add(lid)
 
     def _reference(self, lid: int, t_ns: int) -> _Frame | None:
         for f in reversed(self._history):

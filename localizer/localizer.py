@@ -253,17 +253,31 @@ class Localizer:
                 for i, s in enumerate(sightings)
             ]
         )
-        fix = solve_pose(
-            self.camera,
-            pixels,
-            P,
-            pixel_sigma_px=self.config.fusion.pixel_sigma_px,
-            landmark_ids=tuple(s.landmark_id for s in sightings),
-        )
-        if fix is None or fix.residual_rms_px > self.config.fusion.max_residual_px:
+        ids = tuple(s.landmark_id for s in sightings)
+        fix = self._solve_consistent(pixels, P, ids)
+        if fix is None:
             self._start_identification()  # inconsistent sightings: sweep again
-            return None
         return fix
+
+    def _solve_consistent(
+        self, pixels: FloatArray, P: FloatArray, ids: tuple[int, ...]
+    ) -> PoseFix | None:
+        """A fix whose residual is small, leaving out one landmark if that is needed."""
+        fc = self.config.fusion
+        subsets = [list(range(len(ids)))]
+        if len(ids) >= 3:
+            subsets += [[j for j in range(len(ids)) if j != i] for i in range(len(ids))]
+        for keep in subsets:
+            fix = solve_pose(
+                self.camera,
+                pixels[keep],
+                P[keep],
+                pixel_sigma_px=fc.pixel_sigma_px,
+                landmark_ids=tuple(ids[j] for j in keep),
+            )
+            if fix is not None and fix.residual_rms_px <= fc.max_residual_px:
+                return fix
+        return None
 
     def _track(self, e: FrameObserved | SpotsObserved, dt_frame: float) -> tuple[int, ...]:
         """Find the lit landmarks near their predictions, solve and fuse; returns IDs used."""
