@@ -15,7 +15,8 @@ from sim.battery import Battery, BatteryConfig
 from sim.cameras import perturbed_camera, wide_angle_camera
 from sim.render import ExtendedSource, disc_outline
 from sim.robot import OdometryModel, SimRobot
-from sim.scenario import RobotSpec, Scenario
+from sim.robot_spec import RobotSpec
+from sim.scenario import Scenario
 from sim.world import Glint, Person, SimLandmark, World
 
 ADDRESS_PREFIX = 0x0013A20041000000

@@ -20,7 +20,7 @@ from sim.cameras import LENSES, Lens
 from sim.fields import Node
 from sim.render import RenderConfig
 from sim.robot import FloorBump
-from sim.routes import Drive, Goto, Route, Step, TurnTo, Wait, heading_sweep
+from sim.robot_spec import RobotSpec, robot_from_node
 
 SCENARIOS: tuple[str, ...] = ("demo", "paper_testbed", "paper_floor", "dense_grid_fast", "hostile")
 
@@ -37,36 +37,6 @@ class LandmarkSpec:
     radio_dead: bool = False
     address: str | None = None
     capacity_mah: float = 2500.0
-
-
-@dataclass(frozen=True)
-class CameraSpec:
-    """A robot's upward camera: lens, mounting, rate, losses, calibration error."""
-
-    lens: Lens
-    yaw_rad: float = 0.0
-    offset_xy_m: tuple[float, float] = (0.0, 0.0)
-    height_m: float = 0.3
-    tilt_xy_rad: tuple[float, float] = (0.0, 0.0)
-    rate_hz: float = 30.0
-    drop_rate: float = 0.0
-    calibration_error: bool = True
-
-
-@dataclass(frozen=True)
-class RobotSpec:
-    """One robot: start pose (x, y, theta rad), geometry, odometry errors, camera, route."""
-
-    name: str
-    start: tuple[float, float, float]
-    wheel_base_m: float
-    max_speed_mps: float
-    wheel_radius_error: tuple[float, float]
-    wheel_base_error: float
-    odometry_rate_hz: float
-    odometry_noise_rel: float
-    camera: CameraSpec
-    route: Route
 
 
 @dataclass(frozen=True)
@@ -126,10 +96,25 @@ class Scenario:
 
 
 _TOP = (
-    "name", "description", "seed", "duration_s", "survey_sigma_m", "ceiling_height_m", "lens",
-    "landmarks", "landmark_grid", "landmark_pairs", "lamps", "sunlight", "glints", "people",
-    "floor_bumps", "radio", "render", "robots",
-)  # fmt: skip
+    "name",
+    "description",
+    "seed",
+    "duration_s",
+    "survey_sigma_m",
+    "ceiling_height_m",
+    "lens",
+    "landmarks",
+    "landmark_grid",
+    "landmark_pairs",
+    "lamps",
+    "sunlight",
+    "glints",
+    "people",
+    "floor_bumps",
+    "radio",
+    "render",
+    "robots",
+)
 
 
 def _landmarks(doc: Node, ceiling: float) -> tuple[LandmarkSpec, ...]:
@@ -138,12 +123,16 @@ def _landmarks(doc: Node, ceiling: float) -> tuple[LandmarkSpec, ...]:
         n.mapping(("id", "x", "y", "z", "charge", "dead", "radio", "capacity_mah"))
         out.append(
             LandmarkSpec(
-                n.integer("id"), n.number("x"), n.number("y"),
-                n.number("z", ceiling, low=0.5), n.number("charge", 1.0, low=0, high=1),
-                n.boolean("dead", False), n.string("radio", "") or None,
+                n.integer("id"),
+                n.number("x"),
+                n.number("y"),
+                n.number("z", ceiling, low=0.5),
+                n.number("charge", 1.0, low=0, high=1),
+                n.boolean("dead", False),
+                n.string("radio", "") or None,
                 n.number("capacity_mah", 2500.0, low=0.001),
             )
-        )  # fmt: skip
+        )
     if doc.has("landmark_grid"):
         g = doc.child("landmark_grid").mapping(
             ("first_id", "x0", "y0", "nx", "ny", "spacing_m", "z")
@@ -178,98 +167,41 @@ def _points(n: Node, key: str, minimum: int) -> tuple[tuple[float, float], ...]:
     return tuple(p.vector(2, "[x, y]") for p in items)  # type: ignore[misc]
 
 
-def _route(n: Node, max_speed: float, start_theta: float) -> Route:
-    n.mapping(("loop", "speed_mps", "waypoints", "dwell_s", "sweep_deg", "sweep_dwell_s", "steps"))
-    speed = n.number("speed_mps", min(0.5, max_speed), low=0.01, high=max_speed)
-    steps: list[Step] = []
-    if n.has("waypoints"):
-        dwell = n.number("dwell_s", 0.0, low=0)
-        sweep = math.radians(n.number("sweep_deg", 0.0, low=0, high=180))
-        sweep_dwell = n.number("sweep_dwell_s", 0.5, low=0)
-        for p in n.child("waypoints").items():
-            x, y = p.vector(2, "[x, y]")
-            steps.append(Goto(x, y, speed))
-            if dwell > 0:
-                steps.append(Wait(dwell))
-            if sweep > 0:
-                steps += [TurnTo(start_theta), *heading_sweep(start_theta, sweep, sweep_dwell)]
-    for s in n.child("steps").items():
-        s.mapping(("goto", "wait", "turn_to_deg", "sweep", "drive"))
-        if s.has("goto"):
-            x, y = s.child("goto").vector(2, "[x, y]")
-            steps.append(Goto(x, y, speed))
-        elif s.has("wait"):
-            steps.append(Wait(s.number("wait", low=0)))
-        elif s.has("turn_to_deg"):
-            steps.append(TurnTo(math.radians(s.number("turn_to_deg"))))
-        elif s.has("sweep"):
-            w = s.child("sweep").mapping(("step_deg", "dwell_s", "from_deg"))
-            start = math.radians(w.number("from_deg", math.degrees(start_theta)))
-            steps += [TurnTo(start)]
-            steps += heading_sweep(start, math.radians(w.number("step_deg", low=1, high=180)),
-                                   w.number("dwell_s", 0.5, low=0))  # fmt: skip
-        else:
-            d = s.child("drive", required=True).mapping(("seconds", "v_mps", "omega_deg_s"))
-            steps.append(
-                Drive(d.number("seconds", low=0), d.number("v_mps", low=-max_speed, high=max_speed),
-                      math.radians(d.number("omega_deg_s", 0.0)))
-            )  # fmt: skip
-    return Route(tuple(steps), n.boolean("loop", False))
-
-
-def _robot(n: Node, default_lens: Lens) -> RobotSpec:
-    n.mapping((
-        "name", "start", "wheel_base_m", "max_speed_mps", "wheel_radius_error",
-        "wheel_base_error", "odometry", "camera", "route",
-    ))  # fmt: skip
-    sx, sy, sdeg = n.child_vector("start", 3, "[x, y, theta_deg]")
-    max_speed = n.number("max_speed_mps", 1.0, low=0.05, high=5)
-    odo = n.child("odometry", {}).mapping(("rate_hz", "noise_rel"))
-    cam = n.child("camera", {}).mapping((
-        "lens", "yaw_deg", "offset_m", "height_m", "tilt_deg", "rate_hz", "drop_rate",
-        "calibration_error",
-    ))  # fmt: skip
-    tilt = cam.child_vector("tilt_deg", 2, "[about x, about y] degrees", (0.0, 0.0))
-    camera = CameraSpec(
-        lens=cam.string("lens", default_lens, choices=LENSES),  # type: ignore[arg-type]
-        yaw_rad=math.radians(cam.number("yaw_deg", 0.0)),
-        offset_xy_m=cam.child_vector("offset_m", 2, "[x, y] metres", (0.0, 0.0)),  # type: ignore[arg-type]
-        height_m=cam.number("height_m", 0.3, low=0, high=2),
-        tilt_xy_rad=(math.radians(tilt[0]), math.radians(tilt[1])),
-        rate_hz=cam.number("rate_hz", 30.0, low=1, high=120),
-        drop_rate=cam.number("drop_rate", 0.0, low=0, high=0.9),
-        calibration_error=cam.boolean("calibration_error", True),
-    )
-    wre = n.child_vector("wheel_radius_error", 2, "[left, right] relative errors", (0.0, 0.0))
-    return RobotSpec(
-        name=n.string("name"),
-        start=(sx, sy, math.radians(sdeg)),
-        wheel_base_m=n.number("wheel_base_m", 0.36, low=0.05, high=3),
-        max_speed_mps=max_speed,
-        wheel_radius_error=wre,  # type: ignore[arg-type]
-        wheel_base_error=n.number("wheel_base_error", 0.0, low=-0.2, high=0.2),
-        odometry_rate_hz=odo.number("rate_hz", 100.0, low=10, high=1000),
-        odometry_noise_rel=odo.number("noise_rel", 0.01, low=0, high=0.5),
-        camera=camera,
-        route=_route(n.child("route", required=True), max_speed, math.radians(sdeg)),
-    )
-
-
 def _clutter(doc: Node, ceiling: float) -> tuple[tuple[ExtendedSpec, ...], tuple[GlintSpec, ...]]:
     ext: list[ExtendedSpec] = []
     for n in doc.child("lamps").items():
         n.mapping(("x", "y", "z", "radius_m", "brightness"))
-        ext.append(ExtendedSpec("lamp", ((n.number("x"), n.number("y")),), n.number("z", ceiling),
-                                n.number("brightness", 800.0, low=0), n.number("radius_m", 0.1, low=0.01)))  # fmt: skip
+        ext.append(
+            ExtendedSpec(
+                "lamp",
+                ((n.number("x"), n.number("y")),),
+                n.number("z", ceiling),
+                n.number("brightness", 800.0, low=0),
+                n.number("radius_m", 0.1, low=0.01),
+            )
+        )
     for n in doc.child("sunlight").items():
         n.mapping(("polygon", "z", "brightness"))
-        ext.append(ExtendedSpec("sunlight", _points(n, "polygon", 3), n.number("z", ceiling),
-                                n.number("brightness", 120.0, low=0)))  # fmt: skip
+        ext.append(
+            ExtendedSpec(
+                "sunlight",
+                _points(n, "polygon", 3),
+                n.number("z", ceiling),
+                n.number("brightness", 120.0, low=0),
+            )
+        )
     glints = []
     for n in doc.child("glints").items():
         n.mapping(("x", "y", "z", "intensity", "blink_period_s"))
-        glints.append(GlintSpec(n.number("x"), n.number("y"), n.number("z", ceiling),
-                                n.number("intensity", 0.3, low=0), n.number("blink_period_s", 0.0, low=0)))  # fmt: skip
+        glints.append(
+            GlintSpec(
+                n.number("x"),
+                n.number("y"),
+                n.number("z", ceiling),
+                n.number("intensity", 0.3, low=0),
+                n.number("blink_period_s", 0.0, low=0),
+            )
+        )
     return tuple(ext), tuple(glints)
 
 
@@ -282,7 +214,7 @@ def scenario_from_dict(data: object, *, source: str) -> Scenario:
     doc = Node(data, "", source).mapping(_TOP)
     ceiling = doc.number("ceiling_height_m", 2.5, low=0.5, high=20)
     lens = doc.string("lens", "fisheye", choices=LENSES)
-    robots = tuple(_robot(n, lens) for n in doc.child("robots", required=True).items())  # type: ignore[arg-type]
+    robots = tuple(robot_from_node(n, lens) for n in doc.child("robots", required=True).items())  # type: ignore[arg-type]
     if not robots:
         raise doc.child("robots").error("expected at least one robot")
     if len({r.name for r in robots}) != len(robots):
@@ -291,13 +223,25 @@ def scenario_from_dict(data: object, *, source: str) -> Scenario:
     people = []
     for n in doc.child("people").items():
         n.mapping(("path", "speed_mps", "radius_m", "height_m"))
-        people.append(PersonSpec(_points(n, "path", 2), n.number("speed_mps", 1.0, low=0),
-                                 n.number("radius_m", 0.25, low=0.05), n.number("height_m", 1.8, low=0.1)))  # fmt: skip
+        people.append(
+            PersonSpec(
+                _points(n, "path", 2),
+                n.number("speed_mps", 1.0, low=0),
+                n.number("radius_m", 0.25, low=0.05),
+                n.number("height_m", 1.8, low=0.1),
+            )
+        )
     bumps = []
     for n in doc.child("floor_bumps").items():
         n.mapping(("x", "y", "radius_m", "height_m"))
-        bumps.append(FloorBump(n.number("x"), n.number("y"), n.number("radius_m", low=0.05),
-                               n.number("height_m", low=-0.2, high=0.2)))  # fmt: skip
+        bumps.append(
+            FloorBump(
+                n.number("x"),
+                n.number("y"),
+                n.number("radius_m", low=0.05),
+                n.number("height_m", low=-0.2, high=0.2),
+            )
+        )
     radio = doc.child("radio", {}).mapping(("latency_s", "loss"))
     latency = radio.child_vector("latency_s", 2, "[min, max] seconds", (0.01, 0.04))
     render = doc.child("render", {}).mapping(

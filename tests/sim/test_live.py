@@ -36,7 +36,7 @@ def test_live_site_streams_frames_and_odometry_per_robot() -> None:
         assert all(T0 <= f.t_ns <= T0 + 1_000_000_000 for f in frames)
     times = [s.event.t_ns for s in samples]
     assert times == sorted(times)
-    x, y, _ = site.true_pose("r1")
+    x, _, _ = site.true_pose("r1")
     assert x > 0.6 + 0.2  # drove toward (5.4, 0.6)
 
 
