@@ -26,7 +26,7 @@ from rf_gateway.errors import (
 from server.auth import Viewer, authenticate
 from server.errors import ConflictError, NotFoundError, UnavailableError
 from server.metrics import make_registry, render
-from server.routes import admin, landmarks, map, robots, streams
+from server.routes import admin, landmarks, map, remote, robots, streams
 from server.services import SiteServices
 from server.settings import Settings
 
@@ -81,20 +81,12 @@ def _install_error_handlers(app: FastAPI) -> None:
         app.add_exception_handler(exc_type, handle)
 
     async def bad_request(request: Request, exc: Exception) -> JSONResponse:
-        assert isinstance(exc, RequestValidationError)
-        errors = exc.errors()
+        errors = exc.errors() if isinstance(exc, RequestValidationError) else []
         parts = [f"{'.'.join(str(p) for p in e['loc'])}: {e['msg']}" for e in errors[:5]]
-        return JSONResponse(
-            {"detail": "; ".join(parts), "errors": _jsonable(errors)}, status_code=422
-        )
+        listed = [{"loc": list(e["loc"]), "msg": e["msg"], "type": e["type"]} for e in errors]
+        return JSONResponse({"detail": "; ".join(parts), "errors": listed}, status_code=422)
 
     app.add_exception_handler(RequestValidationError, bad_request)
-
-
-def _jsonable(errors: Any) -> Any:
-    import json
-
-    return json.loads(json.dumps(errors, default=str))
 
 
 def create_app(settings: Settings | None = None) -> FastAPI:
@@ -129,7 +121,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     )
     _install_error_handlers(app)
     api = APIRouter(prefix=API_PREFIX)
-    for module in (landmarks, map, robots, admin, streams):
+    for module in (landmarks, map, robots, remote, admin, streams):
         api.include_router(module.router)
     api.add_api_route(
         "/metrics",

@@ -30,7 +30,7 @@ from server.crud import EventLog, KeyStore, MapRepository, RobotStore
 from server.db import make_engine, migrate
 from server.errors import NotFoundError, UnavailableError
 from server.events import EventHub
-from server.models import LandmarkPublic
+from server.models import LandmarkPublic, RobotPublic
 from server.poses import PoseUpdate
 from server.settings import Settings
 from server.site.robot import RobotRunner
@@ -245,6 +245,14 @@ class SiteServices:
         """Poses from now on (all robots, or those named), bounded queue (drops counted)."""
         accept = None if not robots else (lambda p: p.robot in robots)
         return self.poses.subscribe(maxsize, accept)
+
+    def apply_robot(self, record: RobotPublic) -> None:
+        """(Re)start a robot after its configuration changed (no-op without a live site)."""
+        if self.site is None:
+            return
+        if record.source == "sim" and (self.sim is None or record.name not in self.sim.robot_names):
+            return
+        self.site.start_robot(record)
 
     def start_recording(self, name: str) -> Path:
         """Record a robot to `<data_dir>/recordings/<name>-<UTC time>/`; returns the folder."""

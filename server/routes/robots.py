@@ -5,6 +5,7 @@ from __future__ import annotations
 from fastapi import APIRouter, status
 from pydantic import BaseModel, Field
 
+from localizer.camera import camera_from_sensor
 from localizer.events import Mode, OdometryMeasured
 from server.auth import Admin, Operator, Viewer
 from server.deps import RobotName, ServicesDep
@@ -95,9 +96,13 @@ async def get_config(name: RobotName, services: ServicesDep, _: Viewer) -> Robot
 async def put_config(
     name: RobotName, body: RobotPublic, services: ServicesDep, _: Admin
 ) -> RobotPublic:
-    """Create or replace a robot's configuration (applied at the next start)."""
+    """Create or replace a robot's configuration and (re)start it; a `sim` robot must exist
+    in the virtual site."""
     data = RobotCreate.model_validate({**body.model_dump(), "name": name})
-    return services.robot_store.upsert(data)
+    camera_from_sensor(data.camera, source="camera")  # 422 naming the field before saving
+    record = services.robot_store.upsert(data)
+    services.apply_robot(record)
+    return record
 
 
 @router.post("/{name}/recording/start")

@@ -5,6 +5,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 from collections.abc import AsyncIterator
+from typing import Annotated
 
 from fastapi import APIRouter, Query, WebSocket, WebSocketDisconnect, status
 from fastapi.responses import StreamingResponse
@@ -17,6 +18,7 @@ from server.poses import PoseUpdate
 
 router = APIRouter(tags=["streams"])
 SSE_HEARTBEAT_S = 15.0
+RobotFilter = Annotated[list[str] | None, Query(description="only these robots")]
 
 
 class EventPublic(BaseModel):
@@ -39,7 +41,7 @@ async def _close_on_disconnect(ws: WebSocket, sub: Subscription[PoseUpdate]) -> 
 
 
 @router.websocket("/poses/ws")
-async def poses_ws(ws: WebSocket, robot: list[str] | None = Query(None)) -> None:
+async def poses_ws(ws: WebSocket, robot: RobotFilter = None) -> None:
     """Every robot's poses (or those named by repeated `?robot=`) as they are computed.
 
     Each message is a JSON array of pose objects (several when the client fell behind a

@@ -28,7 +28,7 @@ from rf_gateway.events import (
 )
 from rf_gateway.gateway import Gateway, GatewayConfig
 from server.crud.landmarks import parse_map_json
-from server.models import LandmarkPublic, RobotCreate
+from server.models import LandmarkPublic, RobotCreate, RobotPublic
 from server.site.leds import LedCoordinator
 from server.site.robot import RobotRunner, make_localizer
 from server.site.sources import CameraSource
@@ -55,7 +55,7 @@ class LiveSiteRunner:
         self.sim: Any = None
         self.gateway: Gateway | None = None
         self.leds: LedCoordinator | None = None
-        self.cameras: list[CameraSource] = []
+        self.cameras: dict[str, CameraSource] = {}
         self._stop = threading.Event()
         self._clock: threading.Thread | None = None
         self._tasks: list[asyncio.Task[None]] = []
@@ -71,32 +71,45 @@ class LiveSiteRunner:
         if self.sim is not None:
             self._adopt_sim()
         await self._start_gateway()
-        lmap = s.map.landmark_map()
         for robot in s.robot_store.list():
-            if robot.source == "sim" and (self.sim is None or robot.name not in self._sim_names()):
+            if robot.source == "sim" and robot.name not in self._sim_names():
                 continue
-            runner = RobotRunner(
-                robot.name,
-                camera_from_sensor(robot.camera, source=f"robot {robot.name} camera"),
-                RobotGeometry(robot.wheel_base, robot.max_speed),
-                make_localizer(
-                    camera_from_sensor(robot.camera),
-                    lmap,
-                    RobotGeometry(robot.wheel_base, robot.max_speed),
-                ),
-                publish=s.poses.publish,
-                request_leds=self._request_leds,
-                source=robot.source,
-            )
-            runner.on_mode_change = self._on_mode_change
-            s.robots.add(runner)
-            if robot.source == "camera" and robot.device:
-                cam = CameraSource(runner, robot.device, s.clock_ns)
-                cam.start()
-                self.cameras.append(cam)
+            self.start_robot(robot)
         if self.sim is not None:
             self._clock = threading.Thread(target=self._run_clock, name="site-clock", daemon=True)
             self._clock.start()
+
+    def start_robot(self, robot: RobotPublic) -> RobotRunner:
+        """Run (or restart with a new configuration) one robot's localizer and source."""
+        s = self.services
+        self.stop_robot(robot.name)
+        geometry = RobotGeometry(robot.wheel_base, robot.max_speed)
+        camera = camera_from_sensor(robot.camera, source=f"robot {robot.name} camera")
+        runner = RobotRunner(
+            robot.name,
+            camera,
+            geometry,
+            make_localizer(camera, s.map.landmark_map(), geometry),
+            publish=s.poses.publish,
+            request_leds=self._request_leds,
+            source=robot.source,
+        )
+        runner.on_mode_change = self._on_mode_change
+        s.robots.add(runner)
+        if robot.source == "camera" and robot.device:
+            cam = CameraSource(runner, robot.device, s.clock_ns)
+            cam.start()
+            self.cameras[robot.name] = cam
+        return runner
+
+    def stop_robot(self, name: str) -> None:
+        """Stop a robot's camera source (if any) and remove it from the registry."""
+        cam = self.cameras.pop(name, None)
+        if cam is not None:
+            cam.stop()
+        runner = self.services.robots.remove(name)
+        if runner is not None:
+            runner.stop_recording()
 
     def _build_sim(self) -> Any:
         from sim.live import LiveSite
@@ -239,7 +252,7 @@ class LiveSiteRunner:
         self._stop.set()
         if self._clock is not None:
             await asyncio.to_thread(self._clock.join, 5.0)
-        for cam in self.cameras:
+        for cam in self.cameras.values():
             await asyncio.to_thread(cam.stop)
         for runner in self.services.robots.runners():
             runner.stop_recording()

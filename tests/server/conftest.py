@@ -1,0 +1,54 @@
+"""Fixtures: the app on a real SQLite file in a temporary folder, keys of every role."""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+
+with warnings.catch_warnings():
+    # starlette 1.x warns that its TestClient will move from httpx to httpx2; not our concern
+    warnings.simplefilter("ignore")
+    from fastapi.testclient import TestClient
+
+from server.main import create_app
+from server.services import SiteServices
+from server.settings import Settings
+
+
+@dataclass
+class Api:
+    """A started app, its services and a header per role."""
+
+    client: TestClient
+    services: SiteServices
+    keys: dict[str, str]
+
+    def h(self, role: str) -> dict[str, str]:
+        return {"Authorization": f"Bearer {self.keys[role]}"}
+
+
+def start_api(data_dir: Path, **settings: object) -> Iterator[Api]:
+    conf = {"data_dir": data_dir, "viewer_enabled": False, "battery_interval_s": None}
+    conf.update(settings)
+    app = create_app(Settings(**conf))  # type: ignore[arg-type]
+    with TestClient(app) as client:
+        services: SiteServices = app.state.services
+        admin = services.initial_admin_key
+        assert admin is not None
+        keys = {"admin": admin}
+        for role in ("operator", "viewer"):
+            keys[role], _ = services.keys.create(role, name=f"test {role}")
+        yield Api(client, services, keys)
+
+
+@pytest.fixture
+def api(tmp_path: Path) -> Iterator[Api]:
+    """The API without a live site (database, auth, map, streams)."""
+    yield from start_api(tmp_path, site_enabled=False)
+
+
+LM = {"id": 11, "x": 0.6, "y": 0.3, "z": 2.5, "radio": "0013A20041B2C3D4"}

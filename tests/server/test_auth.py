@@ -1,0 +1,70 @@
+"""Every endpoint but /healthz needs a key; roles viewer < operator < admin."""
+
+from __future__ import annotations
+
+import pytest
+
+from tests.server.conftest import LM, Api
+
+# (method, path, body, lowest role allowed)
+CASES = [
+    ("GET", "/api/v1/landmarks", None, "viewer"),
+    ("GET", "/api/v1/map", None, "viewer"),
+    ("GET", "/api/v1/robots", None, "viewer"),
+    ("GET", "/api/v1/events", None, "viewer"),
+    ("GET", "/api/v1/metrics", None, "viewer"),
+    ("GET", "/api/v1/landmarks/11/battery", None, "viewer"),
+    ("GET", "/api/v1/landmarks/11/battery?refresh=true", None, "operator"),
+    ("POST", "/api/v1/landmarks/11/led", {"on": False}, "operator"),
+    ("POST", "/api/v1/radio/discover", None, "operator"),
+    ("PATCH", "/api/v1/landmarks/11", {"note": "x"}, "admin"),
+    ("PUT", "/api/v1/map", {"landmarks": [LM]}, "admin"),
+    ("GET", "/api/v1/keys", None, "admin"),
+    ("POST", "/api/v1/keys", {"role": "viewer"}, "admin"),
+]
+RANK = {"viewer": 0, "operator": 1, "admin": 2}
+
+
+@pytest.mark.parametrize(("method", "path", "body", "needed"), CASES)
+def test_roles(api: Api, method: str, path: str, body: object, needed: str) -> None:
+    api.client.post("/api/v1/landmarks", json=LM, headers=api.h("admin"))
+    r = api.client.request(method, path, json=body)
+    assert r.status_code == 401 and r.headers["www-authenticate"] == "Bearer"
+    r = api.client.request(method, path, json=body, headers={"Authorization": "Bearer nope"})
+    assert r.status_code == 401
+    for role in ("viewer", "operator", "admin"):
+        r = api.client.request(method, path, json=body, headers=api.h(role))
+        if RANK[role] < RANK[needed]:
+            assert r.status_code == 403, (role, r.text)
+            assert needed in r.json()["detail"]
+        else:
+            # allowed: anything but an auth refusal (503 = no radio in this app)
+            assert r.status_code not in (401, 403), (role, r.text)
+
+
+def test_healthz_needs_no_key(api: Api) -> None:
+    r = api.client.get("/healthz")
+    assert r.status_code == 200 and r.json()["status"] == "ok"
+
+
+def test_revoked_key_is_refused(api: Api) -> None:
+    c = api.client
+    assert c.get("/api/v1/landmarks", headers=api.h("viewer")).status_code == 200
+    key_id = next(k.id for k in api.services.keys.list() if k.role == "viewer")
+    assert c.delete(f"/api/v1/keys/{key_id}", headers=api.h("admin")).status_code == 204
+    assert c.get("/api/v1/landmarks", headers=api.h("viewer")).status_code == 401
+
+
+def test_token_query_parameter_is_accepted(api: Api) -> None:
+    r = api.client.get(f"/api/v1/landmarks?token={api.keys['viewer']}")
+    assert r.status_code == 200
+
+
+def test_keys_are_stored_hashed(api: Api) -> None:
+    import sqlite3
+
+    db = api.services.settings.data_dir / "irloc.db"
+    rows = sqlite3.connect(db).execute("SELECT hash, prefix FROM api_keys").fetchall()
+    assert len(rows) == 3
+    for key in api.keys.values():
+        assert all(key not in (h, p) for h, p in rows)
