@@ -69,6 +69,7 @@ class RecordingWriter:
         camera: the nominal camera, written to cam0/sensor.yaml.
         robot: the wheel geometry, written to robot.yaml.
         landmark_records: map.json's landmark objects (`id`, `x`, `y`, `z`, extra keys kept).
+        png_compression: zlib level of the PNGs, 0-9 (1: fast, the frames are noisy anyway).
 
     Raises:
         ValueError: the landmark records do not make a valid map.
@@ -80,8 +81,11 @@ class RecordingWriter:
         camera: CameraModel,
         robot: RobotGeometry,
         landmark_records: Iterable[Mapping[str, Any]],
+        *,
+        png_compression: int = 1,
     ) -> None:
         self.root = Path(root)
+        self.png_compression = png_compression
         records = [dict(r) for r in landmark_records]
         self.landmark_map = LandmarkMap.from_records(records, source="landmark_records")
         (self.root / layout.FRAMES_DIR).mkdir(parents=True, exist_ok=True)
@@ -117,7 +121,7 @@ class RecordingWriter:
         name = f"{int(t_ns)}.png"
         self._frames.write(t_ns, [name])
         path = self.root / layout.FRAMES_DIR / name
-        if not cv2.imwrite(str(path), img):
+        if not cv2.imwrite(str(path), img, [cv2.IMWRITE_PNG_COMPRESSION, self.png_compression]):
             raise OSError(f"{path}: could not write the PNG")
         return path
 

@@ -47,7 +47,7 @@ def build_world(scenario: Scenario, rng: np.random.Generator) -> World:
         landmarks[spec.id] = SimLandmark(
             spec.id, p_true, p_surveyed, (spec.address or default_address(spec.id)).upper(),
             Battery(BatteryConfig(capacity_mah=spec.capacity_mah), charge=spec.charge),
-            radio_dead=spec.radio_dead,
+            radio_dead=spec.radio_dead, led_on=not spec.radio_dead,
         )  # fmt: skip
     extended = []
     for e in scenario.extended:

@@ -17,10 +17,26 @@ from localizer.events import FrameObserved, OdometryMeasured
 from localizer.robot import RobotGeometry
 from sim.build import RobotRig, build_robot, build_world, seed_generators
 from sim.radio import SimRadio
-from sim.render import render_frame
+from sim.render import RenderConfig, render_frame
 from sim.robot import FramePose
 from sim.scenario import Scenario, load_scenario
 from sim.world import World
+
+
+def render_view(
+    world: World,
+    camera: CameraModel,
+    T_world_body: npt.NDArray[np.float64],
+    rng: np.random.Generator,
+    config: RenderConfig,
+) -> npt.NDArray[np.uint8]:
+    """The frame a (true) camera sees from a body pose (4, 4) in the world as it is now."""
+    p_cam = (T_world_body @ camera.T_body_camera)[:3, 3]
+    sources, intensities = world.point_sources(p_cam)
+    return render_frame(
+        camera, T_world_body, sources, intensities, rng=rng, config=config,
+        extended=world.extended,
+    )  # fmt: skip
 
 
 @dataclass(frozen=True, eq=False)

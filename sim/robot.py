@@ -70,12 +70,14 @@ class OdometryModel:
     noise_rel: float = 0.01
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class FramePose:
-    """A frame due at `t_ns` taken from the body pose `T_world_body` (4, 4)."""
+    """A frame due at `t_ns`, taken from the body pose `T_world_body` (4, 4) (lifted and
+    tilted by bumps) whose planar pose is `pose` (x, y, theta)."""
 
     t_ns: int
     T_world_body: FloatArray
+    pose: tuple[float, float, float]
 
 
 class SimRobot:
@@ -186,4 +188,5 @@ class SimRobot:
         self._next_frame_ns += self.frame_period_ns
         if self.frame_drop > 0 and self.rng.random() < self.frame_drop:
             return
-        out.append(FramePose(t_ns, self.T_world_body(*self.pose_at(t_ns))))
+        pose = self.pose_at(t_ns)
+        out.append(FramePose(t_ns, self.T_world_body(*pose), pose))

@@ -145,10 +145,11 @@ class World:
             self.landmarks[landmark_id].led_on = on
 
     def set_lit(self, lit: set[int] | None) -> None:
-        """Light exactly `lit` (None: all), as a script would."""
+        """Light exactly `lit` (None: all) of the landmarks the radio reaches."""
         with self._lock:
             for lm in self.landmarks.values():
-                lm.led_on = lit is None or lm.id in lit
+                if lm.reachable:
+                    lm.led_on = lit is None or lm.id in lit
 
     def lit_ids(self) -> set[int]:
         with self._lock:
