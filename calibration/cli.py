@@ -1,6 +1,7 @@
 """`irloc calibrate`: calibrate the lens from board photos and write the EuRoC sensor.yaml.
 
     irloc calibrate photos/*.jpg --pattern 9x6 --square 0.025 --model fisheye --out sensor.yaml
+    irloc calibrate mounting RECORDING --out sensor.yaml      (see calibration.mounting_cli)
 
 Nothing is written unless the calibration succeeds; errors are one line on stderr and a
 non-zero exit status.
@@ -40,7 +41,8 @@ def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="irloc calibrate",
         description="Calibrate the upward camera's lens from photos of a chessboard or "
-        "ChArUco board and write its EuRoC sensor.yaml.",
+        "ChArUco board and write its EuRoC sensor.yaml. 'irloc calibrate mounting RECORDING "
+        "--out sensor.yaml' measures the camera's mounting (T_BS) instead.",
     )
     p.add_argument("images", nargs="+", help="photos, or folders of photos")
     p.add_argument(
@@ -87,7 +89,7 @@ def _progress(total: int) -> tuple[Callable[[int, int], None] | None, Callable[[
     return update, bar.close
 
 
-def _write_atomic(path: Path, text: str) -> None:
+def write_atomic(path: Path, text: str) -> None:
     """Write `text` to `path` via a temporary file in the same folder, then rename."""
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
@@ -140,14 +142,18 @@ def run(args: argparse.Namespace) -> str:
         f"# irloc calibrate: {result.model} lens, RMS {result.rms_px:.3f} px over "
         f"{result.used_views} views\n"
     )
-    _write_atomic(args.out, header + yaml.safe_dump(result.sensor(), sort_keys=False))
+    write_atomic(args.out, header + yaml.safe_dump(result.sensor(), sort_keys=False))
     if args.report is not None:
-        _write_atomic(args.report, json.dumps(result.to_dict(), indent=2) + "\n")
+        write_atomic(args.report, json.dumps(result.to_dict(), indent=2) + "\n")
     return result.summary() + f"\n\nwrote {args.out}"
 
 
 def main(argv: list[str]) -> int:
     """Entry point of `irloc calibrate`; returns the exit status."""
+    if argv[:1] == ["mounting"]:
+        from calibration.mounting_cli import main as mounting_main
+
+        return mounting_main(argv[1:])
     parser = build_parser()
     try:
         args = parser.parse_args(argv)
