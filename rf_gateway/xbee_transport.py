@@ -25,6 +25,7 @@ from digi.xbee.models.address import XBee64BitAddress
 
 from rf_gateway.errors import RadioTimeout, RemoteCommandError, TransportUnavailable
 from rf_gateway.transport import DEFAULT_BAUD, DiscoveredRadio, StateReporter, normalize_address
+from rf_gateway.xbee_link_stats import LinkStats
 
 log = logging.getLogger(__name__)
 T = TypeVar("T")
@@ -83,6 +84,7 @@ class XBeeTransport(StateReporter):
         self._remotes: dict[str, RemoteXBeeDevice] = {}
         self._tasks: set[asyncio.Task[None]] = set()
         self.reopen_count = 0
+        self.link_stats = LinkStats()
 
     async def _call(self, fn: Callable[..., T], *args: Any) -> T:
         loop = asyncio.get_running_loop()
@@ -93,6 +95,7 @@ class XBeeTransport(StateReporter):
         device = XBeeDevice(self.port, self.baud)
         try:
             device.open()
+            device.add_packet_received_callback(self.link_stats.on_packet)
         except BaseException:
             with contextlib.suppress(Exception):
                 device.close()
@@ -113,6 +116,7 @@ class XBeeTransport(StateReporter):
         if self._state in ("open", "opening", "reopening"):
             return
         self._set_state("opening")
+        self.link_stats.attach()
         try:
             self._device = await self._call(self._open_device)
         except Exception as exc:
@@ -133,6 +137,7 @@ class XBeeTransport(StateReporter):
                 await task
         device, self._device = self._device, None
         await self._call(self._close_device, device)
+        self.link_stats.detach()
         self._executor.shutdown(wait=True)
         self._executor = ThreadPoolExecutor(max_workers=1, thread_name_prefix="xbee")
 

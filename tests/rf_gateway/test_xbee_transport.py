@@ -156,6 +156,12 @@ def test_gateway_over_faulty_link_applies_every_change_once(
     assert all(b.t_ns >= a.t_ns for a, b in itertools.pairwise(events))
     if counter is not None:
         assert emulator.counts[counter] > 0
+    link = gw.transport.link_stats  # type: ignore[attr-defined]
+    assert link.frames_received >= 10  # one reply per LED change of SEQUENCE
+    if counter == "corrupted":
+        assert link.invalid_frames >= emulator.counts["corrupted"]
+    if counter == "unknown_sent":
+        assert link.unknown_frames == emulator.counts["unknown_sent"]
     if counter in ("dropped", "corrupted"):
         # each lost reply cost one timeout and one retry, nothing else
         assert gw.stats.retries >= emulator.counts[counter]
