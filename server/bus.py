@@ -40,8 +40,9 @@ class Subscription(Generic[T]):
         self._cond = threading.Condition()
         self._waiter: asyncio.Future[None] | None = None
 
-    def offer(self, item: T) -> None:
-        """Queue `item` (dropping the oldest when full) and wake the consumer."""
+    def offer(self, item: T) -> asyncio.Future[None] | None:
+        """Queue `item` (dropping the oldest when full); returns the asyncio waiter to wake
+        (the bus wakes all of one publish with one loop call), or None."""
         with self._cond:
             if len(self._items) >= self.maxsize:
                 self._items.popleft()
@@ -50,9 +51,7 @@ class Subscription(Generic[T]):
             self._items.append(item)
             self._cond.notify()
             waiter, self._waiter = self._waiter, None
-        if waiter is not None:
-            with contextlib.suppress(RuntimeError):  # loop closed
-                waiter.get_loop().call_soon_threadsafe(_wake, waiter)
+        return waiter
 
     def drain(self) -> list[T]:
         """Everything queued now (possibly nothing), oldest first."""
@@ -108,6 +107,21 @@ def _wake(fut: asyncio.Future[None]) -> None:
         fut.set_result(None)
 
 
+def _wake_many(futs: list[asyncio.Future[None]]) -> None:
+    for fut in futs:
+        _wake(fut)
+
+
+def _wake_all(waiters: list[asyncio.Future[None]]) -> None:
+    """Wake asyncio waiters with one thread-safe call per event loop."""
+    by_loop: dict[asyncio.AbstractEventLoop, list[asyncio.Future[None]]] = {}
+    for w in waiters:
+        by_loop.setdefault(w.get_loop(), []).append(w)
+    for loop, futs in by_loop.items():
+        with contextlib.suppress(RuntimeError):  # loop closed
+            loop.call_soon_threadsafe(_wake_many, futs)
+
+
 class Bus(Generic[T]):
     """Fan-out of items to subscribers.
 
@@ -139,9 +153,14 @@ class Bus(Generic[T]):
     def publish(self, item: T) -> None:
         """Offer `item` to every subscriber that accepts it (never blocks)."""
         self.published += 1
+        waiters: list[asyncio.Future[None]] = []
         for sub in self._subs:
             if sub.accept is None or sub.accept(item):
-                sub.offer(item)
+                waiter = sub.offer(item)
+                if waiter is not None:
+                    waiters.append(waiter)
+        if waiters:
+            _wake_all(waiters)
 
     def __len__(self) -> int:
         return len(self._subs)

@@ -73,6 +73,29 @@ class PoseUpdate:
         return json.dumps(self.to_dict(), separators=(",", ":"))
 
 
+def pose_json(robot: str, mode: Mode, upd: PoseUpdate | None) -> str:
+    """`PosePublic` as JSON text, built without a model round trip (the hot endpoint)."""
+    if upd is None:
+        return json.dumps(
+            {
+                "robot": robot,
+                "mode": mode,
+                "t_ns": None,
+                "x": None,
+                "y": None,
+                "theta": None,
+                "covariance": None,
+                "landmark_ids": [],
+                "age_s": None,
+            }
+        )
+    d = upd.to_dict()
+    d.pop("computed_wall_ns")
+    d["mode"] = mode
+    d["age_s"] = max(0.0, (time.time_ns() - upd.computed_wall_ns) / 1e9)
+    return json.dumps(d, separators=(",", ":"))
+
+
 class PosePublic(BaseModel):
     """`GET /robots/{name}/pose`: the latest result of a robot's localizer."""
 
@@ -85,13 +108,3 @@ class PosePublic(BaseModel):
     covariance: list[list[float]] | None = None
     landmark_ids: list[int] = []
     age_s: float | None = None
-
-    @classmethod
-    def from_update(cls, robot: str, mode: Mode, upd: PoseUpdate | None) -> PosePublic:
-        if upd is None:
-            return cls(robot=robot, mode=mode)
-        d = upd.to_dict()
-        d.pop("computed_wall_ns")
-        d["mode"] = mode
-        d["age_s"] = max(0.0, (time.time_ns() - upd.computed_wall_ns) / 1e9)
-        return cls(**d)

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from fastapi import APIRouter, status
+from fastapi import APIRouter, Response, status
 from pydantic import BaseModel, Field
 
 from localizer.camera import camera_from_sensor
@@ -10,7 +10,7 @@ from localizer.events import Mode, OdometryMeasured
 from server.auth import Admin, Operator, Viewer
 from server.deps import RobotName, ServicesDep
 from server.models import RobotCreate, RobotPublic
-from server.poses import PosePublic
+from server.poses import PosePublic, pose_json
 
 router = APIRouter(prefix="/robots", tags=["robots"])
 
@@ -64,11 +64,11 @@ async def get_robot(name: RobotName, services: ServicesDep, _: Viewer) -> RobotS
     return _status(services, name)
 
 
-@router.get("/{name}/pose")
-async def get_pose(name: RobotName, services: ServicesDep, _: Viewer) -> PosePublic:
+@router.get("/{name}/pose", response_model=PosePublic)
+async def get_pose(name: RobotName, services: ServicesDep, _: Viewer) -> Response:
     """The latest pose: x, y, theta, covariance, mode, landmarks used, timestamp, age."""
     runner = services.robots.get(name)
-    return PosePublic.from_update(name, runner.mode, runner.latest)
+    return Response(pose_json(name, runner.mode, runner.latest), media_type="application/json")
 
 
 @router.post("/{name}/relocalize", status_code=status.HTTP_202_ACCEPTED)
