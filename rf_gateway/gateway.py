@@ -120,6 +120,8 @@ class Gateway:
         for task in tasks:
             with contextlib.suppress(asyncio.CancelledError, Exception):
                 await task
+        for lid in list(self._waiters):
+            self._fail_waiters(lid, 1 << 62, TransportUnavailable("the gateway was closed"))
         await self.transport.close()
 
     def _on_transport_state(self, state: TransportState) -> None:

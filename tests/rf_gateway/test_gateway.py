@@ -257,3 +257,17 @@ def test_update_landmarks_validates_and_forgets() -> None:
             await gw.led(3, False)
 
     run(main())
+
+
+def test_close_answers_pending_callers() -> None:
+    async def main() -> None:
+        gw, tr = make()
+        tr.delay_s = 10.0  # a command that would never come back in time
+        await gw.start()
+        pending = asyncio.create_task(gw.led(1, False))
+        await asyncio.sleep(0.01)
+        await gw.close()
+        with pytest.raises(TransportUnavailable, match="closed"):
+            await pending
+
+    run(main())
