@@ -22,8 +22,9 @@ class FusionConfig:
             (16.3 is the 99.9 % point of chi-square with 3 dof).
         tilt_from_landmarks: with 3+ landmarks also estimate the body tilt.
         lost_sigma_m: position standard deviation beyond which the localizer is lost, metres.
-        lost_after_rejections: this many consecutive rejected fixes (observations that
-            disagree with the map) make the localizer lost.
+        lost_after_rejections: this many consecutive frames with spots seen while 2+
+            landmarks are predicted in view but no accepted fix (observations that disagree
+            with the map) make the localizer lost.
         initial_sigma_m: position standard deviation of `set_initial_pose`, metres.
         initial_sigma_rad: heading standard deviation of `set_initial_pose`, radians.
         full_frame_every_s: in landmark or dead-reckoning mode with no tracked landmark,

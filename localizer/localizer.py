@@ -102,6 +102,7 @@ class Localizer:
         self._rejections = 0
         self._background: tuple[float, float] | None = None
         self._last_request: LedRequest | None = None
+        self._want_all = False
         self.set_map(landmark_map)
 
     # -- public API ----------------------------------------------------------------------------
@@ -116,7 +117,9 @@ class Localizer:
         return self._latest
 
     def set_map(self, landmark_map: LandmarkMap) -> None:
-        """Use a new map (IDs may change): identification starts over, the pose is kept."""
+        """Use a new map. The pose is kept and tracking goes on with the new map (if the
+        observations disagree with it the localizer gets lost and re-identifies); without a
+        pose, identification starts over."""
         self.map = landmark_map
         heights = landmark_map.positions[:, 2] - self.camera.T_body_camera[2, 3]
         self._ceiling_m = float(np.median(heights)) if len(heights) else 2.2
@@ -132,6 +135,8 @@ class Localizer:
             pixel_speed_px_s=self.robot.max_speed * self._scale + self._omega_max * half_diag,
         )
         self._start_identification()
+        if self._filter is not None and self._mode != "lost":
+            self._sweeping = False  # keep tracking with the new map; lost if it disagrees
 
     def set_initial_pose(self, x: float, y: float, theta: float, t_ns: int) -> None:
         """A prior pose (e.g. from the operator): outputs poses and guides identification."""
@@ -227,6 +232,13 @@ class Localizer:
                 self._reset_filter(fix.x, fix.y, fix.theta, fix.covariance, t)
                 self._mode = "landmark"
                 used = fix.landmark_ids
+            elif self._filter is not None:
+                # With a prior (lost, or an initial pose) also try a map-consistent hand-off.
+                used = self._track(e, dt_frame, spots=spots, reacquire=True)
+                if used:
+                    self._mode = "landmark"
+                    self._sweeping = False
+                    self._want_all = True
         else:
             used = self._track(e, dt_frame)
             self._mode = "landmark" if used else "dead_reckoning"
@@ -279,8 +291,21 @@ class Localizer:
                 return fix
         return None
 
-    def _track(self, e: FrameObserved | SpotsObserved, dt_frame: float) -> tuple[int, ...]:
-        """Find the lit landmarks near their predictions, solve and fuse; returns IDs used."""
+    def _track(
+        self,
+        e: FrameObserved | SpotsObserved,
+        dt_frame: float,
+        *,
+        spots: Spots | None = None,
+        reacquire: bool = False,
+    ) -> tuple[int, ...]:
+        """Find the lit landmarks near their predictions, solve and fuse; returns IDs used.
+
+        Args:
+            spots: the frame's spots when already detected (full frame).
+            reacquire: require a map-consistent hypothesis (also forced by a large
+                position uncertainty).
+        """
         filt = self._filter
         if filt is None:
             return ()
@@ -311,8 +336,10 @@ class Localizer:
             scale_px_per_m=self._scale,
         )
         gates = tc.min_half_size_px + tc.sigma_gate * pred.sigma_px + motion
-        reacquire = sigma_xy > self.config.handoff.reacquire_sigma_m
-        if isinstance(e, SpotsObserved):
+        reacquire = reacquire or sigma_xy > self.config.handoff.reacquire_sigma_m
+        if spots is not None:
+            pass
+        elif isinstance(e, SpotsObserved):
             spots = Spots(np.asarray(e.pixels, float).reshape(-1, 2), e.intensities, e.areas)
         elif reacquire or float(gates.max()) > tc.max_half_size_px:
             spots = self._full_spots(e)
@@ -323,6 +350,8 @@ class Localizer:
             )
         if len(spots) == 0:
             return ()
+        if len(pred) >= 2:
+            self._rejections += 1  # reset by a fused fix: spots seen but none explained
         if reacquire:
             pairs = self._reacquire(pred, spots, gates, pose, cov)
         else:
@@ -384,10 +413,8 @@ class Localizer:
             landmark_ids=ids,
         )
         if fix is None or fix.residual_rms_px > fc.max_residual_px:
-            self._rejections += 1
             return ()
         if not filt.update_fix(fix, max_nis=fc.nis_gate) <= fc.nis_gate:
-            self._rejections += 1
             return ()
         self._rejections = 0
         return ids
@@ -406,6 +433,14 @@ class Localizer:
         if sigma > fc.lost_sigma_m or self._rejections >= fc.lost_after_rejections:
             self._mode = "lost"
             self._start_identification()
+            if sigma < fc.lost_sigma_m:
+                # The observations disagree with the pose: widen its uncertainty so that a
+                # map-consistent re-acquisition can correct it.
+                x, y, th = (float(v) for v in self._filter.state)
+                cov = self._filter.covariance
+                cov[:2, :2] = np.eye(2) * fc.lost_sigma_m**2
+                cov[:2, 2] = cov[2, :2] = 0.0
+                self._filter.reset(x, y, th, cov)
 
     def _start_identification(self) -> None:
         ids = self.map.ids.tolist()
@@ -419,6 +454,10 @@ class Localizer:
 
     def _requests(self, t_ns: int) -> list[Output]:
         """LED requests of an identification in progress (the last one lights all)."""
+        if self._want_all:
+            self._want_all = False
+            if self._lit is not None:
+                return [LedRequest(all_lit=True)]
         if not self._sweeping:
             return []
         req = self._identifier.next_request(t_ns)

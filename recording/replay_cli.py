@@ -77,7 +77,7 @@ def replay(
         if not isinstance(item, FrameEntry):
             loc.handle(item)
             continue
-        image = cv2.imread(str(item.path), cv2.IMREAD_GRAYSCALE)
+        image = cv2.imread(str(item.path), cv2.IMREAD_GRAYSCALE) if item.path.is_file() else None
         if image is None:
             skipped += 1
             warn(f"{item.path}: missing or unreadable frame (cam0/data.csv:{item.line}), skipped")

@@ -1,0 +1,233 @@
+"""The Localizer state machine in closed loop: rendered frames -> poses, modes, edge cases."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from localizer.camera import CameraModel, T_body_camera_upward, predict_pixels
+from localizer.config import FusionConfig, LocalizerConfig
+from localizer.events import (
+    LedRequest,
+    LedsChanged,
+    NoPose,
+    OdometryMeasured,
+    PoseEstimate,
+    RelocalizeRequested,
+    SpotsObserved,
+)
+from localizer.geometry import T_world_body_from_pose
+from localizer.landmark_map import LandmarkMap
+from localizer.localizer import Localizer
+from localizer.robot import RobotGeometry
+from sim.cameras import wide_angle_camera
+from tests.localizer.drive import drive
+
+ROBOT = RobotGeometry(wheel_base=0.36, max_speed=1.0)
+TRIANGLE = LandmarkMap(
+    np.array([1, 2, 3]), np.array([[0.0, 0.0, 2.5], [1.2, 0.0, 2.5], [0.6, 1.0392, 2.45]])
+)
+MOUNTS = {
+    "centred": T_body_camera_upward(),
+    "offset_yaw90": T_body_camera_upward(yaw=math.pi / 2, offset_xy=(0.1, 0.0)),
+}
+
+
+def _camera(lens: str, mount: str) -> CameraModel:
+    return wide_angle_camera(lens, T_body_camera=MOUNTS[mount])  # type: ignore[arg-type]
+
+
+def _parked(pose):
+    return lambda t: pose
+
+
+@pytest.mark.parametrize("lens", ["pinhole", "fisheye"])
+@pytest.mark.parametrize("mount", list(MOUNTS))
+def test_round_trip_parked_pose_is_recovered(lens: str, mount: str) -> None:
+    cam = _camera(lens, mount)
+    pose = (0.45, 0.3, 0.7)
+    loc = Localizer(cam, TRIANGLE, ROBOT)
+    run = drive(loc, cam, TRIANGLE, _parked(pose), duration_s=1.0, wheel_base=0.36, seed=3)
+    first = next(i for i, o in enumerate(run.outputs) if isinstance(o, PoseEstimate))
+    assert run.times_ns[first] < 0.5e9  # first fix well within 2 s
+    err = run.errors_m()[first:]
+    assert np.max(err) < 0.003
+    assert np.degrees(np.max(run.heading_errors_rad()[first:])) < 0.05
+    assert np.std(err) < 0.001  # jitter
+    assert run.modes()[-1] == "landmark"
+    assert run.outputs[-1].landmark_ids == (1, 2, 3)
+    assert run.requests[0] == LedRequest(lit=frozenset())
+    assert run.requests[-1] == LedRequest(all_lit=True)
+
+
+def test_moving_robot_is_tracked_with_both_lenses_and_offset_mount() -> None:
+    for lens in ("pinhole", "fisheye"):
+        cam = _camera(lens, "offset_yaw90")
+        loc = Localizer(cam, TRIANGLE, ROBOT)
+        traj = lambda t: (  # noqa: E731 - a circle of radius 0.4 m at 0.3 m/s
+            0.6 + 0.4 * math.sin(0.75 * t),
+            0.2 + 0.4 * (1 - math.cos(0.75 * t)),
+            0.75 * t,
+        )
+        run = drive(loc, cam, TRIANGLE, traj, duration_s=3.0, wheel_base=0.36, seed=5)
+        err = run.errors_m()
+        assert np.nanmax(err) < 0.005
+        assert run.modes().count("landmark") > 0.9 * len(run.outputs)
+
+
+@pytest.mark.parametrize("theta", [math.pi - 1e-3, -math.pi + 1e-3, math.pi])
+def test_heading_near_pi(theta: float) -> None:
+    cam = _camera("pinhole", "centred")
+    loc = Localizer(cam, TRIANGLE, ROBOT)
+    run = drive(loc, cam, TRIANGLE, _parked((0.6, 0.35, theta)), duration_s=0.6, wheel_base=0.36)
+    est = run.outputs[-1]
+    assert isinstance(est, PoseEstimate)
+    assert -math.pi < est.theta <= math.pi
+    assert np.degrees(run.heading_errors_rad()[-1]) < 0.05
+
+
+def test_one_landmark_gives_no_pose() -> None:
+    cam = _camera("pinhole", "centred")
+    one = LandmarkMap(np.array([7]), np.array([[0.0, 0.0, 2.5]]))
+    loc = Localizer(cam, one, ROBOT)
+    run = drive(loc, cam, one, _parked((0.1, 0.0, 0.0)), duration_s=0.5, wheel_base=0.36)
+    assert all(isinstance(o, NoPose) and o.mode == "identifying" for o in run.outputs)
+    assert loc.latest is None
+
+
+def test_no_landmark_in_view_gives_no_pose() -> None:
+    cam = _camera("pinhole", "centred")
+    loc = Localizer(cam, TRIANGLE, ROBOT)
+    run = drive(loc, cam, TRIANGLE, _parked((20.0, 20.0, 0.0)), duration_s=0.5, wheel_base=0.36)
+    assert all(isinstance(o, NoPose) for o in run.outputs)
+
+
+def test_glint_beside_a_landmark_and_a_dead_landmark_do_not_fool_it() -> None:
+    cam = _camera("fisheye", "offset_yaw90")
+    four = LandmarkMap(
+        np.array([1, 2, 3, 4]),
+        np.array([[0.0, 0.0, 2.5], [1.2, 0.0, 2.5], [0.6, 1.0392, 2.45], [0.6, -0.8, 2.5]]),
+    )
+    glint = np.array([[1.2, 0.08, 2.5]])  # always on, 8 cm beside landmark 2
+    loc = Localizer(cam, four, ROBOT)
+    run = drive(
+        loc, cam, four, _parked((0.5, 0.2, -0.4)), duration_s=1.2, wheel_base=0.36,
+        dead_ids=[1], strays_world=glint,
+    )  # fmt: skip
+    poses = [o for o in run.outputs if isinstance(o, PoseEstimate)]
+    assert poses
+    assert np.nanmax(run.errors_m()) < 0.003
+    assert all(1 not in o.landmark_ids for o in poses)
+
+
+def test_overlapping_search_windows_while_spinning_fast() -> None:
+    cam = _camera("pinhole", "centred")
+    close = LandmarkMap(
+        np.array([1, 2, 3]), np.array([[0.0, 0.0, 2.5], [0.12, 0.0, 2.5], [0.0, 0.9, 2.5]])
+    )
+    loc = Localizer(cam, close, ROBOT)
+    run = drive(
+        loc, cam, close, lambda t: (0.05, 0.3, 4.0 * max(t - 0.4, 0.0)), duration_s=2.0,
+        wheel_base=0.36,
+    )  # fmt: skip
+    assert np.nanmax(run.errors_m()) < 0.005
+    assert np.degrees(np.nanmax(run.heading_errors_rad())) < 0.2
+    modes = run.modes()
+    assert set(modes[modes.index("landmark") :]) == {"landmark"}
+
+
+def test_sparse_pairs_dead_reckoning_and_re_acquisition() -> None:
+    cam = _camera("pinhole", "centred")
+    pairs = LandmarkMap(
+        np.array([1, 2, 3, 4]),
+        np.array([[0.0, 0.0, 2.5], [0.8, 0.0, 2.5], [6.0, 0.0, 2.5], [6.8, 0.0, 2.5]]),
+    )
+    loc = Localizer(cam, pairs, ROBOT)
+
+    def traj(t: float):  # parked, then straight along +x at 0.5 m/s, then parked
+        return (0.4 + 0.5 * min(max(t - 0.5, 0.0), 12.0), 0.3, 0.0)
+
+    run = drive(
+        loc, cam, pairs, traj, duration_s=13.5, wheel_base=0.36, seed=2, odom_scale=(1.01, 0.99)
+    )
+    modes = run.modes()
+    assert "dead_reckoning" in modes
+    assert modes[-1] == "landmark"
+    final = run.outputs[-1]
+    assert isinstance(final, PoseEstimate)
+    assert set(final.landmark_ids) == {3, 4}
+    assert run.errors_m()[-1] < 0.003
+    # Every fix used landmarks that were really in view.
+    for o, truth in zip(run.outputs, run.truth, strict=True):
+        if isinstance(o, PoseEstimate) and o.landmark_ids:
+            near = {1, 2} if truth[0] < 3.4 else {3, 4}
+            assert set(o.landmark_ids) <= near
+
+
+@pytest.mark.slow
+def test_sparse_pairs_long_gap_converges() -> None:
+    test_sparse_pairs_dead_reckoning_and_re_acquisition()
+
+
+def test_relocalize_request_identifies_again() -> None:
+    cam = _camera("pinhole", "centred")
+    loc = Localizer(cam, TRIANGLE, ROBOT)
+    drive(loc, cam, TRIANGLE, _parked((0.6, 0.3, 0.0)), duration_s=0.5, wheel_base=0.36)
+    assert loc.mode == "landmark"
+    outs = loc.handle(RelocalizeRequested(10**9))
+    assert loc.mode == "identifying"
+    assert outs == [LedRequest(lit=frozenset())]
+
+
+def test_spots_observed_input_and_lost_when_the_map_disagrees() -> None:
+    cam = _camera("pinhole", "centred")
+    cfg = LocalizerConfig(fusion=FusionConfig(lost_after_rejections=5))
+    loc = Localizer(cam, TRIANGLE, ROBOT, cfg)
+    pose = (0.5, 0.4, 0.3)
+    T = T_world_body_from_pose(*pose)
+
+    def spots(t_ns: int, lit: list[int], landmarks: LandmarkMap) -> SpotsObserved:
+        rows = [landmarks.index_of(i) for i in lit]
+        px, _ = predict_pixels(cam, T, landmarks.positions[rows].reshape(-1, 3))
+        n = len(px)
+        return SpotsObserved(t_ns, px, np.full(n, 1000.0), np.full(n, 12.0))
+
+    t = 0
+    lit: list[int] = [1, 2, 3]
+    modes = []
+    for _ in range(12):
+        t += 33_000_000
+        for o in loc.handle(spots(t, lit, TRIANGLE)):
+            if isinstance(o, LedRequest):
+                lit = [1, 2, 3] if o.all_lit else sorted(o.lit)
+                loc.handle(LedsChanged(t + 1, o.lit, all_lit=o.all_lit))
+            else:
+                modes.append(o.mode)
+    assert modes[-1] == "landmark"
+    assert loc.latest is not None
+    np.testing.assert_allclose([loc.latest.x, loc.latest.y, loc.latest.theta], pose, atol=1e-4)
+    # The map is replaced by one shifted 0.5 m: the spots no longer agree -> lost.
+    shifted = LandmarkMap(TRIANGLE.ids, TRIANGLE.positions + np.array([0.5, 0.0, 0.0]))
+    loc.set_map(shifted)
+    lit = [1, 2, 3]
+    seen = []
+    for _ in range(40):
+        t += 33_000_000
+        loc.handle(OdometryMeasured(t - 1, 0.0, 0.0))
+        for o in loc.handle(spots(t, lit, TRIANGLE)):
+            if isinstance(o, LedRequest):
+                lit = [1, 2, 3] if o.all_lit else sorted(o.lit)
+                loc.handle(LedsChanged(t + 1, o.lit, all_lit=o.all_lit))
+            else:
+                seen.append(o.mode)
+    assert "lost" in seen
+    assert seen[-1] == "landmark"
+    assert loc.latest.x == pytest.approx(pose[0] + 0.5, abs=1e-3)
+
+
+def test_unknown_event_is_a_type_error() -> None:
+    loc = Localizer(_camera("pinhole", "centred"), TRIANGLE, ROBOT)
+    with pytest.raises(TypeError):
+        loc.handle("frame")  # type: ignore[arg-type]
