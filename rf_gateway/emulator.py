@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from rf_gateway import frames as fr
+from rf_gateway.frame_parser import StreamParser
 
 AP_API = 1
 AP_ESCAPED = 2
@@ -127,7 +128,7 @@ class XBeeEmulator:
         self.node_id = node_id
         self.tx_failure_delay_s = tx_failure_delay_s
         self.nt_100ms = 0x10
-        self.parser = fr.StreamParser(escaped=escaped)
+        self.parser = StreamParser(escaped=escaped)
         self.counts: Counter[str] = Counter()
         self._rng = random.Random(self.faults.seed)
         self._lock = threading.Lock()
@@ -185,7 +186,7 @@ class XBeeEmulator:
             tty.setraw(master)
             tty.setraw(slave)
             self._master, self._slave = master, slave
-            self.parser = fr.StreamParser(escaped=self.escaped)
+            self.parser = StreamParser(escaped=self.escaped)
             with contextlib.suppress(FileNotFoundError):
                 self.port.unlink()
             self.port.symlink_to(os.ttyname(slave))

@@ -19,6 +19,7 @@ from rf_gateway.config import GatewayConfig
 from rf_gateway.emulator import EmulatedRemote, FaultConfig, XBeeEmulator
 from rf_gateway.errors import RadioTimeout, RemoteCommandError, TransportUnavailable
 from rf_gateway.events import TransportStateChanged
+from rf_gateway.frame_parser import StreamParser
 from rf_gateway.gateway import Gateway
 from rf_gateway.transport import DiscoveredRadio
 from rf_gateway.xbee_transport import XBeeTransport, XBeeTransportConfig
@@ -193,7 +194,7 @@ def test_our_parser_counts_and_skips_garbage_sent_over_the_serial_line(
         port.write(b"\x00\x41\x42" + bytes(bad) + good[:4] + unknown + good)
         header = port.read(3)
         assert header[0] == fr.START
-        reply = fr.StreamParser(escaped=emulator.escaped).feed(header + port.read(64))
+        reply = StreamParser(escaped=emulator.escaped).feed(header + port.read(64))
     assert fr.decode(reply[0]) == fr.AtResponse(7, "NI", 0, b"COORDINATOR")
     stats = emulator.parser.stats
     assert (stats.garbage_bytes, stats.bad_checksums + stats.truncated, stats.frames) == (3, 2, 2)
@@ -251,7 +252,7 @@ def test_transmit_requests_get_a_transmit_status(emulator: XBeeEmulator) -> None
     ]
     with serial.Serial(str(emulator.port), 9600, timeout=0.5) as port:
         port.write(b"".join(fr.wrap(fr.encode(r), escaped=esc) for r in requests))
-        parser = fr.StreamParser(escaped=esc)
+        parser = StreamParser(escaped=esc)
         got: list[fr.ApiFrame] = []
         while len(got) < 2:
             chunk = port.read(32)
