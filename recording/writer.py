@@ -8,7 +8,9 @@ made; the CSV files grow line by line. Timestamps must not go backwards within a
 from __future__ import annotations
 
 import json
+from collections import deque
 from collections.abc import Iterable, Mapping
+from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
 from types import TracebackType
 from typing import Any, TextIO
@@ -69,7 +71,9 @@ class RecordingWriter:
         camera: the nominal camera, written to cam0/sensor.yaml.
         robot: the wheel geometry, written to robot.yaml.
         landmark_records: map.json's landmark objects (`id`, `x`, `y`, `z`, extra keys kept).
-        png_compression: zlib level of the PNGs, 0-9 (1: fast, the frames are noisy anyway).
+        png_compression: zlib level of the PNGs, 0-9 (Huffman-only: fast, and the frames'
+            sensor noise defeats the rest of deflate anyway).
+        png_threads: PNGs are encoded on this many threads (OpenCV releases the GIL).
 
     Raises:
         ValueError: the landmark records do not make a valid map.
@@ -82,10 +86,14 @@ class RecordingWriter:
         robot: RobotGeometry,
         landmark_records: Iterable[Mapping[str, Any]],
         *,
-        png_compression: int = 1,
+        png_compression: int = 3,
+        png_threads: int = 2,
     ) -> None:
         self.root = Path(root)
         self.png_compression = png_compression
+        self._pool_workers = max(png_threads, 1)
+        self._pool = ThreadPoolExecutor(self._pool_workers, thread_name_prefix="png")
+        self._pending: deque[Future[None]] = deque()
         records = [dict(r) for r in landmark_records]
         self.landmark_map = LandmarkMap.from_records(records, source="landmark_records")
         (self.root / layout.FRAMES_DIR).mkdir(parents=True, exist_ok=True)
@@ -121,9 +129,18 @@ class RecordingWriter:
         name = f"{int(t_ns)}.png"
         self._frames.write(t_ns, [name])
         path = self.root / layout.FRAMES_DIR / name
-        if not cv2.imwrite(str(path), img, [cv2.IMWRITE_PNG_COMPRESSION, self.png_compression]):
-            raise OSError(f"{path}: could not write the PNG")
+        while len(self._pending) >= 2 * self._pool_workers:
+            self._pending.popleft().result()
+        self._pending.append(self._pool.submit(self._write_png, path, img.copy()))
         return path
+
+    def _write_png(self, path: Path, image: npt.NDArray[np.uint8]) -> None:
+        params = [
+            cv2.IMWRITE_PNG_COMPRESSION, self.png_compression,
+            cv2.IMWRITE_PNG_STRATEGY, cv2.IMWRITE_PNG_STRATEGY_HUFFMAN_ONLY,
+        ]  # fmt: skip
+        if not cv2.imwrite(str(path), image, params):
+            raise OSError(f"{path}: could not write the PNG")
 
     def add_odometry(self, t_ns: int, v_left: float, v_right: float) -> None:
         """Add measured wheel speeds (m/s) at `t_ns`."""
@@ -151,7 +168,16 @@ class RecordingWriter:
         self._groundtruth.write(t_ns, [_number(x), _number(y), _number(theta)])
 
     def close(self) -> None:
-        """Flush and close every file; idempotent."""
+        """Finish writing the PNGs, flush and close every file; idempotent.
+
+        Raises:
+            OSError: a PNG could not be written.
+        """
+        try:
+            while self._pending:
+                self._pending.popleft().result()
+        finally:
+            self._pool.shutdown(wait=True)
         for f in (self._frames, self._odometry, self._leds, self._groundtruth):
             f.close()
 

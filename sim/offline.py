@@ -1,0 +1,169 @@
+"""Simulate one robot of a scenario offline and write a recording plus its ground truth.
+
+The recording starts as a live start-up would (Sec. III-A): all LEDs dark, then one landmark
+at a time lit, nearest the robot first, for a few frames each, until two have been seen; then
+every LED. The robot stands still during this sweep and sets off once all LEDs are lit.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from localizer.camera import predict_pixels
+from localizer.events import LedsChanged, OdometryMeasured
+from localizer.geometry import T_world_body_from_pose
+from recording.writer import RecordingWriter
+from sim.build import RobotRig, build_robot, build_world, seed_generators
+from sim.cameras import Lens
+from sim.live import render_view
+from sim.robot import FramePose
+from sim.scenario import Scenario
+from sim.world import World
+
+NS = 1_000_000_000
+
+
+@dataclass(frozen=True)
+class SweepConfig:
+    """The identification sweep at the start of a recording.
+
+    Attributes:
+        frames_per_landmark: camera frames each landmark stays lit alone.
+        radio_latency_s: from one landmark's LED change to the next one's command.
+        settle_s: time with every LED lit before the robot drives off.
+        max_candidates: landmarks tried at most.
+        min_brightness: a lit landmark dimmer than this (relative) counts as not seen.
+    """
+
+    frames_per_landmark: int = 3
+    radio_latency_s: float = 0.03
+    settle_s: float = 0.5
+    max_candidates: int = 12
+    min_brightness: float = 0.1
+
+
+@dataclass(frozen=True)
+class SimulationSummary:
+    """What `simulate_recording` wrote."""
+
+    frames: int
+    odometry: int
+    led_changes: int
+    sweep_end_ns: int
+
+
+def visible_landmarks(world: World, rig: RobotRig, pose: tuple[float, float, float]) -> set[int]:
+    """Landmarks whose lit LED the robot's true camera would see from a planar pose."""
+    T = T_world_body_from_pose(*pose)
+    ids = list(world.landmarks)
+    p = np.array([world.landmarks[i].p_true for i in ids])
+    _, valid = predict_pixels(rig.camera_true, T, p)
+    return {i for i, ok in zip(ids, valid, strict=True) if ok}
+
+
+def sweep_schedule(
+    world: World, rig: RobotRig, config: SweepConfig, t_start_ns: int
+) -> tuple[list[LedsChanged], int]:
+    """The LED changes of the identification sweep and the time the robot may drive off.
+
+    Landmarks are tried nearest the robot's start first (by the surveyed map), skipping those
+    the radio cannot reach (a live run gets no acknowledgement from them).
+    """
+    x, y, _ = rig.spec.start
+    visible = visible_landmarks(world, rig, rig.spec.start)
+    reachable = [lm for lm in world.landmarks.values() if lm.reachable]
+    reachable.sort(key=lambda lm: float(np.hypot(lm.p_surveyed[0] - x, lm.p_surveyed[1] - y)))
+    period_ns = round(NS / rig.camera_true.rate_hz)
+    per_ns = config.frames_per_landmark * period_ns + round(config.radio_latency_s * NS)
+    per_ns = -(-per_ns // 1_000_000) * 1_000_000  # whole milliseconds: readable leds.csv
+    events = [LedsChanged(t_start_ns)]
+    t, seen = t_start_ns + round(config.radio_latency_s * NS), 0
+    for lm in reachable[: config.max_candidates]:
+        events.append(LedsChanged(t, frozenset({lm.id})))
+        t += per_ns
+        if lm.id in visible and lm.battery.led_brightness() >= config.min_brightness:
+            seen += 1
+            if seen >= 2:
+                break
+    events.append(LedsChanged(t, all_lit=True))
+    return events, t + round(config.settle_s * NS)
+
+
+def simulate_recording(
+    scenario: Scenario,
+    out_dir: Path | str,
+    *,
+    seed: int | None = None,
+    duration_s: float | None = None,
+    lens: Lens | None = None,
+    robot: str | None = None,
+    sweep: SweepConfig | None = None,
+    progress: Callable[[float], None] | None = None,
+) -> SimulationSummary:
+    """Write a recording (and groundtruth.csv) of one robot of a scenario.
+
+    Args:
+        scenario: the site.
+        out_dir: the recording folder (created).
+        seed: overrides the scenario's seed.
+        duration_s: recording length from the start of the sweep (default: the scenario's).
+        lens: overrides every camera's lens.
+        robot: which robot (default: the first).
+        sweep: the identification sweep.
+        progress: called with the simulated seconds done, now and then.
+
+    Raises:
+        ValueError: unknown robot name.
+    """
+    sc = scenario.with_lens(lens) if lens else scenario
+    names = [r.name for r in sc.robots]
+    name = robot or names[0]
+    if name not in names:
+        raise ValueError(f"unknown robot {name!r}; the scenario has {names}")
+    sc = dataclasses.replace(sc, robots=tuple(r for r in sc.robots if r.name == name))
+    gens = seed_generators(sc.seed if seed is None else seed, 4)
+    world = build_world(sc, gens[0])
+    rig = build_robot(sc.robots[0], sc, gens[3], index=0)
+    end_ns = round((sc.duration_s if duration_s is None else duration_s) * NS)
+
+    leds, drive_ns = sweep_schedule(world, rig, sweep or SweepConfig(), 0)
+    rig.robot.paused_until_ns = drive_ns
+    frames = odometry = 0
+    with RecordingWriter(out_dir, rig.camera_nominal, rig.geometry, world.landmark_records()) as w:
+        pending = list(leds)
+        t_ns = 0
+        while t_ns < end_ns:
+            t_ns = min(t_ns + NS // 10, end_ns)
+            for item in rig.robot.advance_to(t_ns):
+                while pending and pending[0].t_ns <= item.t_ns:
+                    change = pending.pop(0)
+                    world.set_lit(None if change.all_lit else set(change.lit))
+                    w.add_leds(change)
+                if isinstance(item, OdometryMeasured):
+                    w.add_odometry(item.t_ns, item.v_left, item.v_right)
+                    odometry += 1
+                else:
+                    _write_frame(w, world, rig, item, gens[2], sc)
+                    frames += 1
+            if progress is not None:
+                progress(t_ns / NS)
+    return SimulationSummary(frames, odometry, len(leds) - len(pending), drive_ns)
+
+
+def _write_frame(
+    writer: RecordingWriter,
+    world: World,
+    rig: RobotRig,
+    item: FramePose,
+    rng: np.random.Generator,
+    scenario: Scenario,
+) -> None:
+    world.advance(item.t_ns)
+    image = render_view(world, rig.camera_true, item.T_world_body, rng, scenario.render)
+    writer.add_frame(item.t_ns, image)
+    writer.add_groundtruth(item.t_ns, *item.pose)
