@@ -139,7 +139,8 @@ def _find_chessboard(
     flags = cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE
     found, corners = cv2.findChessboardCorners(gray, pattern, flags=flags)
     if found and corners is not None:
-        half = _subpix_half_window(np.asarray(corners).reshape(pattern[1], pattern[0], 2))
+        grid = np.asarray(corners, dtype=np.float64).reshape(pattern[1], pattern[0], 2)
+        half = _subpix_half_window(grid)
         corners = cv2.cornerSubPix(gray, corners, (half, half), (-1, -1), _SUBPIX_CRITERIA)
     else:
         found, corners = cv2.findChessboardCornersSB(
@@ -153,7 +154,7 @@ def _find_chessboard(
     return BoardCorners(image_points=pts, object_points=object_points.copy())
 
 
-def _subpix_half_window(grid: npt.NDArray[np.floating]) -> int:
+def _subpix_half_window(grid: FloatArray) -> int:
     """Half-size of the `cornerSubPix` window: OpenCV's usual 11 px, but at most half the
     smallest spacing between neighbouring corners (shape (rows, cols, 2)), so that the window
     never reaches the next corner of a small or distant board (a bias of pixels otherwise).
@@ -168,7 +169,7 @@ def _find_charuco(gray: npt.NDArray[np.uint8], board: BoardSpec) -> BoardCorners
     corners, ids, _, _ = cv2.aruco.CharucoDetector(cv_board).detectBoard(gray)
     if corners is None or ids is None or len(ids) < board.min_charuco_corners:
         return None
-    obj, img = cv_board.matchImagePoints(corners, ids)
+    obj, img = cv_board.matchImagePoints(corners, ids)  # type: ignore[call-overload]
     pts = np.asarray(img, dtype=np.float64).reshape(-1, 2)
     obj_pts = np.asarray(obj, dtype=np.float64).reshape(-1, 3)
     # corners on one line fix no homography: demand a spread in both board axes

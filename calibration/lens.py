@@ -302,7 +302,7 @@ def _calibrate(views: Sequence[BoardCorners], resolution: tuple[int, int], model
         else:
             obj = [v.object_points.astype(np.float32) for v in views]
             img = [v.image_points.astype(np.float32) for v in views]
-            out = cv2.calibrateCameraExtended(obj, img, resolution, None, None)
+            out = cv2.calibrateCameraExtended(obj, img, resolution, None, None)  # type: ignore[call-overload]
             _, K, D, rvecs, tvecs, std_int = out[:6]
             std = np.asarray(std_int, dtype=np.float64).reshape(-1)[:4]
             proj = [

@@ -177,7 +177,10 @@ def estimate_mounting(
         raise ValueError("mounting: odometry times must increase")
     if not np.isfinite(wheel_base_m) or wheel_base_m <= 0:
         raise ValueError(f"mounting: wheel base must be positive, got {wheel_base_m!r}")
-    v, omega = odometry_increments(np.interp(t, to, vl), np.interp(t, to, vr), 1.0, wheel_base_m)
+    v_any, omega_any = odometry_increments(
+        np.interp(t, to, vl), np.interp(t, to, vr), 1.0, wheel_base_m
+    )
+    v, omega = np.asarray(v_any, dtype=np.float64), np.asarray(omega_any, dtype=np.float64)
     turning = (np.abs(v) <= cfg.turn_max_speed_m_s) & (np.abs(omega) >= cfg.turn_min_rate_rad_s)
     straight = (np.abs(v) >= cfg.straight_min_speed_m_s) & (
         np.abs(omega) <= cfg.straight_max_rate_rad_s
@@ -238,7 +241,7 @@ def estimate_mounting(
         height_m=float(T_bc[2, 3]),
         yaw_std_rad=float(np.sqrt(yaw_var)),
         offset_std_m=np.sqrt(np.diag(cov_o)),
-        turn_centre_world=p0,
+        turn_centre_world=np.asarray(p0, dtype=np.float64),
         circle_residuals_m=circle_res,
         line_residuals_m=line_res,
         turn_angle_camera_rad=float(psi_turn[-1] - psi_turn[0]),

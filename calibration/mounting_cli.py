@@ -15,8 +15,10 @@ import sys
 from bisect import bisect_right
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import cv2
+import numpy as np
 import yaml
 
 from calibration.cli import write_atomic
@@ -44,11 +46,12 @@ def _frames(rec: Recording) -> Iterator[tuple[int, FloatArray, frozenset[int] | 
     led_times = [e.t_ns for e in rec.leds]
     config = DetectionConfig()
     for entry in rec.frames:
-        image = cv2.imread(str(entry.path), cv2.IMREAD_GRAYSCALE)
-        if image is None:
+        decoded = cv2.imread(str(entry.path), cv2.IMREAD_GRAYSCALE)
+        if decoded is None:
             raise ValueError(
                 f"{entry.path}: cannot read the frame (cam0/data.csv line {entry.line})"
             )
+        image = np.asarray(decoded, dtype=np.uint8)
         k = bisect_right(led_times, entry.t_ns) - 1
         lit = None if k < 0 or rec.leds[k].all_lit else rec.leds[k].lit
         yield entry.t_ns, detect_spots(image, config).pixels, lit
@@ -68,7 +71,7 @@ def calibrate_recording(root: Path) -> tuple[Recording, MountingCalibration]:
 
 
 def summary(result: MountingCalibration) -> str:
-    d = result.to_dict()
+    d: dict[str, Any] = result.to_dict()
     return "\n".join(
         [
             f"yaw: {d['yaw_deg']:.3f} deg +- {d['yaw_std_deg']:.3f}",

@@ -57,7 +57,8 @@ def board_centre(board: BoardSpec) -> FloatArray:
     pts = board.object_points()
     if board.kind == "charuco":
         pts = pts + np.array([board.square_m, board.square_m, 0.0])
-    return 0.5 * (pts.min(axis=0) + pts.max(axis=0))
+    centre: FloatArray = 0.5 * (pts.min(axis=0) + pts.max(axis=0))
+    return centre
 
 
 def board_pose_facing(
@@ -175,4 +176,5 @@ class BoardRenderer:
         if blur_sigma_px > 0:
             img = cv2.GaussianBlur(img, (0, 0), blur_sigma_px)
         img = img + rng.normal(0.0, noise_sigma, img.shape)
-        return np.clip(np.rint(img), 0, 255).astype(np.uint8)
+        out: ImageU8 = np.clip(np.rint(img), 0, 255).astype(np.uint8)
+        return out
