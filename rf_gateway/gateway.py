@@ -245,10 +245,14 @@ class Gateway:
             ):
                 self.stats.skipped += 1
                 continue
-            self._seq += 1
-            self._desired[lid] = (level, self._seq)
+            if pending and self._desired[lid][0] == level:
+                seq = self._desired[lid][1]  # already on its way: wait for that command
+            else:
+                self._seq += 1
+                seq = self._seq
+                self._desired[lid] = (level, seq)
             fut: asyncio.Future[int] = loop.create_future()
-            self._waiters.setdefault(lid, []).append((self._seq, fut))
+            self._waiters.setdefault(lid, []).append((seq, fut))
             self._led_priority[lid] = min(self._led_priority.get(lid, priority), priority)
             waits.append((lid, fut))
             if not pending:

@@ -271,3 +271,18 @@ def test_close_answers_pending_callers() -> None:
             await pending
 
     run(main())
+
+
+def test_same_level_requested_while_in_flight_is_sent_once() -> None:
+    async def main() -> list[tuple[object, ...]]:
+        gw, tr = make()
+        tr.delay_s = 0.01
+        await gw.start()
+        async with gw.sweep():
+            first = asyncio.create_task(gw.led(2, True))
+            await asyncio.sleep(0.002)
+            events = await asyncio.gather(first, gw.led(2, True))
+        assert events[0] == events[1] == LedsChanged(1000, lit=frozenset({2}))
+        return tr.log
+
+    assert run(main()) == [("pin", ADDR[2], True)]
