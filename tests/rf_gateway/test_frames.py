@@ -1,6 +1,8 @@
 from __future__ import annotations
 
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
 from rf_gateway import frames as fr
 from rf_gateway.frame_parser import ParserStats, StreamParser
@@ -61,3 +63,22 @@ def test_bad_command_and_length_raise() -> None:
         fr.encode(fr.LocalAtCommand(1, "NDX"))
     with pytest.raises(ValueError, match="length"):
         fr.wrap(b"")
+
+
+@given(
+    st.integers(0, 255),
+    st.integers(0, 2**64 - 1),
+    st.integers(0, 0xFFFF),
+    st.sampled_from(["D4", "%V", "NI", "P2"]),
+    st.integers(0, 255),
+    st.binary(max_size=40),
+    st.booleans(),
+)
+def test_remote_response_round_trips_for_any_field_values(
+    frame_id: int, a64: int, a16: int, cmd: str, status: int, data: bytes, escaped: bool
+) -> None:
+    frame = fr.RemoteAtResponse(frame_id, a64, a16, cmd, status, data)
+    parser = StreamParser(escaped=escaped)
+    assert [fr.decode(d) for d in parser.feed(fr.wrap(fr.encode(frame), escaped=escaped))] == [
+        frame
+    ]
