@@ -2,7 +2,8 @@
 
 Two kinds of board:
 - a plain chessboard, found with `cv2.findChessboardCorners` and refined with
-  `cv2.cornerSubPix` (falling back to `cv2.findChessboardCornersSB`);
+  `cv2.cornerSubPix` (falling back to the slower `cv2.findChessboardCornersSB`, which copes
+  better with strong distortion, when `cv2.checkChessboard` sees a board);
 - a ChArUco board (`cv2.aruco.CharucoDetector`), whose corners carry IDs, so a board that is
   only partly in view (at the edge of a wide lens) still gives usable corners.
 
@@ -142,12 +143,14 @@ def _find_chessboard(
         grid = np.asarray(corners, dtype=np.float64).reshape(pattern[1], pattern[0], 2)
         half = _subpix_half_window(grid)
         corners = cv2.cornerSubPix(gray, corners, (half, half), (-1, -1), _SUBPIX_CRITERIA)
-    else:
+    elif cv2.checkChessboard(gray, pattern):  # cheap test: is there a board at all?
         found, corners = cv2.findChessboardCornersSB(
             gray, pattern, flags=cv2.CALIB_CB_EXHAUSTIVE | cv2.CALIB_CB_ACCURACY
         )
         if not found or corners is None:
             return None
+    else:
+        return None
     pts = np.asarray(corners, dtype=np.float64).reshape(-1, 2)
     if len(pts) != len(object_points):
         return None
