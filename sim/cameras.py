@@ -56,11 +56,11 @@ def perturbed_camera(
     nominal: CameraModel,
     rng: np.random.Generator,
     *,
-    focal_rel_sigma: float = 0.003,
-    principal_sigma_px: float = 1.0,
-    distortion_sigma: float = 0.004,
-    mount_angle_sigma_rad: float = 0.003,
-    mount_offset_sigma_m: float = 0.002,
+    focal_rel_sigma: float = 0.001,
+    principal_sigma_px: float = 0.3,
+    distortion_sigma: float = 0.0005,
+    mount_angle_sigma_rad: float = 0.001,
+    mount_offset_sigma_m: float = 0.001,
 ) -> CameraModel:
     """The true camera behind a calibrated nominal one: the calibration's residual errors.
 
