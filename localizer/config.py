@@ -16,11 +16,16 @@ class FusionConfig:
     """Pose solving, fusion and the mode logic.
 
     Attributes:
-        pixel_sigma_px: standard deviation of a spot centre per axis, pixels (solver weight).
+        pixel_sigma_px: standard deviation of a spot's position per axis, pixels: centroid
+            noise plus what the calibration leaves (solver weight and fix covariance; too
+            small a value makes honest fixes fail the innovation gate).
         max_residual_px: a fix whose reprojection RMS exceeds this is inconsistent, pixels.
         nis_gate: a fix whose normalised innovation squared (3 dof) exceeds this is rejected
             (16.3 is the 99.9 % point of chi-square with 3 dof).
-        tilt_from_landmarks: with 3+ landmarks also estimate the body tilt.
+        tilt_from_landmarks: with 3+ landmarks also estimate the body tilt (taken only when
+            it explains the spots significantly better, see `solve_pose`).
+        tilt_sigma_rad: zero-mean prior on that tilt, radians (a tilt moves every spot
+            almost like a translation, so an unconstrained one is noisy).
         lost_sigma_m: position standard deviation beyond which the localizer is lost, metres.
         lost_after_rejections: this many consecutive frames with spots seen while 2+
             landmarks are predicted in view but no accepted fix (observations that disagree
@@ -34,10 +39,11 @@ class FusionConfig:
             to the current frame, seconds.
     """
 
-    pixel_sigma_px: float = 0.3
+    pixel_sigma_px: float = 1.0
     max_residual_px: float = 2.0
     nis_gate: float = 16.3
     tilt_from_landmarks: bool = True
+    tilt_sigma_rad: float = 0.02
     lost_sigma_m: float = 1.0
     lost_after_rejections: int = 30
     initial_sigma_m: float = 0.5

@@ -17,7 +17,7 @@ battery, out of radio range, out of view), is skipped.
 from __future__ import annotations
 
 from collections import deque
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -83,8 +83,9 @@ class Identifier:
     Args:
         config: tuning.
         landmark_ids: the map's landmark IDs (the default candidate order).
-        pixel_speed_px_s: largest image motion of a spot, pixels per second (widens the
-            match radius between a frame and its reference).
+        motion_px: bound on the image motion of a spot between two times (ns), pixels;
+            widens the match radius between a frame and its reference. The localizer derives
+            it from odometry (or from the maximum speed when it has none).
     """
 
     def __init__(
@@ -92,11 +93,11 @@ class Identifier:
         config: IdentificationConfig,
         landmark_ids: Sequence[int],
         *,
-        pixel_speed_px_s: float,
+        motion_px: Callable[[int, int], float],
     ) -> None:
         self.config = config
         self._all_ids = [int(i) for i in landmark_ids]
-        self._pixel_speed = pixel_speed_px_s
+        self._motion_px = motion_px
         self._history: deque[_Frame] = deque(maxlen=config.history_frames)
         self._pending: list[_Frame] = []
         self.sightings: dict[int, Sighting] = {}
@@ -178,8 +179,7 @@ class Identifier:
         for lid, s in list(self.sightings.items()):
             if lid in frame.lit or lid in self._verified:
                 continue
-            dt = abs(frame.t_ns - s.t_ns) * _NS
-            radius = self.config.match_radius_px + self._pixel_speed * dt
+            radius = self.config.match_radius_px + self._motion_px(s.t_ns, frame.t_ns)
             d = np.hypot(frame.pixels[:, 0] - s.pixel[0], frame.pixels[:, 1] - s.pixel[1])
             if len(d) and float(d.min()) <= radius:
                 del self.sightings[lid]
@@ -200,8 +200,7 @@ class Identifier:
             return None
         fresh = np.ones(len(frame.pixels), dtype=bool)
         if len(ref.pixels):
-            dt = abs(frame.t_ns - ref.t_ns) * _NS
-            radius = self.config.match_radius_px + self._pixel_speed * dt
+            radius = self.config.match_radius_px + self._motion_px(ref.t_ns, frame.t_ns)
             d = np.hypot(
                 frame.pixels[:, None, 0] - ref.pixels[None, :, 0],
                 frame.pixels[:, None, 1] - ref.pixels[None, :, 1],

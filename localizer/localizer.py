@@ -128,11 +128,11 @@ class Localizer:
         self._omega_max = self.config.tracking.max_angular_speed_rad_s or default_angular_speed(
             self.robot.max_speed, self.robot.wheel_base
         )
-        half_diag = math.hypot(self.camera.width, self.camera.height) / 2
+        self._half_diag = math.hypot(self.camera.width, self.camera.height) / 2
         self._identifier = Identifier(
             self.config.identification,
             landmark_map.ids.tolist(),
-            pixel_speed_px_s=self.robot.max_speed * self._scale + self._omega_max * half_diag,
+            motion_px=self._motion_bound_px,
         )
         self._start_identification()
         if self._filter is not None and self._mode != "lost":
@@ -206,6 +206,17 @@ class Localizer:
         horizon = e.t_ns - int(self.config.fusion.odometry_history_s / _NS)
         while len(self._odo_hist) > 2 and self._odo_hist[1][0] < horizon:
             self._odo_hist.popleft()
+
+    def _motion_bound_px(self, t0_ns: int, t1_ns: int) -> float:
+        """Bound on a spot's image motion between two times: from odometry (with 20 % slack)
+        when there is any, else from the maximum speed and turn rate."""
+        if self._t_odom is None:
+            dt = abs(t1_ns - t0_ns) * _NS
+            return dt * (self.robot.max_speed * self._scale + self._omega_max * self._half_diag)
+        a, b = self._odo_at(t0_ns), self._odo_at(t1_ns)
+        move = math.hypot(b[0] - a[0], b[1] - a[1]) * self._scale
+        turn = abs(float(wrap_angle(b[2] - a[2]))) * self._half_diag
+        return 1.2 * (move + turn) + 1.0
 
     def _odo_at(self, t_ns: int) -> tuple[float, float, float]:
         """Raw odometry pose at `t_ns` (the latest sample at or before it)."""
@@ -409,6 +420,7 @@ class Localizer:
             self.map.positions[rows],
             initial=pose,
             estimate_tilt=fc.tilt_from_landmarks and len(pairs) >= 3,
+            tilt_sigma_rad=fc.tilt_sigma_rad,
             pixel_sigma_px=fc.pixel_sigma_px,
             landmark_ids=ids,
         )

@@ -13,7 +13,7 @@ STRAY = (100.0, 100.0)
 
 
 def _ident(**kw: object) -> Identifier:
-    return Identifier(IdentificationConfig(**kw), [1, 2, 3], pixel_speed_px_s=0.0)  # type: ignore[arg-type]
+    return Identifier(IdentificationConfig(**kw), [1, 2, 3], motion_px=lambda a, b: 0.0)  # type: ignore[arg-type]
 
 
 def _obs(ident: Identifier, t_ms: int, lit: set[int] | None, *spots: tuple[float, float, float]):
@@ -65,7 +65,9 @@ def test_blinking_stray_that_lit_with_the_led_is_revoked() -> None:
 
 
 def test_match_radius_grows_with_image_motion() -> None:
-    ident = Identifier(IdentificationConfig(), [1, 2], pixel_speed_px_s=300.0)
+    ident = Identifier(
+        IdentificationConfig(), [1, 2], motion_px=lambda a, b: 300.0 * abs(b - a) * 1e-9
+    )
     _obs(ident, 0, set(), (*STRAY, 900.0))
     # The stray moved 8 px in 33 ms (the robot turns): still recognised as the stray.
     assert _obs(ident, 33, {1}, (108.0, 100.0, 900.0)) == []
