@@ -86,7 +86,9 @@ async def bench_light_only(gw: Gateway, sweeps: int) -> tuple[list[float], float
     return latencies, time.perf_counter() - t_start
 
 
-GW_CONFIG = GatewayConfig(battery=BatteryConfig(interval_s=None), max_tries=5)
+GW_CONFIG = GatewayConfig(
+    battery=BatteryConfig(interval_s=None), max_tries=5, light_all_on_start=False
+)
 
 
 async def run_xbee(args: argparse.Namespace, tmp: Path) -> list[Row]:

@@ -21,6 +21,8 @@ class GatewayConfig:
         command_timeout_s: gateway-side safety timeout per command (transports have their
             own, shorter, timeouts).
         skip_confirmed: do not resend a level the landmark already confirmed.
+        light_all_on_start: `start()` lights every LED in the background (the normal tracking
+            state), so that the LED state is known and published from the start.
         blink_count, blink_period_s: `blink` toggles the LED this many times, one period each.
         low_battery_hysteresis_mv: a low landmark must read this much above `low_mv` to clear.
         subscriber_queue: events buffered per subscriber.
@@ -34,6 +36,7 @@ class GatewayConfig:
     retry_backoff_s: float = 0.05
     command_timeout_s: float = 10.0
     skip_confirmed: bool = True
+    light_all_on_start: bool = True
     blink_count: int = 3
     blink_period_s: float = 0.4
     low_battery_hysteresis_mv: int = 50

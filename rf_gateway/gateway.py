@@ -97,11 +97,12 @@ class Gateway:
         self._events_hub: Hub[GatewayEvent] = Hub(self.config.subscriber_queue)
         self._last_leds: LedsChanged | None = None
         self._battery_task: asyncio.Task[None] | None = None
+        self._start_task: asyncio.Task[None] | None = None
 
     # -- lifecycle -------------------------------------------------------------------------
     async def start(self) -> None:
-        """Open the transport (a failure leaves it reopening in the background) and start
-        the battery schedule."""
+        """Open the transport (a failure leaves it reopening in the background), start the
+        battery schedule and light every LED in the background (`light_all_on_start`)."""
         listen = getattr(self.transport, "on_state_change", None)
         if listen is not None:
             listen(self._on_transport_state)
@@ -109,12 +110,25 @@ class Gateway:
             await self.transport.open()
         except TransportUnavailable as exc:
             log.warning("radio not available yet: %s", exc)
+        loop = asyncio.get_running_loop()
         if self.config.battery.interval_s is not None:
-            self._battery_task = asyncio.get_running_loop().create_task(self._battery_loop())
+            self._battery_task = loop.create_task(self._battery_loop())
+        if self.config.light_all_on_start:
+            await self._sweep_lock.acquire()  # held until lit: LED requests queue behind
+            self._start_task = loop.create_task(self._light_all())
+
+    async def _light_all(self) -> None:
+        try:
+            await self._apply(dict.fromkeys(self._addresses, True), Priority.IDENTIFY)
+        except Exception as exc:  # logged; the state confirmed so far is published
+            log.warning("lighting every landmark at start: %s", exc)
+        finally:
+            self._sweep_lock.release()
 
     async def close(self) -> None:
         """Stop the schedule and the syncers, close the transport."""
-        tasks = [t for t in [self._battery_task, *self._syncers.values()] if t is not None]
+        background = [self._battery_task, self._start_task, *self._syncers.values()]
+        tasks = [t for t in background if t is not None]
         for task in tasks:
             task.cancel()
         for task in tasks:

@@ -21,7 +21,9 @@ from rf_gateway.transport import DiscoveredRadio
 from tests.rf_gateway.scripted import ScriptedTransport
 
 ADDR = {i: f"0013A2004100{i:04X}" for i in (1, 2, 3, 4)}
-FAST = GatewayConfig(retry_backoff_s=0.001, battery=BatteryConfig(interval_s=None))
+FAST = GatewayConfig(
+    retry_backoff_s=0.001, light_all_on_start=False, battery=BatteryConfig(interval_s=None)
+)
 
 
 def make(config: GatewayConfig = FAST) -> tuple[Gateway, ScriptedTransport]:
@@ -180,7 +182,7 @@ def test_sweeps_are_serialised() -> None:
 
 def test_identification_goes_before_battery_polls() -> None:
     async def main() -> list[tuple[object, ...]]:
-        config = GatewayConfig(max_in_flight=1, battery=BatteryConfig(interval_s=None))
+        config = GatewayConfig(max_in_flight=1, light_all_on_start=False, battery=FAST.battery)
         gw, tr = make(config)
         tr.delay_s = 0.001
         await gw.start()
@@ -197,7 +199,9 @@ def test_identification_goes_before_battery_polls() -> None:
 
 def test_blink_toggles_and_restores() -> None:
     async def main() -> None:
-        config = GatewayConfig(blink_count=2, blink_period_s=0.002, battery=FAST.battery)
+        config = GatewayConfig(
+            blink_count=2, blink_period_s=0.002, light_all_on_start=False, battery=FAST.battery
+        )
         gw, tr = make(config)
         await gw.start()
         await gw.set_leds([1, 2, 3, 4])
@@ -286,3 +290,24 @@ def test_same_level_requested_while_in_flight_is_sent_once() -> None:
         return tr.log
 
     assert run(main()) == [("pin", ADDR[2], True)]
+
+
+def test_start_lights_everything_before_any_request() -> None:
+    async def main() -> tuple[list[LedsChanged], list[tuple[object, ...]]]:
+        transport = ScriptedTransport(dead={ADDR[4]})
+        config = GatewayConfig(retry_backoff_s=0.001, battery=FAST.battery)
+        gw = Gateway(transport, ADDR, config, clock_ns=transport.clock)
+        sub = gw.subscribe()
+        await gw.start()
+        with pytest.raises(LandmarkUnreachableError, match="landmark 4"):
+            await gw.set_leds([2])  # waits for the start-up lighting, then applies
+        events = [sub.get_nowait(), sub.get_nowait()]
+        await gw.close()
+        return events, transport.log
+
+    events, log = run(main())
+    assert events == [
+        LedsChanged(3000, lit=frozenset({1, 2, 3})),
+        LedsChanged(5000, lit=frozenset({2})),
+    ]
+    assert log[:3] == [("pin", ADDR[i], True) for i in (1, 2, 3)]

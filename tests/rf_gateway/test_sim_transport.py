@@ -93,8 +93,10 @@ def test_gateway_over_lossy_sim_radio_applies_every_state() -> None:
         return events
 
     events = asyncio.run(main())
-    assert [e.lit for e in events[:3]] == [frozenset({1}), frozenset({2, 3}), frozenset()]
-    assert events[3].all_lit
+    # start() lit every LED first (in the background, ahead of the first request)
+    assert events[0].all_lit
+    assert [e.lit for e in events[1:4]] == [frozenset({1}), frozenset({2, 3}), frozenset()]
+    assert events[4].all_lit
 
 
 def test_make_transport_builds_the_named_transport() -> None:

@@ -26,7 +26,12 @@ from rf_gateway.xbee_transport import XBeeTransport, XBeeTransportConfig
 
 ADDR = {i: f"0013A20040A000{i:02X}" for i in (1, 2, 3, 4)}
 CONFIG = XBeeTransportConfig(command_timeout_s=0.2, reopen_initial_s=0.05, reopen_max_s=0.2)
-GW_CONFIG = GatewayConfig(max_tries=8, retry_backoff_s=0.01, battery=BatteryConfig(interval_s=None))
+GW_CONFIG = GatewayConfig(
+    max_tries=8,
+    retry_backoff_s=0.01,
+    light_all_on_start=False,
+    battery=BatteryConfig(interval_s=None),
+)
 
 
 def remotes() -> list[EmulatedRemote]:
