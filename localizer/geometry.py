@@ -7,6 +7,8 @@ points from the source frame into the target frame (p_target = T_target_source @
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import numpy.typing as npt
 
@@ -22,6 +24,12 @@ def wrap_angle(angle: float | FloatArray) -> float | FloatArray:
     Returns:
         The same angle(s) in (-pi, pi]; a float for a float input.
     """
+    if isinstance(angle, float | int):  # scalars: plain floats are ~20x faster than numpy
+        a = float(angle)
+        if -math.pi < a <= math.pi:
+            return a
+        a = math.pi - (math.pi - a) % (2.0 * math.pi)
+        return a + 2.0 * math.pi if a <= -math.pi else a
     wrapped = np.pi - np.mod(np.pi - np.asarray(angle, dtype=np.float64), 2.0 * np.pi)
     # np.mod can round up to exactly 2 pi for angles a hair above pi, giving -pi: fold it back
     wrapped = np.where(wrapped <= -np.pi, wrapped + 2.0 * np.pi, wrapped)

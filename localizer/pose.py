@@ -6,12 +6,14 @@ Two solvers:
   works in the image plane with one scale s = D/d and needs undistorted pixels, landmarks at
   one height and the camera on the axle. `pixels_from_pose_paper` is its inverse, the paper's
   eq. (3) with the bracket put where it belongs.
-* `solve_pose`: the production solver. Gauss-Newton on the reprojection error of every
-  identified landmark in undistorted normalised image coordinates, whitened by the pixel noise
-  mapped through the lens, with each landmark's own height and the real camera mounting;
-  optionally it also estimates the body's tilt (roll, pitch). It starts from a closed form
-  (weighted 2D Procrustes of the rays' intersections with each landmark's height plane),
-  which is already exact for noise-free pixels without tilt.
+* `solve_pose`: the production solver. Least squares over every identified landmark, with
+  each landmark's own height and the real camera mounting (offset, yaw, mounting tilt),
+  optionally also the body's tilt (roll, pitch). Each spot is undistorted once; its ray meets
+  the landmark's height plane in a body-frame point, and the pose is the weighted 2D
+  registration of those points onto the map, each residual whitened by the pixel noise mapped
+  through the lens and the ray (`pose_planar`): to first order the reprojection error in
+  pixels. It starts from a closed form (weighted 2D Procrustes, for two landmarks the paper's
+  eqs. (1)-(2) generalised), which is exact for noise-free pixels without tilt.
 
 Frames: see docs/conventions.md and docs/estimation.md.
 """
@@ -26,8 +28,7 @@ import numpy.typing as npt
 
 from localizer.camera import CameraModel, normalized_from_pixels
 from localizer.geometry import wrap_angle
-from localizer.pose_model import jacob_h, observation_model
-from localizer.pose_planar import floor_points, procrustes_2d, solve_planar
+from localizer.pose_planar import floor_points, procrustes_2d, solve_planar, solve_tilted
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -169,15 +170,17 @@ def solve_pose(
     pixel_sigma_px: float = 0.3,
     landmark_ids: tuple[int, ...] = (),
     tilt_sigma_rad: float | None = None,
+    tilt_min_chi2_drop: float = 9.21,
     min_separation_px: float = 2.0,
     max_iterations: int = 20,
 ) -> PoseFix | None:
     """Least-squares body pose from two or more identified landmarks.
 
-    Minimises sum_i |B_i (m_i - h_i(params))|^2, where m_i is landmark i's pixel undistorted
-    to normalised coordinates, h_i the observation model (`pose_model.observation_model`) and
-    B_i = (sigma A_i)^-1 with A_i = d m / d pixel, so each term is the reprojection error in
-    pixels over the pixel noise. Gauss-Newton; covariance (J^T J)^-1 of the whitened problem.
+    Minimises sum_i |G_i^-1 (q_i - Rz(theta)^T (P_i,xy - t))|^2 / sigma^2 (see `pose_planar`):
+    q_i is where landmark i's ray meets its height plane (body frame, or the level frame when
+    the body is tilted), G_i = d q_i / d pixel, so each term is, to first order, landmark i's
+    reprojection error in pixels over the pixel noise. Gauss-Newton; the covariance is
+    (J^T J)^-1 of the whitened problem, the pose block (tilt marginalised out).
 
     Args:
         camera: lens and mounting (`camera.T_body_camera`).
@@ -185,11 +188,20 @@ def solve_pose(
         p_world: the landmarks' world positions, shape (N, 3), metres (own heights).
         initial: a starting pose (a previous fix, or (x, y, theta)); without it the solver
             starts from the closed form.
-        estimate_tilt: with 3+ landmarks also estimate the body's roll and pitch; ignored
-            with fewer.
+        estimate_tilt: with 3+ landmarks also consider a tilted body (roll, pitch), and use
+            it when it explains the spots significantly better (see `tilt_min_chi2_drop`);
+            ignored with fewer landmarks. Tilt and translation are nearly interchangeable for
+            a small cluster of landmarks (a tilt a moves every spot like a translation of
+            about (ceiling - camera height) a), so a tilted fit is far noisier than a level
+            one: with 0.3 px noise and 3-4 landmarks within ~1 m at 2.5 m, several cm against
+            ~2 mm. Hence the test, and the recommendation to catch floor bumps primarily with
+            the filter's innovation gate.
         pixel_sigma_px: standard deviation of a spot centre per axis, pixels.
         landmark_ids: IDs to carry into the fix.
         tilt_sigma_rad: optional zero-mean prior on roll and pitch (None: no prior).
+        tilt_min_chi2_drop: the tilted fit is taken only when it lowers the chi-square
+            (sum of squared reprojection errors over sigma^2) by more than this; 9.21 is the
+            99 % point of chi-square with 2 dof, 0 always takes it.
         min_separation_px: spots closer than this in the image count as coincident.
         max_iterations: Gauss-Newton iterations before giving up.
 
@@ -249,94 +261,36 @@ def solve_pose(
     (x, y, theta), c, rms = planar
     covariance = np.array([[c[0], c[1], c[2]], [c[1], c[3], c[4]], [c[2], c[4], c[5]]])
     tilt = np.zeros(2)
-    if estimate_tilt and n >= 3:
-        tilt0 = initial.tilt if isinstance(initial, PoseFix) else np.zeros(2)
-        tilted = _solve_tilted(
-            camera,
-            np.array(m),
-            np.array(A).reshape(n, 2, 2),
-            P,
-            np.array([x, y, theta, *tilt0]),
+    # Tilt only when the data demand it: the level fit's chi-square must drop by more than
+    # `tilt_min_chi2_drop` (a likelihood-ratio test, 2 dof). The drop cannot exceed the level
+    # fit's own chi-square, so a consistent level fit skips the tilted solve altogether.
+    chi2_level = n * (rms / pixel_sigma_px) ** 2
+    if estimate_tilt and n >= 3 and chi2_level > tilt_min_chi2_drop:
+        roll0, pitch0 = (float(v) for v in initial.tilt) if isinstance(initial, PoseFix) else (0, 0)
+        tilted = solve_tilted(
+            m,
+            A,
+            [p[2] for p in Pl],
+            P_xy,
+            camera.T_body_camera,
+            (x, y, theta, roll0, pitch0),
             pixel_sigma_px,
             tilt_sigma_rad,
             max_iterations,
         )
-        if tilted is None:
-            return None
-        params, cov_full, rms = tilted
-        x, y, theta = float(params[0]), float(params[1]), float(params[2])
-        covariance, tilt = cov_full[:3, :3].copy(), params[3:5].copy()
-    if not -math.pi < theta <= math.pi:
-        theta = float(wrap_angle(theta))
+        if tilted is not None:
+            params, cov_full, rms_tilted = tilted
+            if chi2_level - n * (rms_tilted / pixel_sigma_px) ** 2 > tilt_min_chi2_drop:
+                x, y, theta = params[0], params[1], params[2]
+                covariance, tilt = cov_full[:3, :3].copy(), np.array(params[3:5])
+                rms = rms_tilted
     return PoseFix(
         x=x,
         y=y,
-        theta=theta,
+        theta=float(wrap_angle(theta)),
         covariance=covariance,
         tilt=tilt,
         residual_rms_px=rms,
         landmark_ids=tuple(int(i) for i in landmark_ids),
         n_landmarks=n,
     )
-
-
-def _solve_tilted(
-    camera: CameraModel,
-    m: FloatArray,
-    A: FloatArray,
-    P: FloatArray,
-    params: FloatArray,
-    sigma_px: float,
-    tilt_sigma_rad: float | None,
-    max_iterations: int,
-) -> tuple[FloatArray, FloatArray, float] | None:
-    """Gauss-Newton over (x, y, theta, roll, pitch) on the whitened reprojection error.
-
-    Returns:
-        (params shape (5,), covariance shape (5, 5), residual RMS in pixels) or None.
-    """
-    n = len(m)
-    T_bc = camera.T_body_camera
-    A_inv = _inverse_2x2(A)
-    B = A_inv / sigma_px
-    prior = 0.0 if tilt_sigma_rad is None else 1.0 / tilt_sigma_rad**2
-    for _ in range(max_iterations):
-        p_camera, m_pred = observation_model(params, P, T_bc)
-        if np.any(p_camera[:, 2] <= 1e-6):
-            return None
-        J = np.matmul(B, jacob_h(params, P, T_bc, p_camera)).reshape(2 * n, -1)
-        e = np.matmul(B, (m - m_pred)[:, :, None]).reshape(2 * n)
-        H = J.T @ J
-        g = J.T @ e
-        if prior:
-            H[3:, 3:] += prior * np.eye(2)
-            g[3:] -= prior * params[3:]
-        try:
-            delta = np.linalg.solve(H, g)
-        except np.linalg.LinAlgError:
-            return None
-        params = params + delta
-        if float(delta @ g) < 1e-4:  # the step is under 1 % of a standard deviation
-            break
-    else:
-        return None
-    try:
-        cov = np.linalg.inv(H)
-    except np.linalg.LinAlgError:
-        return None
-    if not np.all(np.isfinite(cov)) or np.any(np.diag(cov) <= 0):
-        return None
-    _, m_pred = observation_model(params, P, T_bc)
-    e_px = np.matmul(A_inv, (m - m_pred)[:, :, None])
-    return params, cov, math.sqrt(float(np.sum(e_px**2)) / n)
-
-
-def _inverse_2x2(A: FloatArray) -> FloatArray:
-    """Inverses of a stack of 2x2 matrices, shape (N, 2, 2)."""
-    det = A[:, 0, 0] * A[:, 1, 1] - A[:, 0, 1] * A[:, 1, 0]
-    inv = np.empty_like(A)
-    inv[:, 0, 0] = A[:, 1, 1]
-    inv[:, 1, 1] = A[:, 0, 0]
-    inv[:, 0, 1] = -A[:, 0, 1]
-    inv[:, 1, 0] = -A[:, 1, 0]
-    return inv / det[:, None, None]

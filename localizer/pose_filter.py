@@ -12,6 +12,12 @@ Written line for line like the math (PythonRobotics style): `motion_model`, `jac
 
 The output can be smoothed (`output_state`): a fix moves the estimate at once, but the
 output follows it with a time constant, so the reported pose has no jumps.
+
+Speed: odometry arrives at 50-200 Hz, so `predict` works on Python floats and defers the
+covariance: it composes the step Jacobians into Phi = F_n ... F_1 and accumulates the pose
+noise Q = sum F..G M G^T..F^T, and P <- Phi P Phi^T + Q is applied once, when the covariance
+is next needed (an update, or a read). The calibration random walk is added at that moment
+too (its propagation into the pose within one batch, a second-order effect, is dropped).
 """
 
 from __future__ import annotations
@@ -23,12 +29,11 @@ import numpy as np
 import numpy.typing as npt
 
 from localizer.geometry import wrap_angle
-from localizer.odometry import integrate_odometry, odometry_jacobians
+from localizer.odometry import integrate_odometry, odometry_increments, odometry_partials
 from localizer.pose import PoseFix
+from localizer.small_linalg import inverse_3x3_sym
 
 FloatArray = npt.NDArray[np.float64]
-
-_H = np.hstack([np.eye(3), np.zeros((3, 3))])  # the fix observes (x, y, theta)
 
 
 @dataclass(frozen=True)
@@ -98,41 +103,52 @@ class OdometryCalibration:
     covariance: FloatArray
 
 
-def motion_model(
-    X: FloatArray, v_left: float, v_right: float, dt: float, wheel_base: float
-) -> FloatArray:
+State = list[float]  # (x, y, theta, k_r, k_l, k_b)
+Rows = list[list[float]]
+
+
+def motion_model(X: State, v_left: float, v_right: float, dt: float, wheel_base: float) -> State:
     """X_t = f(X, u): eqs. (5)-(6) with the calibrated speeds k_l v_l, k_r v_r and base k_b W."""
     x, y, theta, k_r, k_l, k_b = X
-    x, y, theta = integrate_odometry(x, y, theta, k_l * v_left, k_r * v_right, dt, k_b * wheel_base)
-    return np.array([x, y, theta, k_r, k_l, k_b])
+    pose = integrate_odometry(x, y, theta, k_l * v_left, k_r * v_right, dt, k_b * wheel_base)
+    return [float(pose[0]), float(pose[1]), float(pose[2]), k_r, k_l, k_b]
 
 
 def jacob_f(
-    X: FloatArray, v_left: float, v_right: float, dt: float, wheel_base: float
-) -> tuple[FloatArray, FloatArray]:
-    """(F = df/dX shape (6, 6), G = df/d(true wheel speeds) shape (6, 2))."""
+    X: State, v_left: float, v_right: float, dt: float, wheel_base: float
+) -> tuple[Rows, Rows]:
+    """The Jacobians of `motion_model`.
+
+    Returns:
+        (F_top: the pose rows of F = df/dX, 3 x 6 (the calibration rows of F are [0 I]; the
+         pose block is [[1, 0, a], [0, 1, b], [0, 0, 1]] as eq. (5) gives),
+         G: d(x, y, theta)_t / d(true wheel speeds k_l v_l, k_r v_r), 3 x 2).
+    """
     _, _, theta, k_r, k_l, k_b = X
-    F_pose, F_wheels, F_base = odometry_jacobians(
-        theta, k_l * v_left, k_r * v_right, dt, k_b * wheel_base
-    )
-    F = np.eye(6)
-    F[:3, :3] = F_pose
-    F[:3, 3] = F_wheels[:, 1] * v_right  # d / d k_r
-    F[:3, 4] = F_wheels[:, 0] * v_left  # d / d k_l
-    F[:3, 5] = F_base * wheel_base  # d / d k_b
-    G = np.zeros((6, 2))
-    G[:3] = F_wheels
-    return F, G
+    W = k_b * wheel_base
+    dT, dR = (float(v) for v in odometry_increments(k_l * v_left, k_r * v_right, dt, W))
+    xT, yT, xR, yR = odometry_partials(theta, dT, dR)
+    # chain rule through dT = (k_l v_l + k_r v_r) dt / 2 and dR = (k_r v_r - k_l v_l) dt / (k_b W)
+    T_r, R_r = 0.5 * v_right * dt, v_right * dt / W  # d dT / d k_r, d dR / d k_r
+    T_l, R_l = 0.5 * v_left * dt, -v_left * dt / W  # d dT / d k_l, d dR / d k_l
+    R_b = -dR / k_b  # d dR / d k_b
+    F_top = [
+        [1.0, 0.0, 2.0 * xR, xT * T_r + xR * R_r, xT * T_l + xR * R_l, xR * R_b],
+        [0.0, 1.0, 2.0 * yR, yT * T_r + yR * R_r, yT * T_l + yR * R_l, yR * R_b],
+        [0.0, 0.0, 1.0, R_r, R_l, R_b],
+    ]
+    T_v, R_v = 0.5 * dt, dt / W  # d dT / d v (either wheel), d dR / d v_r (= -d dR / d v_l)
+    G = [
+        [xT * T_v - xR * R_v, xT * T_v + xR * R_v],
+        [yT * T_v - yR * R_v, yT * T_v + yR * R_v],
+        [-R_v, R_v],
+    ]
+    return F_top, G
 
 
-def observation_model(X: FloatArray) -> FloatArray:
-    """z = h(X) = (x, y, theta): a landmark fix observes the pose."""
-    return X[:3].copy()
-
-
-def jacob_h() -> FloatArray:
-    """H = dh/dX, shape (3, 6)."""
-    return _H
+def observation_model(X: State) -> list[float]:
+    """z = h(X) = (x, y, theta): a landmark fix observes the pose, H = dh/dX = [I 0]."""
+    return X[:3]
 
 
 class PoseFilter:
@@ -159,46 +175,55 @@ class PoseFilter:
             raise ValueError(f"PoseFilter: wheel_base must be positive metres, got {wheel_base!r}")
         self.config = config or FilterConfig()
         self.wheel_base = float(wheel_base)
-        self._X = np.array([0.0, 0.0, 0.0, 1.0, 1.0, 1.0])
+        self._X: State = [0.0, 0.0, 0.0, 1.0, 1.0, 1.0]
         self._P = np.zeros((6, 6))
         if self.config.estimate_calibration:
             self._P[3:, 3:] = np.eye(3) * self.config.calibration_prior_sigma**2
-        self._offset = np.zeros(3)  # output_state - state
+        self._offset = [0.0, 0.0, 0.0]  # output_state - state
+        # deferred propagation: composed pose rows of F, accumulated pose noise (upper
+        # triangle), accumulated calibration walk variance
+        self._Phi: Rows = []
+        self._Q: list[float] = []
+        self._walk = 0.0
+        self._pending = False
+        self._clear_pending()
         self.reset(x, y, theta, covariance)
 
     # -- state ----------------------------------------------------------------------------------
     @property
     def state(self) -> FloatArray:
-        """The estimated pose (x, y, theta), shape (3,) (a copy)."""
-        return self._X[:3].copy()
+        """The estimated pose (x, y, theta), shape (3,)."""
+        return np.array(self._X[:3])
 
     @property
     def covariance(self) -> FloatArray:
         """Covariance of (x, y, theta), shape (3, 3) (a copy)."""
+        self._flush()
         return self._P[:3, :3].copy()
 
     @property
     def full_state(self) -> FloatArray:
-        """(x, y, theta, k_r, k_l, k_b), shape (6,) (a copy)."""
-        return self._X.copy()
+        """(x, y, theta, k_r, k_l, k_b), shape (6,)."""
+        return np.array(self._X)
 
     @property
     def full_covariance(self) -> FloatArray:
         """Covariance of `full_state`, shape (6, 6) (a copy)."""
+        self._flush()
         return self._P.copy()
 
     @property
     def output_state(self) -> FloatArray:
         """The smoothed pose for output, (x, y, theta) shape (3,): follows `state` without
         jumps (time constant `config.output_time_constant_s`)."""
-        out = self._X[:3] + self._offset
-        out[2] = wrap_angle(float(out[2]))
-        return out
+        x, y, th = (a + b for a, b in zip(self._X[:3], self._offset, strict=True))
+        return np.array([x, y, wrap_angle(th)])
 
     @property
     def calibration(self) -> OdometryCalibration:
         """The estimated odometry factors."""
-        k_r, k_l, k_b = (float(v) for v in self._X[3:])
+        self._flush()
+        k_r, k_l, k_b = self._X[3:]
         return OdometryCalibration(k_r, k_l, k_b, self._P[3:, 3:].copy())
 
     def reset(self, x: float, y: float, theta: float, covariance: npt.ArrayLike) -> None:
@@ -208,53 +233,111 @@ class PoseFilter:
             raise ValueError(f"PoseFilter.reset: covariance must be finite (3, 3), got {cov.shape}")
         if not all(math.isfinite(v) for v in (x, y, theta)):
             raise ValueError(f"PoseFilter.reset: non-finite pose {(x, y, theta)}")
-        self._X[:3] = (x, y, wrap_angle(theta))
+        self._flush()
+        self._X[:3] = [float(x), float(y), float(wrap_angle(theta))]
         self._P[:3, :] = 0.0
         self._P[:, :3] = 0.0
         self._P[:3, :3] = 0.5 * (cov + cov.T)
-        self._offset[:] = 0.0
+        self._offset = [0.0, 0.0, 0.0]
 
     # -- predict --------------------------------------------------------------------------------
     def predict(self, v_left: float, v_right: float, dt: float) -> None:
-        """Dead-reckon over `dt` seconds with the measured wheel speeds (m/s); any rate."""
+        """Dead-reckon over `dt` seconds with the measured wheel speeds (m/s); any rate.
+
+        X = f(X, u);  P = F P F^T + G M G^T + Q_walk  (P deferred, see the module doc).
+        """
         if dt <= 0:
             return
         cfg = self.config
-        X, P = self._X, self._P
-        k_r, k_l = X[3], X[4]
-        travel = np.abs([k_l * v_left * dt, k_r * v_right * dt])
-        var_travel = cfg.wheel_noise_m_per_sqrt_s**2 * dt + cfg.wheel_slip_m_per_sqrt_m**2 * travel
-        M = np.diag(var_travel / dt**2)  # covariance of the true wheel speeds, (m/s)^2
+        X = self._X
+        F_top, G = jacob_f(X, v_left, v_right, dt, self.wheel_base)
+        self._X = motion_model(X, v_left, v_right, dt, self.wheel_base)
+        # M: variance of each wheel's true speed, from its travel's noise over the step
+        q2, s2 = cfg.wheel_noise_m_per_sqrt_s**2 * dt, cfg.wheel_slip_m_per_sqrt_m**2
+        m_l = (q2 + s2 * abs(X[4] * v_left * dt)) / (dt * dt)
+        m_r = (q2 + s2 * abs(X[3] * v_right * dt)) / (dt * dt)
 
-        F, G = jacob_f(X, v_left, v_right, dt, self.wheel_base)
-        X = motion_model(X, v_left, v_right, dt, self.wheel_base)
-        P = F @ P @ F.T + G @ M @ G.T
+        # Phi <- F Phi (pose rows; F's pose block is [[1, 0, a], [0, 1, b], [0, 0, 1]])
+        a, b = F_top[0][2], F_top[1][2]
+        p0, p1, p2 = self._Phi
+        p0 = [u + a * w for u, w in zip(p0, p2, strict=True)]
+        p1 = [u + b * w for u, w in zip(p1, p2, strict=True)]
+        p2 = p2[:]
+        for row, f in ((p0, F_top[0]), (p1, F_top[1]), (p2, F_top[2])):
+            row[3] += f[3]
+            row[4] += f[4]
+            row[5] += f[5]
+        self._Phi = [p0, p1, p2]
+        # Q <- A Q A^T + G M G^T (A: the pose block of F)
+        q00, q01, q02, q11, q12, q22 = self._Q
+        t00, t01, t02 = q00 + a * q02, q01 + a * q12, q02 + a * q22
+        t11, t12 = q11 + b * q12, q12 + b * q22
+        gl, gr = (G[0][0], G[1][0], G[2][0]), (G[0][1], G[1][1], G[2][1])
+        self._Q = [
+            t00 + a * t02 + m_l * gl[0] * gl[0] + m_r * gr[0] * gr[0],
+            t01 + b * t02 + m_l * gl[0] * gl[1] + m_r * gr[0] * gr[1],
+            t02 + m_l * gl[0] * gl[2] + m_r * gr[0] * gr[2],
+            t11 + b * t12 + m_l * gl[1] * gl[1] + m_r * gr[1] * gr[1],
+            t12 + m_l * gl[1] * gl[2] + m_r * gr[1] * gr[2],
+            q22 + m_l * gl[2] * gl[2] + m_r * gr[2] * gr[2],
+        ]
         if cfg.estimate_calibration:
-            P[3:, 3:] += np.eye(3) * cfg.calibration_walk_per_sqrt_s**2 * dt
+            self._walk += cfg.calibration_walk_per_sqrt_s**2 * dt
+        self._pending = True
 
-        self._X, self._P = X, 0.5 * (P + P.T)
         if cfg.output_time_constant_s > 0:
-            self._offset *= math.exp(-dt / cfg.output_time_constant_s)
+            decay = math.exp(-dt / cfg.output_time_constant_s)
+            self._offset = [o * decay for o in self._offset]
         else:
-            self._offset[:] = 0.0
+            self._offset = [0.0, 0.0, 0.0]
+
+    def _clear_pending(self) -> None:
+        self._Phi = [
+            [1.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0, 0.0, 0.0, 0.0],
+            [0.0, 0.0, 1.0, 0.0, 0.0, 0.0],
+        ]
+        self._Q = [0.0] * 6
+        self._walk = 0.0
+        self._pending = False
+
+    def _flush(self) -> None:
+        """Apply the deferred covariance propagation: P = Phi P Phi^T + Q."""
+        if not self._pending:
+            return
+        Phi = np.array(self._Phi)  # the pose rows of the composed F, shape (3, 6)
+        FP = self._P.copy()
+        FP[:3] = Phi @ self._P  # F P (the calibration rows of F are [0 I])
+        P = FP.copy()
+        P[:, :3] = FP @ Phi.T  # (F P) F^T
+        q00, q01, q02, q11, q12, q22 = self._Q
+        P[:3, :3] += np.array([[q00, q01, q02], [q01, q11, q12], [q02, q12, q22]])
+        if self._walk:
+            P[3, 3] += self._walk
+            P[4, 4] += self._walk
+            P[5, 5] += self._walk
+        self._P = 0.5 * (P + P.T)
+        self._clear_pending()
 
     # -- update ---------------------------------------------------------------------------------
-    def innovation(self, fix: PoseFix) -> tuple[FloatArray, FloatArray]:
-        """(y = z - h(X) with the heading wrapped, shape (3,); S = H P H^T + R, shape (3, 3))."""
-        z = np.array([fix.x, fix.y, fix.theta])
-        y = z - observation_model(self._X)
-        y[2] = wrap_angle(float(y[2]))
-        H = jacob_h()
-        S = H @ self._P @ H.T + np.asarray(fix.covariance, dtype=np.float64)
-        return y, S
+    def _innovation(self, fix: PoseFix) -> tuple[list[float], list[float] | None]:
+        """y = z - h(X), heading wrapped; S^-1 of S = H P H^T + R (6 numbers, None if singular)."""
+        self._flush()
+        x, y, th = observation_model(self._X)
+        innovation = [fix.x - x, fix.y - y, float(wrap_angle(fix.theta - th))]
+        S = (self._P[:3, :3] + np.asarray(fix.covariance, dtype=np.float64)).tolist()
+        S_inv = inverse_3x3_sym([S[0][0], S[0][1], S[0][2], S[1][1], S[1][2], S[2][2]])
+        return innovation, S_inv
 
     def nis(self, fix: PoseFix) -> float:
         """Normalised innovation squared y^T S^-1 y of a fix (chi-square, 3 dof), not applied."""
-        y, S = self.innovation(fix)
-        return float(y @ np.linalg.solve(S, y))
+        y, S_inv = self._innovation(fix)
+        return _quadratic_form(y, S_inv)
 
     def update_fix(self, fix: PoseFix, *, max_nis: float | None = None) -> float:
         """Fuse a landmark fix (measurement (x, y, theta) with `fix.covariance`).
+
+        y = z - h(X);  S = H P H^T + R;  K = P H^T S^-1;  X = X + K y;  P = (I - K H) P.
 
         Args:
             fix: the fix.
@@ -262,28 +345,39 @@ class PoseFilter:
                 chi-square 3-dof 99.9 % quantile 16.27.
 
         Returns:
-            The fix's NIS (normalised innovation squared) before the update.
+            The fix's NIS (normalised innovation squared) before the update; inf (and the
+            fix not applied) when S is singular.
         """
-        y, S = self.innovation(fix)
-        S_inv = np.linalg.inv(S)
-        nis = float(y @ S_inv @ y)
-        if max_nis is not None and not nis <= max_nis:
+        y, S_inv = self._innovation(fix)
+        nis = _quadratic_form(y, S_inv)
+        if S_inv is None or (max_nis is not None and not nis <= max_nis):
             return nis
-        H = jacob_h()
+        i00, i01, i02, i11, i12, i22 = S_inv
         P = self._P
-        K = P @ H.T @ S_inv
-        X = self._X + K @ y
-        I_KH = np.eye(6) - K @ H
-        P = I_KH @ P @ I_KH.T + K @ np.asarray(fix.covariance) @ K.T  # Joseph form
-        lo, hi = self.config.calibration_bounds
-        X[3:] = np.clip(X[3:], lo, hi)
+        K = P[:, :3] @ np.array([[i00, i01, i02], [i01, i11, i12], [i02, i12, i22]])
+        dX = (K @ np.array(y)).tolist()
+        P = P - K @ P[:3, :]
+        self._P = 0.5 * (P + P.T)
 
-        jump = self._X[:3] - X[:3]
-        jump[2] = wrap_angle(float(jump[2]))
+        old = self._X
+        X = [u + d for u, d in zip(old, dX, strict=True)]
+        X[2] = float(wrap_angle(X[2]))
+        lo, hi = self.config.calibration_bounds
+        X[3:] = [min(max(k, lo), hi) for k in X[3:]]
+        self._X = X
+
+        jump = [old[0] - X[0], old[1] - X[1], float(wrap_angle(old[2] - X[2]))]
         if math.hypot(jump[0], jump[1]) > self.config.output_snap_m:
-            self._offset[:] = 0.0
+            self._offset = [0.0, 0.0, 0.0]
         else:
-            self._offset += jump
-        X[2] = wrap_angle(float(X[2]))
-        self._X, self._P = X, 0.5 * (P + P.T)
+            self._offset = [o + j for o, j in zip(self._offset, jump, strict=True)]
         return nis
+
+
+def _quadratic_form(y: list[float], S_inv: list[float] | None) -> float:
+    """y^T S^-1 y for S^-1 given as (s00 s01 s02 s11 s12 s22); inf when S is singular."""
+    if S_inv is None:
+        return math.inf
+    i00, i01, i02, i11, i12, i22 = S_inv
+    a, b, c = y
+    return i00 * a * a + i11 * b * b + i22 * c * c + 2.0 * (i01 * a * b + i02 * a * c + i12 * b * c)

@@ -12,11 +12,23 @@ so the whitened residual e_i = G_i^-1 (q_i - Rz^T (P_i - t)) / sigma is, to firs
 reprojection error in pixels over sigma: the same least-squares problem as the reprojection
 error in the image, solved on a few floats. Plain Python scalars on purpose: for 2-6 landmarks
 they are several times faster than numpy's per-call overhead.
+
+A tilted body (roll, pitch; R_world_body = Rz(theta) Ry(pitch) Rx(roll)) is the same problem
+in the level, heading-aligned frame with the mounting tilted: T_level_camera = R_tilt
+T_body_camera. `solve_tilted` runs Gauss-Newton over (x, y, theta, roll, pitch) on that,
+with the derivatives in roll and pitch by forward differences of `floor_points`.
 """
 
 from __future__ import annotations
 
 import math
+
+import numpy as np
+import numpy.typing as npt
+
+from localizer.small_linalg import inverse_3x3_sym
+
+FloatArray = npt.NDArray[np.float64]
 
 Point = tuple[float, float]
 Mat2 = tuple[float, float, float, float]  # row-major a00 a01 a10 a11
@@ -94,17 +106,6 @@ def procrustes_2d(
     return Px - (c * qx - s * qy), Py - (s * qx + c * qy), theta
 
 
-def inverse_3x3_sym(H: list[float]) -> list[float] | None:
-    """Inverse of a symmetric 3x3 matrix given as (h00 h01 h02 h11 h12 h22); None if singular."""
-    a, b, c, d, e, f = H
-    A00, A01, A02 = d * f - e * e, c * e - b * f, b * e - c * d
-    det = a * A00 + b * A01 + c * A02
-    if not math.isfinite(det) or det <= 1e-300 * max(1.0, a * d * f):
-        return None
-    A11, A12, A22 = a * f - c * c, b * c - a * e, a * d - b * b
-    return [A00 / det, A01 / det, A02 / det, A11 / det, A12 / det, A22 / det]
-
-
 def solve_planar(
     q: list[Point],
     G: list[Mat2],
@@ -165,3 +166,146 @@ def solve_planar(
     # residual after the last step, to first order: |e + J d|^2 = |e|^2 - d^T H d
     rms = sigma_px * math.sqrt(max(ee - step2, 0.0) / len(q))
     return (x, y, th), cov, rms
+
+
+def rotation_world_body(theta: float, roll: float = 0.0, pitch: float = 0.0) -> FloatArray:
+    """R_world_body = Rz(theta) Ry(pitch) Rx(roll), shape (3, 3)."""
+    cz, sz = math.cos(theta), math.sin(theta)
+    cy, sy = math.cos(pitch), math.sin(pitch)
+    cx, sx = math.cos(roll), math.sin(roll)
+    return np.array(
+        [
+            [cz * cy, cz * sy * sx - sz * cx, cz * sy * cx + sz * sx],
+            [sz * cy, sz * sy * sx + cz * cx, sz * sy * cx - cz * sx],
+            [-sy, cy * sx, cy * cx],
+        ]
+    )
+
+
+def _level_mounting(T_body_camera: FloatArray, roll: float, pitch: float) -> list[list[float]]:
+    """Rows 0-2 of T_level_camera = R_tilt T_body_camera (the body's tilt moved into it)."""
+    rows: list[list[float]] = (rotation_world_body(0.0, roll, pitch) @ T_body_camera[:3]).tolist()
+    return rows
+
+
+def _tilted_residuals(
+    m: list[Point],
+    A: list[Mat2],
+    z: list[float],
+    P: list[Point],
+    T_body_camera: FloatArray,
+    params: list[float],
+    sigma_px: float,
+    jacobian: bool,
+) -> tuple[FloatArray, FloatArray | None] | None:
+    """Whitened residuals e (2N,) and, when asked, their Jacobian J (2N, 5) at `params`."""
+    h = 1e-6  # radians, forward-difference step in roll and pitch
+    x, y, th, roll, pitch = params
+    base = floor_points(m, A, z, _level_mounting(T_body_camera, roll, pitch))
+    if base is None:
+        return None
+    q, G = base
+    q_roll, q_pitch = q, q
+    if jacobian:
+        at_roll = floor_points(m, A, z, _level_mounting(T_body_camera, roll + h, pitch))
+        at_pitch = floor_points(m, A, z, _level_mounting(T_body_camera, roll, pitch + h))
+        if at_roll is None or at_pitch is None:
+            return None
+        q_roll, q_pitch = at_roll[0], at_pitch[0]
+    n = len(q)
+    c, s = math.cos(th), math.sin(th)
+    e = np.empty(2 * n)
+    J = np.empty((2 * n, 5)) if jacobian else None
+    for i, ((qx, qy), (g00, g01, g10, g11), (X, Y)) in enumerate(zip(q, G, P, strict=True)):
+        det = (g00 * g11 - g01 * g10) * sigma_px
+        if det == 0.0:
+            return None
+        w00, w01, w10, w11 = g11 / det, -g01 / det, -g10 / det, g00 / det
+        dX, dY = X - x, Y - y
+        u, v = c * dX + s * dY, -s * dX + c * dY
+        rx, ry = qx - u, qy - v
+        e[2 * i], e[2 * i + 1] = w00 * rx + w01 * ry, w10 * rx + w11 * ry
+        if J is not None:
+            drx, dry = (q_roll[i][0] - qx) / h, (q_roll[i][1] - qy) / h
+            dpx, dpy = (q_pitch[i][0] - qx) / h, (q_pitch[i][1] - qy) / h
+            # d(residual)/d(x, y, theta, roll, pitch) per axis, then whitened
+            jx = (c, s, -v, drx, dpx)
+            jy = (-s, c, u, dry, dpy)
+            J[2 * i] = [w00 * a + w01 * b for a, b in zip(jx, jy, strict=True)]
+            J[2 * i + 1] = [w10 * a + w11 * b for a, b in zip(jx, jy, strict=True)]
+    return e, J
+
+
+def solve_tilted(
+    m: list[Point],
+    A: list[Mat2],
+    z: list[float],
+    P: list[Point],
+    T_body_camera: FloatArray,
+    start: tuple[float, float, float, float, float],
+    sigma_px: float,
+    tilt_sigma_rad: float | None,
+    max_iterations: int,
+) -> tuple[list[float], FloatArray, float] | None:
+    """Gauss-Newton over (x, y, theta, roll, pitch) on the whitened floor-plane residuals.
+
+    Tilt and translation are nearly interchangeable (a tilt by a shifts every spot like a
+    translation by about (ceiling - camera height) a), so the problem is ill-conditioned and a
+    plain Gauss-Newton step overshoots along that direction; each step is therefore scaled by
+    the minimum of the parabola through the cost at 0 (value and slope) and at the full step.
+
+    Args:
+        m, A, z: as `floor_points`; P: the landmarks' world (x, y).
+        T_body_camera: the mounting, shape (4, 4).
+        start: initial (x, y, theta, roll, pitch).
+        sigma_px: pixel noise; tilt_sigma_rad: optional zero-mean prior on roll and pitch.
+
+    Returns:
+        (params, covariance shape (5, 5), residual RMS in pixels), or None when a landmark
+        is not above the camera, the problem is singular or it does not converge.
+    """
+    prior = 0.0 if tilt_sigma_rad is None else 1.0 / tilt_sigma_rad**2
+    params = list(start)
+    n = len(m)
+
+    def cost(e: FloatArray, p: list[float]) -> float:
+        return float(e @ e) + prior * (p[3] * p[3] + p[4] * p[4])
+
+    for _ in range(max_iterations):
+        res = _tilted_residuals(m, A, z, P, T_body_camera, params, sigma_px, True)
+        if res is None:
+            return None
+        e, J = res
+        assert J is not None  # asked for it (internal invariant, not input)
+        H = J.T @ J
+        g = J.T @ e
+        if prior:
+            H[3, 3] += prior
+            H[4, 4] += prior
+            g[3] += prior * params[3]
+            g[4] += prior * params[4]
+        try:
+            cov: FloatArray = np.linalg.inv(H).astype(np.float64)
+        except np.linalg.LinAlgError:
+            return None
+        delta = -(cov @ g)
+        step2 = -float(delta @ g)  # = delta^T H delta: the step in standard deviations^2
+        if step2 < 1e-6:
+            break
+        trial = [p + d for p, d in zip(params, delta.tolist(), strict=True)]
+        at_trial = _tilted_residuals(m, A, z, P, T_body_camera, trial, sigma_px, False)
+        if at_trial is None:
+            return None
+        # cost(a) ~ c0 - 2 s a + k a^2 through c0, slope -2 s and cost(1): minimum at s / k
+        c0, c1 = cost(e, params), cost(at_trial[0], trial)
+        k = c1 - c0 + 2.0 * step2
+        alpha = 1.0 if k <= step2 else max(step2 / k, 0.1)
+        params = [p + alpha * d for p, d in zip(params, delta.tolist(), strict=True)]
+        if step2 * alpha * alpha < 1e-4:  # the step is under 1 % of a standard deviation
+            break
+    else:
+        return None
+    if not np.all(np.isfinite(cov)) or np.any(np.diag(cov) <= 0):
+        return None
+    rms = sigma_px * math.sqrt(max(float(e @ e) - step2, 0.0) / n)
+    return params, cov, rms

@@ -11,7 +11,7 @@ from localizer.odometry import (
     integrate_arc,
     integrate_odometry,
     odometry_increments,
-    odometry_jacobians,
+    odometry_partials,
 )
 
 W = 0.36
@@ -91,17 +91,24 @@ def test_vectorised_matches_scalar() -> None:
             np.testing.assert_allclose([xs[i], ys[i], ths[i]], one, atol=1e-12)
 
 
-def test_jacobians_match_finite_differences() -> None:
-    th, vl, vr, dt = 2.9, 0.3, 0.45, 0.2
-    F_pose, F_wheels, F_base = odometry_jacobians(th, vl, vr, dt, W)
+def test_partials_match_finite_differences() -> None:
+    th, dT, dR = 2.9, 0.07, 0.05
 
-    def f(p: np.ndarray) -> np.ndarray:
-        x, y, t = integrate_odometry(p[0], p[1], p[2], p[3], p[4], dt, p[5])
-        return np.array([x, y, t])
+    def xy(t: float, T: float, R: float) -> np.ndarray:
+        # eq. (5) written with the increments of eq. (6) as the inputs
+        return np.array([T * math.cos(t + R / 2), T * math.sin(t + R / 2)])
 
-    p0 = np.array([1.0, -2.0, th, vl, vr, W])
-    h = 1e-6
-    J = np.column_stack([(f(p0 + h * e) - f(p0 - h * e)) / (2 * h) for e in np.eye(6)])
-    np.testing.assert_allclose(F_pose, J[:, :3], atol=1e-8)
-    np.testing.assert_allclose(F_wheels, J[:, 3:5], atol=1e-8)
-    np.testing.assert_allclose(F_base, J[:, 5], atol=1e-8)
+    xT, yT, xR, yR = odometry_partials(th, dT, dR)
+    h = 1e-7
+    np.testing.assert_allclose(
+        [xT, yT], (xy(th, dT + h, dR) - xy(th, dT - h, dR)) / (2 * h), atol=1e-8
+    )
+    np.testing.assert_allclose(
+        [xR, yR], (xy(th, dT, dR + h) - xy(th, dT, dR - h)) / (2 * h), atol=1e-8
+    )
+    d_theta = (xy(th + h, dT, dR) - xy(th - h, dT, dR)) / (2 * h)
+    np.testing.assert_allclose(d_theta, [2 * xR, 2 * yR], atol=1e-8)
+    # and eq. (5) itself uses exactly these increments
+    x, y, _ = integrate_odometry(0.0, 0.0, th, 0.3, 0.4, 0.2, W)
+    dT6, dR6 = odometry_increments(0.3, 0.4, 0.2, W)
+    np.testing.assert_allclose([x, y], xy(th, dT6, dR6), atol=1e-15)

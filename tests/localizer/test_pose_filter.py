@@ -210,33 +210,57 @@ def test_frozen_calibration_stays_at_one() -> None:
 
 
 def test_jacob_f_matches_finite_differences() -> None:
-    X = np.array([1.0, 2.0, 3.0, 1.01, 0.99, 1.02])
+    X = [1.0, 2.0, 3.0, 1.01, 0.99, 1.02]
     u = (0.3, 0.5, 0.05, W)
-    F, G = jacob_f(X, *u)
+    F_top, G = jacob_f(X, *u)
+    F = np.vstack([F_top, np.hstack([np.zeros((3, 3)), np.eye(3)])])
     eps = 1e-7
-    num = np.column_stack(
-        [
-            (motion_model(X + eps * e, *u) - motion_model(X - eps * e, *u)) / (2 * eps)
-            for e in np.eye(6)
-        ]
-    )
+
+    def f(X: np.ndarray) -> np.ndarray:
+        return np.array(motion_model(list(X), *u))
+
+    num = np.column_stack([(f(X + eps * e) - f(X - eps * e)) / (2 * eps) for e in np.eye(6)])
     np.testing.assert_allclose(F, num, atol=1e-8)
     # G: derivative with respect to the true (calibrated) wheel speeds
-    vl, vr = 0.3 * 0.99, 0.5 * 1.01
-    Xp = X.copy()
-    Xp[3:] = 1.0
-    Wt = W * 1.02
+    vl, vr, Wt = 0.3 * 0.99, 0.5 * 1.01, W * 1.02
 
-    def f(a: float, b: float) -> np.ndarray:
-        return motion_model(Xp, a, b, 0.05, Wt)
+    def g(a: float, b: float) -> np.ndarray:
+        return np.array(motion_model([1.0, 2.0, 3.0, 1.0, 1.0, 1.0], a, b, 0.05, Wt))[:3]
 
     numG = np.column_stack(
         [
-            (f(vl + eps, vr) - f(vl - eps, vr)) / (2 * eps),
-            (f(vl, vr + eps) - f(vl, vr - eps)) / (2 * eps),
+            (g(vl + eps, vr) - g(vl - eps, vr)) / (2 * eps),
+            (g(vl, vr + eps) - g(vl, vr - eps)) / (2 * eps),
         ]
     )
     np.testing.assert_allclose(G, numG, atol=1e-8)
+
+
+def test_deferred_covariance_equals_step_by_step_propagation() -> None:
+    """P = F P F^T + G M G^T at every step, written out with numpy, against the filter."""
+    cfg = FilterConfig(calibration_walk_per_sqrt_s=0.0)
+    filt = PoseFilter(1.0, 2.0, 3.0, np.diag([1e-3, 2e-3, 1e-3]), wheel_base=W, config=cfg)
+    X = filt.full_state.tolist()
+    P = filt.full_covariance
+    rng = np.random.default_rng(4)
+    for vl, vr in rng.uniform(-0.5, 0.8, (40, 2)):
+        dt = 0.01
+        F_top, G = jacob_f(X, vl, vr, dt, W)
+        F = np.vstack([F_top, np.hstack([np.zeros((3, 3)), np.eye(3)])])
+        m = [
+            (
+                cfg.wheel_noise_m_per_sqrt_s**2 * dt
+                + cfg.wheel_slip_m_per_sqrt_m**2 * abs(k * v * dt)
+            )
+            / dt**2
+            for k, v in ((X[4], vl), (X[3], vr))
+        ]
+        Gf = np.vstack([G, np.zeros((3, 2))])
+        P = F @ P @ F.T + Gf @ np.diag(m) @ Gf.T
+        X = motion_model(X, vl, vr, dt, W)
+        filt.predict(vl, vr, dt)
+    np.testing.assert_allclose(filt.full_state, X, atol=1e-12)
+    np.testing.assert_allclose(filt.full_covariance, P, rtol=1e-9, atol=1e-15)
 
 
 @pytest.mark.parametrize(
