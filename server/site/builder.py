@@ -11,11 +11,12 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import logging
+import queue
 import threading
 from typing import TYPE_CHECKING, Any
 
 from localizer.camera import camera_from_sensor, sensor_from_camera
-from localizer.events import Mode
+from localizer.events import FrameObserved, Mode
 from localizer.landmark_map import LandmarkMap
 from localizer.robot import RobotGeometry
 from rf_gateway.battery import BatteryConfig
@@ -37,7 +38,8 @@ if TYPE_CHECKING:
     from server.services import SiteServices
 
 log = logging.getLogger(__name__)
-SITE_RATE_HZ = 30.0
+SITE_STEP_HZ = 100.0
+MAX_FRAME_LAG_S = 0.25
 SHUTDOWN_LEDS_TIMEOUT_S = 5.0
 
 
@@ -58,6 +60,9 @@ class LiveSiteRunner:
         self.cameras: dict[str, CameraSource] = {}
         self._stop = threading.Event()
         self._clock: threading.Thread | None = None
+        self._worker: threading.Thread | None = None
+        self._samples: queue.SimpleQueue[list[Any] | None] = queue.SimpleQueue()
+        self.frames_skipped = 0
         self._tasks: list[asyncio.Task[None]] = []
         self._loop: asyncio.AbstractEventLoop | None = None
 
@@ -77,7 +82,11 @@ class LiveSiteRunner:
             self.start_robot(robot)
         if self.sim is not None:
             self._clock = threading.Thread(target=self._run_clock, name="site-clock", daemon=True)
+            self._worker = threading.Thread(
+                target=self._run_localizers, name="site-localizers", daemon=True
+            )
             self._clock.start()
+            self._worker.start()
 
     def start_robot(self, robot: RobotPublic) -> RobotRunner:
         """Run (or restart with a new configuration) one robot's localizer and source."""
@@ -167,16 +176,35 @@ class LiveSiteRunner:
 
     # -- running ---------------------------------------------------------------------------
     def _run_clock(self) -> None:
-        period = 1.0 / SITE_RATE_HZ
+        """Step the virtual site often (frames are rendered with the LEDs lit at the call,
+        so a short period keeps a frame's picture true to its timestamp); the localizers
+        run on another thread."""
+        period = 1.0 / SITE_STEP_HZ
         while not self._stop.wait(period):
             try:
                 samples = self.sim.step(self.services.clock_ns())
             except Exception:
                 log.exception("virtual site step failed")
                 continue
-            robots = self.services.robots
+            if samples:
+                self._samples.put(samples)
+        self._samples.put(None)
+
+    def _run_localizers(self) -> None:
+        """Feed the virtual site's samples to the robots; frames older than
+        `MAX_FRAME_LAG_S` when their turn comes are skipped (odometry never is)."""
+        robots = self.services.robots
+        while True:
+            samples = self._samples.get()
+            if samples is None:
+                return
             for sample in samples:
                 name, event = _sample_parts(sample)
+                if isinstance(event, FrameObserved):
+                    lag_s = (self.services.clock_ns() - event.t_ns) * 1e-9
+                    if lag_s > MAX_FRAME_LAG_S:
+                        self.frames_skipped += 1
+                        continue
                 with contextlib.suppress(KeyError):
                     robots.get(name).handle(event)
 
@@ -252,6 +280,8 @@ class LiveSiteRunner:
         self._stop.set()
         if self._clock is not None:
             await asyncio.to_thread(self._clock.join, 5.0)
+        if self._worker is not None:
+            await asyncio.to_thread(self._worker.join, 5.0)
         for cam in self.cameras.values():
             await asyncio.to_thread(cam.stop)
         for runner in self.services.robots.runners():
