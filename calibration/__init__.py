@@ -1,6 +1,6 @@
 """Calibration of the upward camera: its lens (Zhang's method) and its mounting (T_BS)."""
 
-from calibration.board import BoardCorners, BoardSpec, find_board
+from calibration.board import BoardCorners, BoardSpec, find_board, parse_pattern
 from calibration.camera_pose import CameraPose, camera_pose_from_landmarks
 from calibration.coverage import Coverage, corner_coverage
 from calibration.lens import (
@@ -35,4 +35,5 @@ __all__ = [
     "estimate_mounting",
     "find_board",
     "mounting_from_observations",
+    "parse_pattern",
 ]

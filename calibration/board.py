@@ -26,6 +26,24 @@ BoardKind = Literal["chessboard", "charuco"]
 _SUBPIX_CRITERIA = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_MAX_ITER, 50, 1e-3)
 
 
+def parse_pattern(text: str) -> tuple[int, int]:
+    """Inner corners from text such as "9x6" (columns x rows).
+
+    Raises:
+        ValueError: naming the text when it is not two integers >= 2 joined by "x".
+    """
+    parts = text.strip().lower().split("x")
+    try:
+        cols, rows = (int(p) for p in parts)
+    except ValueError:
+        raise ValueError(
+            f"pattern: expected inner corners as COLSxROWS, e.g. 9x6, got {text!r}"
+        ) from None
+    if cols < 2 or rows < 2:
+        raise ValueError(f"pattern: inner corners must be >= 2 each, got {text!r}")
+    return cols, rows
+
+
 @dataclass(frozen=True)
 class BoardSpec:
     """A calibration board.

@@ -20,21 +20,17 @@ from typing import Any
 
 import yaml
 
-from calibration.board import BoardSpec
+from calibration.board import BoardSpec, parse_pattern
 from calibration.lens import LENS_MODELS, LensCalibrationConfig
 from calibration.uploads import calibrate_from_uploads, image_paths
 from localizer.camera import camera_from_sensor
 
 
 def _pattern(text: str) -> tuple[int, int]:
-    parts = text.lower().split("x")
     try:
-        cols, rows = (int(p) for p in parts)
-    except ValueError:
-        raise argparse.ArgumentTypeError(
-            f"expected inner corners as COLSxROWS, e.g. 9x6, got {text!r}"
-        ) from None
-    return cols, rows
+        return parse_pattern(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 import yaml
 
+from calibration.board import BoardSpec
 from calibration.cli import main
 from irloc.cli import main as irloc_main
 from localizer.camera import T_body_camera_upward, camera_from_sensor, sensor_from_camera
@@ -111,3 +112,21 @@ def test_bad_arguments_and_files(tmp_path: Path, capsys: pytest.CaptureFixture[s
     err = _fails([str(broken), str(tmp_path / "left01.jpg")], out, capsys)
     assert "1 file could not be decoded as an image:" in err and "broken.jpg" in err
     assert not out.exists()
+
+
+def test_charuco_fisheye_from_the_command_line(tmp_path: Path) -> None:
+    from tests.calibration.test_lens_synthetic import PIXELS, _photos, _true_camera
+
+    camera = _true_camera("fisheye")
+    board = BoardSpec((9, 6), 0.03, kind="charuco", marker_m=0.0225, dictionary="DICT_4X4_100")
+    photos = _photos(camera, board, PIXELS[:8], seed=5, distance_m=0.4, px_per_square=48)
+    for k, img in enumerate(photos):
+        cv2.imwrite(str(tmp_path / f"board{k:02d}.png"), img)
+    out = tmp_path / "sensor.yaml"
+    argv = [str(tmp_path), "--pattern", "9x6", "--square", "0.03", "--charuco", "DICT_4X4_100",
+            "--marker", "0.0225", "--model", "fisheye", "--out", str(out)]  # fmt: skip
+    assert main(argv) == 0
+    got = camera_from_sensor(yaml.safe_load(out.read_text()))
+    assert got.distortion_model == "equidistant"
+    np.testing.assert_allclose([got.fu, got.fv], [camera.fu, camera.fv], rtol=0.005)
+    np.testing.assert_allclose([got.cu, got.cv], [camera.cu, camera.cv], atol=1.0)

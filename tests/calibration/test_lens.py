@@ -9,7 +9,7 @@ import cv2
 import numpy as np
 import pytest
 
-from calibration.board import BoardSpec
+from calibration.board import BoardSpec, parse_pattern
 from calibration.lens import LensCalibrationConfig, calibrate_lens
 from localizer.camera import camera_from_sensor
 
@@ -201,3 +201,18 @@ def test_bad_arguments_raise() -> None:
         calibrate_lens([])
     with pytest.raises(ValueError, match="float64"):
         calibrate_lens([img.astype(np.float64)])
+
+
+def test_pattern_text_and_charuco_spec() -> None:
+    assert parse_pattern("9x6") == (9, 6) and parse_pattern(" 7X5 ") == (7, 5)
+    for bad in ("9", "9x", "axb", "1x6", "9x6x2"):
+        with pytest.raises(ValueError, match="pattern"):
+            parse_pattern(bad)
+    with pytest.raises(ValueError, match="unknown ArUco dictionary 'DICT_9X9_1'"):
+        BoardSpec(kind="charuco", dictionary="DICT_9X9_1")
+    with pytest.raises(ValueError, match="marker size must lie between 0 and the square size"):
+        BoardSpec(kind="charuco", square_m=0.03, marker_m=0.04)
+    spec = BoardSpec((9, 6), 0.03, kind="charuco")
+    assert spec.marker_size_m == pytest.approx(0.0225)
+    assert spec.charuco_board().getChessboardSize() == (10, 7)
+    np.testing.assert_allclose(spec.object_points()[:2], [[0, 0, 0], [0.03, 0, 0]])
