@@ -213,6 +213,11 @@ def calibrate_lens(
 
     usable = [i for i, c in enumerate(corners) if c is not None]
     if not usable:
+        if all(r is not None and r.startswith("wrong resolution") for r in reasons):
+            raise ValueError(
+                f"none of the {len(grays)} images has the expected resolution "
+                f"{resolution[0]}x{resolution[1]}"
+            )
         raise ValueError(_no_board_message(grays, labels, spec))
     if len(usable) < cfg.min_views:
         raise ValueError(

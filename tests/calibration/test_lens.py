@@ -175,6 +175,10 @@ def test_expected_resolution_rejects_other_sizes(photos) -> None:
     )
     assert result.views[-1].reason == "wrong resolution 320x240"
     assert result.used_views == 6
+    with pytest.raises(
+        ValueError, match="none of the 1 images has the expected resolution 640x480"
+    ):
+        calibrate_lens([small], expected_resolution=(640, 480))
 
 
 def test_too_few_views_raise(photos) -> None:
