@@ -9,7 +9,9 @@ so the estimate is optimistic early on and becomes reliable in the last weeks.
 
 from __future__ import annotations
 
+import asyncio
 from collections import deque
+from collections.abc import Awaitable, Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -24,6 +26,7 @@ class BatteryConfig:
     Attributes:
         interval_s: time between scheduled reads of every landmark; None: no schedule.
         low_mv: a reading at or below this raises a LowBattery event, millivolts.
+        low_hysteresis_mv: a low landmark must read this much above `low_mv` to clear.
         cutoff_mv: the supply at which the landmark stops working (XBee 3: 2100 mV).
         history_len: readings kept per landmark.
         fit_window_days: only readings this recent enter the trend fit.
@@ -32,6 +35,7 @@ class BatteryConfig:
 
     interval_s: float | None = 3600.0
     low_mv: int = 2400
+    low_hysteresis_mv: int = 50
     cutoff_mv: int = 2100
     history_len: int = 2000
     fit_window_days: float = 30.0
@@ -97,6 +101,7 @@ class BatteryHistory:
     def __init__(self, config: BatteryConfig) -> None:
         self.config = config
         self._readings: dict[int, deque[tuple[int, int]]] = {}
+        self._low: set[int] = set()
 
     def add(self, landmark_id: int, t_ns: int, supply_mv: int) -> BatteryReading:
         """Record a reading; returns it with the current days-left estimate."""
@@ -126,5 +131,30 @@ class BatteryHistory:
             arr[:, 0], arr[:, 1], self.config.cutoff_mv, min_span_days=self.config.min_fit_span_days
         )
 
+    def became_low(self, reading: BatteryReading) -> bool:
+        """True the first time a landmark reads at or below `low_mv` (until it recovers
+        `low_hysteresis_mv` above it: new cells)."""
+        lid, mv = reading.landmark_id, reading.supply_mv
+        if mv <= self.config.low_mv and lid not in self._low:
+            self._low.add(lid)
+            return True
+        if mv > self.config.low_mv + self.config.low_hysteresis_mv:
+            self._low.discard(lid)
+        return False
+
     def forget(self, landmark_id: int) -> None:
         self._readings.pop(landmark_id, None)
+        self._low.discard(landmark_id)
+
+
+async def read_all(
+    read: Callable[[int], Awaitable[BatteryReading]], ids: Sequence[int], batch: int
+) -> list[BatteryReading]:
+    """Read every landmark, `batch` at a time; failures are skipped (their callers raise
+    the events)."""
+    readings: list[BatteryReading] = []
+    for start in range(0, len(ids), batch):
+        chunk = ids[start : start + batch]
+        results = await asyncio.gather(*(read(lid) for lid in chunk), return_exceptions=True)
+        readings += [r for r in results if isinstance(r, BatteryReading)]
+    return readings

@@ -24,7 +24,6 @@ class GatewayConfig:
         light_all_on_start: `start()` lights every LED in the background (the normal tracking
             state), so that the LED state is known and published from the start.
         blink_count, blink_period_s: `blink` toggles the LED this many times, one period each.
-        low_battery_hysteresis_mv: a low landmark must read this much above `low_mv` to clear.
         subscriber_queue: events buffered per subscriber.
         battery: battery monitoring settings.
     """
@@ -39,7 +38,6 @@ class GatewayConfig:
     light_all_on_start: bool = True
     blink_count: int = 3
     blink_period_s: float = 0.4
-    low_battery_hysteresis_mv: int = 50
     subscriber_queue: int = 256
     battery: BatteryConfig = field(default_factory=BatteryConfig)
 

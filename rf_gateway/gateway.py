@@ -28,7 +28,7 @@ from functools import partial
 from typing import TypeVar
 
 from localizer.events import LedsChanged
-from rf_gateway.battery import BatteryHistory, BatteryReading
+from rf_gateway.battery import BatteryHistory, BatteryReading, read_all
 from rf_gateway.config import GatewayConfig, GatewayStats
 from rf_gateway.errors import (
     LandmarkUnreachableError,
@@ -52,6 +52,7 @@ from rf_gateway.transport import (
     TransportState,
     normalize_landmark_radios,
 )
+from rf_gateway.waiters import ALL, SeqWaiters
 
 log = logging.getLogger(__name__)
 T = TypeVar("T")
@@ -85,13 +86,12 @@ class Gateway:
         self._slots = PrioritySlots(self.config.max_in_flight, self.config.max_waiting)
         self._desired: dict[int, tuple[bool, int]] = {}  # id -> (level, seq)
         self._confirmed: dict[int, tuple[bool, int, int]] = {}  # id -> (level, seq, t_ns)
-        self._waiters: dict[int, list[tuple[int, asyncio.Future[int]]]] = {}
+        self._waiters = SeqWaiters()
         self._led_priority: dict[int, Priority] = {}
         self._syncers: dict[int, asyncio.Task[None]] = {}
         self._seq = 0
         self._failures: dict[int, int] = {}
         self._unreachable: set[int] = set()
-        self._low: set[int] = set()
         self._sweep_lock = asyncio.Lock()
         self._leds_hub: Hub[LedsChanged] = Hub(self.config.subscriber_queue)
         self._events_hub: Hub[GatewayEvent] = Hub(self.config.subscriber_queue)
@@ -134,8 +134,7 @@ class Gateway:
         for task in tasks:
             with contextlib.suppress(asyncio.CancelledError, Exception):
                 await task
-        for lid in list(self._waiters):
-            self._fail_waiters(lid, 1 << 62, TransportUnavailable("the gateway was closed"))
+        self._waiters.fail_all(TransportUnavailable("the gateway was closed"))
         await self.transport.close()
 
     def _on_transport_state(self, state: TransportState) -> None:
@@ -165,12 +164,11 @@ class Gateway:
             task = self._syncers.pop(lid, None)
             if task is not None:
                 task.cancel()
-            self._fail_waiters(lid, 1 << 62, UnknownLandmarkError(lid))
+            self._waiters.fail(lid, ALL, UnknownLandmarkError(lid))
             self._desired.pop(lid, None)
             self._confirmed.pop(lid, None)
             self._failures.pop(lid, None)
             self._unreachable.discard(lid)
-            self._low.discard(lid)
             self.batteries.forget(lid)
         for lid, address in new.items():
             if self._addresses.get(lid) not in (None, address):
@@ -265,8 +263,7 @@ class Gateway:
                 self._seq += 1
                 seq = self._seq
                 self._desired[lid] = (level, seq)
-            fut: asyncio.Future[int] = loop.create_future()
-            self._waiters.setdefault(lid, []).append((seq, fut))
+            fut = self._waiters.add(lid, seq)
             self._led_priority[lid] = min(self._led_priority.get(lid, priority), priority)
             waits.append((lid, fut))
             if not pending:
@@ -306,33 +303,15 @@ class Gateway:
                         lid, priority, partial(self.transport.set_pin, address, level)
                     )
                 except Exception as exc:
-                    self._fail_waiters(lid, seq, exc)
+                    self._waiters.fail(lid, seq, exc)
                     if self._desired[lid][1] == seq:
                         break
                     continue
                 t_ns = self.clock_ns()
                 self._confirmed[lid] = (level, seq, t_ns)
-                self._resolve_waiters(lid, seq, t_ns)
+                self._waiters.resolve(lid, seq, t_ns)
         finally:
             self._syncers.pop(lid, None)
-
-    def _resolve_waiters(self, lid: int, seq: int, t_ns: int) -> None:
-        self._settle_waiters(lid, seq, lambda fut: fut.set_result(t_ns))
-
-    def _fail_waiters(self, lid: int, seq: int, exc: BaseException) -> None:
-        self._settle_waiters(lid, seq, lambda fut: fut.set_exception(exc))
-
-    def _settle_waiters(
-        self, lid: int, seq: int, settle: Callable[[asyncio.Future[int]], None]
-    ) -> None:
-        """Answer every waiter of `lid` that asked for sequence number `seq` or older."""
-        keep = []
-        for wanted, fut in self._waiters.get(lid, []):
-            if wanted > seq:
-                keep.append((wanted, fut))
-            elif not fut.done():
-                settle(fut)
-        self._waiters[lid] = keep
 
     # -- commands with retries ------------------------------------------------------------------
     async def _command(self, lid: int, priority: Priority, send: Callable[[], Awaitable[T]]) -> T:
@@ -389,27 +368,14 @@ class Gateway:
             landmark_id, Priority.BATTERY, lambda: self.transport.read_supply_mv(address)
         )
         reading = self.batteries.add(landmark_id, self.clock_ns(), int(mv))
-        cfg = self.config.battery
-        if reading.supply_mv <= cfg.low_mv and landmark_id not in self._low:
-            self._low.add(landmark_id)
+        if self.batteries.became_low(reading):
             event = LowBattery(reading.t_ns, landmark_id, reading.supply_mv, reading.days_left)
             self._events_hub.publish(event)
-        elif reading.supply_mv > cfg.low_mv + self.config.low_battery_hysteresis_mv:
-            self._low.discard(landmark_id)
         return reading
 
     async def poll_batteries(self) -> list[BatteryReading]:
         """Read every landmark once (a landmark that fails is skipped, its event raised)."""
-        readings = []
-        ids = sorted(self._addresses)
-        batch = self.config.max_in_flight
-        for start in range(0, len(ids), batch):
-            chunk = ids[start : start + batch]
-            results = await asyncio.gather(
-                *(self.battery(lid) for lid in chunk), return_exceptions=True
-            )
-            readings += [r for r in results if isinstance(r, BatteryReading)]
-        return readings
+        return await read_all(self.battery, sorted(self._addresses), self.config.max_in_flight)
 
     async def _battery_loop(self) -> None:
         while self.config.battery.interval_s is not None:
