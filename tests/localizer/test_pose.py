@@ -18,7 +18,7 @@ from localizer.pose_planar import rotation_world_body
 
 LENSES = {
     "pinhole": ("radial-tangential", [0.0, 0.0, 0.0, 0.0]),
-    "radial-tangential": ("radial-tangential", [-0.28, 0.07, 2e-4, -3e-4, -0.008]),
+    "radial-tangential": ("radial-tangential", [-0.25, 0.05, 2e-4, -3e-4, 0.0]),
     "equidistant": ("equidistant", [-0.013, 0.021, -0.019, 0.0068]),
 }
 MOUNTINGS = {
