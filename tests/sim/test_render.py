@@ -107,3 +107,18 @@ def test_extended_lamp_is_a_saturated_disc() -> None:
 def test_render_rejects_mismatched_intensities() -> None:
     with pytest.raises(ValueError, match="intensities"):
         render_frame(wide_angle_camera("pinhole"), np.eye(4), [[0, 0, 2.5]], [1, 2], rng=None)
+
+
+def test_overlapping_spots_add_up_and_noisy_frames_keep_the_spot() -> None:
+    camera = wide_angle_camera("pinhole")
+    T = np.eye(4)
+    a, b = [0.0, 0.0, 2.5], [0.004, 0.0, 2.5]  # ~0.5 px apart
+    cfg = dataclasses.replace(QUIET, peak_counts=60.0)
+    both = render_frame(camera, T, [a, b], [1.0, 1.0], rng=None, config=cfg).astype(int)
+    one = render_frame(camera, T, [a], [1.0], rng=None, config=cfg).astype(int)
+    two = render_frame(camera, T, [b], [1.0], rng=None, config=cfg).astype(int)
+    np.testing.assert_allclose(both, one + two, atol=1)
+    noisy = render_frame(camera, T, [a], [1.0], rng=np.random.default_rng(1))
+    (px,), _ = predict_pixels(camera, T, [a])
+    centroid = _centroid(noisy.astype(np.float64) - RenderConfig().background_counts, px, half=4)
+    np.testing.assert_allclose(centroid, px, atol=0.15)
