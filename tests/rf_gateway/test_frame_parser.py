@@ -2,7 +2,7 @@ from __future__ import annotations
 
 import random
 
-from hypothesis import given
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from rf_gateway import frames as fr
@@ -55,6 +55,7 @@ def test_expire_drops_a_partial_frame() -> None:
     assert (parser.pending, parser.stats.truncated) == (0, 1)
 
 
+@settings(deadline=None)
 @given(st.binary(max_size=300), st.booleans())
 def test_parser_never_raises_on_random_bytes(noise: bytes, escaped: bool) -> None:
     parser = StreamParser(escaped=escaped)

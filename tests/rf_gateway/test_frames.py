@@ -1,7 +1,7 @@
 from __future__ import annotations
 
 import pytest
-from hypothesis import given
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from rf_gateway import frames as fr
@@ -65,6 +65,7 @@ def test_bad_command_and_length_raise() -> None:
         fr.wrap(b"")
 
 
+@settings(deadline=None)
 @given(
     st.integers(0, 255),
     st.integers(0, 2**64 - 1),

@@ -25,7 +25,7 @@ from rf_gateway.transport import DiscoveredRadio
 from rf_gateway.xbee_transport import XBeeTransport, XBeeTransportConfig
 
 ADDR = {i: f"0013A20040A000{i:02X}" for i in (1, 2, 3, 4)}
-CONFIG = XBeeTransportConfig(command_timeout_s=0.2, reopen_initial_s=0.05, reopen_max_s=0.2)
+CONFIG = XBeeTransportConfig(command_timeout_s=0.4, reopen_initial_s=0.05, reopen_max_s=0.2)
 GW_CONFIG = GatewayConfig(
     max_tries=8,
     retry_backoff_s=0.01,
@@ -139,7 +139,7 @@ FINAL_PINS = {ADDR[1]: {"D4": 5}, ADDR[2]: {"D4": 4}}
 @pytest.mark.parametrize(
     "faults, counter",
     [
-        (FaultConfig(drop=0.3, seed=1), "dropped"),
+        pytest.param(FaultConfig(drop=0.3, seed=1), "dropped", marks=pytest.mark.slow),
         (FaultConfig(corrupt=0.3, seed=2), "corrupted"),
         (FaultConfig(duplicate=1.0, seed=3), "duplicated"),
         (FaultConfig(delay_s=0.03, jitter_s=0.02, seed=4), None),
@@ -179,7 +179,7 @@ def test_late_reply_crossing_a_retry_is_not_taken_for_a_newer_command(
 ) -> None:
     remote = emulator.remote(ADDR[1])
     remote.late_replies = 1
-    remote.late_delay_s = 0.35  # longer than the 0.2 s command timeout
+    remote.late_delay_s = 0.7  # longer than the 0.4 s command timeout
     gw, events = run_gateway_sequence(emulator, [[1], [], [1]])
     assert gw.stats.retries == 1
     # the first command was applied when it arrived and again by the retry (idempotent);
