@@ -48,7 +48,7 @@ class SceneConfig:
         ellipse_min_m: ellipses are drawn at least this large, metres (to stay visible).
     """
 
-    landmark_radius_m: float = 0.06
+    landmark_radius_m: float = 0.1
     trail_len: int = 300
     trail_every: int = 3
     ellipse_sigma: float = 3.0
@@ -76,12 +76,10 @@ def set_segments(handle: viser.LineSegmentsHandle, segments: FloatArray, color: 
 
 
 def landmark_label(lm: LandmarkState) -> str:
-    """The text next to a landmark: its ID and what is wrong with it."""
+    """The text next to a landmark: its ID, and "unreachable" or "(surveyed)"."""
     text = str(lm.id)
     if not lm.reachable:
         text += " unreachable"
-    elif not lm.seen:
-        text += " never seen"
     if lm.locked:
         text += " (surveyed)"
     return text
@@ -135,14 +133,14 @@ class SiteScene:
         scene = self.server.scene
         scene.add_grid("/floor", w, h, plane="xy", position=(cx, cy, 0.0), cell_size=0.5)
         scene.add_grid(
-            "/ceiling", w, h, plane="xy", position=(cx, cy, ceiling_z), cell_size=0.5,
+            "/ceiling", w, h, plane="xy", position=(cx, cy, ceiling_z), cell_size=1.0,
             cell_color=(215, 215, 235), section_color=(180, 180, 210), plane_opacity=0.0,
             shadow_opacity=0.0,
         )  # fmt: skip
         span = max(w, h)
         cam = self.server.initial_camera
-        cam.position = (cx - 0.35 * span, cy - 0.9 * span, ceiling_z + 0.7 * span)
-        cam.look_at = (cx, cy, 0.5)
+        cam.position = (cx - 0.2 * span, cy - 0.75 * span, ceiling_z + 0.3 * span)
+        cam.look_at = (cx, cy, 0.8)
         cam.up = (0.0, 0.0, 1.0)
 
     # -- landmarks ---------------------------------------------------------------------------

@@ -1,0 +1,60 @@
+"""A live site for the viewer's end-to-end tests: the API app in-process (uvicorn on a free
+port, a temporary data folder, the `demo` virtual site), started once per test session."""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[2]
+ARTIFACTS = REPO / "test-artifacts"
+DOC_IMAGES = REPO / "docs" / "img"
+
+
+@dataclass
+class LiveSite:
+    base: str
+    services: Any
+    admin_key: str
+    operator_key: str
+    viewer_key: str
+
+
+@pytest.fixture(scope="session")
+def live_site(tmp_path_factory: pytest.TempPathFactory) -> Iterator[LiveSite]:
+    import uvicorn
+
+    from server.main import create_app
+    from server.settings import Settings
+
+    data = tmp_path_factory.mktemp("irloc-data")
+    settings = Settings(data_dir=data, port=0, viewer_port=0, scenario="demo", seed=5)
+    app = create_app(settings)
+    config = uvicorn.Config(app, host="127.0.0.1", port=0, log_level="warning", lifespan="on")
+    server = uvicorn.Server(config)
+    thread = threading.Thread(target=server.run, name="uvicorn-test", daemon=True)
+    thread.start()
+    deadline = time.monotonic() + 60
+    while not server.started:
+        if time.monotonic() > deadline or not thread.is_alive():
+            raise RuntimeError("the irloc app did not start")
+        time.sleep(0.05)
+    port = server.servers[0].sockets[0].getsockname()[1]
+    services = app.state.services
+    keys = {
+        role: services.keys.create(role, f"test-{role}")[0]
+        for role in ("admin", "operator", "viewer")
+    }
+    try:
+        yield LiveSite(
+            f"http://127.0.0.1:{port}", services, keys["admin"], keys["operator"], keys["viewer"]
+        )
+    finally:
+        server.should_exit = True
+        thread.join(timeout=30)

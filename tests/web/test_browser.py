@@ -1,0 +1,146 @@
+"""The viewer in a real browser: Debian's Chromium, headless, driven by Playwright, against
+the app with the `demo` virtual site (`live_site`). Software WebGL costs most of a core: the
+tests are few, share one browser and keep their waits generous."""
+
+from __future__ import annotations
+
+import re
+import shutil
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from tests.web.conftest import ARTIFACTS, DOC_IMAGES, LiveSite
+
+CHROMIUM = Path("/usr/bin/chromium")
+ARGS = [
+    "--headless=new", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+    "--disable-background-networking", "--disable-component-update", "--disable-sync",
+]  # fmt: skip
+LANDMARKS_IN_SCENE = (  # a JS expression: the number of /landmarks/<id> scene nodes
+    "Object.keys((window.__viserMutable || {}).nodeRefFromName || {})"
+    ".filter(k => /^\\/landmarks\\/\\d+$/.test(k)).length"
+)
+
+pytestmark = [
+    pytest.mark.browser,
+    pytest.mark.slow,
+    pytest.mark.skipif(
+        not CHROMIUM.exists(),
+        reason="no /usr/bin/chromium: install Debian's chromium (apt-get install chromium) "
+        "to run the browser tests",
+    ),
+]
+
+
+@pytest.fixture(scope="module")
+def browser(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Any]:
+    from playwright.sync_api import sync_playwright
+
+    with sync_playwright() as p:
+        ctx = p.chromium.launch_persistent_context(
+            str(tmp_path_factory.mktemp("chromium")), executable_path=str(CHROMIUM),
+            headless=True, args=ARGS, viewport={"width": 1280, "height": 800},
+        )  # fmt: skip
+        try:
+            yield ctx
+        finally:
+            ctx.close()
+
+
+def open_viewer(browser: Any, site: LiveSite, key: str) -> Any:
+    page = browser.new_page()
+    page.goto(f"{site.base}/viewer/?token={key}")
+    page.wait_for_function(f"() => {LANDMARKS_IN_SCENE} > 0", timeout=90_000)
+    page.get_by_text("Connecting...").wait_for(state="hidden", timeout=60_000)
+    return page
+
+
+def save_shot(page: Any, name: str, *, doc: bool = False) -> None:
+    ARTIFACTS.mkdir(exist_ok=True)
+    path = ARTIFACTS / name
+    page.screenshot(path=str(path))
+    if doc:
+        DOC_IMAGES.mkdir(parents=True, exist_ok=True)
+        shutil.copy(path, DOC_IMAGES / name)
+
+
+def test_scene_renders_with_every_landmark_of_the_map(browser: Any, live_site: LiveSite) -> None:
+    page = open_viewer(browser, live_site, live_site.admin_key)
+    try:
+        n_map = len(live_site.services.map.list())
+        page.wait_for_function(f"() => {LANDMARKS_IN_SCENE} === {n_map}", timeout=30_000)
+        assert page.evaluate(f"() => {LANDMARKS_IN_SCENE}") == n_map
+        for name in live_site.services.robots.names():
+            page.wait_for_function(
+                f"() => !!window.__viserMutable.nodeRefFromName['/robots/{name}/body']",
+                timeout=30_000,
+            )
+        page.get_by_text("signed in as admin").wait_for(timeout=10_000)
+        time.sleep(3.0)  # let software WebGL draw a few frames
+        save_shot(page, "viewer-monitoring.png", doc=True)
+    finally:
+        page.close()
+
+
+def test_viewer_key_sees_but_cannot_edit(browser: Any, live_site: LiveSite) -> None:
+    page = open_viewer(browser, live_site, live_site.viewer_key)
+    try:
+        page.get_by_text("signed in as viewer").wait_for(timeout=20_000)
+        assert page.get_by_text("Commission", exact=True).count() == 0
+        for name in ("Relocalize", "Add landmark", "Start identification", "Undo last change"):
+            assert page.get_by_role("button", name=name).count() == 0, name
+        assert page.evaluate(f"() => {LANDMARKS_IN_SCENE}") == len(live_site.services.map.list())
+    finally:
+        page.close()
+
+
+def _localized_robot(services: Any, timeout_s: float) -> str | None:
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        for runner in services.robots.runners():
+            if runner.mode == "landmark" and runner.last_fix_t_ns is not None:
+                return str(runner.name)
+        time.sleep(0.5)
+    return None
+
+
+def test_wizard_lights_the_landmark_alone_and_saves_its_true_position(
+    browser: Any, live_site: LiveSite
+) -> None:
+    services = live_site.services
+    world = services.sim.world
+    robot = _localized_robot(services, 90.0)
+    if robot is None:
+        pytest.fail("no robot of the demo site localized from landmarks within 90 s")
+    # the landmark nearest the robot; its map position is made 30 cm wrong (doubted)
+    x, y, _ = services.sim.true_pose(robot)
+    target = min(world.landmarks.values(), key=lambda lm: np.hypot(*(lm.p_true[:2] - (x, y))))
+    lid, truth = int(target.id), np.array(target.p_true)
+    from server.models import LandmarkUpdate
+
+    services.map.update(lid, LandmarkUpdate(x=float(truth[0]) + 0.3), actor="test")
+    page = open_viewer(browser, live_site, live_site.admin_key)
+    try:
+        page.get_by_role("tab", name="Commission").click()
+        page.get_by_label("Camera of").select_option(robot)
+        page.get_by_label("Landmark IDs").fill(str(lid))
+        page.get_by_label("Landmark IDs").press("Enter")
+        time.sleep(1.0)
+        page.get_by_role("button", name="Start identification").click()
+        status = page.get_by_text(re.compile(rf"landmark {lid} at \("))
+        status.wait_for(timeout=60_000)
+        assert world.lit_ids() == {lid}  # the virtual site's LEDs: that one alone
+        save_shot(page, "viewer-commissioning.png", doc=True)
+        page.get_by_role("button", name="Confirm position").click()
+        page.get_by_text(re.compile(r"done")).wait_for(timeout=60_000)
+        saved = services.map.get(lid)
+        err = np.hypot(saved.x - truth[0], saved.y - truth[1])
+        assert err < 0.02, f"saved ({saved.x:.3f}, {saved.y:.3f}), truth {truth[:2]}"
+        assert len(world.lit_ids()) > 1  # LEDs restored
+    finally:
+        page.close()

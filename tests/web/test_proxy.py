@@ -1,0 +1,54 @@
+"""The viewer behind the API key, over plain HTTP and WebSocket (no browser)."""
+
+from __future__ import annotations
+
+import asyncio
+
+import httpx
+import pytest
+import websockets
+
+from tests.web.conftest import LiveSite
+
+pytestmark = pytest.mark.slow
+
+
+def test_page_needs_a_key_and_moves_it_to_a_cookie(live_site: LiveSite) -> None:
+    with httpx.Client(base_url=live_site.base) as http:
+        assert http.get("/viewer/").status_code == 401
+        assert http.get("/viewer/?token=not-a-key").status_code == 401
+        r = http.get(f"/viewer/?token={live_site.viewer_key}")
+        assert r.status_code == 303 and r.headers["location"] == "/viewer/"
+        cookie = r.headers["set-cookie"]
+        assert "HttpOnly" in cookie and "Path=/viewer" in cookie
+        page = http.get("/viewer/")  # the cookie now carries the key
+        assert page.status_code == 200 and b"<html" in page.content[:200]
+        bearer = http.get("/viewer/", headers={"Authorization": f"Bearer {live_site.admin_key}"})
+        assert bearer.status_code == 200
+
+
+def test_websocket_relays_viser_only_with_a_key(live_site: LiveSite) -> None:
+    url = live_site.base.replace("http", "ws") + "/viewer"
+
+    async def run() -> None:
+        with pytest.raises(websockets.InvalidStatus):
+            async with websockets.connect(url, subprotocols=["viser-v1.1.1"]):
+                pass
+        headers = {"Authorization": f"Bearer {live_site.viewer_key}"}
+        async with websockets.connect(
+            url, subprotocols=["viser-v1.1.1"], additional_headers=headers, max_size=None
+        ) as ws:
+            assert ws.subprotocol == "viser-v1.1.1"
+            first = await asyncio.wait_for(ws.recv(), timeout=10)
+            assert isinstance(first, bytes) and len(first) > 0  # viser's msgpack state replay
+
+    asyncio.run(run())
+
+
+def test_viser_itself_listens_on_loopback_only(live_site: LiveSite) -> None:
+    from web.viewer import Viewer
+
+    assert live_site.services.settings.viewer_enabled
+
+    with pytest.raises(ValueError, match="no login"):
+        Viewer(live_site.services, host="0.0.0.0")

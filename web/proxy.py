@@ -1,0 +1,181 @@
+"""`viewer_router`: the viewer on the API's own port, behind the API key.
+
+- `GET /viewer/` serves viser's client page (the installed viser package's `client/build`).
+  A key in `?token=` (or `?key=`) is checked, stored in an HttpOnly cookie scoped to
+  `/viewer`, and the browser is redirected to the bare URL so the key leaves the address bar.
+  `Authorization: Bearer <key>` works too. Without a valid key: 401.
+- `WS /viewer` (where viser's client connects from that page; `/viewer/` too): the key
+  (cookie, header or query) is checked, then the connection is relayed to viser on
+  127.0.0.1 with the client's `viser-v<version>` subprotocol passed through and a one-time
+  ticket that tells the viewer the role (viewers see; operators relocalize; admins commission).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+from urllib.parse import urlencode
+
+import viser
+import websockets
+from fastapi import APIRouter, Request, WebSocket, WebSocketDisconnect
+from fastapi.responses import HTMLResponse, RedirectResponse, Response
+from starlette.requests import HTTPConnection
+
+from web.roles import Session
+from web.viewer import TICKET_PARAM
+
+log = logging.getLogger(__name__)
+COOKIE = "irloc_viewer_key"
+KEY_PARAMS = ("token", "key")
+
+
+def client_build_dir() -> Path:
+    """The installed viser package's client build (index.html)."""
+    return Path(viser.__file__).parent / "client" / "build"
+
+
+def key_of(conn: HTTPConnection) -> str | None:
+    """The API key a browser sent: `Authorization: Bearer`, then the cookie, then the query."""
+    scheme, _, value = conn.headers.get("authorization", "").partition(" ")
+    if scheme.lower() == "bearer" and value.strip():
+        return value.strip()
+    cookie = conn.cookies.get(COOKIE)
+    if cookie:
+        return cookie
+    for name in KEY_PARAMS:
+        v = conn.query_params.get(name)
+        if v:
+            return v
+    return None
+
+
+def _with_bearer(conn: HTTPConnection, key: str) -> HTTPConnection:
+    """The same connection seen with `Authorization: Bearer <key>` only (for `authenticate`)."""
+    scope = dict(conn.scope)
+    headers = [(k, v) for k, v in scope.get("headers", []) if k.lower() != b"authorization"]
+    scope["headers"] = [*headers, (b"authorization", f"Bearer {key}".encode("latin-1"))]
+    scope["query_string"] = b""
+    return HTTPConnection(scope)
+
+
+def session_of(
+    conn: HTTPConnection, authenticate: Callable[[HTTPConnection], Any]
+) -> Session | None:
+    """The viewer session of a request, or None without a valid key."""
+    key = key_of(conn)
+    if key is None:
+        return None
+    try:
+        principal = authenticate(_with_bearer(conn, key))
+    except (UnicodeEncodeError, ValueError):
+        return None
+    if principal is None:
+        return None
+    return Session(str(principal.role), f"viewer:{principal.actor}")
+
+
+NO_KEY_PAGE = """<!doctype html><title>irloc viewer</title>
+<h1>irloc viewer</h1><p>This page needs an API key: open
+<code>/viewer/?token=&lt;key&gt;</code> (create one with
+<code>irloc keys create --role viewer</code>).</p>"""
+
+
+def viewer_router(
+    get_viewer: Callable[[], Any], authenticate: Callable[[HTTPConnection], Any]
+) -> APIRouter:
+    """Routes serving the viewer under `/viewer/`.
+
+    Args:
+        get_viewer: returns the running `web.viewer.Viewer` (None when disabled).
+        authenticate: `server.auth.authenticate`: a connection -> principal with `role` and
+            `actor`, or None for a missing or invalid key.
+    """
+    router = APIRouter(tags=["viewer"], include_in_schema=False)
+    index = client_build_dir() / "index.html"
+
+    @router.get("/viewer")
+    async def viewer_no_slash(request: Request) -> Response:
+        q = request.url.query
+        return RedirectResponse("/viewer/" + (f"?{q}" if q else ""), status_code=307)
+
+    @router.get("/viewer/")
+    async def viewer_page(request: Request) -> Response:
+        if get_viewer() is None:
+            return HTMLResponse("<h1>the viewer is not running</h1>", status_code=503)
+        session = session_of(request, authenticate)
+        if session is None:
+            return HTMLResponse(NO_KEY_PAGE, status_code=401)
+        query_key = next(
+            (request.query_params[n] for n in KEY_PARAMS if n in request.query_params), None
+        )
+        if query_key is not None:
+            rest = [(k, v) for k, v in request.query_params.multi_items() if k not in KEY_PARAMS]
+            target = "/viewer/" + (f"?{urlencode(rest)}" if rest else "")
+            resp: Response = RedirectResponse(target, status_code=303)
+            resp.set_cookie(
+                COOKIE, query_key, httponly=True, samesite="strict", path="/viewer",
+                secure=request.url.scheme == "https",
+            )  # fmt: skip
+            return resp
+        return HTMLResponse(index.read_bytes(), headers={"Cache-Control": "no-store"})
+
+    @router.websocket("/viewer")
+    @router.websocket("/viewer/")
+    async def viewer_socket(ws: WebSocket) -> None:
+        viewer = get_viewer()
+        session = session_of(ws, authenticate)
+        if viewer is None or session is None:
+            await ws.close(code=1008, reason="a valid API key is required")
+            return
+        offered = [p.strip() for p in ws.headers.get("sec-websocket-protocol", "").split(",")]
+        proto = next((p for p in offered if p.startswith("viser-v")), None)
+        ticket = viewer.issue_ticket(session)
+        url = f"ws://127.0.0.1:{viewer.port}/?{TICKET_PARAM}={ticket}"
+        try:
+            upstream = await websockets.connect(
+                url, subprotocols=[proto] if proto else None, max_size=None,  # type: ignore[list-item]
+                open_timeout=10, ping_interval=None,
+            )  # fmt: skip
+        except (OSError, websockets.WebSocketException) as exc:
+            log.warning("viewer proxy: cannot reach viser on port %s: %s", viewer.port, exc)
+            await ws.close(code=1011, reason="viewer unavailable")
+            return
+        await ws.accept(subprotocol=upstream.subprotocol)
+        await relay(ws, upstream)
+
+    return router
+
+
+async def relay(ws: WebSocket, upstream: Any) -> None:
+    """Copy messages both ways until either side closes; then close the other."""
+
+    async def down() -> None:
+        async for msg in upstream:
+            if isinstance(msg, bytes):
+                await ws.send_bytes(msg)
+            else:
+                await ws.send_text(msg)
+
+    async def up() -> None:
+        while True:
+            msg = await ws.receive()
+            if msg["type"] == "websocket.disconnect":
+                return
+            data = msg.get("bytes")
+            await upstream.send(data if data is not None else msg.get("text", ""))
+
+    tasks = [asyncio.create_task(down()), asyncio.create_task(up())]
+    try:
+        await asyncio.wait(tasks, return_when=asyncio.FIRST_COMPLETED)
+    finally:
+        for t in tasks:
+            t.cancel()
+        await asyncio.gather(*tasks, return_exceptions=True)
+        await upstream.close()
+        with contextlib.suppress(RuntimeError, WebSocketDisconnect):
+            await ws.close()
