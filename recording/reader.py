@@ -92,14 +92,18 @@ class Recording:
 Item = OdometryMeasured | LedsChanged | FrameEntry
 
 
-def _data_lines(path: Path) -> Iterator[tuple[int, list[str]]]:
-    """(1-based line number, comma-separated fields) of every non-blank, non-# line."""
+def _read_text(path: Path) -> str:
     try:
-        text = path.read_text(encoding="utf-8")
+        return path.read_text(encoding="utf-8")
     except FileNotFoundError:
         raise RecordingError(path, None, "missing file") from None
     except (OSError, UnicodeDecodeError) as exc:
         raise RecordingError(path, None, f"cannot read: {exc}") from None
+
+
+def _data_lines(path: Path) -> Iterator[tuple[int, list[str]]]:
+    """(1-based line number, comma-separated fields) of every non-blank, non-# line."""
+    text = _read_text(path)
     for number, raw in enumerate(text.splitlines(), start=1):
         line = raw.strip()
         if line and not line.startswith("#"):
@@ -135,12 +139,7 @@ def _finite(path: Path, number: int, text: str, name: str) -> float:
 
 
 def _load_structured(path: Path, loader: Callable[[str], Any]) -> Any:
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise RecordingError(path, None, "missing file") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise RecordingError(path, None, f"cannot read: {exc}") from None
+    text = _read_text(path)
     try:
         return loader(text)
     except json.JSONDecodeError as exc:

@@ -1,0 +1,55 @@
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from sim.battery import Battery
+from sim.world import Glint, Person, SimLandmark, World
+
+
+def _world(**kw: object) -> World:
+    lms = {
+        1: SimLandmark(1, np.array([0.0, 0.0, 2.5]), np.zeros(3), "0013A20041000001", Battery()),
+        2: SimLandmark(2, np.array([2.0, 0.0, 2.5]), np.zeros(3), "0013A20041000002",
+                       Battery(charge=0.1)),
+    }  # fmt: skip
+    return World(lms, **kw)  # type: ignore[arg-type]
+
+
+def test_person_walks_back_and_forth_and_blocks_rays_below_head_height() -> None:
+    person = Person(((0.0, -2.0), (0.0, 2.0)), speed_mps=1.0, radius_m=0.25, height_m=1.8)
+    np.testing.assert_allclose(person.position(1.0), [0.0, -1.0])
+    np.testing.assert_allclose(person.position(5.0), [0.0, 1.0])  # turned back at 4 s
+    camera = np.array([0.0, -1.0, 0.3])
+    # Camera right beside the person: the ray straight up passes through; at 1.0 m away the
+    # ray to an LED above the person's far side passes below head height through them.
+    blocked = person.blocks(
+        1.0, camera + np.array([0.3, 0, 0]), np.array([[0.3, -1.0, 2.5], [-1.0, -1.0, 2.5]])
+    )
+    assert blocked.tolist() == [False, True]
+
+
+def test_point_sources_follow_leds_batteries_glints_and_people() -> None:
+    glint = Glint((0.2, 0.0, 2.5), 0.3, blink_period_s=2.0)
+    person = Person(((2.0, 0.0), (2.0, 0.0001)), speed_mps=0.0)
+    world = _world(glints=[glint], people=[person])
+    # The camera 0.5 m from the person: the ray to landmark 2 passes through them below
+    # head height; the one to landmark 1 leads away.
+    p, i = world.point_sources(np.array([1.5, 0.0, 0.3]))
+    assert p.shape == (3, 3)
+    assert i[0] == pytest.approx(1.0, abs=0.02)
+    assert i[1] == 0.0  # the person stands under landmark 2, between it and the camera
+    assert i[2] == 0.3
+    world.advance(1_500_000_000)  # glint is off in the second half of its period
+    world.set_lit({2})
+    p, i = world.point_sources(np.array([2.0, -1.5, 0.3]))
+    assert len(p) == 1 and 0 < i[0] < 0.7  # landmark 2 alone, dim: its cells are low
+
+
+def test_batteries_drain_with_time_only_when_advanced() -> None:
+    world = _world()
+    before = world.landmarks[1].battery.drawn_mah
+    world.advance(3600 * 1_000_000_000)
+    drawn = world.landmarks[1].battery.drawn_mah - before
+    assert drawn == pytest.approx(55.0, rel=0.05)  # ~54 mA LED + 1 mA idle for an hour
+    assert world.landmark_records()[1]["radio"] == "0013A20041000002"
