@@ -1,0 +1,124 @@
+"""The API on the live virtual site (`demo` scenario): robots, LEDs, radio, recordings."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from localizer.geometry import wrap_angle
+from recording.reader import read_recording
+from tests.server.conftest import Api, start_api
+
+pytestmark = pytest.mark.slow
+
+
+@pytest.fixture(scope="module")
+def site(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Api]:
+    yield from start_api(tmp_path_factory.mktemp("site"))
+
+
+def _wait(predicate: object, timeout_s: float) -> bool:
+    t_end = time.monotonic() + timeout_s
+    while time.monotonic() < t_end:
+        if predicate():  # type: ignore[operator]
+            return True
+        time.sleep(0.1)
+    return False
+
+
+def test_demo_site_has_its_robots_and_surveyed_map(site: Api) -> None:
+    robots = site.client.get("/api/v1/robots", headers=site.h("viewer")).json()
+    assert [r["name"] for r in robots] == ["r1", "r2", "r3"]
+    assert all(r["source"] == "sim" for r in robots)
+    truth = {int(r["id"]): r for r in site.services.sim.landmark_records()}
+    lms = site.client.get("/api/v1/landmarks", headers=site.h("viewer")).json()
+    assert {lm["id"] for lm in lms} == set(truth)
+    for lm in lms:
+        assert lm["radio"] == truth[lm["id"]]["radio"]
+    assert _wait(lambda: all(r.frames > 5 for r in site.services.robots.runners()), 30)
+
+
+def test_led_command_switches_the_virtual_landmark(site: Api) -> None:
+    c, h = site.client, site.h("operator")
+    world = site.services.sim.world
+    r = c.post("/api/v1/landmarks/105/led", json={"on": False}, headers=h)
+    assert r.status_code == 200, r.text
+    assert 105 not in r.json()["lit"] or r.json()["all_lit"] is False
+    assert 105 not in world.lit_ids()
+    r = c.post("/api/v1/landmarks/105/led", json={"on": True}, headers=h)
+    assert r.status_code == 200 and 105 in world.lit_ids()
+
+
+def test_unanswering_radio_is_504_naming_the_landmark_and_server_carries_on(site: Api) -> None:
+    c = site.client
+    body = {"id": 999, "x": 20.0, "y": 20.0, "z": 2.5, "radio": "0013A200DEADBEEF"}
+    assert c.post("/api/v1/landmarks", json=body, headers=site.h("admin")).status_code == 201
+    assert _wait(lambda: 999 in site.services.gateway.landmarks, 5)
+    r = c.post("/api/v1/landmarks/999/led", json={"on": True}, headers=site.h("operator"))
+    assert r.status_code == 504 and "landmark 999" in r.json()["detail"]
+    assert c.get("/healthz").json()["status"] == "ok"
+    assert c.delete("/api/v1/landmarks/999", headers=site.h("admin")).status_code == 204
+
+
+def test_battery_refresh_stores_a_reading(site: Api) -> None:
+    c = site.client
+    r = c.get("/api/v1/landmarks/101/battery?refresh=true", headers=site.h("operator"))
+    assert r.status_code == 200, r.text
+    body = r.json()
+    assert 2000 < body["supply_mv"] < 3400 and len(body["history"]) == 1
+    assert 0 <= body["percent"] <= 100
+    again = c.get("/api/v1/landmarks/101/battery", headers=site.h("viewer")).json()
+    assert again["history"] == body["history"]
+
+
+def test_discover_lists_no_radio_already_in_the_map(site: Api) -> None:
+    r = site.client.post("/api/v1/radio/discover", headers=site.h("operator"))
+    assert r.status_code == 200
+    known = {lm.radio for lm in site.services.map.list()}
+    assert all(d["address"] not in known for d in r.json())
+
+
+def test_recording_is_readable_by_replay(site: Api) -> None:
+    c, h = site.client, site.h("operator")
+    r = c.post("/api/v1/robots/r2/recording/start", headers=h)
+    assert r.status_code == 200 and r.json()["recording"] is True
+    frames0 = site.services.robots.get("r2").frames
+    assert _wait(lambda: site.services.robots.get("r2").frames > frames0 + 10, 30)
+    r = c.post("/api/v1/robots/r2/recording/stop", headers=h)
+    rec = read_recording(Path(r.json()["path"]))
+    assert len(rec.frames) >= 10
+    assert len(rec.landmark_map) == len(site.services.map.list())
+
+
+def test_a_robot_localizes_near_the_truth(site: Api) -> None:
+    def localized() -> bool:
+        return any(r.latest is not None for r in site.services.robots.runners())
+
+    assert _wait(localized, 90), "no robot localized within 90 s"
+    runner = next(r for r in site.services.robots.runners() if r.latest is not None)
+    pose = site.client.get(f"/api/v1/robots/{runner.name}/pose", headers=site.h("viewer")).json()
+    assert pose["mode"] in ("landmark", "dead_reckoning", "lost", "identifying")
+    x, y, theta = site.services.sim.true_pose(runner.name)
+    # the truth is taken a little after the pose: allow for 1 m/s over the pose's age
+    tol = 0.3 + 1.0 * pose["age_s"]
+    assert np.hypot(pose["x"] - x, pose["y"] - y) < tol
+    assert abs(wrap_angle(pose["theta"] - theta)) < 0.3 + 2.0 * pose["age_s"]
+
+
+def test_relocalize_sends_the_robot_back_to_identifying(site: Api) -> None:
+    r = site.client.post("/api/v1/robots/r1/relocalize", headers=site.h("operator"))
+    assert r.status_code == 202 and r.json()["mode"] in ("identifying", "lost")
+
+
+def test_metrics_count_poses_per_robot(site: Api) -> None:
+    text = site.client.get("/api/v1/metrics", headers=site.h("viewer")).text
+    frames = {
+        line.split('"')[1]: float(line.split()[-1])
+        for line in text.splitlines()
+        if line.startswith("irloc_frames_total{")
+    }
+    assert set(frames) == {"r1", "r2", "r3"} and min(frames.values()) > 0
