@@ -106,6 +106,12 @@ class OdometryCalibration:
 State = list[float]  # (x, y, theta, k_r, k_l, k_b)
 Rows = list[list[float]]
 
+_CALIBRATION_ROWS = (  # the calibration rows of F: the factors stay put
+    (0.0, 0.0, 0.0, 1.0, 0.0, 0.0),
+    (0.0, 0.0, 0.0, 0.0, 1.0, 0.0),
+    (0.0, 0.0, 0.0, 0.0, 0.0, 1.0),
+)
+
 
 def motion_model(X: State, v_left: float, v_right: float, dt: float, wheel_base: float) -> State:
     """X_t = f(X, u): eqs. (5)-(6) with the calibrated speeds k_l v_l, k_r v_r and base k_b W."""
@@ -302,21 +308,23 @@ class PoseFilter:
         self._pending = False
 
     def _flush(self) -> None:
-        """Apply the deferred covariance propagation: P = Phi P Phi^T + Q."""
+        """Apply the deferred covariance propagation: P = F P F^T + Q, F = [[Phi], [0 I]]."""
         if not self._pending:
             return
-        Phi = np.array(self._Phi)  # the pose rows of the composed F, shape (3, 6)
-        FP = self._P.copy()
-        FP[:3] = Phi @ self._P  # F P (the calibration rows of F are [0 I])
-        P = FP.copy()
-        P[:, :3] = FP @ Phi.T  # (F P) F^T
         q00, q01, q02, q11, q12, q22 = self._Q
-        P[:3, :3] += np.array([[q00, q01, q02], [q01, q11, q12], [q02, q12, q22]])
-        if self._walk:
-            P[3, 3] += self._walk
-            P[4, 4] += self._walk
-            P[5, 5] += self._walk
-        self._P = 0.5 * (P + P.T)
+        w = self._walk
+        F = np.array([*self._Phi, *_CALIBRATION_ROWS])
+        Q = np.array(
+            [
+                [q00, q01, q02, 0.0, 0.0, 0.0],
+                [q01, q11, q12, 0.0, 0.0, 0.0],
+                [q02, q12, q22, 0.0, 0.0, 0.0],
+                [0.0, 0.0, 0.0, w, 0.0, 0.0],
+                [0.0, 0.0, 0.0, 0.0, w, 0.0],
+                [0.0, 0.0, 0.0, 0.0, 0.0, w],
+            ]
+        )
+        self._P = F @ self._P @ F.T + Q
         self._clear_pending()
 
     # -- update ---------------------------------------------------------------------------------
