@@ -59,8 +59,9 @@ class Settings(BaseSettings):
         viewer_enabled, viewer_port: the viser viewer (port 0: ephemeral).
         pose_queue: poses buffered per pose-bus subscriber before it drops.
         battery_interval_s: time between battery polls of every landmark; None: never.
-        serial_sink: serial port (or file path) for the pose line output, or None.
+        serial_sink: serial port (pyserial URL or device) for the pose lines, or None.
         serial_baud: its baud rate.
+        serial_robot: the robot whose poses go to the serial sink (None: every robot).
         allow_remote_viewer_without_auth: never set this on a shared network.
     """
 
@@ -81,6 +82,7 @@ class Settings(BaseSettings):
     battery_interval_s: float | None = 3600.0
     serial_sink: str | None = None
     serial_baud: int = 115200
+    serial_robot: str | None = None
     allow_remote_viewer_without_auth: bool = False
 
     @field_validator("radio")

@@ -32,6 +32,7 @@ from server.crud.landmarks import parse_map_json
 from server.models import LandmarkPublic, RobotCreate, RobotPublic
 from server.site.leds import LedCoordinator
 from server.site.robot import RobotRunner, make_localizer
+from server.site.serial_sink import SerialSink
 from server.site.sources import CameraSource
 
 if TYPE_CHECKING:
@@ -63,6 +64,7 @@ class LiveSiteRunner:
         self._worker: threading.Thread | None = None
         self._samples: queue.SimpleQueue[list[Any] | None] = queue.SimpleQueue()
         self.frames_skipped = 0
+        self.serial: SerialSink | None = None
         self._tasks: list[asyncio.Task[None]] = []
         self._loop: asyncio.AbstractEventLoop | None = None
 
@@ -80,6 +82,11 @@ class LiveSiteRunner:
             if robot.source == "sim" and robot.name not in self._sim_names():
                 continue
             self.start_robot(robot)
+        if self.settings.serial_sink:
+            robots = {self.settings.serial_robot} if self.settings.serial_robot else None
+            sub = s.subscribe_poses(robots)
+            self.serial = SerialSink.open(sub, self.settings.serial_sink, self.settings.serial_baud)
+            self.serial.start()
         if self.sim is not None:
             self._clock = threading.Thread(target=self._run_clock, name="site-clock", daemon=True)
             self._worker = threading.Thread(
@@ -286,6 +293,8 @@ class LiveSiteRunner:
             await asyncio.to_thread(cam.stop)
         for runner in self.services.robots.runners():
             runner.stop_recording()
+        if self.serial is not None:
+            await asyncio.to_thread(self.serial.stop)
         for task in self._tasks:
             task.cancel()
         for task in self._tasks:
