@@ -165,19 +165,36 @@ def _spots_in_region(
         keep &= ~((y0s == 0) & cut_sides[1])
         keep &= ~((x0s + w == rw) & cut_sides[2])
         keep &= ~((y0s + h == rh) & cut_sides[3])
-    m = config.centroid_margin_px
     for i in np.flatnonzero(keep):
-        x0, y0 = int(x0s[i]), int(y0s[i])
-        c0, r0 = max(x0 - m, 0), max(y0 - m, 0)
-        c1, r1 = min(x0 + int(w[i]) + m, rw), min(y0 + int(h[i]) + m, rh)
-        patch = region[r0:r1, c0:c1].astype(np.float32) - np.float32(background)
-        if float(patch.max()) < config.min_peak_contrast_counts:
-            continue
-        np.maximum(patch, 0.0, out=patch)
-        total = float(patch.sum())
-        col = float(patch.sum(axis=0) @ np.arange(c0, c1, dtype=np.float32)) / total
-        row = float(patch.sum(axis=1) @ np.arange(r0, r1, dtype=np.float32)) / total
-        out.append((col + origin[0], row + origin[1], total, float(area[i])))
+        box = (int(x0s[i]), int(y0s[i]), int(w[i]), int(h[i]))
+        _centroid(region, box, origin, background, float(area[i]), config, out)
+
+
+def _centroid(
+    region: ImageU8,
+    box: tuple[int, int, int, int],
+    origin: tuple[int, int],
+    background: float,
+    area: float,
+    config: DetectionConfig,
+    out: list[tuple[float, float, float, float]],
+) -> None:
+    """Intensity-weighted centroid of the background-free pixels on the component's box
+    (left, top, width, height) grown by `centroid_margin_px`; appended to `out` unless the
+    spot is too faint."""
+    rh, rw = region.shape
+    m = config.centroid_margin_px
+    x0, y0, w, h = box
+    c0, r0 = max(x0 - m, 0), max(y0 - m, 0)
+    c1, r1 = min(x0 + w + m, rw), min(y0 + h + m, rh)
+    patch = region[r0:r1, c0:c1].astype(np.float32) - np.float32(background)
+    if float(patch.max()) < config.min_peak_contrast_counts:
+        return
+    np.maximum(patch, 0.0, out=patch)
+    total = float(patch.sum())
+    col = float(patch.sum(axis=0) @ np.arange(c0, c1, dtype=np.float32)) / total
+    row = float(patch.sum(axis=1) @ np.arange(r0, r1, dtype=np.float32)) / total
+    out.append((col + origin[0], row + origin[1], total, area))
 
 
 def _runs(mask: npt.NDArray[np.bool_]) -> list[tuple[int, int]]:
@@ -285,11 +302,76 @@ def detect_spots_in_windows(
     rows: list[tuple[float, float, float, float]] = []
     for c0, r0, c1, r1 in boxes:
         region = image[r0:r1, c0:c1]
-        if int(region.max()) <= thr:
+        _, peak, _, loc = cv2.minMaxLoc(region)
+        if peak <= thr:
             continue
         cut = (c0 > 0, r0 > 0, c1 < W, r1 < H)
-        _spots_in_region(region, (c0, r0), bg, thr, config, rows, cut_sides=cut)
+        if not _single_spot(region, loc, (c0, r0), bg, thr, config, rows, cut):
+            _spots_in_region(region, (c0, r0), bg, thr, config, rows, cut_sides=cut)
     return _brightest(rows, config.max_spots)
+
+
+_FAST_RADIUS_PX = 4
+
+
+def _single_spot(
+    region: ImageU8,
+    peak_loc: tuple[int, int],
+    origin: tuple[int, int],
+    background: float,
+    threshold: float,
+    config: DetectionConfig,
+    out: list[tuple[float, float, float, float]],
+    cut_sides: tuple[bool, bool, bool, bool],
+) -> bool:
+    """The usual tracking case without labelling: one compact spot around the peak.
+
+    Returns False (the caller labels the region) unless every above-threshold pixel of the
+    region lies well inside a small patch around the peak, i.e. the region holds exactly one
+    small blob; its shape is then checked like `_spots_in_region` does.
+    """
+    rh, rw = region.shape
+    r = _FAST_RADIUS_PX
+    x, y = peak_loc
+    c0, r0, c1, r1 = max(x - r, 0), max(y - r, 0), min(x + r + 1, rw), min(y + r + 1, rh)
+    patch = region[r0:r1, c0:c1]
+    above = patch > threshold
+    area = int(np.count_nonzero(above))
+    _, binary = cv2.threshold(region, threshold, 255, cv2.THRESH_BINARY)
+    if cv2.countNonZero(binary) != area:
+        return False  # more above the threshold than the patch holds: label it
+    # The blob must not touch the patch's edge unless that edge is the image's border.
+    rows_any = above.any(axis=1)
+    cols_any = above.any(axis=0)
+    touches = (
+        (cols_any[0] and (c0 > 0 or cut_sides[0]))
+        or (rows_any[0] and (r0 > 0 or cut_sides[1]))
+        or (cols_any[-1] and (c1 < rw or cut_sides[2]))
+        or (rows_any[-1] and (r1 < rh or cut_sides[3]))
+    )
+    if touches:
+        return False
+    xs = np.flatnonzero(cols_any)
+    ys = np.flatnonzero(rows_any)
+    w = int(xs[-1] - xs[0] + 1)
+    h = int(ys[-1] - ys[0] + 1)
+    if (
+        config.min_area_px <= area <= config.max_area_px
+        and area / (w * h) >= config.min_fill_ratio
+        and max(w, h) / min(w, h) <= config.max_elongation
+    ):
+        box = (c0 + int(xs[0]), r0 + int(ys[0]), w, h)
+        _centroid(region, box, origin, background, float(area), config, out)
+    return True  # one blob, rejected by the filters
+    weights = patch.astype(np.float32) - np.float32(background)
+    if float(weights.max()) < config.min_peak_contrast_counts:
+        return True
+    np.maximum(weights, 0.0, out=weights)
+    total = float(weights.sum())
+    col = float(weights.sum(axis=0) @ np.arange(c0, c1, dtype=np.float32)) / total
+    row = float(weights.sum(axis=1) @ np.arange(r0, r1, dtype=np.float32)) / total
+    out.append((col + origin[0], row + origin[1], total, float(area)))
+    return True
 
 
 def window_boxes(
