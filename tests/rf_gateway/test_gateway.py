@@ -1,6 +1,8 @@
 from __future__ import annotations
 
 import asyncio
+from collections.abc import Coroutine
+from typing import Any, TypeVar
 
 import numpy as np
 import pytest
@@ -31,7 +33,10 @@ def make(config: GatewayConfig = FAST) -> tuple[Gateway, ScriptedTransport]:
     return Gateway(transport, ADDR, config, clock_ns=transport.clock), transport
 
 
-def run(coro):  # type: ignore[no-untyped-def]
+T = TypeVar("T")
+
+
+def run(coro: Coroutine[Any, Any, T]) -> T:
     return asyncio.run(coro)
 
 
@@ -293,7 +298,7 @@ def test_same_level_requested_while_in_flight_is_sent_once() -> None:
 
 
 def test_start_lights_everything_before_any_request() -> None:
-    async def main() -> tuple[list[LedsChanged], list[tuple[object, ...]]]:
+    async def main() -> tuple[list[LedsChanged | None], list[tuple[object, ...]]]:
         transport = ScriptedTransport(dead={ADDR[4]})
         config = GatewayConfig(retry_backoff_s=0.001, battery=FAST.battery)
         gw = Gateway(transport, ADDR, config, clock_ns=transport.clock)

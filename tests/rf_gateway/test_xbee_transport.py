@@ -21,7 +21,7 @@ from rf_gateway.errors import RadioTimeout, RemoteCommandError, TransportUnavail
 from rf_gateway.events import TransportStateChanged
 from rf_gateway.frame_parser import StreamParser
 from rf_gateway.gateway import Gateway
-from rf_gateway.transport import DiscoveredRadio
+from rf_gateway.transport import DiscoveredRadio, TransportState
 from rf_gateway.xbee_transport import XBeeTransport, XBeeTransportConfig
 
 ADDR = {i: f"0013A20040A000{i:02X}" for i in (1, 2, 3, 4)}
@@ -207,7 +207,7 @@ def test_our_parser_counts_and_skips_garbage_sent_over_the_serial_line(
 
 
 def test_pulled_cable_is_reopened_and_reported(tmp_path: Path) -> None:
-    async def main() -> list[str]:
+    async def main() -> list[TransportState]:
         with XBeeEmulator(tmp_path / "ttyXBEE", remotes()) as emu:
             transport = XBeeTransport(str(emu.port), config=CONFIG)
             gw = Gateway(transport, {1: ADDR[1]}, GW_CONFIG)
