@@ -96,6 +96,8 @@ class XBeeTransport(StateReporter):
         try:
             device.open()
             device.add_packet_received_callback(self.link_stats.on_packet)
+            if self._state == "closed":  # close() was called while this thread was opening
+                raise TransportUnavailable(f"XBee on {self.port} closed while opening")
         except BaseException:
             with contextlib.suppress(Exception):
                 device.close()
