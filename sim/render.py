@@ -129,8 +129,8 @@ def _noise_pool(
     """Pre-drawn dark frames (background + read noise, rounded and clipped), uint8,
     shape (frames, height + margin, width + margin)."""
     rng = np.random.default_rng(_NOISE_POOL_SEED)
-    pool = rng.normal(background, sigma, size=(frames, height + margin, width + margin))
-    pool = np.clip(np.rint(pool), 0, 255).astype(np.uint8)
+    noise = rng.normal(background, sigma, size=(frames, height + margin, width + margin))
+    pool: npt.NDArray[np.uint8] = np.clip(np.rint(noise), 0, 255).astype(np.uint8)
     pool.setflags(write=False)
     return pool
 
@@ -190,7 +190,10 @@ def spot_fluxes(p_camera: FloatArray, intensities: FloatArray, config: RenderCon
     d = np.linalg.norm(p_camera, axis=1)
     cos_a = np.clip(p_camera[:, 2] / np.maximum(d, 1e-9), 0.0, 1.0)
     scale = (config.nominal_distance_m / np.maximum(d, 1e-6)) ** 2
-    return config.nominal_flux_counts * intensities * scale * cos_a**config.falloff_exponent
+    flux: FloatArray = (
+        config.nominal_flux_counts * intensities * scale * cos_a**config.falloff_exponent
+    )
+    return flux
 
 
 def add_spots(
@@ -336,7 +339,8 @@ def render_frame(
         fluxes = spot_fluxes(p_camera, inten[lit], cfg)
         add_spots(frame, pixels[valid], fluxes[valid], cfg)
     if frame.dtype == np.uint8:
+        image: ImageU8 = frame.astype(np.uint8, copy=False)
         if cfg.saturation_counts < 255:
-            np.minimum(frame, np.uint8(cfg.saturation_counts), out=frame)
-        return frame
-    return to_uint8(frame, cfg)
+            np.minimum(image, np.uint8(cfg.saturation_counts), out=image)
+        return image
+    return to_uint8(frame.astype(np.float32, copy=False), cfg)

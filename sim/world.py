@@ -86,7 +86,7 @@ class Person:
         seg = np.linalg.norm(np.diff(pts, axis=0), axis=1)
         total = float(seg.sum())
         if total == 0:
-            return pts[0]
+            return np.array(pts[0], dtype=np.float64)
         s = (t_s * self.speed_mps) % (2 * total)
         s = 2 * total - s if s > total else s
         cum = np.concatenate([[0.0], np.cumsum(seg)])
@@ -108,7 +108,10 @@ class Person:
         len2 = np.maximum((d2**2).sum(axis=1), 1e-12)
         s = np.clip(((c - a2) * d2).sum(axis=1) / len2, 0.0, 1.0)
         nearest = a2 + d2 * s[:, None]
-        return (np.linalg.norm(nearest - c, axis=1) < self.radius_m) & (a[2] < self.height_m)
+        blocked: npt.NDArray[np.bool_] = (np.linalg.norm(nearest - c, axis=1) < self.radius_m) & (
+            a[2] < self.height_m
+        )
+        return blocked
 
 
 @dataclass
