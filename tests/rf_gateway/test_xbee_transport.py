@@ -267,3 +267,18 @@ def test_transmit_requests_get_a_transmit_status(emulator: XBeeEmulator) -> None
         (f.frame_id, f.delivery_status) for f in got if isinstance(f, fr.TransmitStatus)
     )
     assert statuses == [(11, 0x00), (12, 0x21)]
+
+
+def test_close_stops_reopening(tmp_path: Path) -> None:
+    async def main() -> None:
+        port = tmp_path / "ttyNEVER"
+        transport = XBeeTransport(str(port), config=CONFIG)
+        with pytest.raises(TransportUnavailable):
+            await transport.open()
+        await transport.close()
+        with XBeeEmulator(port, remotes()) as emu:
+            await asyncio.sleep(0.5)  # several reopen periods
+            assert transport.state == "closed"
+            assert emu.counts["LocalAtCommand"] == 0
+
+    asyncio.run(main())
