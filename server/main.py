@@ -6,6 +6,7 @@ site (radio, robots, clock) and the viewer, and stops them in reverse order on s
 
 from __future__ import annotations
 
+import asyncio
 import importlib.util
 import logging
 from collections.abc import AsyncIterator
@@ -101,14 +102,15 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         app.state.metrics_registry = registry
         app.state.metrics_collector = collector
         await services.start()
-        viewer = _start_viewer(services, settings)
+        viewer = await asyncio.to_thread(_start_viewer, services, settings)
         app.state.viewer = viewer
         try:
             yield
         finally:
             if viewer is not None:
                 try:
-                    viewer.stop()
+                    # off the loop: the viewer may wait on coroutines it submits to it
+                    await asyncio.to_thread(viewer.stop)
                 except Exception:
                     log.exception("viewer did not stop cleanly")
             await services.stop()

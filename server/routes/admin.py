@@ -36,18 +36,18 @@ class Discovered(BaseModel):
 
 
 @router.get("/keys")
-async def list_keys(services: ServicesDep, _: Admin) -> list[ApiKeyPublic]:
+def list_keys(services: ServicesDep, _: Admin) -> list[ApiKeyPublic]:
     return services.keys.list()
 
 
 @router.post("/keys", status_code=status.HTTP_201_CREATED)
-async def create_key(body: KeyCreate, services: ServicesDep, _: Admin) -> KeyCreated:
+def create_key(body: KeyCreate, services: ServicesDep, _: Admin) -> KeyCreated:
     key, record = services.keys.create(body.role, body.name)
     return KeyCreated(key=key, record=record)
 
 
 @router.delete("/keys/{key_id}", status_code=status.HTTP_204_NO_CONTENT)
-async def revoke_key(
+def revoke_key(
     services: ServicesDep, _: Admin, key_id: int = Path(ge=0, le=2**31)
 ) -> Response:
     services.keys.revoke(key_id)

@@ -52,19 +52,19 @@ def _leds(services: ServicesDep, event: object) -> LedState:
 
 
 @router.get("")
-async def list_landmarks(services: ServicesDep, _: Viewer) -> list[LandmarkPublic]:
+def list_landmarks(services: ServicesDep, _: Viewer) -> list[LandmarkPublic]:
     return services.map.list()
 
 
 @router.post("", status_code=status.HTTP_201_CREATED)
-async def create_landmark(
+def create_landmark(
     body: LandmarkCreate, services: ServicesDep, who: Admin
 ) -> LandmarkPublic:
     return services.map.create(body, actor=who.actor)
 
 
 @router.get("/audit")
-async def audit_log(
+def audit_log(
     services: ServicesDep, _: Viewer, limit: int = Query(100, ge=1, le=1000)
 ) -> list[AuditPublic]:
     return [
@@ -82,19 +82,19 @@ async def audit_log(
 
 
 @router.get("/{landmark_id}")
-async def get_landmark(landmark_id: LandmarkId, services: ServicesDep, _: Viewer) -> LandmarkPublic:
+def get_landmark(landmark_id: LandmarkId, services: ServicesDep, _: Viewer) -> LandmarkPublic:
     return services.map.get(landmark_id)
 
 
 @router.patch("/{landmark_id}")
-async def update_landmark(
+def update_landmark(
     landmark_id: LandmarkId, body: LandmarkUpdate, services: ServicesDep, who: Admin
 ) -> LandmarkPublic:
     return services.map.update(landmark_id, body, actor=who.actor)
 
 
 @router.delete("/{landmark_id}", status_code=status.HTTP_204_NO_CONTENT)
-async def delete_landmark(landmark_id: LandmarkId, services: ServicesDep, who: Admin) -> Response:
+def delete_landmark(landmark_id: LandmarkId, services: ServicesDep, who: Admin) -> Response:
     services.map.delete(landmark_id, actor=who.actor)
     return Response(status_code=status.HTTP_204_NO_CONTENT)
 

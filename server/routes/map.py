@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import asyncio
 import json
 from typing import Any, Literal
 
@@ -22,7 +23,7 @@ class ImportResult(BaseModel):
 
 
 @router.get("", response_model=MapDocument)
-async def export_map(
+def export_map(
     services: ServicesDep, _: Viewer, format: Literal["json", "csv"] = Query("json")
 ) -> Any:
     """The map as map.json (`?format=csv` for CSV: `id,x,y,z,radio,locked,note`)."""
@@ -58,4 +59,5 @@ async def import_map(request: Request, services: ServicesDep, who: Admin) -> Imp
         except json.JSONDecodeError as exc:
             raise ValueError(f"map: body is not JSON: {exc}") from None
         items = parse_map_json(data, source="map")
-    return ImportResult(landmarks=services.map.replace_all(items, actor=who.actor))
+    count = await asyncio.to_thread(services.map.replace_all, items, actor=who.actor)
+    return ImportResult(landmarks=count)

@@ -88,12 +88,12 @@ async def wheel_speeds(
 
 
 @router.get("/{name}/config")
-async def get_config(name: RobotName, services: ServicesDep, _: Viewer) -> RobotPublic:
+def get_config(name: RobotName, services: ServicesDep, _: Viewer) -> RobotPublic:
     return services.robot_store.get(name)
 
 
 @router.put("/{name}/config")
-async def put_config(
+def put_config(
     name: RobotName, body: RobotPublic, services: ServicesDep, _: Admin
 ) -> RobotPublic:
     """Create or replace a robot's configuration and (re)start it; a `sim` robot must exist

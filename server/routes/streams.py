@@ -72,7 +72,7 @@ async def poses_ws(ws: WebSocket, robot: RobotFilter = None) -> None:
 
 
 @router.get("/events")
-async def list_events(
+def list_events(
     services: ServicesDep, _: Viewer, limit: int = Query(100, ge=1, le=1000)
 ) -> list[EventPublic]:
     """The newest site events first."""
