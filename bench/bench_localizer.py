@@ -1,0 +1,211 @@
+"""Reproduce the paper's Sec. V on the simulated test bed, and time the localizer.
+
+1. Accuracy (paper Sec. V): `irloc simulate paper_testbed` (three landmarks 120 cm apart,
+   the robot parks on a 60 cm grid and turns on the spot in 10 degree steps), `irloc replay`,
+   then per parked stop the error of the mean estimated position and heading, and the jitter
+   (largest deviation from the stop's mean) while parked; printed beside the paper's figures.
+2. Per-frame processing time (median, p99; one core) at 640x480 and 1280x960: the whole
+   localizer step while tracking (a frame plus the odometry samples of its interval), and
+   full-frame spot detection, beside a plain memory copy of the same frame.
+3. `irloc replay` wall time against merely decoding the same PNG frames (target <= 1.25x).
+
+    .venv/bin/python bench/bench_localizer.py [--duration 150] [--frames 300]
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import io
+import math
+import os
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+if str(ROOT) not in sys.path:
+    sys.path.insert(0, str(ROOT))
+
+from localizer.events import FrameObserved, OdometryMeasured  # noqa: E402
+from localizer.geometry import T_world_body_from_pose, wrap_angle  # noqa: E402
+from localizer.landmark_map import LandmarkMap  # noqa: E402
+from localizer.localizer import Localizer  # noqa: E402
+from localizer.robot import RobotGeometry  # noqa: E402
+from localizer.spots import DetectionConfig, detect_spots  # noqa: E402
+from recording.reader import read_groundtruth, read_recording  # noqa: E402
+from recording.replay_cli import replay  # noqa: E402
+from sim.cameras import wide_angle_camera  # noqa: E402
+from sim.cli import main as simulate_main  # noqa: E402
+from sim.render import render_frame  # noqa: E402
+
+PAPER = {"mean_cm": 4.1, "std_cm": 2.9, "max_cm": 17.1, "heading_deg": 0.26,
+         "jitter_cm": 0.5, "jitter_deg": 0.3}  # fmt: skip
+TARGET = {"mean_cm": 1.0, "max_cm": 2.0, "heading_deg": 0.05, "jitter_cm": 0.1}
+
+
+def _stops(t: np.ndarray, gt: np.ndarray, min_s: float = 0.45) -> list[tuple[int, int]]:
+    """(start, end) ground-truth index ranges where the pose stays the same >= min_s."""
+    same = np.all(np.abs(np.diff(gt, axis=0)) < 1e-9, axis=1)
+    out, i = [], 0
+    while i < len(same):
+        if same[i]:
+            j = i
+            while j < len(same) and same[j]:
+                j += 1
+            if (t[j] - t[i]) * 1e-9 >= min_s:
+                out.append((i, j + 1))
+            i = j
+        else:
+            i += 1
+    return out
+
+
+def accuracy(rec: Path, poses: Path, settle_s: float = 0.25) -> dict[str, float]:
+    """Per-stop errors and jitter of a replay of the test bed."""
+    t_gt, gt = read_groundtruth(rec)
+    with poses.open() as f:
+        rows = [r for r in csv.DictReader(f) if r["x"]]
+    t = np.array([int(r["timestamp_ns"]) for r in rows])
+    est = np.array([[float(r["x"]), float(r["y"]), float(r["theta"])] for r in rows])
+    pos_err, head_err, jit_cm, jit_deg = [], [], [], []
+    for a, b in _stops(t_gt, gt):
+        sel = (t >= t_gt[a] + settle_s * 1e9) & (t <= t_gt[b - 1] - 0.05e9)
+        if np.count_nonzero(sel) < 5:
+            continue
+        e = est[sel]
+        mean_xy = e[:, :2].mean(axis=0)
+        dth = np.asarray(wrap_angle(e[:, 2] - gt[a, 2]))
+        pos_err.append(float(np.hypot(*(mean_xy - gt[a, :2]))))
+        head_err.append(abs(float(np.mean(dth))))
+        jit_cm.append(float(np.max(np.hypot(*(e[:, :2] - mean_xy).T))) * 100)
+        jit_deg.append(float(np.degrees(np.max(np.abs(dth - dth.mean())))))
+    p = np.array(pos_err) * 100
+    return {
+        "stops": float(len(p)),
+        "mean_cm": float(p.mean()),
+        "std_cm": float(p.std()),
+        "max_cm": float(p.max()),
+        "heading_deg": float(np.degrees(np.mean(head_err))),
+        "jitter_cm": float(np.max(jit_cm)),
+        "jitter_deg": float(np.max(jit_deg)),
+    }
+
+
+def timing(width: int, height: int, frames: int) -> dict[str, float]:
+    """Per-frame times (microseconds) on pre-rendered frames of a slow drive."""
+    cam = wide_angle_camera("pinhole", width=width, height=height)
+    lm = LandmarkMap(
+        np.array([1, 2, 3]), np.array([[0.0, 0.0, 2.5], [1.2, 0.0, 2.5], [0.6, 1.0392, 2.5]])
+    )
+    loc = Localizer(cam, lm, RobotGeometry(0.36, 1.0))
+    loc.set_initial_pose(0.6, 0.0, 0.0, 0)  # all LEDs lit, no sweep: start from a prior
+    rng = np.random.default_rng(0)
+    radius, w = 0.3, 0.5  # a circle at 0.15 m/s
+
+    def pose(t: float) -> tuple[float, float, float]:
+        return 0.6 + radius * math.sin(w * t), 0.3 - radius * math.cos(w * t), w * t
+
+    v = radius * w
+    vl, vr = v - w * 0.18, v + w * 0.18
+    images = [
+        render_frame(cam, T_world_body_from_pose(*pose(k / 30)), lm.positions, np.ones(3), rng=rng)
+        for k in range(frames)
+    ]
+    step, full, copy = [], [], []
+    cfg = DetectionConfig()
+    for k, img in enumerate(images):
+        t_ns = int(k * 1e9 / 30)
+        odo = [OdometryMeasured(t_ns - int(j * 1e7), vl, vr) for j in (2, 1, 0)]
+        t0 = time.perf_counter_ns()
+        for o in odo:
+            loc.handle(o)
+        loc.handle(FrameObserved(t_ns, img))
+        t1 = time.perf_counter_ns()
+        detect_spots(img, cfg)
+        t2 = time.perf_counter_ns()
+        img.copy()
+        t3 = time.perf_counter_ns()
+        if loc.mode == "landmark":
+            step.append(t1 - t0)
+        full.append(t2 - t1)
+        copy.append(t3 - t2)
+
+    def q(a: list[int], p: float) -> float:
+        return float(np.percentile(a, p)) / 1000
+
+    return {
+        "track_med_us": q(step, 50), "track_p99_us": q(step, 99),
+        "full_med_us": q(full, 50), "full_p99_us": q(full, 99),
+        "copy_med_us": q(copy, 50), "copy_p99_us": q(copy, 99),
+        "tracked_frames": float(len(step)),
+    }  # fmt: skip
+
+
+def replay_vs_decode(rec: Path) -> tuple[float, float]:
+    """(replay seconds, decode-only seconds) over the same recording, decode timed twice."""
+    frames = read_recording(rec).frames
+
+    def decode() -> float:
+        t0 = time.perf_counter()
+        for f in frames:
+            cv2.imread(str(f.path), cv2.IMREAD_GRAYSCALE)
+        return time.perf_counter() - t0
+
+    d1 = decode()
+    t0 = time.perf_counter()
+    replay(rec, io.StringIO())
+    r = time.perf_counter() - t0
+    d2 = decode()
+    return r, (d1 + d2) / 2
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--duration", type=float, default=None, help="simulated seconds")
+    parser.add_argument("--frames", type=int, default=300, help="frames per timing run")
+    parser.add_argument("--recording", type=Path, default=None, help="reuse a recording")
+    args = parser.parse_args(argv)
+    cv2.setNumThreads(1)
+    if hasattr(os, "sched_setaffinity"):
+        os.sched_setaffinity(0, {min(os.sched_getaffinity(0))})
+    with tempfile.TemporaryDirectory() as tmp:
+        rec = args.recording or Path(tmp) / "paper_testbed"
+        if args.recording is None:
+            sim_args = ["paper_testbed", str(rec), "--quiet", "--force"]
+            if args.duration is not None:
+                sim_args += ["--duration", str(args.duration)]
+            if simulate_main(sim_args) != 0:
+                return 1
+        poses = Path(tmp) / "poses.csv"
+        with poses.open("w") as f:
+            replay(rec, f)
+        acc = accuracy(rec, poses)
+        print(f"Sec. V on the simulated test bed ({int(acc['stops'])} parked stops)")
+        print(f"  {'':<26}{'irloc':>10}{'paper':>10}{'target':>10}")
+        names = {"mean_cm": "mean position error, cm", "std_cm": "  std, cm",
+                 "max_cm": "max position error, cm", "heading_deg": "mean heading error, deg",
+                 "jitter_cm": "jitter, cm", "jitter_deg": "jitter, deg"}  # fmt: skip
+        for k, label in names.items():
+            tgt = f"{TARGET[k]:>10.2f}" if k in TARGET else f"{'':>10}"
+            print(f"  {label:<26}{acc[k]:>10.3f}{PAPER[k]:>10.2f}{tgt}")
+        print("\nPer-frame time, one core (microseconds)")
+        print(f"  {'resolution':<12}{'track med':>11}{'p99':>9}{'full med':>10}{'p99':>9}"
+              f"{'copy med':>10}{'p99':>8}")  # fmt: skip
+        for w, h in ((640, 480), (1280, 960)):
+            s = timing(w, h, args.frames)
+            print(f"  {f'{w}x{h}':<12}{s['track_med_us']:>11.0f}{s['track_p99_us']:>9.0f}"
+                  f"{s['full_med_us']:>10.0f}{s['full_p99_us']:>9.0f}"
+                  f"{s['copy_med_us']:>10.1f}{s['copy_p99_us']:>8.1f}")  # fmt: skip
+        r, d = replay_vs_decode(rec)
+        print(f"\nirloc replay {r:.2f} s vs decoding the PNGs {d:.2f} s: {r / d:.2f}x "
+              f"(target <= 1.25x)")  # fmt: skip
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
