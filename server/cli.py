@@ -86,6 +86,11 @@ def main(argv: list[str] | None = None) -> int:
     print(f"irloc: API docs  {base}/docs")
     if settings.viewer_enabled:
         print(f"irloc: viewer    {base}/viewer/?token=<key>")
+    if not is_loopback(settings.host):
+        print(
+            f"irloc: the API listens on {settings.host}, beyond this machine: every endpoint "
+            "and the viewer need an API key; viser itself stays on 127.0.0.1"
+        )
     if first_key is not None:
         print(f"irloc: first admin API key (shown once, store it): {first_key}")
     sys.stdout.flush()

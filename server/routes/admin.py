@@ -47,9 +47,7 @@ def create_key(body: KeyCreate, services: ServicesDep, _: Admin) -> KeyCreated:
 
 
 @router.delete("/keys/{key_id}", status_code=status.HTTP_204_NO_CONTENT)
-def revoke_key(
-    services: ServicesDep, _: Admin, key_id: int = Path(ge=0, le=2**31)
-) -> Response:
+def revoke_key(services: ServicesDep, _: Admin, key_id: int = Path(ge=0, le=2**31)) -> Response:
     services.keys.revoke(key_id)
     return Response(status_code=status.HTTP_204_NO_CONTENT)
 

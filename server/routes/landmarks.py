@@ -57,9 +57,7 @@ def list_landmarks(services: ServicesDep, _: Viewer) -> list[LandmarkPublic]:
 
 
 @router.post("", status_code=status.HTTP_201_CREATED)
-def create_landmark(
-    body: LandmarkCreate, services: ServicesDep, who: Admin
-) -> LandmarkPublic:
+def create_landmark(body: LandmarkCreate, services: ServicesDep, who: Admin) -> LandmarkPublic:
     return services.map.create(body, actor=who.actor)
 
 

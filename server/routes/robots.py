@@ -93,9 +93,7 @@ def get_config(name: RobotName, services: ServicesDep, _: Viewer) -> RobotPublic
 
 
 @router.put("/{name}/config")
-def put_config(
-    name: RobotName, body: RobotPublic, services: ServicesDep, _: Admin
-) -> RobotPublic:
+def put_config(name: RobotName, body: RobotPublic, services: ServicesDep, _: Admin) -> RobotPublic:
     """Create or replace a robot's configuration and (re)start it; a `sim` robot must exist
     in the virtual site."""
     data = RobotCreate.model_validate({**body.model_dump(), "name": name})
