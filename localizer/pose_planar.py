@@ -183,9 +183,13 @@ def rotation_world_body(theta: float, roll: float = 0.0, pitch: float = 0.0) -> 
 
 
 def _level_mounting(T_body_camera: FloatArray, roll: float, pitch: float) -> list[list[float]]:
-    """Rows 0-2 of T_level_camera = R_tilt T_body_camera (the body's tilt moved into it)."""
-    rows: list[list[float]] = (rotation_world_body(0.0, roll, pitch) @ T_body_camera[:3]).tolist()
-    return rows
+    """Rows 0-2 of T_level_camera = R_tilt T_body_camera, R_tilt = Ry(pitch) Rx(roll) (the
+    body's tilt moved into the mounting); Python floats, as `floor_points` takes them."""
+    cy, sy = math.cos(pitch), math.sin(pitch)
+    cx, sx = math.cos(roll), math.sin(roll)
+    R = ((cy, sy * sx, sy * cx), (0.0, cx, -sx), (-sy, cy * sx, cy * cx))
+    T = T_body_camera[:3].tolist()
+    return [[r0 * T[0][k] + r1 * T[1][k] + r2 * T[2][k] for k in range(4)] for r0, r1, r2 in R]
 
 
 def _tilted_residuals(
@@ -197,13 +201,18 @@ def _tilted_residuals(
     params: list[float],
     sigma_px: float,
     jacobian: bool,
-) -> tuple[FloatArray, FloatArray | None] | None:
-    """Whitened residuals e (2N,) and, when asked, their Jacobian J (2N, 5) at `params`."""
+    base: tuple[list[Point], list[Mat2]] | None = None,
+) -> tuple[FloatArray, FloatArray | None, tuple[list[Point], list[Mat2]]] | None:
+    """Whitened residuals e (2N,) and, when asked, their Jacobian J (2N, 5) at `params`.
+
+    Also returns the `floor_points` at `params` (pass them back as `base` to reuse them).
+    """
     h = 1e-6  # radians, forward-difference step in roll and pitch
     x, y, th, roll, pitch = params
-    base = floor_points(m, A, z, _level_mounting(T_body_camera, roll, pitch))
     if base is None:
-        return None
+        base = floor_points(m, A, z, _level_mounting(T_body_camera, roll, pitch))
+        if base is None:
+            return None
     q, G = base
     q_roll, q_pitch = q, q
     if jacobian:
@@ -233,7 +242,7 @@ def _tilted_residuals(
             jy = (-s, c, u, dry, dpy)
             J[2 * i] = [w00 * a + w01 * b for a, b in zip(jx, jy, strict=True)]
             J[2 * i + 1] = [w10 * a + w11 * b for a, b in zip(jx, jy, strict=True)]
-    return e, J
+    return e, J, base
 
 
 def solve_tilted(
@@ -271,12 +280,14 @@ def solve_tilted(
     def cost(e: FloatArray, p: list[float]) -> float:
         return float(e @ e) + prior * (p[3] * p[3] + p[4] * p[4])
 
+    base = None  # floor points at params, when already known
     for _ in range(max_iterations):
-        res = _tilted_residuals(m, A, z, P, T_body_camera, params, sigma_px, True)
+        res = _tilted_residuals(m, A, z, P, T_body_camera, params, sigma_px, True, base)
         if res is None:
             return None
-        e, J = res
-        assert J is not None  # asked for it (internal invariant, not input)
+        e, J, _ = res
+        if J is None:
+            return None
         H = J.T @ J
         g = J.T @ e
         if prior:
@@ -300,7 +311,13 @@ def solve_tilted(
         c0, c1 = cost(e, params), cost(at_trial[0], trial)
         k = c1 - c0 + 2.0 * step2
         alpha = 1.0 if k <= step2 else max(step2 / k, 0.1)
-        params = [p + alpha * d for p, d in zip(params, delta.tolist(), strict=True)]
+        if alpha == 1.0:
+            params, base = trial, at_trial[2]
+        else:
+            params, base = (
+                [p + alpha * d for p, d in zip(params, delta.tolist(), strict=True)],
+                None,
+            )
         if step2 * alpha * alpha < 1e-4:  # the step is under 1 % of a standard deviation
             break
     else:
