@@ -18,25 +18,9 @@ from localizer.camera import (
     sensor_from_camera,
 )
 from localizer.geometry import T_world_body_from_pose, transform_points
+from tests.localizer.cameras import make_camera
 
-LENSES = {
-    "radial-tangential": [-0.25, 0.05, 2e-4, -3e-4, 0.0],
-    "equidistant": [-0.013, 0.021, -0.019, 0.0068],
-}
-
-
-def make_camera(model: str, T: np.ndarray | None = None) -> CameraModel:
-    return CameraModel(
-        width=640,
-        height=480,
-        fu=300.0,
-        fv=300.5,
-        cu=321.3,
-        cv=238.7,
-        distortion_model=model,  # type: ignore[arg-type]
-        distortion=np.array(LENSES[model]),
-        T_body_camera=T_body_camera_upward() if T is None else T,
-    )
+LENSES = ("radial-tangential", "equidistant")
 
 
 def pixel_grid(cam: CameraModel, margin: float) -> np.ndarray:
@@ -45,7 +29,7 @@ def pixel_grid(cam: CameraModel, margin: float) -> np.ndarray:
     return np.array([(c, r) for c in cols for r in rows])
 
 
-@pytest.mark.parametrize("model", list(LENSES))
+@pytest.mark.parametrize("model", LENSES)
 def test_pixel_ray_pixel_round_trip(model: str) -> None:
     cam = make_camera(model)
     px = pixel_grid(cam, 20.0)
@@ -56,7 +40,7 @@ def test_pixel_ray_pixel_round_trip(model: str) -> None:
     np.testing.assert_allclose(back, px, atol=1e-6)
 
 
-@pytest.mark.parametrize("model", list(LENSES))
+@pytest.mark.parametrize("model", LENSES)
 def test_normalised_coordinates_are_the_rays_over_their_depth(model: str) -> None:
     cam = make_camera(model)
     px = pixel_grid(cam, 40.0)
@@ -143,7 +127,7 @@ def sensor_yaml(model: str = "radial-tangential") -> dict[str, Any]:
     return sensor_from_camera(make_camera(model))
 
 
-@pytest.mark.parametrize("model", list(LENSES))
+@pytest.mark.parametrize("model", LENSES)
 def test_sensor_yaml_round_trip(model: str) -> None:
     cam = make_camera(model)
     back = camera_from_sensor(sensor_from_camera(cam))

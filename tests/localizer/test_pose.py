@@ -15,35 +15,11 @@ from localizer.pose import (
     solve_pose,
 )
 from localizer.pose_planar import rotation_world_body
+from tests.localizer.cameras import LENSES, MOUNTINGS, make_camera
 
-LENSES = {
-    "pinhole": ("radial-tangential", [0.0, 0.0, 0.0, 0.0]),
-    "radial-tangential": ("radial-tangential", [-0.25, 0.05, 2e-4, -3e-4, 0.0]),
-    "equidistant": ("equidistant", [-0.013, 0.021, -0.019, 0.0068]),
-}
-MOUNTINGS = {
-    "upward": T_body_camera_upward(),
-    "offset-yaw90": T_body_camera_upward(yaw=math.pi / 2, offset_xy=(0.1, 0.0), height=0.35),
-    "offset-tilted": T_body_camera_upward(yaw=-2.0, offset_xy=(-0.05, 0.1), tilt_xy=(0.01, -0.015)),
-}
 # Four landmarks at different heights around the robot's position (1.5, 2.3).
 LANDMARKS = np.array([[1.0, 2.0, 2.5], [2.2, 2.0, 2.62], [1.6, 3.0, 2.45], [2.0, 1.6, 2.55]])
 HEADINGS = [0.3, -1.9, math.pi, math.pi - 1e-4, -math.pi + 1e-4]
-
-
-def make_camera(lens: str = "radial-tangential", mounting: str = "upward") -> CameraModel:
-    model, dist = LENSES[lens]
-    return CameraModel(
-        width=640,
-        height=480,
-        fu=300.0,
-        fv=300.5,
-        cu=321.3,
-        cv=238.7,
-        distortion_model=model,  # type: ignore[arg-type]
-        distortion=np.array(dist),
-        T_body_camera=MOUNTINGS[mounting],
-    )
 
 
 def observe(
