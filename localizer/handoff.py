@@ -108,12 +108,19 @@ def predict_landmarks(
     px, valid = predict_pixels(camera, T_world_body_from_pose(x, y, theta), positions[rows])
     rows, px = rows[valid], px[valid]
     cov = np.asarray(covariance, dtype=np.float64)
-    sigma_xy = math.sqrt(max(float(np.linalg.eigvalsh(cov[:2, :2])[-1]), 0.0))
+    sigma_xy = position_sigma_m(cov)
     sigma_t = math.sqrt(max(float(cov[2, 2]), 0.0))
     radial = np.hypot(px[:, 0] - camera.cu, px[:, 1] - camera.cv)
     offset_px = scale_px_per_m * float(np.hypot(*camera.T_body_camera[:2, 3]))
     sigma = scale_px_per_m * sigma_xy + (radial + offset_px) * sigma_t
     return Prediction(rows.astype(np.int64), px, sigma)
+
+
+def position_sigma_m(covariance: FloatArray) -> float:
+    """Standard deviation along the worst direction of the (x, y) block of a covariance:
+    the square root of the larger eigenvalue of a 2x2 symmetric matrix (closed form)."""
+    a, b, c = float(covariance[0, 0]), float(covariance[0, 1]), float(covariance[1, 1])
+    return math.sqrt(max(0.5 * (a + c) + math.hypot(0.5 * (a - c), b), 0.0))
 
 
 def ceiling_points_body(

@@ -48,6 +48,7 @@ from localizer.handoff import (
     consistent_hypotheses,
     hypothesis_pose,
     pose_mahalanobis2,
+    position_sigma_m,
     predict_landmarks,
     visible_radius_m,
 )
@@ -323,7 +324,7 @@ class Localizer:
         state, cov = filt.state, filt.covariance[:3, :3]
         pose = (float(state[0]), float(state[1]), float(state[2]))
         cand = None if self._lit is None else self._lit_rows()
-        sigma_xy = math.sqrt(max(float(np.linalg.eigvalsh(cov[:2, :2])[-1]), 0.0))
+        sigma_xy = position_sigma_m(cov)
         pred = predict_landmarks(
             self.camera,
             pose,
@@ -441,7 +442,7 @@ class Localizer:
             return
         fc = self.config.fusion
         cov = self._filter.covariance
-        sigma = math.sqrt(max(float(np.linalg.eigvalsh(cov[:2, :2])[-1]), 0.0))
+        sigma = position_sigma_m(cov)
         if sigma > fc.lost_sigma_m or self._rejections >= fc.lost_after_rejections:
             self._mode = "lost"
             self._start_identification()

@@ -17,19 +17,35 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from collections import deque
 from collections.abc import Callable, Iterator
+from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
 from typing import TextIO
 
 import cv2
+import numpy as np
+import numpy.typing as npt
 
 from localizer.config import LocalizerConfig
 from localizer.events import FrameObserved, NoPose, PoseEstimate
 from localizer.localizer import Localizer
 from recording.reader import FrameEntry, RecordingError, iter_timeline, read_recording
 
+ImageU8 = npt.NDArray[np.uint8]
 HEADER = "timestamp_ns,x,y,theta,mode,cov_xx,cov_yy,cov_tt,landmarks"
 PROG = "irloc replay"
+
+
+_DECODE_AHEAD = 4
+
+
+def _decode(path: Path) -> ImageU8 | None:
+    """The frame as 8-bit grayscale, or None when missing or unreadable."""
+    if not path.is_file():
+        return None
+    image = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
+    return None if image is None else np.asarray(image, dtype=np.uint8)
 
 
 def format_row(est: PoseEstimate | NoPose) -> str:
@@ -73,22 +89,33 @@ def replay(
     ticks = progress(len(rec.frames)) if progress is not None else None
     out.write(HEADER + "\n")
     written = skipped = 0
-    for item in iter_timeline(rec):
-        if not isinstance(item, FrameEntry):
-            loc.handle(item)
-            continue
-        image = cv2.imread(str(item.path), cv2.IMREAD_GRAYSCALE) if item.path.is_file() else None
-        if image is None:
-            skipped += 1
-            warn(f"{item.path}: missing or unreadable frame (cam0/data.csv:{item.line}), skipped")
-            est: PoseEstimate | NoPose = loc.skip_frame(item.t_ns)
-        else:
-            outs = loc.handle(FrameObserved(item.t_ns, image))
-            est = next(o for o in outs if isinstance(o, PoseEstimate | NoPose))
-        out.write(format_row(est) + "\n")
-        written += 1
-        if ticks is not None:
-            next(ticks, None)
+    with ThreadPoolExecutor(max_workers=1, thread_name_prefix="png") as pool:
+        # PNG decoding (which releases the GIL) runs a few frames ahead on a second thread.
+        ahead: deque[Future[ImageU8 | None]] = deque()
+        queued = iter(rec.frames)
+        for item in iter_timeline(rec):
+            if not isinstance(item, FrameEntry):
+                loc.handle(item)
+                continue
+            while len(ahead) < _DECODE_AHEAD:
+                nxt = next(queued, None)
+                if nxt is None:
+                    break
+                ahead.append(pool.submit(_decode, nxt.path))
+            image = ahead.popleft().result()
+            if image is None:
+                skipped += 1
+                warn(
+                    f"{item.path}: missing or unreadable frame (cam0/data.csv:{item.line}), skipped"
+                )
+                est: PoseEstimate | NoPose = loc.skip_frame(item.t_ns)
+            else:
+                outs = loc.handle(FrameObserved(item.t_ns, image))
+                est = next(o for o in outs if isinstance(o, PoseEstimate | NoPose))
+            out.write(format_row(est) + "\n")
+            written += 1
+            if ticks is not None:
+                next(ticks, None)
     return written, skipped
 
 

@@ -16,6 +16,7 @@ from localizer.handoff import (
     hypothesis_pose,
     pose_from_ceiling_points,
     pose_mahalanobis2,
+    position_sigma_m,
     predict_landmarks,
     visible_radius_m,
 )
@@ -123,3 +124,12 @@ def test_no_hypothesis_with_fewer_than_two_candidates() -> None:
 def test_mahalanobis_wraps_heading() -> None:
     d2 = pose_mahalanobis2((0.0, 0.0, math.pi - 0.01), (0.0, 0.0, -math.pi + 0.01), np.eye(3))
     assert d2 == pytest.approx(0.02**2)
+
+
+def test_position_sigma_is_the_largest_eigenvalue() -> None:
+    rng = np.random.default_rng(1)
+    for _ in range(10):
+        A = rng.normal(size=(3, 3))
+        cov = A @ A.T
+        expected = math.sqrt(np.linalg.eigvalsh(cov[:2, :2])[-1])
+        assert position_sigma_m(cov) == pytest.approx(expected, rel=1e-12)
