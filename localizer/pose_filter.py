@@ -57,7 +57,7 @@ class FilterConfig:
         output_snap_m: a correction larger than this (a relocalisation) is not smoothed.
     """
 
-    wheel_noise_m_per_sqrt_s: float = 0.001
+    wheel_noise_m_per_sqrt_s: float = 0.0003
     wheel_slip_m_per_sqrt_m: float = 0.002
     calibration_walk_per_sqrt_s: float = 1e-5
     calibration_prior_sigma: float = 0.03

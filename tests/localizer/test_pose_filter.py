@@ -39,7 +39,7 @@ def simulate(
     segments: list[tuple[float, float, float]],
     rng: np.random.Generator,
     start: tuple[float, float, float] = (0.0, 0.0, 0.0),
-    noise_m_per_sqrt_s: float = 0.001,
+    noise_m_per_sqrt_s: float = FilterConfig().wheel_noise_m_per_sqrt_s,
 ) -> Drive:
     """Truth by exact arcs with the true wheel geometry; measured speeds with the errors."""
     k_r, k_l, k_b = K_TRUE
