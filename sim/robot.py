@@ -122,6 +122,7 @@ class SimRobot:
         self.x, self.y, self.theta = (float(v) for v in start)
         self.t_ns = t0_ns  # time of the state above (always a control tick)
         self._command = (0.0, 0.0)
+        self._snapshot = (self.t_ns, self.x, self.y, self.theta, self._command)
         self._next_frame_ns = t0_ns + frame_offset_ns
         self.paused_until_ns = t0_ns
 
@@ -129,16 +130,21 @@ class SimRobot:
         half = 0.5 * self.odometry.wheel_base_true_m * omega
         return v - half, v + half
 
-    def _arc(self, dt_s: float) -> tuple[float, float, float]:
-        vl, vr = self._true_wheels(*self._command)
-        x, y, th = integrate_arc(
-            self.x, self.y, self.theta, vl, vr, dt_s, self.odometry.wheel_base_true_m
-        )
+    def _arc(
+        self, state: tuple[int, float, float, float, tuple[float, float]], t_ns: int
+    ) -> tuple[float, float, float]:
+        t0, x, y, theta, command = state
+        vl, vr = self._true_wheels(*command)
+        dt_s = (t_ns - t0) * 1e-9
+        x, y, th = integrate_arc(x, y, theta, vl, vr, dt_s, self.odometry.wheel_base_true_m)
         return float(x), float(y), float(th)
 
     def pose_at(self, t_ns: int) -> tuple[float, float, float]:
-        """True planar pose at `t_ns` >= the last tick (the current arc, extended)."""
-        return self._arc((t_ns - self.t_ns) * 1e-9)
+        """True planar pose at `t_ns` >= the last tick (the current arc, extended).
+
+        Safe to call from another thread while `advance_to` runs (one consistent snapshot).
+        """
+        return self._arc(self._snapshot, t_ns)
 
     def T_world_body(self, x: float, y: float, theta: float) -> FloatArray:
         """Body pose (4, 4) on the floor at (x, y, theta): lifted and tilted by bumps."""
@@ -175,7 +181,7 @@ class SimRobot:
                 self._add_frame(out, self._next_frame_ns)
             if tick > t_ns:
                 return out
-            self.x, self.y, self.theta = self._arc(self.tick_ns * 1e-9)
+            self.x, self.y, self.theta = self._arc(self._snapshot, tick)
             self.t_ns = tick
             vl, vr = self._measure()
             out.append(OdometryMeasured(tick, vl, vr))
@@ -183,6 +189,7 @@ class SimRobot:
                 self._command = self.follower.command(tick * 1e-9, self.x, self.y, self.theta)
             else:
                 self._command = (0.0, 0.0)
+            self._snapshot = (tick, self.x, self.y, self.theta, self._command)
 
     def _add_frame(self, out: list[OdometryMeasured | FramePose], t_ns: int) -> None:
         self._next_frame_ns += self.frame_period_ns
