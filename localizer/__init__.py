@@ -1,1 +1,64 @@
-"""localizer."""
+"""IR ceiling-landmark localization (Sohn et al.), pure and sans-I/O: see docs/localizer.md."""
+
+from localizer.camera import CameraModel, camera_from_sensor, predict_pixels
+from localizer.config import FusionConfig, LocalizerConfig
+from localizer.events import (
+    MODES,
+    Event,
+    FrameObserved,
+    LedRequest,
+    LedsChanged,
+    Mode,
+    NoPose,
+    OdometryMeasured,
+    Output,
+    PoseEstimate,
+    RelocalizeRequested,
+    SpotsObserved,
+)
+from localizer.handoff import HandoffConfig
+from localizer.identification import IdentificationConfig, Identifier
+from localizer.landmark_map import LandmarkMap
+from localizer.localizer import Localizer
+from localizer.pose import PoseFix, pose_from_landmark_pair, solve_pose
+from localizer.pose_filter import FilterConfig, PoseFilter
+from localizer.robot import RobotGeometry
+from localizer.spots import DetectionConfig, Spots, detect_spots, detect_spots_in_windows
+from localizer.tracking import TrackingConfig, bottleneck_assignment
+
+__all__ = [
+    "MODES",
+    "CameraModel",
+    "DetectionConfig",
+    "Event",
+    "FilterConfig",
+    "FrameObserved",
+    "FusionConfig",
+    "HandoffConfig",
+    "IdentificationConfig",
+    "Identifier",
+    "LandmarkMap",
+    "LedRequest",
+    "LedsChanged",
+    "Localizer",
+    "LocalizerConfig",
+    "Mode",
+    "NoPose",
+    "OdometryMeasured",
+    "Output",
+    "PoseEstimate",
+    "PoseFilter",
+    "PoseFix",
+    "RelocalizeRequested",
+    "RobotGeometry",
+    "Spots",
+    "SpotsObserved",
+    "TrackingConfig",
+    "bottleneck_assignment",
+    "camera_from_sensor",
+    "detect_spots",
+    "detect_spots_in_windows",
+    "pose_from_landmark_pair",
+    "predict_pixels",
+    "solve_pose",
+]

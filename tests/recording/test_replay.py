@@ -147,3 +147,23 @@ def test_malformed_file_gives_one_line_and_non_zero_status(
 def test_missing_recording_folder(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert main([str(tmp_path / "nope"), "--out", str(tmp_path / "p.csv")]) == 1
     assert "not a recording folder" in capsys.readouterr().err
+
+
+@pytest.mark.slow
+def test_replay_of_a_simulated_scenario_end_to_end(tmp_path: Path) -> None:
+    from recording.reader import read_groundtruth
+    from sim.cli import main as simulate
+
+    rec = tmp_path / "hostile"
+    assert simulate(["hostile", str(rec), "--duration", "6", "--quiet"]) == 0
+    out = tmp_path / "poses.csv"
+    assert main([str(rec), "--out", str(out), "--quiet"]) == 0
+    t_gt, gt = read_groundtruth(rec)
+    rows = [r for r in _rows(out) if r["x"]]
+    assert int(rows[0]["timestamp_ns"]) < 2e9  # first fix within 2 s
+    t = np.array([int(r["timestamp_ns"]) for r in rows])
+    err = np.hypot(
+        np.array([float(r["x"]) for r in rows]) - np.interp(t, t_gt, gt[:, 0]),
+        np.array([float(r["y"]) for r in rows]) - np.interp(t, t_gt, gt[:, 1]),
+    )
+    assert np.percentile(err, 95) < 0.10
