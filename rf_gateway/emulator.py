@@ -348,6 +348,9 @@ class XBeeEmulator:
         if remote.silent:
             self.counts["silent"] += 1
             return
+        with self._lock:  # replies still scheduled when this request came in
+            waiting = len(self._outbox)
+        self.counts["max_overlap"] = max(self.counts["max_overlap"], waiting)
         status, data = self._remote_answer(remote, frame)
         answer = fr.RemoteAtResponse(
             frame.frame_id, frame.address64, 0x1000, frame.command, status, data

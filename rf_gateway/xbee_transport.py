@@ -21,11 +21,14 @@ from typing import Any, TypeVar
 
 from digi.xbee.devices import RemoteXBeeDevice, XBeeDevice
 from digi.xbee.exception import ATCommandException, TimeoutException
-from digi.xbee.models.address import XBee64BitAddress
+from digi.xbee.models.address import XBee16BitAddress, XBee64BitAddress
+from digi.xbee.models.options import RemoteATCmdOptions
+from digi.xbee.packets.common import RemoteATCommandPacket
 
 from rf_gateway.errors import RadioTimeout, RemoteCommandError, TransportUnavailable
 from rf_gateway.transport import DEFAULT_BAUD, DiscoveredRadio, StateReporter, normalize_address
 from rf_gateway.xbee_link_stats import LinkStats
+from rf_gateway.xbee_pipeline import RemoteReply, ReplyRouter
 
 log = logging.getLogger(__name__)
 T = TypeVar("T")
@@ -44,6 +47,9 @@ class XBeeTransportConfig:
         discovery_timeout_s: longest wait for node discovery to finish.
         health_interval_s: how often the port's presence is checked.
         reopen_initial_s, reopen_max_s: backoff between reopen attempts (doubling).
+        pipelined: write remote commands without waiting and match the replies by frame id
+            (`ReplyRouter`), so that the gateway's `max_in_flight` commands share the air;
+            False: one synchronous digi-xbee call at a time.
     """
 
     command_timeout_s: float = 1.0
@@ -51,6 +57,7 @@ class XBeeTransportConfig:
     health_interval_s: float = 0.25
     reopen_initial_s: float = 0.1
     reopen_max_s: float = 5.0
+    pipelined: bool = False
 
 
 class XBeeTransport(StateReporter):
@@ -85,6 +92,7 @@ class XBeeTransport(StateReporter):
         self._tasks: set[asyncio.Task[None]] = set()
         self.reopen_count = 0
         self.link_stats = LinkStats()
+        self.replies = ReplyRouter()
 
     async def _call(self, fn: Callable[..., T], *args: Any) -> T:
         loop = asyncio.get_running_loop()
@@ -96,6 +104,7 @@ class XBeeTransport(StateReporter):
         try:
             device.open()
             device.add_packet_received_callback(self.link_stats.on_packet)
+            device.add_packet_received_callback(self.replies.on_packet)
             if self._state == "closed":  # close() was called while this thread was opening
                 raise TransportUnavailable(f"XBee on {self.port} closed while opening")
         except BaseException:
@@ -222,11 +231,64 @@ class XBeeTransport(StateReporter):
 
     async def set_pin(self, address: str, high: bool) -> None:
         value = bytearray((DIO_OUTPUT_HIGH if high else DIO_OUTPUT_LOW,))
+        if self.config.pipelined:
+            await self._pipelined(address, self.pin, bytes(value))
+            return
         await self._remote_call(address, lambda r: r.set_parameter(self.pin, value))
 
     async def read_supply_mv(self, address: str) -> int:
+        if self.config.pipelined:
+            reply = await self._pipelined(address, "%V", b"")
+            return int.from_bytes(reply.value, "big")
         raw = await self._remote_call(address, lambda r: r.get_parameter("%V"))
         return int.from_bytes(bytes(raw), "big")
+
+    def _send_remote(
+        self, address: str, command: str, parameter: bytes, future: asyncio.Future[RemoteReply]
+    ) -> int:
+        device = self._device
+        if device is None:
+            raise TransportUnavailable(f"XBee on {self.port} is {self._state}")
+        frame_id = int(device.get_next_frame_id())
+        while self.replies.in_use(frame_id):
+            frame_id = int(device.get_next_frame_id())
+        self.replies.expect(frame_id, address, command, future)
+        packet = RemoteATCommandPacket(
+            frame_id,
+            XBee64BitAddress.from_hex_string(address),
+            XBee16BitAddress.UNKNOWN_ADDRESS,
+            RemoteATCmdOptions.APPLY_CHANGES.value,
+            command,
+            parameter=bytearray(parameter) if parameter else None,
+            op_mode=device.operating_mode,
+        )
+        try:
+            device.send_packet(packet, sync=False)
+        except BaseException:
+            self.replies.forget(frame_id)
+            raise
+        return frame_id
+
+    async def _pipelined(self, address: str, command: str, parameter: bytes) -> RemoteReply:
+        address = normalize_address(address)
+        if self._state != "open":
+            raise TransportUnavailable(f"XBee on {self.port} is {self._state}")
+        future: asyncio.Future[RemoteReply] = asyncio.get_running_loop().create_future()
+        try:
+            frame_id = await self._call(self._send_remote, address, command, parameter, future)
+        except TransportUnavailable:
+            raise
+        except Exception as exc:  # the write failed: the port is gone
+            await self._lost(str(exc))
+            raise TransportUnavailable(f"XBee on {self.port}: {exc}") from exc
+        try:
+            reply = await asyncio.wait_for(future, self.config.command_timeout_s)
+        except TimeoutError:
+            self.replies.forget(frame_id)
+            raise RadioTimeout(address) from None
+        if reply.status != 0:
+            raise RemoteCommandError(address, reply.status)
+        return reply
 
     def _discover(self) -> list[DiscoveredRadio]:
         device = self._device

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import asyncio
+import dataclasses
 import itertools
 import os
 import time
@@ -43,11 +44,26 @@ def remotes() -> list[EmulatedRemote]:
     ]
 
 
-@pytest.fixture(params=[False, True], ids=["api1", "api2-escaped"])
-def emulator(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[XBeeEmulator]:
-    emu = XBeeEmulator(tmp_path / "ttyXBEE", remotes(), escaped=request.param)
+PIPELINED = dataclasses.replace(CONFIG, pipelined=True)
+
+
+@dataclasses.dataclass
+class Link:
+    """An emulated coordinator and the transport settings to reach it with."""
+
+    emu: XBeeEmulator
+    config: XBeeTransportConfig
+
+
+@pytest.fixture(
+    params=[(False, CONFIG), (True, CONFIG), (False, PIPELINED)],
+    ids=["api1", "api2-escaped", "api1-pipelined"],
+)
+def link(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[Link]:
+    escaped, config = request.param
+    emu = XBeeEmulator(tmp_path / "ttyXBEE", remotes(), escaped=escaped)
     emu.start()
-    yield emu
+    yield Link(emu, config)
     emu.stop()
 
 
@@ -59,9 +75,9 @@ async def until(predicate: Callable[[], bool], timeout_s: float = 5.0) -> None:
         await asyncio.sleep(0.02)
 
 
-def with_transport(emu: XBeeEmulator, body: Callable[[XBeeTransport], Awaitable[None]]) -> None:
+def with_transport(link: Link, body: Callable[[XBeeTransport], Awaitable[None]]) -> None:
     async def main() -> None:
-        transport = XBeeTransport(str(emu.port), 115200, pin="D4", config=CONFIG)
+        transport = XBeeTransport(str(link.emu.port), 115200, pin="D4", config=link.config)
         await transport.open()
         try:
             await body(transport)
@@ -71,7 +87,7 @@ def with_transport(emu: XBeeEmulator, body: Callable[[XBeeTransport], Awaitable[
     asyncio.run(main())
 
 
-def test_pin_supply_and_discovery_through_digi_xbee(emulator: XBeeEmulator) -> None:
+def test_pin_supply_and_discovery_through_digi_xbee(link: Link) -> None:
     async def body(t: XBeeTransport) -> None:
         assert t.state == "open"
         await t.set_pin(ADDR[1].lower(), True)
@@ -84,13 +100,13 @@ def test_pin_supply_and_discovery_through_digi_xbee(emulator: XBeeEmulator) -> N
             DiscoveredRadio(ADDR[2], "LM-2"),
         ]
 
-    with_transport(emulator, body)
-    assert emulator.remote(ADDR[1]).applied == [("D4", 5)]
-    assert emulator.remote(ADDR[2]).applied == [("D4", 5), ("D4", 4)]
-    assert emulator.counts["LocalAtCommand"] >= 8  # AP HV VR SH SL NI MY CE on open, ND...
+    with_transport(link, body)
+    assert link.emu.remote(ADDR[1]).applied == [("D4", 5)]
+    assert link.emu.remote(ADDR[2]).applied == [("D4", 5), ("D4", 4)]
+    assert link.emu.counts["LocalAtCommand"] >= 8  # AP HV VR SH SL NI MY CE on open, ND...
 
 
-def test_unreachable_and_silent_remotes(emulator: XBeeEmulator) -> None:
+def test_unreachable_and_silent_remotes(link: Link) -> None:
     async def body(t: XBeeTransport) -> None:
         with pytest.raises(RemoteCommandError) as failure:
             await t.set_pin(ADDR[3], True)
@@ -101,9 +117,9 @@ def test_unreachable_and_silent_remotes(emulator: XBeeEmulator) -> None:
             await t.set_pin("12345", True)
         await t.set_pin(ADDR[1], True)  # the link is still fine
 
-    with_transport(emulator, body)
-    assert emulator.counts["tx_failures"] == 1
-    assert emulator.counts["silent"] == 1
+    with_transport(link, body)
+    assert link.emu.counts["tx_failures"] == 1
+    assert link.emu.counts["silent"] == 1
 
 
 def test_bad_pin_name_is_rejected() -> None:
@@ -112,16 +128,17 @@ def test_bad_pin_name_is_rejected() -> None:
 
 
 def run_gateway_sequence(
-    emu: XBeeEmulator, sequence: list[list[int]]
+    link: Link, sequence: list[list[int]], linger_s: float = 0.0
 ) -> tuple[Gateway, list[LedsChanged]]:
     async def main() -> tuple[Gateway, list[LedsChanged]]:
-        transport = XBeeTransport(str(emu.port), config=CONFIG)
+        transport = XBeeTransport(str(link.emu.port), config=link.config)
         gw = Gateway(transport, {1: ADDR[1], 2: ADDR[2]}, GW_CONFIG)
         await gw.start()
         sub = gw.subscribe()
         try:
             for lit in sequence:
                 await gw.set_leds(lit)
+            await asyncio.sleep(linger_s)
         finally:
             await gw.close()
         events = []
@@ -150,60 +167,82 @@ FINAL_PINS = {ADDR[1]: {"D4": 5}, ADDR[2]: {"D4": 4}}
     ids=["drop", "corrupt", "duplicate", "delay", "garbage", "truncated", "unknown"],
 )
 def test_gateway_over_faulty_link_applies_every_change_once(
-    emulator: XBeeEmulator, faults: FaultConfig, counter: str | None
+    link: Link, faults: FaultConfig, counter: str | None
 ) -> None:
-    emulator.faults = faults
-    emulator._rng.seed(faults.seed)
-    gw, events = run_gateway_sequence(emulator, SEQUENCE)
-    assert {a: emulator.remote(a).pins for a in FINAL_PINS} == FINAL_PINS
+    link.emu.faults = faults
+    link.emu._rng.seed(faults.seed)
+    gw, events = run_gateway_sequence(link, SEQUENCE)
+    assert {a: link.emu.remote(a).pins for a in FINAL_PINS} == FINAL_PINS
     assert [e.lit if not e.all_lit else frozenset({1, 2}) for e in events] == [
         frozenset(s) for s in SEQUENCE
     ]
     assert all(b.t_ns >= a.t_ns for a, b in itertools.pairwise(events))
     if counter is not None:
-        assert emulator.counts[counter] > 0
-    link = gw.transport.link_stats  # type: ignore[attr-defined]
-    assert link.frames_received >= 10  # one reply per LED change of SEQUENCE
+        assert link.emu.counts[counter] > 0
+    stats = gw.transport.link_stats  # type: ignore[attr-defined]
+    assert stats.frames_received >= 10  # one reply per LED change of SEQUENCE
     if counter == "corrupted":
-        assert link.invalid_frames >= emulator.counts["corrupted"]
+        assert stats.invalid_frames >= link.emu.counts["corrupted"]
     if counter == "unknown_sent":
-        assert link.unknown_frames == emulator.counts["unknown_sent"]
+        assert stats.unknown_frames == link.emu.counts["unknown_sent"]
     if counter in ("dropped", "corrupted"):
         # each lost reply cost one timeout and one retry, nothing else
-        assert gw.stats.retries >= emulator.counts[counter]
+        assert gw.stats.retries >= link.emu.counts[counter]
     assert gw.unreachable == frozenset()
 
 
 def test_late_reply_crossing_a_retry_is_not_taken_for_a_newer_command(
-    emulator: XBeeEmulator,
+    link: Link,
 ) -> None:
-    remote = emulator.remote(ADDR[1])
+    remote = link.emu.remote(ADDR[1])
     remote.late_replies = 1
     remote.late_delay_s = 0.7  # longer than the 0.4 s command timeout
-    gw, events = run_gateway_sequence(emulator, [[1], [], [1]])
+    gw, events = run_gateway_sequence(link, [[1], [], [1]], linger_s=0.6)
     assert gw.stats.retries == 1
     # the first command was applied when it arrived and again by the retry (idempotent);
     # the late reply to it, received while the next command waited, confirmed nothing
     assert remote.applied == [("D4", 5), ("D4", 5), ("D4", 4), ("D4", 5)]
     assert [e.lit for e in events] == [frozenset({1}), frozenset(), frozenset({1})]
+    if link.config.pipelined:
+        assert gw.transport.replies.late_replies == 1  # type: ignore[attr-defined]
+
+
+@pytest.mark.parametrize("config", [CONFIG, PIPELINED], ids=["sync", "pipelined"])
+def test_pipelined_commands_share_the_air(tmp_path: Path, config: XBeeTransportConfig) -> None:
+    many = [EmulatedRemote(f"0013A20040C000{i:02X}", f"LM{i}", delay_s=0.03) for i in range(8)]
+
+    async def main() -> None:
+        transport = XBeeTransport(str(emu.port), config=config)
+        gw = Gateway(transport, {i: r.address for i, r in enumerate(many)}, GW_CONFIG)
+        await gw.start()
+        await gw.set_leds(range(8))
+        await gw.close()
+
+    with XBeeEmulator(tmp_path / "ttyMANY", many) as emu:
+        asyncio.run(main())
+    assert all(r.pins == {"D4": 5} for r in many)
+    # replies still pending when the next request arrived: none when serial, up to 3 of the
+    # gateway's 4 in flight when pipelined
+    expected = range(1, 4) if config.pipelined else range(0, 1)
+    assert emu.counts["max_overlap"] in expected
 
 
 def test_our_parser_counts_and_skips_garbage_sent_over_the_serial_line(
-    emulator: XBeeEmulator,
+    link: Link,
 ) -> None:
-    good = fr.wrap(fr.encode(fr.LocalAtCommand(7, "NI")), escaped=emulator.escaped)
+    good = fr.wrap(fr.encode(fr.LocalAtCommand(7, "NI")), escaped=link.emu.escaped)
     bad = bytearray(good)
     bad[-1] ^= 0x01
-    unknown = fr.wrap(fr.encode(fr.UnknownFrame(0x3F, b"\x00")), escaped=emulator.escaped)
-    with serial.Serial(str(emulator.port), 9600, timeout=1.0) as port:
+    unknown = fr.wrap(fr.encode(fr.UnknownFrame(0x3F, b"\x00")), escaped=link.emu.escaped)
+    with serial.Serial(str(link.emu.port), 9600, timeout=1.0) as port:
         port.write(b"\x00\x41\x42" + bytes(bad) + good[:4] + unknown + good)
         header = port.read(3)
         assert header[0] == fr.START
-        reply = StreamParser(escaped=emulator.escaped).feed(header + port.read(64))
+        reply = StreamParser(escaped=link.emu.escaped).feed(header + port.read(64))
     assert fr.decode(reply[0]) == fr.AtResponse(7, "NI", 0, b"COORDINATOR")
-    stats = emulator.parser.stats
+    stats = link.emu.parser.stats
     assert (stats.garbage_bytes, stats.bad_checksums + stats.truncated, stats.frames) == (3, 2, 2)
-    assert emulator.counts["unknown_frames"] == 1
+    assert link.emu.counts["unknown_frames"] == 1
 
 
 def test_pulled_cable_is_reopened_and_reported(tmp_path: Path) -> None:
@@ -249,13 +288,13 @@ def test_missing_port_at_start_keeps_trying_until_it_appears(tmp_path: Path) -> 
     asyncio.run(main())
 
 
-def test_transmit_requests_get_a_transmit_status(emulator: XBeeEmulator) -> None:
-    esc = emulator.escaped
+def test_transmit_requests_get_a_transmit_status(link: Link) -> None:
+    esc = link.emu.escaped
     requests = [
         fr.TransmitRequest(11, int(ADDR[1], 16), b"on"),
         fr.TransmitRequest(12, int(ADDR[3], 16), b"on"),
     ]
-    with serial.Serial(str(emulator.port), 9600, timeout=0.5) as port:
+    with serial.Serial(str(link.emu.port), 9600, timeout=0.5) as port:
         port.write(b"".join(fr.wrap(fr.encode(r), escaped=esc) for r in requests))
         parser = StreamParser(escaped=esc)
         got: list[fr.ApiFrame] = []
