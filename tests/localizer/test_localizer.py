@@ -194,34 +194,30 @@ def test_spots_observed_input_and_lost_when_the_map_disagrees() -> None:
         n = len(px)
         return SpotsObserved(t_ns, px, np.full(n, 1000.0), np.full(n, 12.0))
 
-    t = 0
-    lit: list[int] = [1, 2, 3]
-    modes = []
-    for _ in range(12):
-        t += 33_000_000
-        for o in loc.handle(spots(t, lit, TRIANGLE)):
-            if isinstance(o, LedRequest):
-                lit = [1, 2, 3] if o.all_lit else sorted(o.lit)
-                loc.handle(LedsChanged(t + 1, o.lit, all_lit=o.all_lit))
-            else:
-                modes.append(o.mode)
-    assert modes[-1] == "landmark"
+    state = {"t": 0, "lit": [1, 2, 3]}
+
+    def frames(count: int) -> list[str]:
+        """Feed `count` frames (and odometry), obeying LED requests; returns the modes."""
+        modes = []
+        for _ in range(count):
+            state["t"] += 33_000_000
+            t = state["t"]
+            loc.handle(OdometryMeasured(t - 1, 0.0, 0.0))
+            for o in loc.handle(spots(t, state["lit"], TRIANGLE)):
+                if isinstance(o, LedRequest):
+                    state["lit"] = [1, 2, 3] if o.all_lit else sorted(o.lit)
+                    loc.handle(LedsChanged(t + 1, o.lit, all_lit=o.all_lit))
+                else:
+                    modes.append(o.mode)
+        return modes
+
+    assert frames(12)[-1] == "landmark"
     assert loc.latest is not None
     np.testing.assert_allclose([loc.latest.x, loc.latest.y, loc.latest.theta], pose, atol=1e-4)
     # The map is replaced by one shifted 0.5 m: the spots no longer agree -> lost.
     shifted = LandmarkMap(TRIANGLE.ids, TRIANGLE.positions + np.array([0.5, 0.0, 0.0]))
     loc.set_map(shifted)
-    lit = [1, 2, 3]
-    seen = []
-    for _ in range(40):
-        t += 33_000_000
-        loc.handle(OdometryMeasured(t - 1, 0.0, 0.0))
-        for o in loc.handle(spots(t, lit, TRIANGLE)):
-            if isinstance(o, LedRequest):
-                lit = [1, 2, 3] if o.all_lit else sorted(o.lit)
-                loc.handle(LedsChanged(t + 1, o.lit, all_lit=o.all_lit))
-            else:
-                seen.append(o.mode)
+    seen = frames(40)
     assert "lost" in seen
     assert seen[-1] == "landmark"
     assert loc.latest.x == pytest.approx(pose[0] + 0.5, abs=1e-3)
