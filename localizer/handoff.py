@@ -138,8 +138,9 @@ def ceiling_points_body(
     """
     b = bearings_body_from_pixels(camera, pixels)
     origin = camera.T_body_camera[:3, 3]
-    s = (np.asarray(heights_m) - origin[2]) / np.maximum(b[:, 2], 1e-6)
-    return origin[:2] + b[:, :2] * s[:, None]
+    s = (np.asarray(heights_m, dtype=np.float64) - origin[2]) / np.maximum(b[:, 2], 1e-6)
+    out: FloatArray = origin[:2] + b[:, :2] * s[:, None]
+    return out
 
 
 def pose_from_ceiling_points(

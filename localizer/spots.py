@@ -306,7 +306,8 @@ def detect_spots_in_windows(
         if peak <= thr:
             continue
         cut = (c0 > 0, r0 > 0, c1 < W, r1 < H)
-        if not _single_spot(region, loc, (c0, r0), bg, thr, config, rows, cut):
+        peak_loc = (int(loc[0]), int(loc[1]))
+        if not _single_spot(region, peak_loc, (c0, r0), bg, thr, config, rows, cut):
             _spots_in_region(region, (c0, r0), bg, thr, config, rows, cut_sides=cut)
     return _brightest(rows, config.max_spots)
 
@@ -341,8 +342,8 @@ def _single_spot(
     if cv2.countNonZero(binary) != area:
         return False  # more above the threshold than the patch holds: label it
     # The blob must not touch the patch's edge unless that edge is the image's border.
-    rows_any = above.any(axis=1)
-    cols_any = above.any(axis=0)
+    rows_any: npt.NDArray[np.bool_] = np.any(above, axis=1)
+    cols_any: npt.NDArray[np.bool_] = np.any(above, axis=0)
     touches = (
         (cols_any[0] and (c0 > 0 or cut_sides[0]))
         or (rows_any[0] and (r0 > 0 or cut_sides[1]))
