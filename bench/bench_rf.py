@@ -21,7 +21,7 @@ from rf_gateway.battery import BatteryConfig
 from rf_gateway.emulator import EmulatedRemote, FaultConfig, XBeeEmulator
 from rf_gateway.sim_transport import SimTransport
 from rf_gateway.transport import Transport
-from rf_gateway.xbee_transport import XBeeTransport
+from rf_gateway.xbee_transport import XBeeTransport, XBeeTransportConfig
 from sim.battery import Battery
 from sim.radio import SimRadio
 from sim.world import SimLandmark, World
@@ -91,21 +91,23 @@ GW_CONFIG = GatewayConfig(
 )
 
 
-async def run_xbee(args: argparse.Namespace, tmp: Path) -> list[Row]:
+async def run_xbee(args: argparse.Namespace, tmp: Path, pipelined: bool) -> list[Row]:
     addresses = [f"0013A20040B000{i:02X}" for i in range(1, args.landmarks + 1)]
     remotes = [EmulatedRemote(a, f"LM{i}") for i, a in enumerate(addresses, 1)]
     faults = FaultConfig(delay_s=args.xbee_delay_ms / 1e3)
+    kind = "xbee pipelined" if pipelined else "xbee emulator"
     with XBeeEmulator(tmp / "ttyBENCH", remotes, faults=faults):
-        transport = XBeeTransport(str(tmp / "ttyBENCH"))
+        config = XBeeTransportConfig(pipelined=pipelined)
+        transport = XBeeTransport(str(tmp / "ttyBENCH"), config=config)
         gw = Gateway(transport, dict(enumerate(addresses, 1)), GW_CONFIG)
         await gw.start()
         rows = []
         for concurrency in (1, 4):
             lat, wall = await bench_commands(transport, addresses, args.commands // 2, concurrency)
-            name = f"xbee emulator: set_pin x{concurrency} ({args.xbee_delay_ms:g} ms radio)"
+            name = f"{kind}: set_pin x{concurrency} ({args.xbee_delay_ms:g} ms radio)"
             rows.append(row(name, lat, wall))
         lat, wall = await bench_light_only(gw, args.sweeps)
-        rows.append(row("xbee emulator: light only k -> event", lat, wall))
+        rows.append(row(f"{kind}: light only k -> event", lat, wall))
         await gw.close()
     return rows
 
@@ -150,7 +152,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--sim-loss", type=float, default=0.0)
     args = parser.parse_args(argv)
     with tempfile.TemporaryDirectory() as tmp:
-        rows = asyncio.run(run_xbee(args, Path(tmp))) + asyncio.run(run_sim(args))
+        rows = asyncio.run(run_xbee(args, Path(tmp), pipelined=False))
+        rows += asyncio.run(run_xbee(args, Path(tmp), pipelined=True))
+        rows += asyncio.run(run_sim(args))
     print_table(rows)
     return 0
 
