@@ -65,8 +65,9 @@ class LiveSite:
         gens = seed_generators(sc.seed if seed is None else seed, 3 + len(sc.robots))
         self.world: World = build_world(sc, gens[0])
         self.radio = SimRadio(
-            self.world, rng=gens[1], latency_s=sc.radio_latency_s, loss=sc.radio_loss
-        )
+            self.world, rng=gens[1], latency_s=sc.radio_latency_s, loss=sc.radio_loss,
+            timeout_s=max(0.3, 2.0 * sc.radio_latency_s[1]),
+        )  # fmt: skip
         self._render_rng = gens[2]
         self._rigs: dict[str, RobotRig] = {
             spec.name: build_robot(spec, sc, gens[3 + i], index=i)

@@ -244,6 +244,8 @@ def scenario_from_dict(data: object, *, source: str) -> Scenario:
         )
     radio = doc.child("radio", {}).mapping(("latency_s", "loss"))
     latency = radio.child_vector("latency_s", 2, "[min, max] seconds", (0.01, 0.04))
+    if not 0 <= latency[0] <= latency[1] <= 5:
+        raise radio.child("latency_s").error(f"expected 0 <= min <= max <= 5 s, got {latency}")
     render = doc.child("render", {}).mapping(
         tuple(f.name for f in dataclasses.fields(RenderConfig))
     )

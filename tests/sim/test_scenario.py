@@ -79,6 +79,7 @@ def test_scenario_fields_and_defaults() -> None:
         (lambda d: d["robots"][0].pop("route"), r"robots\[0\]: missing field 'route'"),
         (lambda d: d.update(render={"psf_sigma_px": -1}), r"render: RenderConfig: psf_sigma_px"),
         (lambda d: d["robots"][1].update(name="a"), r"robots: robot names must be unique"),
+        (lambda d: d.update(radio={"latency_s": [0.2, 0.1]}), r"radio\.latency_s: expected 0 <="),
     ],
 )  # fmt: skip
 def test_bad_scenario_names_the_field(edit: Any, message: str) -> None:
