@@ -65,3 +65,15 @@ def test_simulate_errors_are_one_line(tmp_path: Path, capsys: pytest.CaptureFixt
     assert "not empty" in capsys.readouterr().err
     assert main(["demo", str(tmp_path / "o"), "--robot", "zz", "--quiet"]) == 2
     assert "unknown robot 'zz'" in capsys.readouterr().err
+
+
+def test_sweep_skips_the_dead_landmark_and_robot_waits_for_it(tmp_path: Path) -> None:
+    out = tmp_path / "hostile"
+    assert main(["hostile", str(out), "--duration", "1.5", "--quiet"]) == 0
+    rec = read_recording(out)
+    singles = [next(iter(e.lit)) for e in rec.leds if len(e.lit) == 1]
+    assert 7 not in singles and len(singles) >= 2
+    all_at = next(e.t_ns for e in rec.leds if e.all_lit)
+    t_gt, poses = read_groundtruth(out)
+    assert np.all(poses[t_gt <= all_at] == poses[0])  # parked until the sweep is done
+    assert 30 <= len(rec.frames) <= 46  # 5 % of 46 frames dropped on average
