@@ -45,6 +45,7 @@ class SiteAdapter:
         self._battery: dict[int, tuple[float, Any]] = {}
         self._seen: set[int] = set()
         self._view: CameraView | None = None
+        self._parked: Any = None
         services.map.add_listener(self._on_map_changed)
 
     def close(self) -> None:
@@ -147,6 +148,26 @@ class SiteAdapter:
 
     def set_leds(self, lit: frozenset[int], *, actor: str) -> None:
         self.services.call(self.services.set_leds(frozenset(lit)), timeout_s=30.0)
+
+    def hold_leds(self, held: bool) -> None:
+        """Keep the robots' LED requests off the radio while the wizard drives the LEDs.
+
+        Uses `services.hold_leds(held)` when the server offers it; until then (stopgap) it
+        parks the live site's LED coordinator (`services.site.leds`), so robots' requests
+        are dropped (their identification times out and retries) while confirmed LED
+        changes still reach every localizer.
+        """
+        if hasattr(self.services, "hold_leds"):
+            self.services.hold_leds(held)
+            return
+        site = getattr(self.services, "site", None)
+        if site is None or not hasattr(site, "leds"):
+            return
+        with self._lock:
+            if held and self._parked is None and site.leds is not None:
+                self._parked, site.leds = site.leds, None
+            elif not held and self._parked is not None:
+                site.leds, self._parked = self._parked, None
 
     def add_landmark(
         self, landmark_id: int, x: float, y: float, z: float, *, actor: str

@@ -132,6 +132,11 @@ class ViewerSite(Protocol):
         """Light exactly `lit`, darken the others (waits for the radio)."""
         ...
 
+    def hold_leds(self, held: bool) -> None:
+        """While held, only `set_leds` switches LEDs: robots' own LED requests (their
+        identification sweeps) are kept off the radio."""
+        ...
+
     def add_landmark(
         self, landmark_id: int, x: float, y: float, z: float, *, actor: str
     ) -> LandmarkState: ...

@@ -38,12 +38,16 @@ class WizardConfig:
         settle_s: a frame counts once taken this long after the radio confirmed the change.
         max_fix_age_s: the robot's last landmark fix must be this recent, seconds.
         poll_s: polling period while waiting for a frame, seconds.
+        led_tries: how often to (re)send an LED state that something else overrode.
+        led_check_s: wait this long after sending before checking the LED state, seconds.
     """
 
     frame_timeout_s: float = 3.0
     settle_s: float = 0.05
     max_fix_age_s: float = 3.0
     poll_s: float = 0.03
+    led_tries: int = 6
+    led_check_s: float = 0.3
 
 
 @dataclass(frozen=True, eq=False)
@@ -130,6 +134,7 @@ class IdentificationWizard:
             if robot not in {r.name for r in self.site.robots()}:
                 raise ValueError(f"unknown robot {robot!r}")
             self._previous_lit = self.site.lit()
+            self.site.hold_leds(True)
             self._state = WizardState(phase="measured", queue=list(landmark_ids), robot=robot)
             try:
                 return self._measure(actor)
@@ -206,9 +211,12 @@ class IdentificationWizard:
         return self._measure(actor)
 
     def _restore(self, actor: str) -> None:
-        if self._previous_lit is not None:
-            self.site.set_leds(self._previous_lit, actor=actor)
-        self._previous_lit = None
+        try:
+            if self._previous_lit is not None:
+                self._set_leds(self._previous_lit, actor)
+        finally:
+            self._previous_lit = None
+            self.site.hold_leds(False)
 
     def _robot_pose(self) -> tuple[tuple[float, float, float] | None, str]:
         rb = next((r for r in self.site.robots() if r.name == self._state.robot), None)
@@ -247,14 +255,32 @@ class IdentificationWizard:
         landmarks = {lm.id: lm for lm in self.site.landmarks()}
         if self._previous_lit is not None and self.site.lit() != self._previous_lit:
             # light the others again so that the robot fixes its pose from them
-            self.site.set_leds(self._previous_lit, actor=actor)
+            self._set_leds(self._previous_lit, actor)
             self._wait_fix(self._now_ns())
-        self.site.set_leds(frozenset({lid}), actor=actor)
+        if not self._set_leds(frozenset({lid}), actor):
+            return self._keep(
+                Measurement(
+                    lid, None, None, None, None, f"could not light landmark {lid} alone: retry"
+                )
+            )
         view = self._wait_frame(self._now_ns() + int(self.config.settle_s * 1e9))
         pose, why = self._robot_pose()  # dead reckoning since the last fix, at this frame
         m = measure_landmark(self.site, self._state.robot, lid, landmarks.get(lid), view, pose, why)
+        return self._keep(m)
+
+    def _keep(self, m: Measurement) -> Measurement:
         self._state.measurement = m
         return m
+
+    def _set_leds(self, lit: frozenset[int], actor: str) -> bool:
+        """Send an LED state until it is the confirmed one (robots' requests queued before
+        the hold may still override it once or twice)."""
+        for _ in range(self.config.led_tries):
+            self.site.set_leds(lit, actor=actor)
+            time.sleep(self.config.led_check_s)
+            if self.site.lit() == lit:
+                return True
+        return False
 
 
 def measure_landmark(

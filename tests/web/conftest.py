@@ -20,6 +20,7 @@ DOC_IMAGES = REPO / "docs" / "img"
 @dataclass
 class LiveSite:
     base: str
+    app: Any
     services: Any
     admin_key: str
     operator_key: str
@@ -53,7 +54,12 @@ def live_site(tmp_path_factory: pytest.TempPathFactory) -> Iterator[LiveSite]:
     }
     try:
         yield LiveSite(
-            f"http://127.0.0.1:{port}", services, keys["admin"], keys["operator"], keys["viewer"]
+            f"http://127.0.0.1:{port}",
+            app,
+            services,
+            keys["admin"],
+            keys["operator"],
+            keys["viewer"],
         )
     finally:
         server.should_exit = True

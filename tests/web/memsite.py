@@ -29,6 +29,7 @@ class MemSite:
         self.audit: list[tuple[str, str, int, LandmarkState | None, LandmarkState | None]] = []
         self.led_log: list[frozenset[int]] = []
         self.relocalized: list[str] = []
+        self.held = False
         self.lock = threading.Lock()
 
     # -- reads -----------------------------------------------------------------------------
@@ -80,6 +81,9 @@ class MemSite:
     # -- actions -----------------------------------------------------------------------------
     def relocalize(self, robot: str, *, actor: str) -> None:
         self.relocalized.append(robot)
+
+    def hold_leds(self, held: bool) -> None:
+        self.held = held
 
     def set_leds(self, lit: frozenset[int], *, actor: str) -> None:
         self._lit = frozenset(lit)

@@ -6,7 +6,7 @@ import pytest
 from tests.web.memsite import grid_site
 from web.wizard import IdentificationWizard, WizardConfig
 
-FAST = WizardConfig(frame_timeout_s=0.5, settle_s=0.0, poll_s=0.001)
+FAST = WizardConfig(frame_timeout_s=0.5, settle_s=0.0, poll_s=0.001, led_check_s=0.0)
 
 
 def test_wizard_lights_each_alone_saves_true_positions_and_restores_leds() -> None:
@@ -15,7 +15,7 @@ def test_wizard_lights_each_alone_saves_true_positions_and_restores_leds() -> No
     wiz = IdentificationWizard(site, FAST)
     assert list(site.to_identify()) == [15, 16]
     m = wiz.start("r1", site.to_identify(), actor="alice")
-    assert site.lit() == frozenset({15})
+    assert site.lit() == frozenset({15}) and site.held
     assert m.landmark_id == 15 and m.position is not None
     np.testing.assert_allclose(m.position, site.truth[15], atol=1e-6)
     assert wiz.state.progress == 0.0
@@ -28,7 +28,7 @@ def test_wizard_lights_each_alone_saves_true_positions_and_restores_leds() -> No
     for lid in (15, 16):
         lm = site.map[lid]
         np.testing.assert_allclose([lm.x, lm.y, lm.z], site.truth[lid], atol=1e-6)
-    assert site.lit() == before
+    assert site.lit() == before and not site.held
     assert [a[:3] for a in site.audit] == [("alice", "update", 15), ("alice", "update", 16)]
 
 
