@@ -129,6 +129,11 @@ def bottleneck_assignment(cost: FloatArray, gate: FloatArray | float) -> list[tu
     allowed = c <= g[:, None]
     if not allowed.any():
         return []
+    per_row = allowed.sum(axis=1)
+    if per_row.max() == 1 and allowed.sum(axis=0).max() == 1:
+        # The usual tracking case: every landmark sees one spot and no spot is shared.
+        rows = np.flatnonzero(per_row)
+        return [(int(r), int(np.argmax(allowed[r]))) for r in rows]
     best = _matching_size(allowed)
     levels = np.unique(c[allowed])
     lo, hi = 0, len(levels) - 1
