@@ -8,7 +8,6 @@ from one thread at up to `rate_hz`, and builds each browser's GUI for its role.
 
 from __future__ import annotations
 
-import ipaddress
 import logging
 import secrets
 import threading
@@ -20,6 +19,7 @@ from urllib.parse import parse_qs, urlsplit
 import numpy as np
 import viser
 
+from server.cli import is_loopback
 from web.panels.commission import CommissionPanel
 from web.panels.coverage import CoveragePanel
 from web.panels.monitor import MonitorPanel, UncertaintyHistory
@@ -52,16 +52,6 @@ class ViewerConfig:
     event_limit: int = 15
     ticket_ttl_s: float = 60.0
     margin_m: float = 2.0
-
-
-def is_loopback(host: str) -> bool:
-    """Whether `host` names only this machine."""
-    if host == "localhost":
-        return True
-    try:
-        return ipaddress.ip_address(host).is_loopback
-    except ValueError:
-        return False
 
 
 class _ClientPanels:

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from tests.web.memsite import MemSite, grid_site
-from web.viewer import Viewer, ViewerConfig, is_loopback
+from web.viewer import Viewer, ViewerConfig, is_loopback  # re-used from server.cli
 
 
 @pytest.fixture

@@ -1,0 +1,74 @@
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from tests.web.memsite import grid_site
+from web.panels.commission import nearest_landmark
+from web.panels.monitor import (
+    UncertaintyHistory,
+    batteries_table,
+    fix_age_s,
+    position_sigma_m,
+    robots_table,
+)
+from web.panels.wizard import annotated_frame, parse_ids, status_text
+from web.services import CameraView, LandmarkState
+from web.wizard import WizardState
+
+
+def test_robots_table_shows_mode_error_and_fix_age() -> None:
+    site = grid_site()
+    robots = site.robots()
+    sigma = position_sigma_m(robots[0])
+    assert sigma == pytest.approx(np.sqrt(5e-4))
+    assert fix_age_s(robots[0]) == pytest.approx(0.0)
+    table = robots_table(robots)
+    assert "| r1 | landmarks | 2.2 cm | 0.0 s ago |" in table
+    assert table.count("\n") == 3
+
+
+def test_batteries_worst_first_unknown_last() -> None:
+    lms = [
+        LandmarkState(1, 0, 0, 2.5, supply_mv=3000, percent=80.0, days_left=300.0),
+        LandmarkState(2, 0, 0, 2.5),
+        LandmarkState(3, 0, 0, 2.5, supply_mv=2300, percent=18.0, days_left=12.0,
+                      reachable=False),
+    ]  # fmt: skip
+    rows = batteries_table(lms).splitlines()[2:]
+    assert [r.split("|")[1].strip() for r in rows] == ["3 (unreachable)", "1", "2"]
+    assert rows[0] == "| 3 (unreachable) | 2.30 | 18 | 12 |"
+
+
+def test_uncertainty_history_series_ends_at_zero() -> None:
+    h = UncertaintyHistory(maxlen=3)
+    site = grid_site()
+    for _ in range(5):
+        h.add(site.robots())
+    t, e = h.series("r1")
+    assert len(t) == 3 and t[-1] == 0.0 and np.all(t <= 0)
+    np.testing.assert_allclose(e, 100 * np.sqrt(5e-4))
+    assert len(h.series("nobody")[0]) == 0
+
+
+def test_parse_ids_and_status() -> None:
+    assert parse_ids("3, 5 7") == [3, 5, 7]
+    with pytest.raises(ValueError, match="'x'"):
+        parse_ids("3 x")
+    st = WizardState(phase="done", queue=[3, 5], index=2, saved=[3], skipped=[5])
+    assert "saved [3], skipped [5]" in status_text(st)
+
+
+def test_nearest_landmark_within_radius() -> None:
+    lms = grid_site().landmarks()
+    assert nearest_landmark(lms, np.array([1.1, 0.95, 2.5]), 0.25).id == 15
+    assert nearest_landmark(lms, np.array([1.5, 0.5, 2.5]), 0.25) is None
+
+
+def test_annotated_frame_circles_spots() -> None:
+    img = np.zeros((480, 640), np.uint8)
+    view = CameraView(0, img, np.array([[320.0, 240.0], [100.0, 100.0]]))
+    out = annotated_frame(view, view.spots[0], width_px=320)
+    assert out.shape == (240, 320, 3)
+    assert out[120, 170, 1] > 200  # green ring of radius 10 around (160, 120)
+    assert out[50, 57, 0] > 200  # red ring of radius 7 around (50, 50)
