@@ -82,6 +82,7 @@ async def _clients(port: int, n: int, seconds: float) -> list[int]:
     import msgspec
     import websockets
     from viser import _messages
+    from websockets.typing import Subprotocol
 
     cam = _messages.ViewerCameraMessage(
         (1.0, 0.0, 0.0, 0.0), (0.0, -8.0, 6.0), 1.0, 0.01, 100.0, 800, 1280,
@@ -93,8 +94,8 @@ async def _clients(port: int, n: int, seconds: float) -> list[int]:
     async def one(i: int) -> None:
         async with websockets.connect(
             f"ws://127.0.0.1:{port}",
-            subprotocols=["viser-v1.1.1"],
-            max_size=None,  # type: ignore[list-item]
+            subprotocols=[Subprotocol("viser-v1.1.1")],
+            max_size=None,
         ) as ws:
             await ws.send(hello)
             end = time.monotonic() + seconds

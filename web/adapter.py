@@ -192,7 +192,8 @@ class SiteAdapter:
         fields = {
             k: v for k, v in {"x": x, "y": y, "z": z, "locked": locked}.items() if v is not None
         }
-        lm = self.services.map.update(landmark_id, LandmarkUpdate(**fields), actor=actor)
+        update = LandmarkUpdate.model_validate(fields)  # unset fields are kept
+        lm = self.services.map.update(landmark_id, update, actor=actor)
         return LandmarkState(lm.id, lm.x, lm.y, lm.z, lm.locked, lm.radio)
 
     def delete_landmark(self, landmark_id: int, *, actor: str) -> None:

@@ -54,7 +54,8 @@ def ellipse_points(
     local = np.column_stack([a * np.cos(t), b * np.sin(t)])
     c, s = math.cos(angle), math.sin(angle)
     R = np.array([[c, -s], [s, c]])
-    return local @ R.T + np.asarray(center_xy, dtype=np.float64).reshape(1, 2)
+    out: FloatArray = local @ R.T + np.asarray(center_xy, dtype=np.float64).reshape(1, 2)
+    return out
 
 
 def ray_plane_point(
@@ -74,10 +75,10 @@ def ray_plane_point(
     d = np.asarray(direction, dtype=np.float64).reshape(3)
     if abs(d[2]) < 1e-12:
         return None
-    s = (height - o[2]) / d[2]
+    s = float((height - o[2]) / d[2])
     if s < 0.0:
         return None
-    return o + s * d
+    return np.asarray(o + s * d, dtype=np.float64)
 
 
 def rays_world(cam: CameraModel, T_world_body: FloatArray, pixels: npt.ArrayLike) -> FloatArray:

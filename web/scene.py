@@ -216,9 +216,8 @@ class SiteScene:
         if nodes.updates % cfg.trail_every == 1 or cfg.trail_every == 1:
             nodes.history.append((pose.x, pose.y))
             trail = np.array(nodes.history)
-            nodes.trail.points = polyline_segments(
-                np.column_stack([trail, np.full(len(trail), 0.01)])
-            )
+            seg = polyline_segments(np.column_stack([trail, np.full(len(trail), 0.01)]))
+            set_segments(nodes.trail, seg, TRAIL_COLOR)
         cov = np.asarray(pose.covariance)[:2, :2]
         cov = 0.5 * (cov + cov.T) + np.eye(2) * (cfg.ellipse_min_m / cfg.ellipse_sigma) ** 2
         ring = ellipse_points((pose.x, pose.y), cov, n_sigma=cfg.ellipse_sigma, n_points=24)

@@ -186,6 +186,8 @@ class Viewer:
         # path carries the proxy's ticket. Without it the browser is read-only.
         try:
             conn = self.server._websock_server._live_connections[client.client_id]  # type: ignore[union-attr]
+            if conn.request is None:
+                return ANONYMOUS
             query = parse_qs(urlsplit(conn.request.path).query)
             ticket = query.get(TICKET_PARAM, [""])[0]
         except (AttributeError, KeyError):

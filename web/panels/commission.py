@@ -134,9 +134,10 @@ class CommissionPanel:
             return
         lm = nearest_landmark(self.site.landmarks(), p, self.pick_radius_m)
         if lm is not None:
-            self.gui_id.value = lm.id
-            self.gui_x.value, self.gui_y.value, self.gui_z.value = lm.x, lm.y, lm.z
+            self.gui_id.value = lm.id  # type: ignore[misc]
+            self.gui_x.value, self.gui_y.value, self.gui_z.value = lm.x, lm.y, lm.z  # type: ignore[misc]
             self.gui_status.content = f"selected landmark {lm.id}"
         else:
-            self.gui_x.value, self.gui_y.value = round(float(p[0]), 3), round(float(p[1]), 3)
+            self.gui_x.value = round(float(p[0]), 3)  # type: ignore[misc]
+            self.gui_y.value = round(float(p[1]), 3)  # type: ignore[misc]
             self.gui_status.content = f"ceiling point ({p[0]:.2f}, {p[1]:.2f}) m"

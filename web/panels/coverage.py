@@ -27,7 +27,10 @@ class CoveragePanel:
             self.gui_by = gui.add_dropdown("Colour floor by", CHOICES)
             self.gui_step = gui.add_number("Grid step (m)", 0.25, min=0.05, max=2.0, step=0.05)
             self.gui_text = gui.add_markdown("")
-        self.gui_by.on_update(lambda _: self.show())
+        self.gui_by.on_update(self._on_choice)
+
+    def _on_choice(self, _event: object) -> None:
+        self.show()
 
     def show(self) -> str:
         """Compute and draw the chosen layer; returns the summary shown in the panel."""

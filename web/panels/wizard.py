@@ -27,7 +27,7 @@ def annotated_frame(
     if chosen is not None:
         c = np.asarray(chosen).reshape(2)
         cv2.circle(img, (round(c[0] * scale), round(c[1] * scale)), 10, (60, 230, 60), 2)
-    return img
+    return np.asarray(img, dtype=np.uint8)
 
 
 def parse_ids(text: str) -> list[int]:
@@ -103,7 +103,7 @@ class WizardPanel:
         return self.session.actor
 
     def _suggest(self) -> None:
-        self.gui_ids.value = " ".join(str(i) for i in self.site.to_identify())
+        self.gui_ids.value = " ".join(str(i) for i in self.site.to_identify())  # type: ignore[misc]
 
     def _start(self) -> Measurement | None:
         ids = parse_ids(self.gui_ids.value) or list(self.site.to_identify())
@@ -116,7 +116,8 @@ class WizardPanel:
             self.notify("Identification", str(exc))
         else:
             if m is not None and m.position is not None:
-                self.gui_manual.value = tuple(float(v) for v in m.position)
+                p = m.position
+                self.gui_manual.value = (float(p[0]), float(p[1]), float(p[2]))  # type: ignore[misc]
         self.refresh()
 
     def refresh(self) -> None:
@@ -127,9 +128,8 @@ class WizardPanel:
         if key == self._shown:
             return
         self._shown = key
-        self.gui_progress.value = (
-            st.progress if st.phase == "measured" else (100.0 if st.phase == "done" else 0.0)
-        )
+        done = 100.0 if st.phase == "done" else 0.0
+        self.gui_progress.value = st.progress if st.phase == "measured" else done  # type: ignore[misc]
         self.gui_status.content = status_text(st)
         running = st.phase == "measured"
         for b in (self.gui_confirm, self.gui_retry, self.gui_skip, self.gui_save_manual,
