@@ -153,16 +153,15 @@ class Viewer:
         self._thread.start()
 
     def stop(self) -> None:
-        """Stop the update thread and viser; cancel a running wizard (LEDs restored)."""
+        """Stop the update thread and viser; abandon a running wizard (the server relights
+        every LED when it stops)."""
         self._stop.set()
         if self._thread is not None:
             self._thread.join(timeout=5.0)
             self._thread = None
         if self.server is not None:
-            try:
-                self.wizard.cancel(actor="viewer:shutdown")
-            except Exception:  # the radio may be gone already at shutdown
-                log.exception("viewer: restoring LEDs at shutdown failed")
+            # no LED commands here: stop() runs on the server's loop, which the radio needs
+            self.wizard.abandon()
             self.server.stop()
             self.server = None
         if self._adapter is not None:

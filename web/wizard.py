@@ -196,6 +196,16 @@ class IdentificationWizard:
             finally:
                 self._publish()
 
+    def abandon(self) -> None:
+        """Stop without switching any LED (at shutdown the server relights them all);
+        releases the hold on the robots' LED requests. Does not wait for a running step."""
+        s = self._state
+        if s.phase == "measured":
+            s.phase = "cancelled"
+            self._previous_lit = None
+            self.site.hold_leds(False)
+            self._publish()
+
     # -- internals -------------------------------------------------------------------------
     def _need_running(self) -> None:
         if self._state.phase != "measured":

@@ -68,3 +68,13 @@ def test_out_of_view_landmark_gives_no_position_but_a_reason() -> None:
     assert m.position is None and "no spot seen" in m.message
     with pytest.raises(ValueError, match="no measured position"):
         wiz.confirm(actor="x")
+
+
+def test_abandon_releases_the_hold_without_touching_leds() -> None:
+    site = grid_site()
+    wiz = IdentificationWizard(site, FAST)
+    wiz.start("r1", [12], actor="x")
+    sent = len(site.led_log)
+    wiz.abandon()
+    assert wiz.state.phase == "cancelled" and not site.held
+    assert len(site.led_log) == sent
