@@ -2,7 +2,7 @@
 
 Node names are hierarchical: `/landmarks/17` (sphere), `/landmarks/17/label`,
 `/landmarks/17/glow` (shown while lit), `/robots/r1/body`, `/robots/r1/trail`,
-`/robots/r1/ellipse`, `/robots/r1/footprint`, `/robots/r1/rays`, `/coverage/*`.
+`/robots/r1/ellipse`, `/robots/r1/body/footprint`, `/robots/r1/rays`, `/coverage/*`.
 `/robots/<name>` itself stays at the world origin so that its children are in world
 coordinates. Only one thread (the viewer's update loop) calls `update`; it diffs against
 the last snapshot and sends only what changed, inside `server.atomic()`.
@@ -34,6 +34,8 @@ FloatArray = npt.NDArray[np.float64]
 TRAIL_COLOR: RGB = (90, 90, 200)
 FOOTPRINT_COLOR: RGB = (80, 160, 200)
 RAY_COLOR: RGB = (250, 220, 90)
+BODY_Z_M = 0.125
+"""Height of a robot's box centre, metres (its scene node's origin)."""
 
 
 @dataclass(frozen=True)
@@ -43,14 +45,14 @@ class SceneConfig:
     Attributes:
         landmark_radius_m: radius of a landmark's sphere, metres.
         trail_len: poses kept in a robot's trail.
-        trail_every: append to the trail every this many updates.
+        trail_every: append to (and resend) the trail every this many updates (15: 2 Hz).
         ellipse_sigma: the uncertainty ellipse's scale, standard deviations.
         ellipse_min_m: ellipses are drawn at least this large, metres (to stay visible).
     """
 
     landmark_radius_m: float = 0.1
     trail_len: int = 300
-    trail_every: int = 3
+    trail_every: int = 15
     ellipse_sigma: float = 3.0
     ellipse_min_m: float = 0.02
 
@@ -91,7 +93,7 @@ class _RobotNodes:
         self.root = scene.add_frame(root, show_axes=False)
         self.body = scene.add_box(
             f"{root}/body", color=UNKNOWN_COLOR, dimensions=(0.45, 0.35, 0.25),
-            position=(0.0, 0.0, 0.125),
+            position=(0.0, 0.0, BODY_Z_M),
         )  # fmt: skip
         self.nose = scene.add_box(
             f"{root}/body/nose", color=(30, 30, 30), dimensions=(0.15, 0.08, 0.05),
@@ -101,7 +103,8 @@ class _RobotNodes:
         empty = np.zeros((0, 2, 3))
         self.trail = scene.add_line_segments(f"{root}/trail", empty, TRAIL_COLOR, thickness=0.01)
         self.ellipse = scene.add_line_segments(f"{root}/ellipse", empty, UNKNOWN_COLOR)
-        self.footprint = scene.add_line_segments(f"{root}/footprint", empty, FOOTPRINT_COLOR)
+        self.footprint = scene.add_line_segments(f"{root}/body/footprint", empty, FOOTPRINT_COLOR)
+        self.footprint_set = False
         self.rays = scene.add_line_segments(f"{root}/rays", empty, RAY_COLOR, thickness=0.005)
         self.history: deque[tuple[float, float]] = deque(maxlen=cfg.trail_len)
         self.updates = 0
@@ -210,7 +213,7 @@ class SiteScene:
         nodes.body.visible = pose is not None
         if pose is None:
             return
-        nodes.body.position = (pose.x, pose.y, 0.125)
+        nodes.body.position = (pose.x, pose.y, BODY_Z_M)
         nodes.body.wxyz = wxyz_from_heading(pose.theta)
         nodes.updates += 1
         if nodes.updates % cfg.trail_every == 1 or cfg.trail_every == 1:
@@ -223,8 +226,11 @@ class SiteScene:
         ring = ellipse_points((pose.x, pose.y), cov, n_sigma=cfg.ellipse_sigma, n_points=24)
         ring3 = np.column_stack([ring, np.full(len(ring), 0.02)])
         set_segments(nodes.ellipse, polyline_segments(ring3), color)
-        foot = camera_footprint(rb.camera, pose.x, pose.y, pose.theta, self.ceiling_z, per_edge=4)
-        set_segments(nodes.footprint, polyline_segments(foot), FOOTPRINT_COLOR)
+        if not nodes.footprint_set:  # fixed to the body: computed once, moves with it
+            foot = camera_footprint(rb.camera, 0.0, 0.0, 0.0, self.ceiling_z, per_edge=6)
+            foot[:, 2] -= BODY_Z_M
+            set_segments(nodes.footprint, polyline_segments(foot), FOOTPRINT_COLOR)
+            nodes.footprint_set = True
         cam_world = np.array([pose.x, pose.y, 0.0]) + np.array(
             [[math.cos(pose.theta), -math.sin(pose.theta), 0.0],
              [math.sin(pose.theta), math.cos(pose.theta), 0.0], [0.0, 0.0, 1.0]]

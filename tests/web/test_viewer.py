@@ -49,6 +49,15 @@ def test_scene_holds_every_landmark_and_robot(site_viewer: tuple[MemSite, Viewer
     body = viewer.server.scene.get_handle_by_name("/robots/r1/body")
     np.testing.assert_allclose(body.position, [1.5, 1.0, 0.125], atol=1e-6)
     np.testing.assert_allclose(body.wxyz, [math.cos(0.15), 0, 0, math.sin(0.15)], atol=1e-6)
+    foot = viewer.server.scene.get_handle_by_name("/robots/r1/body/footprint").points
+    assert foot.shape == (24, 2, 3)  # 6 border pixels per edge, closed
+    np.testing.assert_allclose(foot[..., 2], 2.5 - 0.125, atol=1e-3)  # ceiling, body frame
+    rays = viewer.server.scene.get_handle_by_name("/robots/r1/rays").points
+    used = site.robots()[0].pose.landmark_ids
+    assert len(rays) == len(used) >= 2
+    np.testing.assert_allclose(
+        np.sort(rays[:, 1, 0]), np.sort([site.truth[i][0] for i in used]), atol=1e-3
+    )
 
 
 def test_map_edits_and_leds_reach_the_scene(site_viewer: tuple[MemSite, Viewer]) -> None:
