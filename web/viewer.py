@@ -244,9 +244,14 @@ class Viewer:
             self.history.add(robots)
             events = self.site.events(self.config.event_limit)
             with self._lock:
-                panels = list(self._panels.values())
-            for p in panels:
-                p.monitor.refresh(robots, lms, events)
-                if p.wizard is not None:
-                    p.wizard.refresh()
+                panels = list(self._panels.items())
+            for cid, p in panels:
+                try:
+                    p.monitor.refresh(robots, lms, events)
+                    if p.wizard is not None:
+                        p.wizard.refresh()
+                except Exception:  # its browser went away mid-update
+                    log.debug("viewer: dropping the panels of client %s", cid, exc_info=True)
+                    with self._lock:
+                        self._panels.pop(cid, None)
         self.ticks += 1

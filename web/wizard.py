@@ -267,13 +267,18 @@ class IdentificationWizard:
             # light the others again so that the robot fixes its pose from them
             self._set_leds(self._previous_lit, actor)
             self._wait_fix(self._now_ns())
-        if not self._set_leds(frozenset({lid}), actor):
-            return self._keep(
-                Measurement(
-                    lid, None, None, None, None, f"could not light landmark {lid} alone: retry"
-                )
-            )
-        view = self._wait_frame(self._now_ns() + int(self.config.settle_s * 1e9))
+        alone = frozenset({lid})
+        view = None
+        for _ in range(self.config.led_tries):
+            if not self._set_leds(alone, actor):
+                break
+            view = self._wait_frame(self._now_ns() + int(self.config.settle_s * 1e9))
+            if self.site.lit() == alone:  # still alone after the frame: the frame is good
+                break
+            view = None
+        if view is None:
+            why = f"could not keep landmark {lid} lit alone: retry"
+            return self._keep(Measurement(lid, None, None, None, None, why))
         pose, why = self._robot_pose()  # dead reckoning since the last fix, at this frame
         m = measure_landmark(self.site, self._state.robot, lid, landmarks.get(lid), view, pose, why)
         return self._keep(m)

@@ -114,22 +114,28 @@ def test_wizard_lights_the_landmark_alone_and_saves_its_true_position(
     inner = viewer.site
     viewer.site = viewer.wizard.site = TruthPoseSite(inner, services)
     robot = "r2"
-    x, y, _ = services.sim.true_pose(robot)
-    near = [lm for lm in world.landmarks.values() if lm.reachable]
-    target = min(near, key=lambda lm: np.hypot(lm.p_true[0] - x, lm.p_true[1] - y))
-    lid, truth = int(target.id), np.array(target.p_true)
-    services.map.update(lid, LandmarkUpdate(x=float(truth[0]) + 0.3), actor="test")  # doubted
     page = open_viewer(browser, live_site, live_site.admin_key)
     try:
         page.get_by_role("tab", name="Commission").click()
         page.get_by_label("Camera of").click()  # a Mantine select: open it, pick the option
         page.get_by_role("option", name=robot, exact=True).click()
+        # the landmark nearest the robot now (it patrols); its map position 30 cm off
+        x, y, _ = services.sim.true_pose(robot)
+        near = [lm for lm in world.landmarks.values() if lm.reachable]
+        target = min(near, key=lambda lm: np.hypot(lm.p_true[0] - x, lm.p_true[1] - y))
+        lid, truth = int(target.id), np.array(target.p_true)
+        services.map.update(lid, LandmarkUpdate(x=float(truth[0]) + 0.3), actor="test")
         # viser's text input's label does not point at it (its `for` is another id)
         ids = page.locator("xpath=//label[normalize-space()='Landmark IDs']/following::input[1]")
         ids.fill(str(lid))
         ids.press("Enter")
         time.sleep(1.0)
         page.get_by_role("button", name="Start identification").click()
+        deadline = time.monotonic() + 60
+        while viewer.wizard.state.measurement is None and time.monotonic() < deadline:
+            time.sleep(0.2)
+        m = viewer.wizard.state.measurement
+        assert m is not None and m.landmark_id == lid and m.position is not None, m
         page.get_by_text(re.compile(rf"landmark {lid} at \(")).wait_for(timeout=60_000)
         assert world.lit_ids() == {lid}  # the virtual site's LEDs: that one alone
         time.sleep(2.0)
