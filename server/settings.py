@@ -68,7 +68,7 @@ class Settings(BaseSettings):
     model_config = SettingsConfigDict(env_prefix="IRLOC_", extra="ignore")
 
     host: str = "127.0.0.1"
-    port: int = Field(8000, ge=0, le=65535)
+    port: int = Field(default=8000, ge=0, le=65535)
     data_dir: Path = Field(default_factory=default_data_dir)
     database_url: str | None = None
     scenario: str = "demo"
@@ -77,8 +77,8 @@ class Settings(BaseSettings):
     seed: int = 0
     site_enabled: bool = True
     viewer_enabled: bool = True
-    viewer_port: int = Field(8080, ge=0, le=65535)
-    pose_queue: int = Field(256, ge=1)
+    viewer_port: int = Field(default=8080, ge=0, le=65535)
+    pose_queue: int = Field(default=256, ge=1)
     battery_interval_s: float | None = 3600.0
     serial_sink: str | None = None
     serial_baud: int = 115200

@@ -6,12 +6,13 @@ small in-memory cache keeps the per-request check off the database.
 
 from __future__ import annotations
 
+import builtins
 import hashlib
 import secrets
 import threading
 
 from sqlalchemy import Engine
-from sqlmodel import Session, select
+from sqlmodel import Session, col, select
 
 from server.errors import NotFoundError
 from server.models import ROLES, ApiKey, ApiKeyPublic, Role
@@ -61,12 +62,12 @@ class KeyStore:
             self._cache[digest] = out
         return out
 
-    def list(self) -> list[ApiKeyPublic]:
+    def list(self) -> builtins.list[ApiKeyPublic]:
         with Session(self.engine) as s:
             return [
                 ApiKeyPublic.model_validate(r, from_attributes=True)
-                for r in s.exec(select(ApiKey).order_by(ApiKey.id))
-            ]  # type: ignore[arg-type]
+                for r in s.exec(select(ApiKey).order_by(col(ApiKey.id)))
+            ]
 
     def revoke(self, key_id: int) -> None:
         with Session(self.engine) as s:

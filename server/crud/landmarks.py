@@ -7,6 +7,7 @@ on disk), writes an audit record (who, when, before/after) and then notifies the
 
 from __future__ import annotations
 
+import builtins
 import csv
 import io
 import logging
@@ -73,7 +74,7 @@ class MapRepository:
                 log.exception("map listener %r failed", listener)
 
     # -- reads -------------------------------------------------------------------------------
-    def list(self) -> list[LandmarkPublic]:
+    def list(self) -> builtins.list[LandmarkPublic]:
         """Every landmark, by ID."""
         with Session(self.engine) as s:
             return [_public(r) for r in s.exec(select(Landmark).order_by(col(Landmark.id)))]
@@ -93,7 +94,7 @@ class MapRepository:
         """Landmark ID -> radio address, for the landmarks that have one."""
         return {lm.id: lm.radio for lm in self.list() if lm.radio}
 
-    def audit(self, limit: int = 100, landmark_id: int | None = None) -> list[AuditRecord]:
+    def audit(self, limit: int = 100, landmark_id: int | None = None) -> builtins.list[AuditRecord]:
         """The newest audit records first."""
         with Session(self.engine) as s:
             q = select(AuditRecord).order_by(col(AuditRecord.id).desc()).limit(limit)
@@ -193,7 +194,7 @@ class MapRepository:
                 radios[lm.radio] = lm.id
         with self._lock, Session(self.engine) as s:
             before = {"landmarks": [_record(r) for r in s.exec(select(Landmark))]}
-            s.exec(delete(Landmark))  # type: ignore[call-overload]
+            s.exec(delete(Landmark))
             s.flush()
             rows = [Landmark.model_validate(lm.model_dump()) for lm in items]
             s.add_all(rows)
@@ -218,7 +219,7 @@ class MapRepository:
             if last is None:
                 return None
             if last.action == "import":
-                s.exec(delete(Landmark))  # type: ignore[call-overload]
+                s.exec(delete(Landmark))
                 s.flush()
                 for rec in (last.before or {}).get("landmarks", []):
                     s.add(Landmark.model_validate(_from_json(rec)))
@@ -275,7 +276,7 @@ def _from_json(rec: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
-def parse_map_json(data: Any, *, source: str = "map.json") -> list[LandmarkCreate]:
+def parse_map_json(data: Any, *, source: str = "map.json") -> builtins.list[LandmarkCreate]:
     """Validate a map document; ValueError names the landmark and field."""
     try:
         return MapDocument.model_validate(data).landmarks
@@ -283,7 +284,7 @@ def parse_map_json(data: Any, *, source: str = "map.json") -> list[LandmarkCreat
         raise ValueError(f"{source}: {_first_error(exc)}") from None
 
 
-def parse_map_csv(text: str, *, source: str = "map.csv") -> list[LandmarkCreate]:
+def parse_map_csv(text: str, *, source: str = "map.csv") -> builtins.list[LandmarkCreate]:
     """Parse the CSV export (`id,x,y,z,radio,locked,note`; radio, locked, note optional)."""
     reader = csv.DictReader(io.StringIO(text))
     if reader.fieldnames is None or not {"id", "x", "y", "z"} <= set(reader.fieldnames):

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import builtins
+
 from sqlalchemy import Engine
 from sqlmodel import Session, col, select
 
@@ -15,7 +17,7 @@ class RobotStore:
     def __init__(self, engine: Engine) -> None:
         self.engine = engine
 
-    def list(self) -> list[RobotPublic]:
+    def list(self) -> builtins.list[RobotPublic]:
         with Session(self.engine) as s:
             rows = s.exec(select(Robot).order_by(col(Robot.name)))
             return [RobotPublic.model_validate(r, from_attributes=True) for r in rows]

@@ -5,6 +5,7 @@ from __future__ import annotations
 from fastapi import APIRouter, HTTPException, Query, Response, status
 from pydantic import BaseModel
 
+from localizer.events import LedsChanged
 from server.auth import Admin, Operator, Viewer
 from server.deps import LandmarkId, ServicesDep
 from server.models import LandmarkCreate, LandmarkPublic, LandmarkUpdate
@@ -43,10 +44,10 @@ class AuditPublic(BaseModel):
     after: dict[str, object] | None
 
 
-def _leds(services: ServicesDep, event: object) -> LedState:
+def _leds(services: ServicesDep, event: LedsChanged) -> LedState:
     return LedState(
         t_ns=event.t_ns,
-        all_lit=event.all_lit,  # type: ignore[attr-defined]
+        all_lit=event.all_lit,
         lit=sorted(services.lit()),
     )
 

@@ -69,7 +69,7 @@ def frame_from_bytes(services: Any, data: bytes) -> FrameObserved:
     image = cv2.imdecode(np.frombuffer(data[8:], dtype=np.uint8), cv2.IMREAD_GRAYSCALE)
     if image is None:
         raise ValueError("frame: the image is not a readable PNG/JPEG")
-    return FrameObserved(_t(services, t_raw), image)
+    return FrameObserved(_t(services, t_raw), np.asarray(image, dtype=np.uint8))
 
 
 @router.websocket("/robots/{name}/ws")

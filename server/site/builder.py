@@ -20,6 +20,7 @@ from localizer.events import FrameObserved, Mode
 from localizer.landmark_map import LandmarkMap
 from localizer.robot import RobotGeometry
 from rf_gateway.battery import BatteryConfig
+from rf_gateway.config import GatewayConfig
 from rf_gateway.errors import RfGatewayError
 from rf_gateway.events import (
     LandmarkReachable,
@@ -27,7 +28,7 @@ from rf_gateway.events import (
     LowBattery,
     TransportStateChanged,
 )
-from rf_gateway.gateway import Gateway, GatewayConfig
+from rf_gateway.gateway import Gateway
 from server.crud.landmarks import parse_map_json
 from server.models import LandmarkPublic, RobotCreate, RobotPublic
 from server.site.leds import LedCoordinator
