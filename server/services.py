@@ -30,7 +30,7 @@ from server.crud import EventLog, KeyStore, MapRepository, RobotStore
 from server.db import make_engine, migrate
 from server.errors import NotFoundError, UnavailableError
 from server.events import EventHub
-from server.models import LandmarkPublic, RobotPublic
+from server.models import LandmarkPublic, RobotCreate, RobotPublic
 from server.poses import PoseUpdate
 from server.settings import Settings
 from server.site.robot import RobotRunner
@@ -253,6 +253,15 @@ class SiteServices:
         if record.source == "sim" and (self.sim is None or record.name not in self.sim.robot_names):
             return
         self.site.start_robot(record)
+
+    def store_robot_camera(self, name: str, sensor: dict[str, Any]) -> RobotPublic:
+        """Replace a robot's camera (a `sensor.yaml` mapping, e.g. a new lens calibration)
+        and restart it; NotFoundError for an unknown robot, ValueError for a bad camera."""
+        record = self.robot_store.get(name)
+        data = RobotCreate.model_validate({**record.model_dump(), "camera": sensor})
+        stored = self.robot_store.upsert(data)
+        self.apply_robot(stored)
+        return stored
 
     def start_recording(self, name: str) -> Path:
         """Record a robot to `<data_dir>/recordings/<name>-<UTC time>/`; returns the folder."""

@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from localizer.camera import CameraModel, sensor_from_camera
 from localizer.events import PoseEstimate
 from localizer.spots import DetectionConfig, detect_spots
 from web.services import CameraView, EventLine, LandmarkState, RobotState
@@ -145,6 +146,14 @@ class SiteAdapter:
     # -- actions -----------------------------------------------------------------------------
     def relocalize(self, robot: str, *, actor: str) -> None:
         self.services.relocalize(robot)
+
+    def store_camera(self, robot: str, camera: CameraModel, *, actor: str) -> None:
+        sensor = sensor_from_camera(camera)
+
+        async def store() -> None:  # on the server's loop, as the REST route does it
+            self.services.store_robot_camera(robot, sensor)
+
+        self.services.call(store(), timeout_s=30.0)
 
     def set_leds(self, lit: frozenset[int], *, actor: str) -> None:
         self.services.call(self.services.set_leds(frozenset(lit)), timeout_s=30.0)

@@ -158,6 +158,10 @@ class ViewerSite(Protocol):
         """Revert the last map change made by anyone; returns a description of it."""
         ...
 
+    def store_camera(self, robot: str, camera: CameraModel, *, actor: str) -> None:
+        """Replace the robot's camera (lens and mounting) and restart its localizer."""
+        ...
+
     def to_identify(self) -> Sequence[int]:
         """Landmarks to identify: new radios from discovery, unknown or doubted positions."""
         ...

@@ -20,6 +20,7 @@ import numpy as np
 import viser
 
 from server.cli import is_loopback
+from web.panels.calibration import CalibrationPanel
 from web.panels.commission import CommissionPanel
 from web.panels.coverage import CoveragePanel
 from web.panels.monitor import MonitorPanel, UncertaintyHistory
@@ -74,6 +75,7 @@ class _ClientPanels:
             with tabs.add_tab("Commission"):
                 self.wizard = WizardPanel(gui, site, viewer.wizard, session, notify)
                 self.commission = CommissionPanel(client, site, session, notify)
+                self.calibration = CalibrationPanel(gui, site, session, notify)
         else:
             self.monitor = MonitorPanel(gui, site, session, viewer.history, notify)
             self.coverage = CoveragePanel(client, site, notify)

@@ -14,7 +14,6 @@ from calibration.uploads import calibrate_from_uploads
 from localizer.camera import camera_from_sensor
 from server.auth import Operator
 from server.deps import RobotName, ServicesDep
-from server.models import RobotCreate
 
 router = APIRouter(prefix="/robots", tags=["calibration"])
 
@@ -69,6 +68,5 @@ async def calibrate_lens_upload(
         options["rate_hz"] = old.rate_hz
     result = await asyncio.to_thread(calibrate_from_uploads, uploads, **options)
     if store:
-        data = RobotCreate.model_validate({**record.model_dump(), "camera": result.sensor()})
-        services.apply_robot(services.robot_store.upsert(data))
+        services.store_robot_camera(name, result.sensor())
     return {"robot": name, "stored": store, **result.to_dict()}

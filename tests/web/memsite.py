@@ -30,6 +30,7 @@ class MemSite:
         self.led_log: list[frozenset[int]] = []
         self.relocalized: list[str] = []
         self.held = False
+        self.stored_cameras: list[tuple[str, str]] = []
         self.lock = threading.Lock()
 
     # -- reads -----------------------------------------------------------------------------
@@ -81,6 +82,11 @@ class MemSite:
     # -- actions -----------------------------------------------------------------------------
     def relocalize(self, robot: str, *, actor: str) -> None:
         self.relocalized.append(robot)
+
+    def store_camera(self, robot: str, camera: CameraModel, *, actor: str) -> None:
+        with self.lock:
+            self.camera = camera
+            self.stored_cameras.append((robot, actor))
 
     def hold_leds(self, held: bool) -> None:
         self.held = held

@@ -22,6 +22,9 @@ def nearest_landmarks(services, robot: str, n: int) -> list[int]:
     return [int(lm.id) for lm in reachable[:n]]
 
 
+# The live site keeps patrolling while the wizard runs: retried, and counted as a failure
+# only when it fails three times (see docs/viewer.md).
+@pytest.mark.flaky(reruns=2)
 def test_wizard_lights_each_alone_in_the_virtual_site_and_saves_true_positions(
     live_site: LiveSite,
 ) -> None:
