@@ -15,6 +15,7 @@ import numpy as np
 import numpy.typing as npt
 
 from calibration.lens import LensCalibration, calibrate_lens
+from localizer.camera import CameraModel
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".pgm", ".ppm")
 
@@ -64,6 +65,14 @@ def calibrate_from_uploads(files: list[tuple[str, bytes]], **options: Any) -> Le
         raise ValueError("no files uploaded")
     images = decode_images(files)
     return calibrate_lens(images, names=[name for name, _ in files], **options)
+
+
+def mounting_kept(camera: CameraModel | None) -> dict[str, Any]:
+    """`calibrate_lens` options that keep a camera's mounting (`T_BS`) and frame rate, so a
+    new lens calibration replaces only the intrinsics; none for a robot without a camera."""
+    if camera is None:
+        return {}
+    return {"T_body_camera": np.array(camera.T_body_camera), "rate_hz": camera.rate_hz}
 
 
 def image_paths(paths: Sequence[str | Path]) -> list[Path]:

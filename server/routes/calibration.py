@@ -5,12 +5,11 @@ from __future__ import annotations
 import asyncio
 from typing import Annotated, Any, Literal
 
-import numpy as np
 from fastapi import APIRouter, File, Form, UploadFile
 
 from calibration.board import BoardSpec, parse_pattern
 from calibration.lens import LensCalibrationConfig
-from calibration.uploads import calibrate_from_uploads
+from calibration.uploads import calibrate_from_uploads, mounting_kept
 from localizer.camera import camera_from_sensor
 from server.auth import Operator
 from server.deps import RobotName, ServicesDep
@@ -55,17 +54,17 @@ async def calibrate_lens_upload(
         square_m=square_m,
         kind="charuco" if charuco_dictionary else "chessboard",
         marker_m=marker_m,
-        **({"dictionary": charuco_dictionary} if charuco_dictionary else {}),
+        dictionary=charuco_dictionary or BoardSpec.dictionary,
+    )
+    old = (
+        camera_from_sensor(record.camera, source=f"robot {name} camera") if record.camera else None
     )
     options: dict[str, Any] = {
         "model": model,
         "board": board,
         "config": LensCalibrationConfig(min_views=min_views),
+        **mounting_kept(old),
     }
-    if record.camera:
-        old = camera_from_sensor(record.camera, source=f"robot {name} camera")
-        options["T_body_camera"] = np.array(old.T_body_camera)
-        options["rate_hz"] = old.rate_hz
     result = await asyncio.to_thread(calibrate_from_uploads, uploads, **options)
     if store:
         services.store_robot_camera(name, result.sensor())

@@ -7,13 +7,13 @@ The same calibration as `irloc calibrate` and `POST /robots/{name}/calibration/l
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import Any
 
-import numpy as np
 import viser
 
 from calibration.board import parse_pattern
 from calibration.lens import LensCalibration
-from calibration.uploads import calibrate_from_uploads
+from calibration.uploads import calibrate_from_uploads, mounting_kept
 from web.roles import Session
 from web.services import ViewerSite
 
@@ -46,13 +46,16 @@ class CalibrationPanel:
             self.gui_clear = gui.add_button("Clear photos")
             self.gui_text = gui.add_markdown("No photos yet: add 15-25 that cover the edges.")
         self.gui_upload.on_upload(self._on_upload)
-        self.gui_calibrate.on_click(lambda _e: self.calibrate())
+        self.gui_calibrate.on_click(self._on_calibrate)
         self.gui_store.on_click(lambda _e: self.store())
         self.gui_clear.on_click(lambda _e: self.clear())
 
     def _on_upload(self, event: viser.GuiEvent[viser.GuiUploadButtonHandle]) -> None:
         upload = event.target.value
         self.add_photo(upload.name, upload.content)
+
+    def _on_calibrate(self, _event: object) -> None:
+        self.calibrate()
 
     def add_photo(self, name: str, content: bytes) -> None:
         """Keep one uploaded photo (at most MAX_PHOTOS)."""
@@ -77,15 +80,13 @@ class CalibrationPanel:
         Bad photos, too few views or a wrong pattern show the reason and keep nothing."""
         robot = next((r for r in self.site.robots() if r.name == self.gui_robot.value), None)
         try:
-            options: dict[str, object] = {
+            options: dict[str, Any] = {
                 "pattern": parse_pattern(self.gui_pattern.value),
                 "square_m": float(self.gui_square.value),
                 "model": self.gui_model.value,
+                **mounting_kept(None if robot is None else robot.camera),
             }
-            if robot is not None:
-                options["T_body_camera"] = np.array(robot.camera.T_body_camera)
-                options["rate_hz"] = robot.camera.rate_hz
-            result = calibrate_from_uploads(list(self.photos), **options)  # type: ignore[arg-type]
+            result = calibrate_from_uploads(list(self.photos), **options)
         except ValueError as exc:
             self.result = None
             self.gui_store.disabled = True
