@@ -4,6 +4,7 @@ tests are few, share one browser and keep their waits generous."""
 
 from __future__ import annotations
 
+import os
 import re
 import shutil
 import time
@@ -65,7 +66,7 @@ def save_shot(page: Any, name: str, *, doc: bool = False) -> None:
     ARTIFACTS.mkdir(exist_ok=True)
     path = ARTIFACTS / name
     page.screenshot(path=str(path))
-    if doc:
+    if doc and os.environ.get("IRLOC_UPDATE_DOC_IMAGES") == "1":  # README pictures, on request
         DOC_IMAGES.mkdir(parents=True, exist_ok=True)
         shutil.copy(path, DOC_IMAGES / name)
 
