@@ -136,8 +136,8 @@ class SimRobot:
         t0, x, y, theta, command = state
         vl, vr = self._true_wheels(*command)
         dt_s = (t_ns - t0) * 1e-9
-        x, y, th = integrate_arc(x, y, theta, vl, vr, dt_s, self.odometry.wheel_base_true_m)
-        return float(x), float(y), float(th)
+        xe, ye, th = integrate_arc(x, y, theta, vl, vr, dt_s, self.odometry.wheel_base_true_m)
+        return float(xe), float(ye), float(th)
 
     def pose_at(self, t_ns: int) -> tuple[float, float, float]:
         """True planar pose at `t_ns` >= the last tick (the current arc, extended).
