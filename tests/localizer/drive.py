@@ -56,6 +56,19 @@ class Run:
         return [o.mode for o in self.outputs]
 
 
+def wheel_speeds(
+    trajectory: Callable[[float], Pose], t: float, wheel_base: float
+) -> tuple[float, float]:
+    """(v_left, v_right) of a differential drive following `trajectory` at time `t`, m/s
+    (central differences)."""
+    h = 1e-4
+    a, b = trajectory(max(t - h, 0.0)), trajectory(t + h)
+    dt = t + h - max(t - h, 0.0)
+    v = (np.cos(a[2]) * (b[0] - a[0]) + np.sin(a[2]) * (b[1] - a[1])) / dt
+    w = float(wrap_angle(b[2] - a[2])) / dt
+    return v - w * wheel_base / 2, v + w * wheel_base / 2
+
+
 def drive(
     loc: Localizer,
     camera: CameraModel,
@@ -93,7 +106,6 @@ def drive(
     events.sort()
     pending: LedRequest | None = None
     strays = np.zeros((0, 3)) if strays_world is None else np.asarray(strays_world)
-    h = 1e-4
     for t_ns, kind in events:
         t = t_ns * 1e-9
         outs: list[object] = []
@@ -105,11 +117,7 @@ def drive(
             )
             pending = None
         if kind == 0:
-            a, b = trajectory(max(t - h, 0.0)), trajectory(t + h)
-            dt = t + h - max(t - h, 0.0)
-            v = (np.cos(a[2]) * (b[0] - a[0]) + np.sin(a[2]) * (b[1] - a[1])) / dt
-            w = float(wrap_angle(b[2] - a[2])) / dt
-            vl, vr = v - w * wheel_base / 2, v + w * wheel_base / 2
+            vl, vr = wheel_speeds(trajectory, t, wheel_base)
             outs += loc.handle(OdometryMeasured(t_ns, vl * odom_scale[0], vr * odom_scale[1]))
         else:
             pose = trajectory(t)
@@ -136,3 +144,75 @@ def drive(
                 run.requests.append(o)
                 pending = o
     return run
+
+
+@dataclass
+class FleetRobot:
+    """One robot of `drive_fleet`: its localizer, camera and true trajectory."""
+
+    loc: Localizer
+    camera: CameraModel
+    trajectory: Callable[[float], Pose]
+    run: Run = field(default_factory=Run)
+
+
+def drive_fleet(
+    robots: dict[str, FleetRobot],
+    landmark_map: LandmarkMap,
+    *,
+    duration_s: float,
+    wheel_base: float,
+    seed: int = 0,
+    dwell_s: float = 0.1,
+) -> dict[str, FleetRobot]:
+    """Drive several robots under one ceiling whose LEDs they share, as the server's LED
+    coordinator does: requests are applied one at a time in arrival order (latest kept per
+    robot), each state held at least `dwell_s`, and every robot sees every change."""
+    rng = np.random.default_rng(seed)
+    ids = landmark_map.ids.tolist()
+    lit: set[int] = set(ids)
+    queue: dict[str, LedRequest] = {}
+    frame_dt, odom_dt = int(1e9 / 30), int(1e9 / 100)
+    t_end = int(duration_s * 1e9)
+    ticks = sorted([(t, 0) for t in range(0, t_end + 1, odom_dt)] +
+                   [(t, 1) for t in range(frame_dt // 2, t_end + 1, frame_dt)])  # fmt: skip
+    next_apply = 0
+    for t_ns, kind in ticks:
+        t = t_ns * 1e-9
+        if queue and t_ns >= next_apply:
+            name = next(iter(queue))
+            req = queue.pop(name)
+            lit = set(ids) - set(req.dark) if req.all_lit else set(req.lit)
+            all_lit = lit == set(ids)
+            event = LedsChanged(t_ns, frozenset() if all_lit else frozenset(lit), all_lit)
+            next_apply = t_ns + int(dwell_s * 1e9)
+            for rname, r in robots.items():
+                _queue_requests(r.loc.handle(event), r, queue, rname)
+        for name, r in robots.items():
+            if kind == 0:
+                vl, vr = wheel_speeds(r.trajectory, t, wheel_base)
+                r.loc.handle(OdometryMeasured(t_ns, vl, vr))
+                continue
+            pose = r.trajectory(t)
+            rows = [landmark_map.index_of(i) for i in ids if i in lit]
+            sources = landmark_map.positions[rows].reshape(-1, 3)
+            image = render_frame(
+                r.camera, T_world_body_from_pose(*pose), sources, np.ones(len(sources)), rng=rng
+            )
+            outs = r.loc.handle(FrameObserved(t_ns, image))
+            r.run.times_ns.append(t_ns)
+            r.run.truth.append(pose)
+            r.run.outputs.append(next(o for o in outs if isinstance(o, PoseEstimate | NoPose)))
+            _queue_requests(outs, r, queue, name)
+    return robots
+
+
+def _queue_requests(
+    outs: Sequence[object], robot: FleetRobot, queue: dict[str, LedRequest], name: str
+) -> None:
+    """Queue a robot's LED requests: its latest only, at the back of the queue."""
+    for o in outs:
+        if isinstance(o, LedRequest):
+            robot.run.requests.append(o)
+            queue.pop(name, None)
+            queue[name] = o
