@@ -36,7 +36,9 @@ class HandoffConfig:
         distance_tolerance_m: allowed mismatch between a spot pair's distance on the ceiling
             and the map's, metres (plus `distance_tolerance_frac` of the distance).
         distance_tolerance_frac: relative part of that tolerance.
-        max_candidates: at most this many (landmark, spot) candidates are considered.
+        max_candidates: with more (landmark, spot) candidates than this (a wide prior over
+            many landmarks) the search is not attempted: a partial search could miss the
+            right hypothesis and keep a wrong one (the LED identification decides instead).
         prior_gate_chi2: a re-acquired pose must agree with the prior within this
             chi-square value (3 degrees of freedom; 16.3 is 99.9 %).
     """
@@ -192,10 +194,10 @@ def consistent_hypotheses(
         )
         <= np.asarray(gates_px)[:, None]
     )
-    if len(k_idx) < 2:
-        return []
-    cand_rows = prediction.rows[k_idx][: config.max_candidates]
-    cand_spots = s_idx[: config.max_candidates]
+    if len(k_idx) < 2 or len(k_idx) > config.max_candidates:
+        return []  # too few, or too many to search all: no hypothesis is trustworthy
+    cand_rows = prediction.rows[k_idx]
+    cand_spots = s_idx
     q = ceiling_points_body(camera, spot_pixels[cand_spots], positions[cand_rows, 2])
     P = positions[cand_rows, :2]
     d_seen = np.hypot(q[:, None, 0] - q[None, :, 0], q[:, None, 1] - q[None, :, 1])

@@ -49,3 +49,21 @@ def test_robots_identify_in_turn_without_stopping_each_other() -> None:
         assert modes[first:].count("landmark") > 0.9 * len(modes[first:]), name
         # Only darken probes and "all lit": nobody darkened the whole ceiling.
         assert all(q.all_lit for q in r.run.requests), name
+
+
+def test_sliding_robots_get_lost_but_never_take_a_wrong_fix() -> None:
+    # Both move sideways, which wheel odometry cannot see (slip): their fixes soon disagree
+    # with the odometry, they get lost (position widened to 1 m on a regular grid, where a
+    # shifted hypothesis fits the spots as well), and must find themselves again by LEDs.
+    robots = {
+        "a": _robot(lambda t: (1.0 + 0.3 * t, 1.3, 0.2)),
+        "b": _robot(lambda t: (4.4, 2.5, 2.0)),
+        "c": _robot(lambda t: (2.3 + 0.4 * math.sin(0.5 * t), 3.0, -1.0 + 0.5 * t)),
+    }
+    drive_fleet(robots, GRID, duration_s=8.0, wheel_base=0.36, seed=4)
+    for name in ("a", "c"):
+        run = robots[name].run
+        assert "lost" in run.modes(), name
+        err = run.errors_m()
+        fixes = [e for e, m in zip(err, run.modes(), strict=True) if m == "landmark"]
+        assert len(fixes) > 30 and max(fixes) < 0.05, name
