@@ -71,9 +71,16 @@ class LedsChanged:
 
 @dataclass(frozen=True)
 class RelocalizeRequested:
-    """Forget the pose and identify from scratch (operator's request), at `t_ns`."""
+    """Forget the pose and identify again (operator's request), at `t_ns`.
+
+    Attributes:
+        near: where the robot is thought to be, (x, y, theta) in metres and radians, or
+            None: identification then tries the landmarks near it first and a
+            map-consistent hand-off may fix the pose at once (as `set_initial_pose`).
+    """
 
     t_ns: int
+    near: tuple[float, float, float] | None = None
 
 
 Event = FrameObserved | SpotsObserved | OdometryMeasured | LedsChanged | RelocalizeRequested

@@ -170,7 +170,10 @@ class Localizer:
         if isinstance(event, RelocalizeRequested):
             self._filter = None
             self._mode = "identifying"
-            self._start_identification()
+            if event.near is not None:
+                self.set_initial_pose(*event.near, event.t_ns)
+            else:
+                self._start_identification()
             return self._requests(event.t_ns)
         if isinstance(event, FrameObserved | SpotsObserved):
             out: list[Output] = [self._on_frame(event)]

@@ -244,8 +244,9 @@ class SiteServices:
         return BatteryStatus(landmark_id, mv, pct, left, hist)
 
     # -- robots ----------------------------------------------------------------------------
-    def relocalize(self, name: str) -> None:
-        self.robots.get(name).relocalize(self.clock_ns())
+    def relocalize(self, name: str, near: tuple[float, float, float] | None = None) -> None:
+        """Make a robot identify again, optionally near (x, y, theta) (metres, radians)."""
+        self.robots.get(name).relocalize(self.clock_ns(), near)
 
     def subscribe_poses(
         self, robots: set[str] | None = None, maxsize: int | None = None

@@ -71,9 +71,22 @@ async def get_pose(name: RobotName, services: ServicesDep, _: Viewer) -> Respons
     return Response(pose_json(name, runner.mode, runner.latest), media_type="application/json")
 
 
+class PoseHint(BaseModel):
+    """Where the robot is thought to be (world frame, REP-103 heading)."""
+
+    x: float = Field(allow_inf_nan=False, ge=-1e4, le=1e4, description="metres")
+    y: float = Field(allow_inf_nan=False, ge=-1e4, le=1e4, description="metres")
+    theta: float = Field(0.0, allow_inf_nan=False, ge=-7.0, le=7.0, description="radians")
+
+
 @router.post("/{name}/relocalize", status_code=status.HTTP_202_ACCEPTED)
-async def relocalize(name: RobotName, services: ServicesDep, _: Operator) -> RobotStatus:
-    services.relocalize(name)
+async def relocalize(
+    name: RobotName, services: ServicesDep, _: Operator, near: PoseHint | None = None
+) -> RobotStatus:
+    """Forget the robot's pose and identify its landmarks again; with a body
+    `{"x": .., "y": .., "theta": ..}` it starts from there (nearby landmarks first, and the
+    pose may be confirmed from the map at once)."""
+    services.relocalize(name, None if near is None else (near.x, near.y, near.theta))
     return _status(services, name)
 
 

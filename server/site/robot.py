@@ -137,9 +137,9 @@ class RobotRunner:
         elif isinstance(out, LedRequest):
             self._request_leds(self.name, out)
 
-    def relocalize(self, t_ns: int) -> None:
-        """The operator's request: forget the pose and identify again."""
-        self.handle(RelocalizeRequested(t_ns))
+    def relocalize(self, t_ns: int, near: tuple[float, float, float] | None = None) -> None:
+        """The operator's request: forget the pose and identify again (near a pose)."""
+        self.handle(RelocalizeRequested(t_ns, near))
 
     def set_map(self, landmark_map: LandmarkMap) -> None:
         with self._lock:

@@ -182,6 +182,17 @@ def test_relocalize_request_identifies_again() -> None:
     assert outs == [LedRequest(all_lit=True, dark=frozenset({1}))]
 
 
+def test_relocalize_near_a_pose_probes_the_landmarks_there_first() -> None:
+    cam = _camera("pinhole", "centred")
+    loc = Localizer(cam, TRIANGLE, ROBOT)
+    outs = loc.handle(RelocalizeRequested(0, near=(0.6, 1.0, 0.0)))
+    # Landmark 3 (0.6, 1.04) is nearest the hint: it is probed first.
+    assert outs == [LedRequest(all_lit=True, dark=frozenset({3}))]
+    assert loc.mode == "identifying"
+    run = drive(loc, cam, TRIANGLE, _parked((0.6, 0.9, 0.1)), duration_s=1.5, wheel_base=0.36)
+    assert run.modes()[-1] == "landmark" and run.errors_m()[-1] < 0.003
+
+
 def test_spots_observed_input_and_lost_when_the_map_disagrees() -> None:
     cam = _camera("pinhole", "centred")
     cfg = LocalizerConfig(fusion=FusionConfig(lost_after_rejections=5))

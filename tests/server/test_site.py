@@ -126,6 +126,17 @@ def test_every_robot_localizes_near_the_truth_and_never_far_from_it(site: Api) -
 def test_relocalize_sends_the_robot_back_to_identifying(site: Api) -> None:
     r = site.client.post("/api/v1/robots/r1/relocalize", headers=site.h("operator"))
     assert r.status_code == 202 and r.json()["mode"] in ("identifying", "lost")
+    x, y, theta = site.services.sim.true_pose("r1")
+    r = site.client.post(
+        "/api/v1/robots/r1/relocalize",
+        json={"x": x, "y": y, "theta": theta},
+        headers=site.h("operator"),
+    )
+    assert r.status_code == 202
+    bad = site.client.post(
+        "/api/v1/robots/r1/relocalize", json={"x": 1e9, "y": 0}, headers=site.h("operator")
+    )
+    assert bad.status_code == 422 and "x" in bad.text
 
 
 def test_metrics_count_poses_per_robot(site: Api) -> None:
