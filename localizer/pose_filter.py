@@ -55,6 +55,9 @@ class FilterConfig:
         output_time_constant_s: how fast `output_state` follows a correction, seconds
             (0: no smoothing).
         output_snap_m: a correction larger than this (a relocalisation) is not smoothed.
+        output_settle_s: for this long after `reset` (a first fix, a relocalisation) the
+            output takes corrections at once: the refinements of a fresh estimate (e.g. a
+            third landmark after a first fix from two) are not smoothed into a slow drift.
     """
 
     wheel_noise_m_per_sqrt_s: float = 0.0003
@@ -65,6 +68,7 @@ class FilterConfig:
     calibration_bounds: tuple[float, float] = (0.8, 1.2)
     output_time_constant_s: float = 0.2
     output_snap_m: float = 0.5
+    output_settle_s: float = 1.0
 
     def __post_init__(self) -> None:
         for name in (
@@ -72,6 +76,7 @@ class FilterConfig:
             "wheel_slip_m_per_sqrt_m",
             "calibration_walk_per_sqrt_s",
             "output_time_constant_s",
+            "output_settle_s",
         ):
             v = getattr(self, name)
             if not math.isfinite(v) or v < 0:
@@ -190,6 +195,7 @@ class PoseFilter:
         if self.config.estimate_calibration:
             self._P[3:, 3:] = np.eye(3) * self.config.calibration_prior_sigma**2
         self._offset = [0.0, 0.0, 0.0]  # output_state - state
+        self._age_s = 0.0  # time since the last reset
         # deferred propagation: composed pose rows of F, accumulated pose noise (upper
         # triangle), accumulated calibration walk variance
         self._Phi: Rows = []
@@ -260,6 +266,7 @@ class PoseFilter:
         self._P[:, :3] = 0.0
         self._P[:3, :3] = 0.5 * (cov + cov.T)
         self._offset = [0.0, 0.0, 0.0]
+        self._age_s = 0.0
 
     # -- predict --------------------------------------------------------------------------------
     def predict(self, v_left: float, v_right: float, dt: float) -> None:
@@ -306,6 +313,7 @@ class PoseFilter:
             self._walk += cfg.calibration_walk_per_sqrt_s**2 * dt
         self._pending = True
 
+        self._age_s += dt
         if cfg.output_time_constant_s > 0:
             decay = math.exp(-dt / cfg.output_time_constant_s)
             self._offset = [o * decay for o in self._offset]
@@ -399,7 +407,8 @@ class PoseFilter:
         self._X = X
 
         jump = [old[0] - X[0], old[1] - X[1], float(wrap_angle(old[2] - X[2]))]
-        if math.hypot(jump[0], jump[1]) > self.config.output_snap_m:
+        settling = self._age_s < self.config.output_settle_s
+        if settling or math.hypot(jump[0], jump[1]) > self.config.output_snap_m:
             self._offset = [0.0, 0.0, 0.0]
         else:
             self._offset = [o + j for o, j in zip(self._offset, jump, strict=True)]
