@@ -1,15 +1,27 @@
 """Reproduce the paper's Sec. V on the simulated test bed, and time the localizer.
 
 1. Accuracy (paper Sec. V): `irloc simulate paper_testbed` (three landmarks 120 cm apart,
-   the robot parks on a 60 cm grid and turns on the spot in 10 degree steps), `irloc replay`,
-   then per parked stop the error of the mean estimated position and heading, and the jitter
-   (largest deviation from the stop's mean) while parked; printed beside the paper's figures.
-2. Per-frame processing time (median, p99; one core) at 640x480 and 1280x960: the whole
-   localizer step while tracking (a frame plus the odometry samples of its interval), and
-   full-frame spot detection, beside a plain memory copy of the same frame.
-3. `irloc replay` wall time against merely decoding the same PNG frames (target <= 1.25x).
+   the robot turns on the spot in 10 degree steps, then drives between the points of a 60 cm
+   grid, parking at each, and ends with a 10 s parked stretch; 180 s covers the whole route),
+   `irloc replay`, then per parked stop the error of the mean estimated position and heading,
+   and the jitter (largest deviation from the stop's mean) while parked; printed beside the
+   paper's figures. A stop is measured from `settle_s` after the robot parked, and not before
+   the identification sweep has ended (leds.csv lights all LEDs) plus `settle_s`: the
+   start-up (first fix from two landmarks, refined when the third lights) is printed apart.
+   The heading is also given against the surveyed map's own frame: the map's survey error
+   (3 mm per axis) rotates it against the truth by a fraction of a degree, which no
+   localizer that uses the map can see (the truth comes from the simulator, for this
+   printout only).
+2. Per-frame processing time (median, p99; pinned to one core, the thread's CPU time, each
+   frame's fastest of 3 identical runs, so that other processes on a shared machine count as
+   little as possible) at 640x480 and 1280x960: the whole localizer step while tracking (a
+   frame plus the odometry samples of its interval), and full-frame spot detection, beside
+   a plain memory copy of the same frame.
+3. `irloc replay` wall time against merely decoding the same PNG frames on one thread
+   (target <= 1.25x); the replay decodes ahead on one thread per core while the localizer
+   runs. Three replays interleaved with four decode passes; the ratio of the medians.
 
-    .venv/bin/python bench/bench_localizer.py [--duration 150] [--frames 300]
+    .venv/bin/python bench/bench_localizer.py [--duration 180] [--frames 300]
 """
 
 from __future__ import annotations
@@ -38,14 +50,18 @@ from localizer.localizer import Localizer  # noqa: E402
 from localizer.robot import RobotGeometry  # noqa: E402
 from localizer.spots import DetectionConfig, detect_spots  # noqa: E402
 from recording.reader import read_groundtruth, read_recording  # noqa: E402
-from recording.replay_cli import replay  # noqa: E402
+from recording.replay_cli import decode_threads, replay  # noqa: E402
+from sim.build import build_robot, build_world, seed_generators  # noqa: E402
 from sim.cameras import wide_angle_camera  # noqa: E402
 from sim.cli import main as simulate_main  # noqa: E402
 from sim.render import render_frame  # noqa: E402
+from sim.scenario import load_scenario  # noqa: E402
 
 PAPER = {"mean_cm": 4.1, "std_cm": 2.9, "max_cm": 17.1, "heading_deg": 0.26,
          "jitter_cm": 0.5, "jitter_deg": 0.3}  # fmt: skip
 TARGET = {"mean_cm": 1.0, "max_cm": 2.0, "heading_deg": 0.05, "jitter_cm": 0.1}
+SETTLE_S = 0.25  # a stop's window starts this long after the robot parked
+DURATION_S = 180.0  # the whole paper_testbed route, its final 10 s parked stretch included
 
 
 def _stops(t: np.ndarray, gt: np.ndarray, min_s: float = 0.45) -> list[tuple[int, int]]:
@@ -65,16 +81,52 @@ def _stops(t: np.ndarray, gt: np.ndarray, min_s: float = 0.45) -> list[tuple[int
     return out
 
 
-def accuracy(rec: Path, poses: Path, settle_s: float = 0.25) -> dict[str, float]:
-    """Per-stop errors and jitter of a replay of the test bed."""
-    t_gt, gt = read_groundtruth(rec)
+def map_frame(scenario: str) -> tuple[float, np.ndarray, float]:
+    """The surveyed map's frame against the truth, from the simulator's world: the rigid
+    transform (rotation radians, translation (2,)) that best takes the true landmark
+    positions onto the surveyed ones, and the camera's true mounting yaw error, radians."""
+    sc = load_scenario(scenario)
+    gens = seed_generators(sc.seed, 4)
+    world = build_world(sc, gens[0])
+    rig = build_robot(sc.robots[0], sc, gens[3], index=0)
+    P = np.array([lm.p_true[:2] for lm in world.landmarks.values()])
+    Q = np.array([lm.p_surveyed[:2] for lm in world.landmarks.values()])
+    a, b = P - P.mean(axis=0), Q - Q.mean(axis=0)
+    angle = math.atan2(float(np.sum(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0])), float(np.sum(a * b)))
+    c, s = math.cos(angle), math.sin(angle)
+    t = Q.mean(axis=0) - np.array([[c, -s], [s, c]]) @ P.mean(axis=0)
+    R = rig.camera_true.T_body_camera[:3, :3] @ rig.camera_nominal.T_body_camera[:3, :3].T
+    return angle, t, math.atan2(R[1, 0], R[0, 0])
+
+
+def accuracy(
+    rec: Path,
+    poses: Path,
+    settle_s: float = SETTLE_S,
+    frame: tuple[float, np.ndarray] | None = None,
+) -> dict[str, float]:
+    """Per-stop errors and jitter of a replay of the test bed.
+
+    Args:
+        frame: (rotation, translation) taking true positions into the surveyed map's frame;
+            when given, the errors are measured in that frame.
+    """
+    t_gt, gt_true = read_groundtruth(rec)
+    gt = gt_true.copy()
+    if frame is not None:
+        c, s = math.cos(frame[0]), math.sin(frame[0])
+        gt[:, :2] = gt_true[:, :2] @ np.array([[c, -s], [s, c]]).T + frame[1]
+        gt[:, 2] = gt_true[:, 2] + frame[0]
+    sweep_end = next((e.t_ns for e in read_recording(rec).leds if e.all_lit), 0)
     with poses.open() as f:
         rows = [r for r in csv.DictReader(f) if r["x"]]
     t = np.array([int(r["timestamp_ns"]) for r in rows])
     est = np.array([[float(r["x"]), float(r["y"]), float(r["theta"])] for r in rows])
     pos_err, head_err, jit_cm, jit_deg = [], [], [], []
-    for a, b in _stops(t_gt, gt):
-        sel = (t >= t_gt[a] + settle_s * 1e9) & (t <= t_gt[b - 1] - 0.05e9)
+    startup_cm = 0.0
+    for a, b in _stops(t_gt, gt_true):
+        start = max(t_gt[a], sweep_end) + settle_s * 1e9
+        sel = (t >= start) & (t <= t_gt[b - 1] - 0.05e9)
         if np.count_nonzero(sel) < 5:
             continue
         e = est[sel]
@@ -84,6 +136,10 @@ def accuracy(rec: Path, poses: Path, settle_s: float = 0.25) -> dict[str, float]
         head_err.append(abs(float(np.mean(dth))))
         jit_cm.append(float(np.max(np.hypot(*(e[:, :2] - mean_xy).T))) * 100)
         jit_deg.append(float(np.degrees(np.max(np.abs(dth - dth.mean())))))
+        if t_gt[a] < sweep_end:  # the start-up: from the first fix to the window
+            early = (t >= t[0]) & (t < start)
+            if early.any():
+                startup_cm = float(np.max(np.hypot(*(est[early, :2] - mean_xy).T))) * 100
     p = np.array(pos_err) * 100
     return {
         "stops": float(len(p)),
@@ -93,17 +149,19 @@ def accuracy(rec: Path, poses: Path, settle_s: float = 0.25) -> dict[str, float]
         "heading_deg": float(np.degrees(np.mean(head_err))),
         "jitter_cm": float(np.max(jit_cm)),
         "jitter_deg": float(np.max(jit_deg)),
+        "startup_cm": startup_cm,
+        "sweep_end_s": sweep_end * 1e-9,
     }
 
 
-def timing(width: int, height: int, frames: int) -> dict[str, float]:
-    """Per-frame times (microseconds) on pre-rendered frames of a slow drive."""
+def timing(width: int, height: int, frames: int, runs: int = 3) -> dict[str, float]:
+    """Per-frame times (microseconds) on pre-rendered frames of a slow drive: each frame's
+    fastest of `runs` identical runs (a fresh localizer each; the localizer is
+    deterministic, so every run does the same work), then median and p99 over the frames."""
     cam = wide_angle_camera("pinhole", width=width, height=height)
     lm = LandmarkMap(
         np.array([1, 2, 3]), np.array([[0.0, 0.0, 2.5], [1.2, 0.0, 2.5], [0.6, 1.0392, 2.5]])
     )
-    loc = Localizer(cam, lm, RobotGeometry(0.36, 1.0))
-    loc.set_initial_pose(0.6, 0.0, 0.0, 0)  # all LEDs lit, no sweep: start from a prior
     rng = np.random.default_rng(0)
     radius, w = 0.3, 0.5  # a circle at 0.15 m/s
 
@@ -116,38 +174,45 @@ def timing(width: int, height: int, frames: int) -> dict[str, float]:
         render_frame(cam, T_world_body_from_pose(*pose(k / 30)), lm.positions, np.ones(3), rng=rng)
         for k in range(frames)
     ]
-    step, full, copy = [], [], []
+    step = np.full((runs, frames), np.inf)
+    full, copy = np.full((runs, frames), np.inf), np.full((runs, frames), np.inf)
     cfg = DetectionConfig()
-    for k, img in enumerate(images):
-        t_ns = int(k * 1e9 / 30)
-        odo = [OdometryMeasured(t_ns - int(j * 1e7), vl, vr) for j in (2, 1, 0)]
-        t0 = time.perf_counter_ns()
-        for o in odo:
-            loc.handle(o)
-        loc.handle(FrameObserved(t_ns, img))
-        t1 = time.perf_counter_ns()
-        detect_spots(img, cfg)
-        t2 = time.perf_counter_ns()
-        img.copy()
-        t3 = time.perf_counter_ns()
-        if loc.mode == "landmark":
-            step.append(t1 - t0)
-        full.append(t2 - t1)
-        copy.append(t3 - t2)
+    for run in range(runs):
+        loc = Localizer(cam, lm, RobotGeometry(0.36, 1.0))
+        loc.set_initial_pose(0.6, 0.0, 0.0, 0)  # all LEDs lit, no sweep: start from a prior
+        for k, img in enumerate(images):
+            t_ns = int(k * 1e9 / 30)
+            odo = [OdometryMeasured(t_ns - int(j * 1e7), vl, vr) for j in (2, 1, 0)]
+            t0 = time.thread_time_ns()
+            for o in odo:
+                loc.handle(o)
+            loc.handle(FrameObserved(t_ns, img))
+            t1 = time.thread_time_ns()
+            detect_spots(img, cfg)
+            t2 = time.thread_time_ns()
+            img.copy()
+            t3 = time.thread_time_ns()
+            if loc.mode == "landmark":
+                step[run, k] = t1 - t0
+            full[run, k], copy[run, k] = t2 - t1, t3 - t2
+    tracked = np.all(np.isfinite(step), axis=0)  # frames tracked in every run
 
-    def q(a: list[int], p: float) -> float:
-        return float(np.percentile(a, p)) / 1000
+    def q(a: np.ndarray, p: float) -> float:
+        return float(np.percentile(a.min(axis=0), p)) / 1000
 
     return {
-        "track_med_us": q(step, 50), "track_p99_us": q(step, 99),
+        "track_med_us": q(step[:, tracked], 50), "track_p99_us": q(step[:, tracked], 99),
         "full_med_us": q(full, 50), "full_p99_us": q(full, 99),
         "copy_med_us": q(copy, 50), "copy_p99_us": q(copy, 99),
-        "tracked_frames": float(len(step)),
+        "tracked_frames": float(np.count_nonzero(tracked)),
     }  # fmt: skip
 
 
-def replay_vs_decode(rec: Path) -> tuple[float, float]:
-    """(replay seconds, decode-only seconds) over the same recording, decode timed twice."""
+def replay_vs_decode(rec: Path, rounds: int = 3) -> tuple[list[float], list[float]]:
+    """Wall-clock seconds of `rounds` replays and of `rounds + 1` passes of merely decoding
+    the same PNGs on one thread (cv2.imread, grayscale, as the replay decodes them),
+    interleaved (decode, replay, decode, ...) so that a change in the machine's load hits
+    both alike."""
     frames = read_recording(rec).frames
 
     def decode() -> float:
@@ -156,17 +221,20 @@ def replay_vs_decode(rec: Path) -> tuple[float, float]:
             cv2.imread(str(f.path), cv2.IMREAD_GRAYSCALE)
         return time.perf_counter() - t0
 
-    d1 = decode()
-    t0 = time.perf_counter()
-    replay(rec, io.StringIO())
-    r = time.perf_counter() - t0
-    d2 = decode()
-    return r, (d1 + d2) / 2
+    replays, decodes = [], [decode()]
+    for _ in range(rounds):
+        t0 = time.perf_counter()
+        replay(rec, io.StringIO())
+        replays.append(time.perf_counter() - t0)
+        decodes.append(decode())
+    return replays, decodes
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--duration", type=float, default=None, help="simulated seconds")
+    parser.add_argument(
+        "--duration", type=float, default=DURATION_S, help="simulated seconds (default 180)"
+    )
     parser.add_argument("--frames", type=int, default=300, help="frames per timing run")
     parser.add_argument("--recording", type=Path, default=None, help="reuse a recording")
     args = parser.parse_args(argv)
@@ -178,23 +246,35 @@ def main(argv: list[str] | None = None) -> int:
         rec = args.recording or Path(tmp) / "paper_testbed"
         if args.recording is None:
             sim_args = ["paper_testbed", str(rec), "--quiet", "--force"]
-            if args.duration is not None:
-                sim_args += ["--duration", str(args.duration)]
+            sim_args += ["--duration", str(args.duration)]
             if simulate_main(sim_args) != 0:
                 return 1
         poses = Path(tmp) / "poses.csv"
         with poses.open("w") as f:
             replay(rec, f)
         acc = accuracy(rec, poses)
+        rotation, shift, mount_yaw = map_frame("paper_testbed")
+        in_map = accuracy(rec, poses, frame=(rotation, shift))
         print(f"Sec. V on the simulated test bed ({int(acc['stops'])} parked stops)")
-        print(f"  {'':<26}{'irloc':>10}{'paper':>10}{'target':>10}")
+        print(f"  {'':<26}{'irloc':>10}{'paper':>10}{'target':>10}{'map frame':>11}")
         names = {"mean_cm": "mean position error, cm", "std_cm": "  std, cm",
                  "max_cm": "max position error, cm", "heading_deg": "mean heading error, deg",
                  "jitter_cm": "jitter, cm", "jitter_deg": "jitter, deg"}  # fmt: skip
         for k, label in names.items():
             tgt = f"{TARGET[k]:>10.2f}" if k in TARGET else f"{'':>10}"
-            print(f"  {label:<26}{acc[k]:>10.3f}{PAPER[k]:>10.2f}{tgt}")
-        print("\nPer-frame time, one core (microseconds)")
+            print(f"  {label:<26}{acc[k]:>10.3f}{PAPER[k]:>10.2f}{tgt}{in_map[k]:>11.3f}")
+        print(
+            f"  (map frame: against the surveyed map's own frame; the survey error rotates it "
+            f"by {math.degrees(rotation):+.3f} deg against the truth, which no map-based "
+            f"localizer can observe; the camera's true mounting yaw error is "
+            f"{math.degrees(mount_yaw):+.3f} deg)"
+        )
+        print(
+            f"  start-up: the output moved {acc['startup_cm']:.3f} cm from the first fix "
+            f"until {SETTLE_S:.2f} s after the identification sweep ended "
+            f"({acc['sweep_end_s']:.2f} s); jitter counts from then on"
+        )
+        print("\nPer-frame time, one core, CPU time of the thread (microseconds)")
         print(f"  {'resolution':<12}{'track med':>11}{'p99':>9}{'full med':>10}{'p99':>9}"
               f"{'copy med':>10}{'p99':>8}")  # fmt: skip
         for w, h in ((640, 480), (1280, 960)):
@@ -204,9 +284,18 @@ def main(argv: list[str] | None = None) -> int:
                   f"{s['copy_med_us']:>10.1f}{s['copy_p99_us']:>8.1f}")  # fmt: skip
         if cores:
             os.sched_setaffinity(0, cores)  # replay may overlap decoding on a second core
-        r, d = replay_vs_decode(rec)
-        print(f"\nirloc replay {r:.2f} s vs decoding the PNGs {d:.2f} s: {r / d:.2f}x "
-              f"(target <= 1.25x; {len(cores) or 1} cores)")  # fmt: skip
+        replays, decodes = replay_vs_decode(rec)
+        r, d = float(np.median(replays)), float(np.median(decodes))
+        pairs = [
+            r_ / (0.5 * (d0 + d1))
+            for r_, d0, d1 in zip(replays, decodes[:-1], decodes[1:], strict=True)
+        ]
+        print(
+            f"\nirloc replay (decoding on {decode_threads()} threads) vs merely decoding the "
+            f"PNGs on one thread, wall clock, interleaved:\n  replay {r:.2f} s, decode {d:.2f} s "
+            f"(medians of {len(replays)} and {len(decodes)}): {r / d:.2f}x (target <= 1.25x); "
+            f"each replay against the decodes around it: " + ", ".join(f"{x:.2f}x" for x in pairs)
+        )
     return 0
 
 

@@ -24,6 +24,11 @@ DistortionModel = Literal["radial-tangential", "equidistant"]
 DISTORTION_MODELS: tuple[DistortionModel, ...] = ("radial-tangential", "equidistant")
 
 _UNDISTORT_CRITERIA = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-12)
+ROUND_TRIP_TOLERANCE_PX = 0.01
+"""An undistorted pixel must reproject to itself within this many pixels, else it is NaN."""
+_CHECK_GRID = (33, 25)
+_ZERO3 = np.zeros(3)
+_ZERO3.setflags(write=False)  # pixels sampled over the image to decide whether every pixel inverts
 
 
 @dataclass(frozen=True, eq=False)
@@ -51,6 +56,9 @@ class CameraModel:
     T_body_camera: FloatArray = field(default_factory=lambda: np.eye(4))
     rate_hz: float = 30.0
     max_angle_rad: float = field(init=False, repr=False, compare=False)
+    K_matrix: FloatArray = field(init=False, repr=False, compare=False)
+    T_camera_body: FloatArray = field(init=False, repr=False, compare=False)
+    invertible: bool = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         if self.width <= 0 or self.height <= 0:
@@ -81,12 +89,19 @@ class CameraModel:
         object.__setattr__(self, "T_body_camera", T)
         if not math.isfinite(self.rate_hz) or self.rate_hz <= 0:
             raise ValueError(f"camera: rate_hz must be positive, got {self.rate_hz!r}")
+        K = np.array([[self.fu, 0.0, self.cu], [0.0, self.fv, self.cv], [0.0, 0.0, 1.0]])
+        K.setflags(write=False)
+        object.__setattr__(self, "K_matrix", K)
+        T_cb = invert_transform(T)
+        T_cb.setflags(write=False)
+        object.__setattr__(self, "T_camera_body", T_cb)
+        object.__setattr__(self, "invertible", _every_pixel_inverts(self))
         object.__setattr__(self, "max_angle_rad", _field_of_view_half_angle(self))
 
     @property
     def K(self) -> FloatArray:
-        """The 3x3 intrinsic matrix."""
-        return np.array([[self.fu, 0.0, self.cu], [0.0, self.fv, self.cv], [0.0, 0.0, 1.0]])
+        """The 3x3 intrinsic matrix (read-only)."""
+        return self.K_matrix
 
     @property
     def resolution(self) -> tuple[int, int]:
@@ -95,49 +110,110 @@ class CameraModel:
 
 
 def _field_of_view_half_angle(cam: CameraModel) -> float:
-    """Largest angle from the optical axis seen anywhere in the image, plus 5 %."""
-    corners = np.array(
-        [
-            [0, 0],
-            [cam.width - 1, 0],
-            [0, cam.height - 1],
-            [cam.width - 1, cam.height - 1],
-            [cam.width / 2, 0],
-            [cam.width / 2, cam.height - 1],
-            [0, cam.height / 2],
-            [cam.width - 1, cam.height / 2],
-        ],
-        dtype=np.float64,
-    )
-    rays = rays_from_pixels(cam, corners)
-    angle = float(np.max(np.arccos(np.clip(rays[:, 2], -1.0, 1.0))))
-    return min(angle * 1.05, math.radians(89.0))
+    """Largest angle from the optical axis seen anywhere in the image, plus 5 %; for a lens
+    whose image reaches past its fold-back, the largest angle of the pixels that invert."""
+    if cam.invertible:
+        corners = np.array(
+            [
+                [0, 0],
+                [cam.width - 1, 0],
+                [0, cam.height - 1],
+                [cam.width - 1, cam.height - 1],
+                [cam.width / 2, 0],
+                [cam.width / 2, cam.height - 1],
+                [0, cam.height / 2],
+                [cam.width - 1, cam.height / 2],
+            ],
+            dtype=np.float64,
+        )
+        rays = rays_from_pixels(cam, corners)
+        angle = float(np.max(np.arccos(np.clip(rays[:, 2], -1.0, 1.0))))
+        return min(angle * 1.05, math.radians(89.0))
+    grid = _check_grid(cam)
+    xy = _undistort(cam, grid)[_round_trips(cam, grid, _undistort(cam, grid))]
+    if len(xy) == 0:
+        raise ValueError("camera: no pixel of the image inverts through the lens model")
+    return min(float(np.arctan(np.max(np.hypot(xy[:, 0], xy[:, 1])))), math.radians(89.0))
+
+
+def _check_grid(cam: CameraModel) -> FloatArray:
+    """Pixels over the whole image, shape (N, 1, 2)."""
+    cols = np.linspace(-0.5, cam.width - 0.5, _CHECK_GRID[0])
+    rows = np.linspace(-0.5, cam.height - 0.5, _CHECK_GRID[1])
+    return np.ascontiguousarray(np.stack(np.meshgrid(cols, rows), axis=-1).reshape(-1, 1, 2))
+
+
+def _every_pixel_inverts(cam: CameraModel) -> bool:
+    """Whether every pixel of a grid over the image round-trips through the lens model (true
+    for usual lenses; false when the image reaches past a radial-tangential fold-back)."""
+    grid = _check_grid(cam)
+    return bool(np.all(_round_trips(cam, grid, _undistort(cam, grid))))
+
+
+def _round_trips(cam: CameraModel, px: FloatArray, xy: FloatArray) -> BoolArray:
+    """Which undistorted points (N, 2) reproject to their pixels (N, 1, 2)."""
+    with np.errstate(invalid="ignore"):
+        err = np.hypot(*(_distort(cam, xy) - px[:, 0, :]).T)
+    ok: BoolArray = err <= ROUND_TRIP_TOLERANCE_PX
+    return ok
+
+
+def _undistort(cam: CameraModel, px: FloatArray) -> FloatArray:
+    """OpenCV's undistortion of pixels shape (N, 1, 2) to normalised coordinates (N, 2)."""
+    if cam.distortion_model == "equidistant":
+        out = cv2.fisheye.undistortPoints(
+            px, cam.K_matrix, cam.distortion, criteria=_UNDISTORT_CRITERIA
+        )
+    else:
+        out = cv2.undistortPoints(px, cam.K_matrix, cam.distortion, criteria=_UNDISTORT_CRITERIA)
+    xy: FloatArray = np.asarray(out, dtype=np.float64).reshape(-1, 2)
+    return xy
+
+
+def _distort(cam: CameraModel, xy: FloatArray) -> FloatArray:
+    """OpenCV's projection of normalised coordinates (N, 2) to pixels (N, 2)."""
+    obj = np.ones((len(xy), 1, 3))
+    obj[:, 0, :2] = xy
+    if cam.distortion_model == "equidistant":
+        px, _ = cv2.fisheye.projectPoints(obj, _ZERO3, _ZERO3, cam.K_matrix, cam.distortion)
+    else:
+        px, _ = cv2.projectPoints(obj, _ZERO3, _ZERO3, cam.K_matrix, cam.distortion)
+    out: FloatArray = np.asarray(px, dtype=np.float64).reshape(-1, 2)
+    return out
 
 
 def normalized_from_pixels(cam: CameraModel, pixels: npt.ArrayLike) -> FloatArray:
     """Undistorted normalised image coordinates (x/z, y/z) of pixels.
 
+    A pixel the lens model cannot have produced comes back as NaN: past the fold-back radius
+    of a radial-tangential model with strong barrel distortion (where the distortion
+    polynomial turns negative), OpenCV's iterative undistortion stops and silently returns
+    the undistorted pinhole value (u - cu) / fu, (v - cv) / fv, which is wrong, or it does not
+    converge. So when the camera's image reaches such pixels (`CameraModel.invertible` is
+    False) every result is projected back and kept only if it lands within
+    `ROUND_TRIP_TOLERANCE_PX` of its pixel.
+
     Args:
         pixels: shape (N, 2), (col, row).
 
     Returns:
-        shape (N, 2).
+        shape (N, 2); NaN rows for pixels without an inverse.
     """
     px = np.ascontiguousarray(np.asarray(pixels, dtype=np.float64).reshape(-1, 1, 2))
     if len(px) == 0:
         return np.zeros((0, 2))
-    if cam.distortion_model == "equidistant":
-        out = cv2.fisheye.undistortPoints(px, cam.K, cam.distortion, criteria=_UNDISTORT_CRITERIA)
-    else:
-        out = cv2.undistortPoints(px, cam.K, cam.distortion, criteria=_UNDISTORT_CRITERIA)
-    return np.asarray(out, dtype=np.float64).reshape(-1, 2)
+    xy = _undistort(cam, px)
+    if not cam.invertible:
+        xy[~_round_trips(cam, px, xy)] = np.nan
+    return xy
 
 
 def rays_from_pixels(cam: CameraModel, pixels: npt.ArrayLike) -> FloatArray:
     """Unit bearing vectors in the camera frame for pixels of shape (N, 2); returns (N, 3)."""
     xy = normalized_from_pixels(cam, pixels)
     rays = np.column_stack([xy, np.ones(len(xy))])
-    return rays / np.linalg.norm(rays, axis=1, keepdims=True)
+    unit: FloatArray = rays / np.linalg.norm(rays, axis=1, keepdims=True)
+    return unit
 
 
 def bearings_body_from_pixels(cam: CameraModel, pixels: npt.ArrayLike) -> FloatArray:
@@ -160,24 +236,18 @@ def pixels_from_points_camera(
     p = np.asarray(p_camera, dtype=np.float64).reshape(-1, 3)
     if len(p) == 0:
         return np.zeros((0, 2)), np.zeros(0, dtype=bool)
-    norm = np.linalg.norm(p, axis=1)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        angle = np.arccos(np.clip(p[:, 2] / norm, -1.0, 1.0))
-    in_view = (p[:, 2] > 1e-9) & (angle <= cam.max_angle_rad)
-    safe = np.where(in_view[:, None], p, np.array([0.0, 0.0, 1.0]))
+    z = p[:, 2]
+    # in the field of view: angle from the axis <= max_angle, i.e. z / |p| >= cos(max_angle)
+    in_view = (z > 1e-9) & (z >= math.cos(cam.max_angle_rad) * np.sqrt((p * p).sum(axis=1)))
+    safe = p if in_view.all() else np.where(in_view[:, None], p, np.array([0.0, 0.0, 1.0]))
     obj = np.ascontiguousarray(safe.reshape(-1, 1, 3))
-    zero = np.zeros(3)
     if cam.distortion_model == "equidistant":
-        px, _ = cv2.fisheye.projectPoints(obj, zero, zero, cam.K, cam.distortion)
+        px, _ = cv2.fisheye.projectPoints(obj, _ZERO3, _ZERO3, cam.K_matrix, cam.distortion)
     else:
-        px, _ = cv2.projectPoints(obj, zero, zero, cam.K, cam.distortion)
+        px, _ = cv2.projectPoints(obj, _ZERO3, _ZERO3, cam.K_matrix, cam.distortion)
     px = np.asarray(px, dtype=np.float64).reshape(-1, 2)
-    inside = (
-        (px[:, 0] >= -0.5)
-        & (px[:, 0] <= cam.width - 0.5)
-        & (px[:, 1] >= -0.5)
-        & (px[:, 1] <= cam.height - 0.5)
-    )
+    u, v = px[:, 0], px[:, 1]
+    inside = (u >= -0.5) & (u <= cam.width - 0.5) & (v >= -0.5) & (v <= cam.height - 0.5)
     return px, in_view & inside
 
 

@@ -1,9 +1,9 @@
 """Hand-off (Sec. IV-A.2, eqs. 3-4): predict landmark pixels from a pose, gate, and check
 a re-acquisition against the map's geometry.
 
-Eq. (3) predicts where landmark k appears from the latest pose; here that is
-`camera.predict_pixels` (the 3D generalisation, with the lens model, the mounting and each
-landmark's own height). Eq. (4) takes the nearest prediction; we gate it by the pose
+Eq. (3) predicts where landmark k appears from the latest pose; here that is the camera's
+projection (the 3D generalisation, with the lens model, the mounting and each landmark's own
+height). Eq. (4) takes the nearest prediction; we gate it by the pose
 uncertainty propagated to pixels, so an unmapped IR source beside a landmark is not taken for
 it. After a long dead-reckoning stretch the predictions are poor and nearest-prediction alone
 could swap landmarks: `consistent_hypotheses` accepts only assignments whose spots agree with
@@ -19,8 +19,12 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from localizer.camera import CameraModel, bearings_body_from_pixels, predict_pixels
-from localizer.geometry import T_world_body_from_pose, rotation_2d, wrap_angle
+from localizer.camera import (
+    CameraModel,
+    bearings_body_from_pixels,
+    pixels_from_points_camera,
+)
+from localizer.geometry import rotation_2d, wrap_angle
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
@@ -48,6 +52,9 @@ class HandoffConfig:
     distance_tolerance_frac: float = 0.03
     max_candidates: int = 40
     prior_gate_chi2: float = 16.3
+
+
+_VECTOR_FILTER_ABOVE = 16  # more candidates than this are pre-filtered by distance with numpy
 
 
 @dataclass(frozen=True, eq=False)
@@ -102,20 +109,43 @@ def predict_landmarks(
     """
     rows = np.arange(len(positions)) if candidates is None else np.asarray(candidates)
     x, y, theta = pose
-    if len(rows):
-        d = np.hypot(positions[rows, 0] - x, positions[rows, 1] - y)
-        rows = rows[d <= reach_m]
-    if len(rows) == 0:
+    if len(rows) > _VECTOR_FILTER_ABOVE:  # a large map: drop the far landmarks at once
+        P = positions[rows]
+        rows = rows[np.hypot(P[:, 0] - x, P[:, 1] - y) <= reach_m]
+    # Few landmarks: plain floats beat numpy's per-call overhead. Eq. (3) in 3D: a landmark
+    # in the camera frame is T_camera_body T_body_world P.
+    c, s = math.cos(theta), math.sin(theta)
+    (r00, r01, r02, t0), (r10, r11, r12, t1), (r20, r21, r22, t2) = camera.T_camera_body[
+        :3
+    ].tolist()
+    kept: list[int] = []
+    p_cam: list[tuple[float, float, float]] = []
+    for row, (X, Y, Z) in zip(rows.tolist(), positions[rows].tolist(), strict=True):
+        dx, dy = X - x, Y - y
+        if math.hypot(dx, dy) > reach_m:
+            continue
+        bx, by = c * dx + s * dy, c * dy - s * dx
+        kept.append(row)
+        p_cam.append(
+            (
+                r00 * bx + r01 * by + r02 * Z + t0,
+                r10 * bx + r11 * by + r12 * Z + t1,
+                r20 * bx + r21 * by + r22 * Z + t2,
+            )
+        )
+    if not kept:
         return Prediction(np.zeros(0, np.int64), np.zeros((0, 2)), np.zeros(0))
-    px, valid = predict_pixels(camera, T_world_body_from_pose(x, y, theta), positions[rows])
-    rows, px = rows[valid], px[valid]
-    cov = np.asarray(covariance, dtype=np.float64)
-    sigma_xy = position_sigma_m(cov)
-    sigma_t = math.sqrt(max(float(cov[2, 2]), 0.0))
+    px, valid = pixels_from_points_camera(camera, np.array(p_cam))
+    rows = np.array(kept, dtype=np.int64)
+    if not valid.all():
+        rows, px = rows[valid], px[valid]
+    sigma_xy = position_sigma_m(covariance)
+    sigma_t = math.sqrt(max(float(covariance[2, 2]), 0.0))
+    T_bc = camera.T_body_camera
+    offset_px = scale_px_per_m * math.hypot(float(T_bc[0, 3]), float(T_bc[1, 3]))
     radial = np.hypot(px[:, 0] - camera.cu, px[:, 1] - camera.cv)
-    offset_px = scale_px_per_m * float(np.hypot(*camera.T_body_camera[:2, 3]))
-    sigma = scale_px_per_m * sigma_xy + (radial + offset_px) * sigma_t
-    return Prediction(rows.astype(np.int64), px, sigma)
+    sigma = (radial + offset_px) * sigma_t + scale_px_per_m * sigma_xy
+    return Prediction(rows, px, sigma)
 
 
 def position_sigma_m(covariance: FloatArray) -> float:

@@ -62,7 +62,8 @@ class LandmarkMap:
 
     def position(self, landmark_id: int) -> npt.NDArray[np.float64]:
         """World position of one landmark, shape (3,)."""
-        return self.positions[self.index_of(landmark_id)]
+        position: npt.NDArray[np.float64] = self.positions[self.index_of(landmark_id)]
+        return position
 
     @classmethod
     def from_records(

@@ -105,6 +105,9 @@ class Localizer:
         self._background: tuple[float, float] | None = None
         self._last_request: LedRequest | None = None
         self._want_all = False
+        self._lit_rows_memo: (
+            tuple[frozenset[int] | None, frozenset[int], LandmarkMap, npt.NDArray[np.int64]] | None
+        ) = None
         self.set_map(landmark_map)
 
     # -- public API ----------------------------------------------------------------------------
@@ -329,8 +332,7 @@ class Localizer:
         filt = self._filter
         if filt is None:
             return ()
-        state, cov = filt.state, filt.covariance[:3, :3]
-        pose = (float(state[0]), float(state[1]), float(state[2]))
+        pose, cov = filt.pose, filt.covariance
         cand = None if self._lit is None and not self._changing else self._lit_rows()
         sigma_xy = position_sigma_m(cov)
         pred = predict_landmarks(
@@ -347,7 +349,8 @@ class Localizer:
         tc = self.config.tracking
         fresh_odom = self._t_odom is not None and (e.t_ns - self._t_odom) * _NS < 0.2
         dt_free = dt_frame * (tc.odometry_speed_fraction if fresh_odom else 1.0)
-        radial = np.hypot(pred.pixels[:, 0] - self.camera.cu, pred.pixels[:, 1] - self.camera.cv)
+        px = pred.pixels
+        radial = np.hypot(px[:, 0] - self.camera.cu, px[:, 1] - self.camera.cv)
         motion = motion_bound_px(
             radial,
             max_speed_m_s=self.robot.max_speed,
@@ -364,9 +367,9 @@ class Localizer:
         elif reacquire or float(gates.max()) > tc.max_half_size_px:
             spots = self._full_spots(e)
         else:
-            half = np.repeat(gates[:, None], 2, axis=1)
+            half = gates[:, None].repeat(2, axis=1)
             spots = detect_spots_in_windows(
-                e.image, pred.pixels, half, self.config.detection, background=self._background
+                e.image, px, half, self.config.detection, background=self._background
             )
         if len(spots) == 0:
             return ()
@@ -375,11 +378,10 @@ class Localizer:
         if reacquire:
             pairs = self._reacquire(pred, spots, gates, pose, cov)
         else:
-            d = np.hypot(
-                pred.pixels[:, None, 0] - spots.pixels[None, :, 0],
-                pred.pixels[:, None, 1] - spots.pixels[None, :, 1],
-            )
-            pairs = [(int(pred.rows[k]), s) for k, s in bottleneck_assignment(d, gates)]
+            sp = spots.pixels
+            d = np.hypot(px[:, None, 0] - sp[None, :, 0], px[:, None, 1] - sp[None, :, 1])
+            rows = pred.rows.tolist()
+            pairs = [(rows[k], s) for k, s in bottleneck_assignment(d, gates)]
         if len(pairs) < 2:
             return ()
         return self._fuse(filt, pairs, spots, pose, cov)
@@ -420,9 +422,9 @@ class Localizer:
     ) -> tuple[int, ...]:
         """Solve the pose from matched landmarks; fuse it when consistent."""
         fc = self.config.fusion
-        rows = np.array([r for r, _ in pairs])
-        px = spots.pixels[np.array([s for _, s in pairs])]
-        ids = tuple(int(i) for i in self.map.ids[rows])
+        rows = [r for r, _ in pairs]
+        px = spots.pixels[[s for _, s in pairs]]
+        ids = tuple(self.map.ids[rows].tolist())
         fix = solve_pose(
             self.camera,
             px,
@@ -448,9 +450,20 @@ class Localizer:
         return self._identifier.all_lit if self._lit is None else self._lit
 
     def _lit_rows(self) -> npt.NDArray[np.int64]:
-        """Rows of the landmarks surely lit (not being switched)."""
+        """Map rows of the landmarks surely lit (not being switched); remembered while the
+        LED state and the map stay."""
+        memo = self._lit_rows_memo
+        if (
+            memo is not None
+            and memo[0] is self._lit
+            and memo[1] is self._changing
+            and memo[2] is self.map
+        ):
+            return memo[3]
         lit = (self._identifier.all_lit if self._lit is None else self._lit) - self._changing
-        return np.array([self.map.index_of(i) for i in sorted(lit) if i in self.map], np.int64)
+        rows = np.array([self.map.index_of(i) for i in sorted(lit) if i in self.map], np.int64)
+        self._lit_rows_memo = (self._lit, self._changing, self.map, rows)
+        return rows
 
     # -- modes and outputs ---------------------------------------------------------------------
     def _check_lost(self, t_ns: int) -> None:
@@ -500,13 +513,13 @@ class Localizer:
     def _output(self, t_ns: int, used: tuple[int, ...]) -> PoseEstimate | NoPose:
         if self._filter is None:
             return NoPose(t_ns, self._mode)
-        s = self._filter.output_state
+        x, y, theta = self._filter.output_pose
         est = PoseEstimate(
             t_ns=t_ns,
-            x=float(s[0]),
-            y=float(s[1]),
-            theta=float(wrap_angle(float(s[2]))),
-            covariance=np.array(self._filter.covariance[:3, :3], dtype=np.float64),
+            x=x,
+            y=y,
+            theta=theta,
+            covariance=self._filter.covariance,
             mode=self._mode,
             landmark_ids=used,
         )

@@ -55,6 +55,9 @@ class FilterConfig:
         output_time_constant_s: how fast `output_state` follows a correction, seconds
             (0: no smoothing).
         output_snap_m: a correction larger than this (a relocalisation) is not smoothed.
+        output_settle_s: for this long after `reset` (a first fix, a relocalisation) the
+            output takes corrections at once: the refinements of a fresh estimate (e.g. a
+            third landmark after a first fix from two) are not smoothed into a slow drift.
     """
 
     wheel_noise_m_per_sqrt_s: float = 0.0003
@@ -65,6 +68,7 @@ class FilterConfig:
     calibration_bounds: tuple[float, float] = (0.8, 1.2)
     output_time_constant_s: float = 0.2
     output_snap_m: float = 0.5
+    output_settle_s: float = 1.0
 
     def __post_init__(self) -> None:
         for name in (
@@ -72,6 +76,7 @@ class FilterConfig:
             "wheel_slip_m_per_sqrt_m",
             "calibration_walk_per_sqrt_s",
             "output_time_constant_s",
+            "output_settle_s",
         ):
             v = getattr(self, name)
             if not math.isfinite(v) or v < 0:
@@ -103,6 +108,9 @@ class OdometryCalibration:
     covariance: FloatArray
 
 
+_N_STATE = 6
+_CALIBRATION_DIAGONAL = (np.arange(3, 6), np.arange(3, 6))
+
 State = list[float]  # (x, y, theta, k_r, k_l, k_b)
 Rows = list[list[float]]
 
@@ -132,7 +140,8 @@ def jacob_f(
     """
     _, _, theta, k_r, k_l, k_b = X
     W = k_b * wheel_base
-    dT, dR = (float(v) for v in odometry_increments(k_l * v_left, k_r * v_right, dt, W))
+    inc_T, inc_R = odometry_increments(k_l * v_left, k_r * v_right, dt, W)
+    dT, dR = float(inc_T), float(inc_R)
     xT, yT, xR, yR = odometry_partials(theta, dT, dR)
     # chain rule through dT = (k_l v_l + k_r v_r) dt / 2 and dR = (k_r v_r - k_l v_l) dt / (k_b W)
     T_r, R_r = 0.5 * v_right * dt, v_right * dt / W  # d dT / d k_r, d dR / d k_r
@@ -186,6 +195,7 @@ class PoseFilter:
         if self.config.estimate_calibration:
             self._P[3:, 3:] = np.eye(3) * self.config.calibration_prior_sigma**2
         self._offset = [0.0, 0.0, 0.0]  # output_state - state
+        self._age_s = 0.0  # time since the last reset
         # deferred propagation: composed pose rows of F, accumulated pose noise (upper
         # triangle), accumulated calibration walk variance
         self._Phi: Rows = []
@@ -200,6 +210,12 @@ class PoseFilter:
     def state(self) -> FloatArray:
         """The estimated pose (x, y, theta), shape (3,)."""
         return np.array(self._X[:3])
+
+    @property
+    def pose(self) -> tuple[float, float, float]:
+        """The estimated pose (x, y, theta) as floats (`state` without the array)."""
+        x, y, theta = self._X[:3]
+        return x, y, theta
 
     @property
     def covariance(self) -> FloatArray:
@@ -222,8 +238,13 @@ class PoseFilter:
     def output_state(self) -> FloatArray:
         """The smoothed pose for output, (x, y, theta) shape (3,): follows `state` without
         jumps (time constant `config.output_time_constant_s`)."""
-        x, y, th = (a + b for a, b in zip(self._X[:3], self._offset, strict=True))
-        return np.array([x, y, wrap_angle(th)])
+        return np.array(self.output_pose)
+
+    @property
+    def output_pose(self) -> tuple[float, float, float]:
+        """`output_state` as floats, heading wrapped to (-pi, pi]."""
+        (x, y, th), (ox, oy, oth) = self._X[:3], self._offset
+        return x + ox, y + oy, float(wrap_angle(th + oth))
 
     @property
     def calibration(self) -> OdometryCalibration:
@@ -245,6 +266,7 @@ class PoseFilter:
         self._P[:, :3] = 0.0
         self._P[:3, :3] = 0.5 * (cov + cov.T)
         self._offset = [0.0, 0.0, 0.0]
+        self._age_s = 0.0
 
     # -- predict --------------------------------------------------------------------------------
     def predict(self, v_left: float, v_right: float, dt: float) -> None:
@@ -291,6 +313,7 @@ class PoseFilter:
             self._walk += cfg.calibration_walk_per_sqrt_s**2 * dt
         self._pending = True
 
+        self._age_s += dt
         if cfg.output_time_constant_s > 0:
             decay = math.exp(-dt / cfg.output_time_constant_s)
             self._offset = [o * decay for o in self._offset]
@@ -314,17 +337,10 @@ class PoseFilter:
         q00, q01, q02, q11, q12, q22 = self._Q
         w = self._walk
         F = np.array([*self._Phi, *_CALIBRATION_ROWS])
-        Q = np.array(
-            [
-                [q00, q01, q02, 0.0, 0.0, 0.0],
-                [q01, q11, q12, 0.0, 0.0, 0.0],
-                [q02, q12, q22, 0.0, 0.0, 0.0],
-                [0.0, 0.0, 0.0, w, 0.0, 0.0],
-                [0.0, 0.0, 0.0, 0.0, w, 0.0],
-                [0.0, 0.0, 0.0, 0.0, 0.0, w],
-            ]
-        )
-        self._P = F @ self._P @ F.T + Q
+        P = F @ self._P @ F.T
+        P[:3, :3] += np.array([[q00, q01, q02], [q01, q11, q12], [q02, q12, q22]])
+        P[_CALIBRATION_DIAGONAL] += w
+        self._P = P
         self._clear_pending()
 
     # -- update ---------------------------------------------------------------------------------
@@ -333,8 +349,9 @@ class PoseFilter:
         self._flush()
         x, y, th = observation_model(self._X)
         innovation = [fix.x - x, fix.y - y, float(wrap_angle(fix.theta - th))]
-        S = (self._P[:3, :3] + np.asarray(fix.covariance, dtype=np.float64)).tolist()
-        S_inv = inverse_3x3_sym([S[0][0], S[0][1], S[0][2], S[1][1], S[1][2], S[2][2]])
+        (p00, p01, p02), (_, p11, p12), (_, _, p22) = self._P[:3, :3].tolist()
+        (r00, r01, r02), (_, r11, r12), (_, _, r22) = np.asarray(fix.covariance).tolist()
+        S_inv = inverse_3x3_sym([p00 + r00, p01 + r01, p02 + r02, p11 + r11, p12 + r12, p22 + r22])
         return innovation, S_inv
 
     def nis(self, fix: PoseFix) -> float:
@@ -360,12 +377,27 @@ class PoseFilter:
         nis = _quadratic_form(y, S_inv)
         if S_inv is None or (max_nis is not None and not nis <= max_nis):
             return nis
+        # Plain floats: for a 6-state filter numpy's per-call overhead dominates.
         i00, i01, i02, i11, i12, i22 = S_inv
-        P = self._P
-        K = P[:, :3] @ np.array([[i00, i01, i02], [i01, i11, i12], [i02, i12, i22]])
-        dX = (K @ np.array(y)).tolist()
-        P = P - K @ P[:3, :]
-        self._P = 0.5 * (P + P.T)
+        P = self._P.tolist()
+        K = [  # P H^T S^-1 = P[:, :3] S^-1, 6 x 3
+            (
+                a * i00 + b * i01 + c * i02,
+                a * i01 + b * i11 + c * i12,
+                a * i02 + b * i12 + c * i22,
+            )
+            for a, b, c in (row[:3] for row in P)
+        ]
+        y0, y1, y2 = y
+        dX = [k0 * y0 + k1 * y1 + k2 * y2 for k0, k1, k2 in K]
+        P0, P1, P2 = P[0], P[1], P[2]  # H P = P[:3, :]
+        A = [
+            [p - (k0 * u + k1 * v + k2 * w) for p, u, v, w in zip(row, P0, P1, P2, strict=True)]
+            for row, (k0, k1, k2) in zip(P, K, strict=True)
+        ]
+        self._P = np.array(
+            [[0.5 * (A[i][j] + A[j][i]) for j in range(_N_STATE)] for i in range(_N_STATE)]
+        )
 
         old = self._X
         X = [u + d for u, d in zip(old, dX, strict=True)]
@@ -375,7 +407,8 @@ class PoseFilter:
         self._X = X
 
         jump = [old[0] - X[0], old[1] - X[1], float(wrap_angle(old[2] - X[2]))]
-        if math.hypot(jump[0], jump[1]) > self.config.output_snap_m:
+        settling = self._age_s < self.config.output_settle_s
+        if settling or math.hypot(jump[0], jump[1]) > self.config.output_snap_m:
             self._offset = [0.0, 0.0, 0.0]
         else:
             self._offset = [o + j for o, j in zip(self._offset, jump, strict=True)]

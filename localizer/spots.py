@@ -14,6 +14,7 @@ point-spread function.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import cv2
@@ -178,22 +179,26 @@ def _centroid(
     area: float,
     config: DetectionConfig,
     out: list[tuple[float, float, float, float]],
+    peak: float | None = None,
 ) -> None:
     """Intensity-weighted centroid of the background-free pixels on the component's box
     (left, top, width, height) grown by `centroid_margin_px`; appended to `out` unless the
-    spot is too faint."""
+    spot is too faint (its brightest pixel, `peak` when known, less the background)."""
     rh, rw = region.shape
     m = config.centroid_margin_px
     x0, y0, w, h = box
     c0, r0 = max(x0 - m, 0), max(y0 - m, 0)
     c1, r1 = min(x0 + w + m, rw), min(y0 + h + m, rh)
-    patch = region[r0:r1, c0:c1].astype(np.float32) - np.float32(background)
-    if float(patch.max()) < config.min_peak_contrast_counts:
+    patch = region[r0:r1, c0:c1].astype(np.float32)
+    if peak is None:
+        peak = float(patch.max())
+    if peak - np.float32(background) < config.min_peak_contrast_counts:
         return
+    patch -= np.float32(background)
     np.maximum(patch, 0.0, out=patch)
-    total = float(patch.sum())
-    col = float(patch.sum(axis=0) @ np.arange(c0, c1, dtype=np.float32)) / total
-    row = float(patch.sum(axis=1) @ np.arange(r0, r1, dtype=np.float32)) / total
+    mom = cv2.moments(patch)  # sums in double: m00 = sum w, m10 = sum w col, m01 = sum w row
+    total = mom["m00"]
+    col, row = c0 + mom["m10"] / total, r0 + mom["m01"] / total
     out.append((col + origin[0], row + origin[1], total, area))
 
 
@@ -307,7 +312,7 @@ def detect_spots_in_windows(
             continue
         cut = (c0 > 0, r0 > 0, c1 < W, r1 < H)
         peak_loc = (int(loc[0]), int(loc[1]))
-        if not _single_spot(region, peak_loc, (c0, r0), bg, thr, config, rows, cut):
+        if not _single_spot(region, peak_loc, peak, (c0, r0), bg, thr, config, rows, cut):
             _spots_in_region(region, (c0, r0), bg, thr, config, rows, cut_sides=cut)
     return _brightest(rows, config.max_spots)
 
@@ -318,6 +323,7 @@ _FAST_RADIUS_PX = 4
 def _single_spot(
     region: ImageU8,
     peak_loc: tuple[int, int],
+    peak: float,
     origin: tuple[int, int],
     background: float,
     threshold: float,
@@ -335,44 +341,29 @@ def _single_spot(
     r = _FAST_RADIUS_PX
     x, y = peak_loc
     c0, r0, c1, r1 = max(x - r, 0), max(y - r, 0), min(x + r + 1, rw), min(y + r + 1, rh)
-    patch = region[r0:r1, c0:c1]
-    above = patch > threshold
-    area = int(np.count_nonzero(above))
-    _, binary = cv2.threshold(region, threshold, 255, cv2.THRESH_BINARY)
+    _, binary = cv2.threshold(region, threshold, 1, cv2.THRESH_BINARY)
+    above = binary[r0:r1, c0:c1]
+    area = cv2.countNonZero(above)
     if cv2.countNonZero(binary) != area:
         return False  # more above the threshold than the patch holds: label it
     # The blob must not touch the patch's edge unless that edge is the image's border.
-    rows_any: npt.NDArray[np.bool_] = np.any(above, axis=1)
-    cols_any: npt.NDArray[np.bool_] = np.any(above, axis=0)
+    bx, by, w, h = cv2.boundingRect(above)
     touches = (
-        (cols_any[0] and (c0 > 0 or cut_sides[0]))
-        or (rows_any[0] and (r0 > 0 or cut_sides[1]))
-        or (cols_any[-1] and (c1 < rw or cut_sides[2]))
-        or (rows_any[-1] and (r1 < rh or cut_sides[3]))
+        (bx == 0 and (c0 > 0 or cut_sides[0]))
+        or (by == 0 and (r0 > 0 or cut_sides[1]))
+        or (bx + w == c1 - c0 and (c1 < rw or cut_sides[2]))
+        or (by + h == r1 - r0 and (r1 < rh or cut_sides[3]))
     )
     if touches:
         return False
-    xs = np.flatnonzero(cols_any)
-    ys = np.flatnonzero(rows_any)
-    w = int(xs[-1] - xs[0] + 1)
-    h = int(ys[-1] - ys[0] + 1)
     if (
         config.min_area_px <= area <= config.max_area_px
         and area / (w * h) >= config.min_fill_ratio
         and max(w, h) / min(w, h) <= config.max_elongation
     ):
-        box = (c0 + int(xs[0]), r0 + int(ys[0]), w, h)
-        _centroid(region, box, origin, background, float(area), config, out)
-    return True  # one blob, rejected by the filters
-    weights = patch.astype(np.float32) - np.float32(background)
-    if float(weights.max()) < config.min_peak_contrast_counts:
-        return True
-    np.maximum(weights, 0.0, out=weights)
-    total = float(weights.sum())
-    col = float(weights.sum(axis=0) @ np.arange(c0, c1, dtype=np.float32)) / total
-    row = float(weights.sum(axis=1) @ np.arange(r0, r1, dtype=np.float32)) / total
-    out.append((col + origin[0], row + origin[1], total, float(area)))
-    return True
+        box = (c0 + bx, r0 + by, w, h)
+        _centroid(region, box, origin, background, float(area), config, out, peak)
+    return True  # one blob (kept, or rejected by the filters)
 
 
 def window_boxes(
@@ -383,15 +374,12 @@ def window_boxes(
     Args:
         centers: shape (M, 2); half_sizes: shape (M, 2), pixels.
     """
-    lo = np.floor(centers - half_sizes).astype(np.int64)
-    hi = np.ceil(centers + half_sizes).astype(np.int64) + 1
-    lo = np.maximum(lo, 0)
-    hi = np.minimum(hi, [width, height])
-    boxes = [
-        [int(a), int(b), int(c), int(d)]
-        for (a, b), (c, d) in zip(lo, hi, strict=True)
-        if c > a and d > b
-    ]
+    boxes: list[list[int]] = []
+    for (cu, cv), (hu, hv) in zip(centers.tolist(), half_sizes.tolist(), strict=True):
+        a, b = max(math.floor(cu - hu), 0), max(math.floor(cv - hv), 0)
+        c, d = min(math.ceil(cu + hu) + 1, width), min(math.ceil(cv + hv) + 1, height)
+        if c > a and d > b:
+            boxes.append([a, b, c, d])
     merged = True
     while merged and len(boxes) > 1:
         merged = False

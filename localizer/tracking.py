@@ -125,15 +125,20 @@ def bottleneck_assignment(cost: FloatArray, gate: FloatArray | float) -> list[tu
     c = np.asarray(cost, dtype=np.float64)
     if c.size == 0:
         return []
-    g = np.broadcast_to(np.asarray(gate, dtype=np.float64), (c.shape[0],))
-    allowed = c <= g[:, None]
-    if not allowed.any():
-        return []
-    per_row = allowed.sum(axis=1)
-    if per_row.max() == 1 and allowed.sum(axis=0).max() == 1:
-        # The usual tracking case: every landmark sees one spot and no spot is shared.
-        rows = np.flatnonzero(per_row)
-        return [(int(r), int(np.argmax(allowed[r]))) for r in rows]
+    if isinstance(gate, int | float):
+        gates = [float(gate)] * c.shape[0]
+    else:
+        gates = np.broadcast_to(np.asarray(gate, dtype=np.float64), (c.shape[0],)).tolist()
+    # The usual tracking case, in plain Python: every landmark sees at most one spot within
+    # its gate and no spot is wanted by two landmarks.
+    within = [
+        [j for j, v in enumerate(row) if v <= g] for row, g in zip(c.tolist(), gates, strict=True)
+    ]
+    if all(len(w) <= 1 for w in within):
+        taken = [w[0] for w in within if w]
+        if len(set(taken)) == len(taken):
+            return [(i, w[0]) for i, w in enumerate(within) if w]
+    allowed = c <= np.asarray(gates)[:, None]
     best = _matching_size(allowed)
     levels = np.unique(c[allowed])
     lo, hi = 0, len(levels) - 1

@@ -15,6 +15,7 @@ naming the file and line and exit status 1.
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 from collections import deque
@@ -30,14 +31,26 @@ import numpy.typing as npt
 from localizer.config import LocalizerConfig
 from localizer.events import FrameObserved, NoPose, PoseEstimate
 from localizer.localizer import Localizer
-from recording.reader import FrameEntry, RecordingError, iter_timeline, read_recording
+from recording.reader import (
+    FrameEntry,
+    Recording,
+    RecordingError,
+    iter_timeline,
+    read_recording,
+)
 
 ImageU8 = npt.NDArray[np.uint8]
 HEADER = "timestamp_ns,x,y,theta,mode,cov_xx,cov_yy,cov_tt,landmarks"
 PROG = "irloc replay"
 
 
-_DECODE_AHEAD = 4
+_SWITCH_INTERVAL_S = 0.0005  # GIL hand-over while replaying (CPython's default: 0.005)
+
+
+def decode_threads() -> int:
+    """Threads that decode PNGs ahead of the localizer: one per core this process may use."""
+    cores = os.sched_getaffinity(0) if hasattr(os, "sched_getaffinity") else None
+    return max(1, len(cores) if cores else (os.cpu_count() or 1))
 
 
 def _decode(path: Path) -> ImageU8 | None:
@@ -67,6 +80,7 @@ def replay(
     config: LocalizerConfig | None = None,
     warn: Callable[[str], None] = lambda _: None,
     progress: Callable[[int], Iterator[None]] | None = None,
+    threads: int | None = None,
 ) -> tuple[int, int]:
     """Localize a recording, writing rows to `out`.
 
@@ -77,6 +91,10 @@ def replay(
         warn: called with a message for each skipped frame.
         progress: optional callback given the frame count, returning an iterator advanced
             once per frame (a progress bar).
+        threads: PNG decoding threads (default `decode_threads()`). Decoding releases the
+            GIL, so it runs on the other cores while the localizer works on this one; the
+            GIL's switch interval is shortened meanwhile so that a finished decode is not
+            kept waiting (restored afterwards).
 
     Returns:
         (frames written, frames skipped).
@@ -88,34 +106,52 @@ def replay(
     loc = Localizer(rec.camera, rec.landmark_map, rec.robot, config)
     ticks = progress(len(rec.frames)) if progress is not None else None
     out.write(HEADER + "\n")
+    workers = threads or decode_threads()
+    depth = 2 * workers + 2  # frames decoded ahead
+    switch = sys.getswitchinterval()
+    sys.setswitchinterval(min(switch, _SWITCH_INTERVAL_S))
+    try:
+        with ThreadPoolExecutor(max_workers=workers, thread_name_prefix="png") as pool:
+            written, skipped = _run(rec, loc, pool, depth, out, warn, ticks)
+    finally:
+        sys.setswitchinterval(switch)
+    return written, skipped
+
+
+def _run(
+    rec: Recording,
+    loc: Localizer,
+    pool: ThreadPoolExecutor,
+    depth: int,
+    out: TextIO,
+    warn: Callable[[str], None],
+    ticks: Iterator[None] | None,
+) -> tuple[int, int]:
+    """The replay loop: frames decoded `depth` ahead on `pool`, in order."""
     written = skipped = 0
-    with ThreadPoolExecutor(max_workers=1, thread_name_prefix="png") as pool:
-        # PNG decoding (which releases the GIL) runs a few frames ahead on a second thread.
-        ahead: deque[Future[ImageU8 | None]] = deque()
-        queued = iter(rec.frames)
-        for item in iter_timeline(rec):
-            if not isinstance(item, FrameEntry):
-                loc.handle(item)
-                continue
-            while len(ahead) < _DECODE_AHEAD:
-                nxt = next(queued, None)
-                if nxt is None:
-                    break
-                ahead.append(pool.submit(_decode, nxt.path))
-            image = ahead.popleft().result()
-            if image is None:
-                skipped += 1
-                warn(
-                    f"{item.path}: missing or unreadable frame (cam0/data.csv:{item.line}), skipped"
-                )
-                est: PoseEstimate | NoPose = loc.skip_frame(item.t_ns)
-            else:
-                outs = loc.handle(FrameObserved(item.t_ns, image))
-                est = next(o for o in outs if isinstance(o, PoseEstimate | NoPose))
-            out.write(format_row(est) + "\n")
-            written += 1
-            if ticks is not None:
-                next(ticks, None)
+    ahead: deque[Future[ImageU8 | None]] = deque()
+    queued = iter(rec.frames)
+    for item in iter_timeline(rec):
+        if not isinstance(item, FrameEntry):
+            loc.handle(item)
+            continue
+        while len(ahead) < depth:
+            nxt = next(queued, None)
+            if nxt is None:
+                break
+            ahead.append(pool.submit(_decode, nxt.path))
+        image = ahead.popleft().result()
+        if image is None:
+            skipped += 1
+            warn(f"{item.path}: missing or unreadable frame (cam0/data.csv:{item.line}), skipped")
+            est: PoseEstimate | NoPose = loc.skip_frame(item.t_ns)
+        else:
+            outs = loc.handle(FrameObserved(item.t_ns, image))
+            est = next(o for o in outs if isinstance(o, PoseEstimate | NoPose))
+        out.write(format_row(est) + "\n")
+        written += 1
+        if ticks is not None:
+            next(ticks, None)
     return written, skipped
 
 

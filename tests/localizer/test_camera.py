@@ -172,3 +172,43 @@ def test_equidistant_wants_four_coefficients() -> None:
 def test_camera_from_sensor_rejects_a_non_mapping() -> None:
     with pytest.raises(ValueError, match=r"sensor\.yaml: expected a mapping"):
         camera_from_sensor([1, 2, 3])  # type: ignore[arg-type]
+
+
+def fold_back_camera() -> CameraModel:
+    """Strong barrel distortion whose image reaches past the fold-back radius: the radius
+    r_d = r (1 + k1 r^2) peaks at r = 1 / sqrt(-3 k1) = 0.745 (k1 = -0.6), r_d = 0.497,
+    i.e. 159 px from the centre with f = 320."""
+    return CameraModel(
+        640, 480, 320.0, 320.0, 319.5, 239.5, "radial-tangential", np.array([-0.6, 0, 0, 0, 0])
+    )
+
+
+def test_usual_lenses_invert_everywhere() -> None:
+    for model in LENSES:
+        assert make_camera(model).invertible
+
+
+def test_pixels_past_a_fold_back_have_no_inverse() -> None:
+    cam = fold_back_camera()
+    assert not cam.invertible
+    r_u = 1.0 / math.sqrt(3 * 0.6)
+    r_fold_px = 320.0 * r_u * (1 - 0.6 * r_u**2)
+    inside = np.array([[319.5 + r, 239.5] for r in (0.0, 40.0, 0.9 * r_fold_px)])
+    outside = np.array([[319.5 + r, 239.5] for r in (1.02 * r_fold_px, 200.0, 320.0)])
+    xy = normalized_from_pixels(cam, np.vstack([inside, outside]))
+    # inside: the true inverse (OpenCV's value, reprojecting to the pixel)
+    back, valid = pixels_from_points_camera(cam, np.column_stack([xy[:3], np.ones(3)]))
+    assert valid.all()
+    np.testing.assert_allclose(back, inside, atol=1e-6)
+    # outside: NaN, not OpenCV's silent pinhole value (u - cu) / fu
+    assert np.isnan(xy[3:]).all()
+    # the field of view ends before the fold-back angle, past the last pixel that inverts
+    assert math.atan(float(np.hypot(*xy[2]))) < cam.max_angle_rad <= math.atan(r_u)
+
+
+def test_no_fix_from_a_pixel_past_the_fold_back() -> None:
+    from localizer.pose import solve_pose
+
+    cam = fold_back_camera()
+    P = np.array([[0.0, 0.0, 2.5], [0.5, 0.0, 2.5]])
+    assert solve_pose(cam, np.array([[319.5, 239.5], [630.0, 239.5]]), P) is None

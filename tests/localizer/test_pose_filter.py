@@ -174,6 +174,8 @@ def test_gate_rejects_an_inconsistent_fix() -> None:
 
 def test_output_follows_a_correction_without_a_jump() -> None:
     filt = PoseFilter(0.0, 0.0, 0.0, np.diag([0.01, 0.01, 1e-4]), wheel_base=W)
+    for _ in range(50):  # past output_settle_s (1 s) after the reset, parked
+        filt.predict(0.0, 0.0, 0.02)
     filt.update_fix(PoseFix(0.1, 0.0, 0.0, np.diag([1e-8, 1e-8, 1e-8])))
     assert filt.state[0] == pytest.approx(0.1, abs=1e-5)
     assert filt.output_state[0] == pytest.approx(0.0, abs=1e-12)  # no jump
@@ -187,6 +189,17 @@ def test_output_follows_a_correction_without_a_jump() -> None:
     # a relocalisation (beyond output_snap_m) is not smoothed
     filt.update_fix(PoseFix(5.0, 0.0, 0.0, np.diag([1e-8, 1e-8, 1e-8])))
     np.testing.assert_allclose(filt.output_state, filt.state)
+
+
+def test_output_takes_corrections_at_once_while_settling() -> None:
+    filt = PoseFilter(0.0, 0.0, 0.0, np.diag([0.01, 0.01, 1e-4]), wheel_base=W)
+    for _ in range(45):  # 0.9 s after the reset: still settling (output_settle_s = 1 s)
+        filt.predict(0.0, 0.0, 0.02)
+    filt.update_fix(PoseFix(0.1, 0.0, 0.0, np.diag([1e-8, 1e-8, 1e-8])))
+    np.testing.assert_allclose(filt.output_state, filt.state)
+    filt.reset(1.0, 0.0, 0.0, np.diag([0.01, 0.01, 1e-4]))  # a reset settles again
+    filt.update_fix(PoseFix(1.1, 0.0, 0.0, np.diag([1e-8, 1e-8, 1e-8])))
+    assert filt.output_state[0] == pytest.approx(1.1, abs=1e-5)
 
 
 def test_reset_keeps_the_calibration() -> None:
