@@ -26,7 +26,7 @@ from collections import deque
 import numpy as np
 import numpy.typing as npt
 
-from localizer.camera import CameraModel, pixels_from_points_camera
+from localizer.camera import CameraModel
 from localizer.config import LocalizerConfig
 from localizer.events import (
     Event,
@@ -41,10 +41,10 @@ from localizer.events import (
     RelocalizeRequested,
     SpotsObserved,
 )
-from localizer.geometry import invert_transform, rotation_2d, transform_points, wrap_angle
+from localizer.first_fix import first_fix
+from localizer.geometry import wrap_angle
 from localizer.handoff import (
     Prediction,
-    ceiling_points_body,
     consistent_hypotheses,
     hypothesis_pose,
     pose_mahalanobis2,
@@ -279,40 +279,19 @@ class Localizer:
         sightings = list(self._identifier.sightings.values())
         if len(sightings) < self.config.identification.landmarks_needed:
             return None
-        rows = np.array([self.map.index_of(s.landmark_id) for s in sightings])
-        P = self.map.positions[rows]
-        now = self._odo_at(t_ns)
-        pixels = np.array(
-            [
-                _transfer_pixel(self.camera, s.pixel, P[i, 2], self._odo_at(s.t_ns), now)
-                for i, s in enumerate(sightings)
-            ]
-        )
-        ids = tuple(s.landmark_id for s in sightings)
-        fix = self._solve_consistent(pixels, P, ids)
-        if fix is None:
-            self._start_identification()  # inconsistent sightings: sweep again
-        return fix
-
-    def _solve_consistent(
-        self, pixels: FloatArray, P: FloatArray, ids: tuple[int, ...]
-    ) -> PoseFix | None:
-        """A fix whose residual is small, leaving out one landmark if that is needed."""
         fc = self.config.fusion
-        subsets = [list(range(len(ids)))]
-        if len(ids) >= 3:
-            subsets += [[j for j in range(len(ids)) if j != i] for i in range(len(ids))]
-        for keep in subsets:
-            fix = solve_pose(
-                self.camera,
-                pixels[keep],
-                P[keep],
-                pixel_sigma_px=fc.pixel_sigma_px,
-                landmark_ids=tuple(ids[j] for j in keep),
-            )
-            if fix is not None and fix.residual_rms_px <= fc.max_residual_px:
-                return fix
-        return None
+        fix = first_fix(
+            self.camera,
+            self.map,
+            sightings,
+            self._odo_at,
+            t_ns,
+            pixel_sigma_px=fc.pixel_sigma_px,
+            max_residual_px=fc.max_residual_px,
+        )
+        if fix is None:
+            self._start_identification()  # inconsistent sightings: identify again
+        return fix
 
     def _track(
         self,
@@ -525,22 +504,3 @@ class Localizer:
         )
         self._latest = est
         return est
-
-
-def _transfer_pixel(
-    camera: CameraModel,
-    pixel: tuple[float, float],
-    height_m: float,
-    odo_then: tuple[float, float, float],
-    odo_now: tuple[float, float, float],
-) -> tuple[float, float]:
-    """Where a ceiling spot seen at `pixel` appears after the body moved by odometry."""
-    q = ceiling_points_body(camera, np.array([pixel]), np.array([height_m]))[0]
-    d_world = np.array([odo_now[0] - odo_then[0], odo_now[1] - odo_then[1]])
-    d_body = rotation_2d(-odo_then[2]) @ d_world
-    dth = float(wrap_angle(odo_now[2] - odo_then[2]))
-    q_now = rotation_2d(-dth) @ (q - d_body)
-    p_body = np.array([[q_now[0], q_now[1], height_m]])
-    p_cam = transform_points(invert_transform(camera.T_body_camera), p_body)
-    px, _ = pixels_from_points_camera(camera, p_cam)
-    return float(px[0, 0]), float(px[0, 1])
