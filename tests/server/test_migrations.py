@@ -52,7 +52,7 @@ def test_upgrade_from_first_schema_keeps_data(tmp_path: Path) -> None:
     assert KeyStore(engine).role_of("irloc_old-key") == (1, "operator")
     with engine.connect() as conn:
         assert conn.execute(text("SELECT supply_mv FROM battery_readings")).scalar() == 2950
-        assert conn.execute(text("SELECT version_num FROM alembic_version")).scalar() == "0002"
+        assert conn.execute(text("SELECT version_num FROM alembic_version")).scalar() == "0003"
 
 
 def test_sqlite_pragmas(tmp_path: Path) -> None:
