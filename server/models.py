@@ -202,3 +202,6 @@ class ApiKeyPublic(SQLModel):
     prefix: str
     created_at: datetime
     revoked: bool
+    last_used_at: datetime | None = Field(
+        default=None, description="last request with this key (UTC, to the minute)"
+    )

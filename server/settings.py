@@ -64,6 +64,7 @@ class Settings(BaseSettings):
         serial_sink: serial port (pyserial URL or device) for the pose lines, or None.
         serial_baud: its baud rate.
         serial_robot: the robot whose poses go to the serial sink (None: every robot).
+        log_format: `text` (human-readable lines) or `json` (one JSON object a line).
         allow_remote_viewer_without_auth: never set this on a shared network.
     """
 
@@ -87,6 +88,7 @@ class Settings(BaseSettings):
     serial_sink: str | None = None
     serial_baud: int = 115200
     serial_robot: str | None = None
+    log_format: Literal["text", "json"] = "text"
     allow_remote_viewer_without_auth: bool = False
 
     @field_validator("radio")
