@@ -10,11 +10,11 @@ from __future__ import annotations
 import builtins
 import concurrent.futures
 import hashlib
+import logging
 import secrets
 import threading
 import time
 from collections.abc import Callable
-import logging
 from datetime import datetime
 
 from sqlalchemy import Engine
@@ -77,17 +77,21 @@ class KeyStore:
     def role_of(self, token: str) -> tuple[int, Role] | None:
         """(key id, role) of a valid, unrevoked key; None otherwise."""
         digest = hash_key(token)
-        hit = self._cache.get(digest)
+        hit = self._cache.get(digest) or self._lookup(digest)
         if hit is None:
-            with Session(self.engine) as s:
-                row = s.exec(select(ApiKey).where(ApiKey.hash == digest)).first()
-                if row is None or row.revoked or row.id is None:
-                    return None
-                hit = (row.id, row.role)  # type: ignore[assignment]
-            with self._lock:
-                self._cache[digest] = hit
+            return None
         self._touch(hit[0])
         return hit
+
+    def _lookup(self, digest: str) -> tuple[int, Role] | None:
+        with Session(self.engine) as s:
+            row = s.exec(select(ApiKey).where(ApiKey.hash == digest)).first()
+            if row is None or row.revoked or row.id is None:
+                return None
+            out: tuple[int, Role] = (row.id, row.role)  # type: ignore[assignment]
+        with self._lock:
+            self._cache[digest] = out
+        return out
 
     def _touch(self, key_id: int) -> None:
         """Note that `key_id` was used now: a database write unless one was made for it less
