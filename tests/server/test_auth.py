@@ -92,13 +92,17 @@ def test_last_use_is_recorded_at_most_once_a_minute_per_key(tmp_path: Path) -> N
     now[0] = 1060.0
     store.role_of(key)
     listed = {k.id: k.last_used_at for k in store.list()}
-    assert store.touches == 3 and listed[rec.id] is not None and listed[rec.id] >= first
+    second = listed[rec.id]
+    assert store.touches == 3 and second is not None and second >= first
     assert store.role_of("irloc_unknown") is None and store.touches == 3
     store.close()
     engine.dispose()
 
 
-def test_admin_api_and_cli_show_last_use(api: Api, capsys: pytest.CaptureFixture[str]) -> None:
+def test_admin_api_and_cli_show_last_use(
+    api: Api, db_url: str, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setenv("IRLOC_DATABASE_URL", db_url)  # the CLI reads the same database
     api.client.get("/api/v1/landmarks", headers=api.h("viewer"))
     keys = api.client.get("/api/v1/keys", headers=api.h("admin")).json()
     used = {k["name"]: k["last_used_at"] for k in keys}

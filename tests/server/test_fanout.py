@@ -59,7 +59,12 @@ def test_fanout_gathers_poses_published_from_a_thread_into_one_message() -> None
         fan.start()
         client = fan.add_client()
         loop = asyncio.get_running_loop()
-        await loop.run_in_executor(None, lambda: [bus.publish(_pose("r1", i)) for i in range(4)])
+
+        def publish_four() -> None:
+            for i in range(4):
+                bus.publish(_pose("r1", i))
+
+        await loop.run_in_executor(None, publish_four)
         msg = await asyncio.wait_for(client.get(), 5)
         await fan.stop()
         assert await client.get() is None  # closed

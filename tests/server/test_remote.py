@@ -58,7 +58,10 @@ def test_remote_robot_converges_near_the_truth_and_survives_a_disconnect(site: A
         t_end = time.monotonic() + 90
         while time.monotonic() < t_end:
             t = s.clock_ns()
-            x, y, th = integrate_arc(x0, y0, th0, v_left, v_right, (t - t0) * 1e-9, wheel_base)
+            x, y, th = (
+                float(v)
+                for v in integrate_arc(x0, y0, th0, v_left, v_right, (t - t0) * 1e-9, wheel_base)
+            )
             ws.send_text(json.dumps({"type": "odometry", "v_left": v_left, "v_right": v_right,
                                      "t_ns": t}))  # fmt: skip
             ws.send_bytes(_frame(t, s.sim.render(sim_name, T_world_body_from_pose(x, y, th))))

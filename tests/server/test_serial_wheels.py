@@ -10,7 +10,7 @@ from typing import Any
 
 import pytest
 
-from localizer.events import OdometryMeasured
+from localizer.events import Mode, OdometryMeasured
 from localizer.robot import RobotGeometry
 from server.site.line_framing import nmea_checksum
 from server.site.robot import RobotRunner
@@ -20,7 +20,7 @@ from server.site.serial_wheels import SerialWheelSource, parse_wheel_line, wheel
 class _Recorder:
     """A stand-in localizer keeping the events it is fed (what the source delivers)."""
 
-    mode = "identifying"
+    mode: Mode = "identifying"
 
     def __init__(self) -> None:
         self.events: list[Any] = []
@@ -79,8 +79,13 @@ def test_source_feeds_a_robot_skips_bad_lines_and_reconnects(tmp_path: Path) -> 
     link = tmp_path / "robot-wheels"
     rec = _Recorder()
     runner = RobotRunner(
-        "r1", None, RobotGeometry(0.4), rec, publish=lambda _: None, request_leds=lambda *_: None
-    )  # type: ignore[arg-type]
+        "r1",
+        None,  # type: ignore[arg-type]  # no camera: wheel speeds only
+        RobotGeometry(0.4),
+        rec,
+        publish=lambda _: None,
+        request_leds=lambda *_: None,
+    )
     master = _pty(link)
     source = SerialWheelSource(runner, str(link), 115200, lambda: 42, retry_s=0.05)
     source.start()
