@@ -71,14 +71,16 @@ async def get_pose(name: RobotName, services: ServicesDep, _: Viewer) -> Respons
     return Response(pose_json(name, runner.mode, runner.latest), media_type="application/json")
 
 
+# the routes that feed a localizer are plain `def` (threadpool): the robot's lock may be held
+# by a frame being localized, which must not block the event loop (and the pose streams)
 @router.post("/{name}/relocalize", status_code=status.HTTP_202_ACCEPTED)
-async def relocalize(name: RobotName, services: ServicesDep, _: Operator) -> RobotStatus:
+def relocalize(name: RobotName, services: ServicesDep, _: Operator) -> RobotStatus:
     services.relocalize(name)
     return _status(services, name)
 
 
 @router.post("/{name}/odometry", status_code=status.HTTP_202_ACCEPTED)
-async def wheel_speeds(
+def wheel_speeds(
     name: RobotName, body: WheelSpeeds, services: ServicesDep, _: Operator
 ) -> RobotStatus:
     """Wheel speeds for a robot whose camera is on the server (source `camera`)."""
@@ -104,13 +106,13 @@ def put_config(name: RobotName, body: RobotPublic, services: ServicesDep, _: Adm
 
 
 @router.post("/{name}/recording/start")
-async def start_recording(name: RobotName, services: ServicesDep, _: Operator) -> RecordingStatus:
+def start_recording(name: RobotName, services: ServicesDep, _: Operator) -> RecordingStatus:
     """Record this robot's frames, odometry and LED changes (for `irloc replay`)."""
     path = services.start_recording(name)
     return RecordingStatus(robot=name, recording=True, path=str(path))
 
 
 @router.post("/{name}/recording/stop")
-async def stop_recording(name: RobotName, services: ServicesDep, _: Operator) -> RecordingStatus:
+def stop_recording(name: RobotName, services: ServicesDep, _: Operator) -> RecordingStatus:
     path = services.stop_recording(name)
     return RecordingStatus(robot=name, recording=False, path=None if path is None else str(path))
