@@ -12,12 +12,14 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import logging
 from collections import deque
 from collections.abc import Iterable
 
 from server.bus import Bus, Subscription
 from server.poses import PoseUpdate
 
+log = logging.getLogger(__name__)
 DEFAULT_FLUSH_S = 0.005
 DEFAULT_CLIENT_QUEUE = 64
 
@@ -149,4 +151,7 @@ class PoseFanout:
             if self.flush_s > 0:
                 await asyncio.sleep(self.flush_s)
                 batch += sub.drain()
-            self.dispatch(batch)
+            try:
+                self.dispatch(batch)
+            except Exception:  # never let one bad batch end every client's stream
+                log.exception("pose fan-out failed on a batch of %d poses", len(batch))
