@@ -11,6 +11,7 @@ import pytest
 
 from server.logs import configure_logging
 from server.settings import Settings
+from tests.server.conftest import Api
 
 
 @pytest.fixture
@@ -65,3 +66,16 @@ def test_unknown_format_is_refused() -> None:
         Settings(log_format="yaml")  # type: ignore[arg-type]
     with pytest.raises(ValueError, match="expected 'text' or 'json', got 'xml'"):
         configure_logging("info", "xml")  # type: ignore[arg-type]
+
+
+def test_site_events_are_logged_with_structured_fields(api: Api, restore_root: None) -> None:
+    out = io.StringIO()
+    configure_logging("info", "json", stream=out)
+    api.services.events.emit("robot_lost", "robot r1 is lost", robot="r1")
+    api.services.events.emit("landmark_reachable", "landmark 7 answers again", landmark_id=7)
+    got = [json.loads(line) for line in out.getvalue().splitlines()]
+    events = [g for g in got if g["logger"] == "server.events"]
+    assert [(e["level"], e["event"], e.get("robot"), e.get("landmark")) for e in events] == [
+        ("WARNING", "robot_lost", "r1", None),
+        ("INFO", "landmark_reachable", None, 7),
+    ]
