@@ -1,17 +1,21 @@
 """Server streaming and request benchmark (loopback only, bounded run time).
 
-1. 10 robots at 30 Hz: each robot's `RobotRunner` is fed 30 events/s and publishes on the
-   real pose bus; 50 WebSocket clients (in this process, one asyncio loop) plus one
-   deliberately slow client (reads one message a second) receive `/api/v1/poses/ws`.
-   Reported: p50/p99/max latency from pose computed (`computed_wall_ns`) to client receipt,
-   poses missed by clients that keep up, drops counted for the slow one.
+1. 10 robots at 30 Hz: each robot's `RobotRunner` is fed 30 events/s, unsynchronised (robot i
+   at phase i/10 of the period), and publishes on the real pose bus; 50 WebSocket clients
+   that keep up (in 2 client processes, never in the server's) plus one deliberately slow
+   client (reads once a second, small receive buffer) receive `/api/v1/poses/ws`.
+   Reported: p50/p99/max latency from pose computed (`computed_wall_ns`) to the bytes reaching
+   the client process, poses missed by clients that keep up, drops counted for the slow one,
+   the server's CPU use.
 2. `GET /api/v1/robots/{name}/pose` requests/s with one uvicorn worker (8 keep-alive
    connections, raw HTTP/1.1 from this process).
 
 The server runs in a subprocess (one worker). The localizers are stand-ins that output a
 pose per event (this measures the server, not the localizer: see bench/ of the localizer).
 
-Usage: .venv/bin/python bench/bench_server.py [--seconds 8] [--clients 50]
+Usage: .venv/bin/python bench/bench_server.py [--seconds 8] [--clients 50] [--client-procs 2]
+[--flush-s S]; with IRLOC_BENCH_PROFILE=FILE the server's event-loop thread is profiled
+(cProfile) into FILE (read it with `python -m pstats FILE`).
 """
 
 from __future__ import annotations
@@ -32,6 +36,7 @@ import numpy as np
 
 ROBOTS = 10
 RATE_HZ = 30.0
+SERVER_SNDBUF = 64 * 1024
 
 
 # -- server side (run in the subprocess) ------------------------------------------------------
@@ -104,16 +109,29 @@ def serve(port: int, data_dir: str, key_file: str, flush_s: str) -> None:
                 stop.wait(max(0.0, next_t - time.monotonic()))
 
     threading.Thread(target=feed, daemon=True).start()
-    uvicorn.Server(
-        uvicorn.Config(
-            app,
-            host="127.0.0.1",
-            port=port,
-            log_level="warning",
-            ws="websockets-sansio",
-            lifespan="on",
+    # accepted connections inherit the listening socket's send buffer: a fixed SERVER_SNDBUF
+    # instead of Linux's autotuning up to 4 MB, so a slow client's backlog reaches the
+    # server's bounded queue in about a second instead of after half a minute
+    sock = socket.socket()
+    sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+    sock.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, SERVER_SNDBUF)
+    sock.bind(("127.0.0.1", port))
+    config = uvicorn.Config(
+        app, log_level="warning", ws="websockets-sansio", lifespan="on"
+    )  # uvloop and httptools when installed (the defaults' "auto")
+    profile_to = os.environ.get("IRLOC_BENCH_PROFILE")
+    if profile_to:  # the event loop's thread (uvicorn runs in the main thread)
+        import cProfile
+        import signal
+
+        # uvicorn re-raises SIGTERM after its shutdown: ignore it then, so the stats get written
+        signal.signal(signal.SIGTERM, lambda *_: None)
+
+        cProfile.runctx(
+            "uvicorn.Server(config).run(sockets=[sock])", globals(), locals(), profile_to
         )
-    ).run()
+    else:
+        uvicorn.Server(config).run(sockets=[sock])
     stop.set()
 
 
@@ -357,7 +375,8 @@ def main(argv: list[str] | None = None) -> int:
                 f"(inner window): total {sum(missed)}, worst client {max(missed)}"
             )
             print(
-                f"  slow client (reads a message a second) received {res['slow']['received']}; "
+                f"  slow client (reads once a second, 4 KiB receive buffer; server send buffer "
+                f"{SERVER_SNDBUF // 1024} KiB) received {res['slow']['received']}; "
                 f"dropped for slow WebSocket clients {dropped:.0f}, pose bus drops "
                 f"{bus_dropped:.0f} (whole run)"
             )
