@@ -72,6 +72,17 @@ class SiteCollector(Collector):
                 "irloc_landmarks_unreachable", "unreachable landmarks", value=len(gw.unreachable)
             )
         site = s.site
+        wheel_lines = CounterMetricFamily(
+            "irloc_wheel_lines", "serial wheel-speed lines fed to robots", labels=["robot"]
+        )
+        wheel_bad = CounterMetricFamily(
+            "irloc_wheel_bad_lines", "serial wheel-speed lines skipped", labels=["robot"]
+        )
+        for name, src in sorted(getattr(site, "wheels", {}).items()):
+            wheel_lines.add_metric([name], src.lines)
+            wheel_bad.add_metric([name], src.bad_lines)
+        yield wheel_lines
+        yield wheel_bad
         waiting = 0 if site is None or site.leds is None else site.leds.waiting
         yield GaugeMetricFamily("irloc_radio_queue", "LED requests waiting", value=waiting)
         http = CounterMetricFamily("irloc_http_errors", "HTTP error answers", labels=["status"])

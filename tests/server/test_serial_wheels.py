@@ -15,6 +15,7 @@ from localizer.robot import RobotGeometry
 from server.site.line_framing import nmea_checksum
 from server.site.robot import RobotRunner
 from server.site.serial_wheels import SerialWheelSource, parse_wheel_line, wheel_line
+from tests.server.conftest import start_api
 
 
 class _Recorder:
@@ -113,3 +114,28 @@ def test_source_feeds_a_robot_skips_bad_lines_and_reconnects(tmp_path: Path) -> 
         (42, 0.2, 0.25),
         (3000, -0.5, 0.5),
     ]
+
+
+@pytest.mark.slow
+def test_robot_configured_with_a_wheel_port_reads_it(tmp_path: Path) -> None:
+    link = tmp_path / "wheels"
+    master = _pty(link)
+    try:
+        for api in start_api(tmp_path / "site", scenario="paper_testbed"):
+            sim_name = api.services.sim.robot_names[0]
+            conf = api.client.get(f"/api/v1/robots/{sim_name}/config", headers=api.h("viewer"))
+            body = {**conf.json(), "source": "camera", "device": None}
+            body |= {"wheel_port": str(link), "wheel_baud": 57600}
+            r = api.client.put("/api/v1/robots/cam1/config", json=body, headers=api.h("admin"))
+            assert r.status_code == 200, r.text
+            assert (r.json()["wheel_port"], r.json()["wheel_baud"]) == (str(link), 57600)
+            source = api.services.site.wheels["cam1"]
+            _wait(lambda s=source: s.connected)  # type: ignore[misc]
+            os.write(master, wheel_line(0.3, 0.31).encode() + b"$IRODO,,1,1*00\r\n")
+            _wait(lambda s=source: s.lines == 1 and s.bad_lines == 1)  # type: ignore[misc]
+            text = api.client.get("/api/v1/metrics", headers=api.h("viewer")).text
+            assert 'irloc_wheel_lines_total{robot="cam1"} 1.0' in text
+            assert 'irloc_wheel_bad_lines_total{robot="cam1"} 1.0' in text
+        assert source.connected is False  # stopped with the site
+    finally:
+        os.close(master)
