@@ -21,7 +21,8 @@ from server.poses import PoseUpdate
 
 log = logging.getLogger(__name__)
 DEFAULT_FLUSH_S = 0.005
-DEFAULT_CLIENT_QUEUE = 64
+DEFAULT_CLIENT_QUEUE = 256
+"""Messages per client: at 5 ms batches, one to a few seconds of poses (rides out a hiccup)."""
 
 
 class FanoutClient:

@@ -82,7 +82,7 @@ class Settings(BaseSettings):
     viewer_enabled: bool = True
     viewer_port: int = Field(default=8080, ge=0, le=65535)
     pose_queue: int = Field(default=256, ge=1)
-    ws_queue: int = Field(default=64, ge=1)
+    ws_queue: int = Field(default=256, ge=1)
     ws_flush_s: float = Field(default=0.005, ge=0.0, le=1.0)
     battery_interval_s: float | None = 3600.0
     serial_sink: str | None = None
