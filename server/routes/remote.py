@@ -4,7 +4,8 @@ Text messages are JSON:
 - `{"type": "odometry", "v_left": 0.2, "v_right": 0.21, "t_ns": 123}`
 - `{"type": "spots", "pixels": [[c, r], ...], "intensities": [...], "areas": [...], "t_ns": 123}`
 Binary messages are frames: 8 bytes little-endian signed `t_ns` then a PNG or JPEG image
-(8-bit gray or colour, or 16-bit PNG).
+(8-bit gray or colour, or 16-bit PNG), or a raw gray frame: `GRY8` (8-bit) or `GR16` (16-bit
+LE), uint32 LE width, uint32 LE height, then the pixels row-major.
 `t_ns` is on the server's site clock; omit it (or send 0 / null) to stamp on receipt. The
 server answers each frame or spots message with the resulting pose as JSON (as on
 `/poses/ws`), and a malformed message with `{"error": "<what is wrong>"}` (the connection
@@ -100,13 +101,46 @@ def event_from_text(services: Any, text: str) -> OdometryMeasured | SpotsObserve
     raise ValueError(f"type: expected 'odometry' or 'spots', got {kind!r}")
 
 
+RAW_FORMATS: dict[bytes, np.dtype[Any]] = {b"GRY8": np.dtype(np.uint8), b"GR16": np.dtype("<u2")}
+"""Raw frame magic -> pixel type (row-major gray, little-endian)."""
+MAX_RAW_PIXELS = 4096 * 4096
+
+
+def raw_frame(data: bytes) -> np.ndarray:
+    """A raw frame: 4-byte magic (`GRY8` | `GR16`), uint32 LE width, uint32 LE height, then
+    width x height pixels, row-major. ValueError names what does not fit."""
+    if len(data) < 12:
+        raise ValueError("frame: raw header is 4-byte magic, uint32 width, uint32 height")
+    dtype = RAW_FORMATS[data[:4]]
+    width, height = struct.unpack("<II", data[4:12])
+    if not 0 < width * height <= MAX_RAW_PIXELS:
+        raise ValueError(f"frame: raw size {width} x {height} px is empty or too large")
+    expected = width * height * dtype.itemsize
+    if len(data) - 12 != expected:
+        raise ValueError(
+            f"frame: raw {data[:4].decode()} {width} x {height} needs {expected} pixel bytes, "
+            f"got {len(data) - 12}"
+        )
+    pixels: np.ndarray = np.frombuffer(data, dtype=dtype, offset=12)
+    return pixels.reshape(height, width)
+
+
 def frame_from_bytes(services: Any, data: bytes) -> FrameObserved:
+    """A binary message: 8-byte LE `t_ns`, then a PNG/JPEG image or a raw frame."""
     if len(data) < 9:
         raise ValueError("frame: 8-byte t_ns then an encoded image expected")
     (t_raw,) = struct.unpack("<q", data[:8])
-    image = cv2.imdecode(np.frombuffer(data[8:], dtype=np.uint8), cv2.IMREAD_UNCHANGED)
-    if image is None:
-        raise ValueError(f"frame: the {len(data) - 8} bytes after t_ns are not a PNG/JPEG image")
+    payload = data[8:]
+    image: np.ndarray | None
+    if payload[:4] in RAW_FORMATS:
+        image = raw_frame(payload)
+    else:
+        image = cv2.imdecode(np.frombuffer(payload, dtype=np.uint8), cv2.IMREAD_UNCHANGED)
+        if image is None:
+            raise ValueError(
+                f"frame: the {len(payload)} bytes after t_ns are neither a PNG/JPEG image nor "
+                "a raw frame (GRY8/GR16 header)"
+            )
     return FrameObserved(_t(services, t_raw), to_gray(image))
 
 

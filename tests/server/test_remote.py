@@ -39,7 +39,11 @@ def site(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Api]:
         yield api
 
 
-def _frame(t_ns: int, image: np.ndarray) -> bytes:
+def _frame(t_ns: int, image: np.ndarray, raw: bool = False) -> bytes:
+    """A frame message: PNG, or raw 8-bit gray."""
+    if raw:
+        h, w = image.shape
+        return struct.pack("<q", t_ns) + b"GRY8" + struct.pack("<II", w, h) + image.tobytes()
     ok, png = cv2.imencode(".png", image)
     assert ok
     return struct.pack("<q", t_ns) + png.tobytes()
@@ -64,7 +68,8 @@ def test_remote_robot_converges_near_the_truth_and_survives_a_disconnect(site: A
             )
             ws.send_text(json.dumps({"type": "odometry", "v_left": v_left, "v_right": v_right,
                                      "t_ns": t}))  # fmt: skip
-            ws.send_bytes(_frame(t, s.sim.render(sim_name, T_world_body_from_pose(x, y, th))))
+            image = s.sim.render(sim_name, T_world_body_from_pose(x, y, th))
+            ws.send_bytes(_frame(t, image, raw=len(modes) % 2 == 1))  # PNG and raw in turn
             answer = json.loads(ws.receive_text())
             assert answer["robot"] == "rem" and answer["t_ns"] == t
             modes.append(answer["mode"])
@@ -95,7 +100,9 @@ def test_remote_robot_converges_near_the_truth_and_survives_a_disconnect(site: A
         ('{"type": "spots", "pixels": [[1, 2, 3]]}', "pixels must have shape (N, 2)"),
         ('{"type": "spots", "pixels": [[1, 2]], "intensities": [], "areas": []}', "1 pixels"),
         ('{"type": "spots", "pixels": [["a", 2]]}', "pixels must be numbers"),
-        (b"\x00" * 8 + b"not a png", "bytes after t_ns are not a PNG/JPEG image"),
+        (b"\x00" * 8 + b"not a png", "bytes after t_ns are neither a PNG/JPEG image"),
+        (b"\x00" * 8 + b"GRY8" + struct.pack("<II", 4, 3) + b"\x00" * 11, "needs 12 pixel"),
+        (b"\x00" * 8 + b"GR16" + struct.pack("<II", 0, 3), "empty or too large"),
         (b"\x01\x02", "8-byte t_ns then an encoded image"),
     ],
 )
