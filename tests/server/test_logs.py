@@ -36,7 +36,8 @@ def test_json_lines_carry_level_logger_message_and_extras(restore_root: None) ->
         raise KeyError("boom")
     except KeyError:
         log.exception("failed\non two lines")
-    logging.getLogger("uvicorn.error").info("Uvicorn running")
+    logging.getLogger("uvicorn.error").info("Uvicorn running", extra={"color_message": "\x1b[1m"})
+    logging.getLogger("alembic.runtime.plugins").info("setup plugin")  # quiet at info
     lines = out.getvalue().splitlines()
     assert len(lines) == 3
     first, second, third = (json.loads(line) for line in lines)
@@ -52,6 +53,7 @@ def test_json_lines_carry_level_logger_message_and_extras(restore_root: None) ->
     )
     assert second["message"] == "failed\non two lines" and "KeyError: 'boom'" in second["exc"]
     assert third["logger"] == "uvicorn.error" and third["message"] == "Uvicorn running"
+    assert "color_message" not in third
 
 
 def test_text_is_the_default_and_readable(restore_root: None) -> None:
