@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import functools
 import json
 import os
 import socket
@@ -31,6 +32,7 @@ import tempfile
 import threading
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -76,8 +78,9 @@ def serve(port: int, data_dir: str, key_file: str, flush_s: str) -> None:
         port=port,
         battery_interval_s=None,
         pose_queue=64,
-        **({"ws_flush_s": float(flush_s)} if flush_s else {}),
     )
+    if flush_s:
+        settings.ws_flush_s = float(flush_s)
     app = create_app(settings)
     stop = threading.Event()
 
@@ -90,7 +93,7 @@ def serve(port: int, data_dir: str, key_file: str, flush_s: str) -> None:
         for i in range(ROBOTS):
             r = RobotRunner(
                 f"r{i}",
-                None,
+                None,  # type: ignore[arg-type]  # no camera: odometry events only
                 RobotGeometry(0.4),
                 _StandInLocalizer(i),  # type: ignore[arg-type]
                 publish=s.poses.publish,
@@ -184,7 +187,7 @@ class _PoseClient(asyncio.Protocol):
             if not isinstance(ev, Frame) or ev.opcode is not Opcode.TEXT:
                 continue
             if now >= self.window[0] * 1e9:
-                for p in json.loads(ev.data):
+                for p in json.loads(bytes(ev.data)):
                     self.received += 1
                     self.latencies.append((now - p["computed_wall_ns"]) / 1e6)
                     self.seen.append((p["robot"], p["t_ns"], p["computed_wall_ns"]))
@@ -193,7 +196,7 @@ class _PoseClient(asyncio.Protocol):
                 asyncio.get_running_loop().call_later(self.pause_s, self.transport.resume_reading)
         self._flush()
 
-    def result(self) -> dict:
+    def result(self) -> dict[str, Any]:
         return {
             "latencies": self.latencies,
             "received": self.received,
@@ -202,7 +205,13 @@ class _PoseClient(asyncio.Protocol):
         }
 
 
-async def _clients(url: str, key: str, n_fast: int, n_slow: int, t0: float, t1: float) -> list:
+def _same(proto: _PoseClient) -> _PoseClient:
+    return proto
+
+
+async def _clients(
+    url: str, key: str, n_fast: int, n_slow: int, t0: float, t1: float
+) -> list[dict[str, Any]]:
     host, port = url.split("/")[2].split(":")
     loop = asyncio.get_running_loop()
     protos = []
@@ -214,7 +223,7 @@ async def _clients(url: str, key: str, n_fast: int, n_slow: int, t0: float, t1: 
         sock.connect((host, int(port)))
         sock.setblocking(False)
         proto = _PoseClient(url, key, (t0, t1), 1.0 if slow else 0.0)
-        await loop.create_connection(lambda p=proto: p, sock=sock)
+        await loop.create_connection(functools.partial(_same, proto), sock=sock)
         protos.append(proto)
     await asyncio.sleep(max(0.0, t1 - time.time()))
     return [p.result() for p in protos]
@@ -236,7 +245,7 @@ def _cpu_s(pid: int) -> float:
 
 def _stream_bench(
     port: int, key: str, clients: int, procs: int, seconds: float, server_pid: int
-) -> dict:
+) -> dict[str, Any]:
     """Start `procs` client processes (the slow client in the first), measure `seconds`
     after a 2 s warm-up, return every client's results and the server's CPU use."""
     url = f"ws://127.0.0.1:{port}/api/v1/poses/ws"
@@ -313,7 +322,7 @@ async def _http_bench(port: int, key: str, seconds: float, conns: int = 8) -> tu
     return sum(counts), bad[0]
 
 
-def _missed(fast: list[dict], window: tuple[float, float]) -> list[int]:
+def _missed(fast: list[dict[str, Any]], window: tuple[float, float]) -> list[int]:
     """Poses each fast client lacks among those computed well inside the window (0.2 s
     after its start to 0.5 s before its end, so no edge effect) that any client received."""
     lo, hi = (window[0] + 0.2) * 1e9, (window[1] - 0.5) * 1e9

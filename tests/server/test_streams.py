@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import time
+from typing import Any
 
 import numpy as np
 import pytest
@@ -26,8 +27,8 @@ def _pose(robot: str, i: int) -> PoseUpdate:
     )
 
 
-def _receive(ws: object, n: int) -> list[dict]:
-    got: list[dict] = []
+def _receive(ws: object, n: int) -> list[dict[str, Any]]:
+    got: list[dict[str, Any]] = []
     while len(got) < n:
         got += json.loads(ws.receive_text())  # type: ignore[attr-defined]
     return got
