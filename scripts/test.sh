@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Set everything up and run the test suite. Extra arguments go to pytest.
-# The browser tests need Debian's Chromium: as root with apt available (CI) it is installed
-# here; elsewhere they are skipped with a message saying how to install it.
+# The browser tests need Debian's Chromium and the PostgreSQL tests Debian's PostgreSQL server
+# binaries: as root with apt available (CI) they are installed here; elsewhere those tests are
+# skipped with a message saying how to install them.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
@@ -9,6 +10,11 @@ if ! command -v chromium >/dev/null 2>&1 && [ "$(id -u)" = 0 ] && command -v apt
   echo "installing Debian's chromium for the browser tests..."
   (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium >/dev/null) \
     || echo "warning: could not install chromium; browser tests will be skipped" >&2
+fi
+if ! ls /usr/lib/postgresql/*/bin/initdb >/dev/null 2>&1 && [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then
+  echo "installing Debian's postgresql for the PostgreSQL tests..."
+  (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq postgresql >/dev/null) \
+    || echo "warning: could not install postgresql; PostgreSQL tests will be skipped" >&2
 fi
 set +e
 .venv/bin/python -m pytest "$@"

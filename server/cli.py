@@ -7,12 +7,12 @@ from __future__ import annotations
 
 import argparse
 import ipaddress
-import logging
 import sys
 from pathlib import Path
 
 from pydantic import ValidationError
 
+from server.logs import configure_logging
 from server.settings import Settings
 
 
@@ -30,6 +30,11 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, help="virtual site seed")
     p.add_argument("--no-viewer", action="store_true", help="do not start the viewer")
     p.add_argument("--log-level", default="info", choices=["debug", "info", "warning", "error"])
+    p.add_argument(
+        "--log-format",
+        choices=["text", "json"],
+        help="text (default) or json: one JSON object a line (setting log_format)",
+    )
     return p
 
 
@@ -55,6 +60,7 @@ def main(argv: list[str] | None = None) -> int:
             "radio": args.radio,
             "scenario": args.scenario,
             "seed": args.seed,
+            "log_format": args.log_format,
         }.items()
         if v is not None
     }
@@ -68,9 +74,7 @@ def main(argv: list[str] | None = None) -> int:
     if settings.map_file is not None and not settings.map_file.is_file():
         print(f"irloc serve: --map {settings.map_file}: no such file", file=sys.stderr)
         return 2
-    logging.basicConfig(
-        level=args.log_level.upper(), format="%(asctime)s %(levelname)s %(name)s: %(message)s"
-    )
+    configure_logging(args.log_level, settings.log_format)
     import uvicorn
 
     from server.crud.keys import KeyStore
@@ -100,6 +104,7 @@ def main(argv: list[str] | None = None) -> int:
         port=settings.port,
         workers=1,
         log_level=args.log_level,
+        log_config=None,  # uvicorn's loggers go through configure_logging's handler
         lifespan="on",
     )
     uvicorn.Server(config).run()

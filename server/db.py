@@ -1,8 +1,9 @@
 """The database engine, the session dependency and the schema migrations run at start.
 
-Only `make_engine` knows about SQLite (WAL, foreign keys, synchronous=FULL so an
-acknowledged commit survives a `kill -9`); everything else is portable SQL, so PostgreSQL is
-a `database_url` away.
+Only `make_engine` knows about dialects: SQLite gets WAL, foreign keys and synchronous=FULL
+(an acknowledged commit survives a `kill -9`); PostgreSQL sessions run in UTC (the tables'
+timestamps are UTC without a zone). Everything else (models, queries, migrations) is
+portable SQL, tested on both (tests/server/test_postgres.py).
 """
 
 from __future__ import annotations
@@ -21,7 +22,9 @@ MIGRATIONS_DIR = Path(__file__).parent / "migrations"
 
 def make_engine(url: str) -> Engine:
     """An engine for `url`; for SQLite: WAL journal, foreign keys on, full sync, and the
-    folder of the file created."""
+    folder of the file created; for PostgreSQL (`postgresql+psycopg://...`): UTC sessions."""
+    if url.startswith("postgresql"):
+        return create_engine(url, pool_pre_ping=True, connect_args={"options": "-c timezone=UTC"})
     if not url.startswith("sqlite"):
         return create_engine(url, pool_pre_ping=True)
     path = url.split("///", 1)[-1]

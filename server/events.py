@@ -1,9 +1,11 @@
 """Site events (low battery, landmark unreachable, robot lost, map changed): stored in the
-database and published on the event bus (SSE stream, viewer)."""
+database, published on the event bus (SSE stream, viewer) and logged (with `event`, `robot`,
+`landmark` as structured fields)."""
 
 from __future__ import annotations
 
 import json
+import logging
 from dataclasses import dataclass, field
 from datetime import datetime
 from typing import Any
@@ -20,7 +22,14 @@ EVENT_KINDS = (
     "map_changed",
     "radio_state",
     "led_request_failed",
+    "robot_connected",
+    "robot_disconnected",
 )
+WARNING_EVENTS = frozenset(
+    {"low_battery", "landmark_unreachable", "robot_lost", "led_request_failed", "radio_state"}
+)
+"""Kinds logged as warnings (the others as info)."""
+log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
@@ -72,6 +81,13 @@ class EventHub:
         data: dict[str, Any] | None = None,
     ) -> SiteEvent:
         rec = self.log.add_event(kind, message, robot=robot, landmark_id=landmark_id, data=data)
+        extra: dict[str, Any] = {"event": kind}
+        if robot is not None:
+            extra["robot"] = robot
+        if landmark_id is not None:
+            extra["landmark"] = landmark_id
+        level = logging.WARNING if kind in WARNING_EVENTS else logging.INFO
+        log.log(level, "%s", message, extra=extra)
         event = SiteEvent(rec.id or 0, rec.t, kind, message, robot, landmark_id, rec.data)
         self.bus.publish(event)
         return event

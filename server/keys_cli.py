@@ -34,9 +34,9 @@ def main(argv: list[str] | None = None) -> int:
     data_dir = getattr(args, "data_dir_sub", None) or args.data_dir
     settings = Settings(data_dir=data_dir) if data_dir else Settings()
     engine = make_engine(settings.db_url)
+    migrate(engine)
+    keys = KeyStore(engine)
     try:
-        migrate(engine)
-        keys = KeyStore(engine)
         if args.command == "create":
             key, record = keys.create(args.role, args.name)
             print(key)
@@ -45,10 +45,13 @@ def main(argv: list[str] | None = None) -> int:
                 file=sys.stderr,
             )
         elif args.command == "list":
+            print("id\trole\tprefix\tstate\tcreated\tlast used (UTC)\tname")
             for k in keys.list():
                 state = "revoked" if k.revoked else "active"
+                used = "never" if k.last_used_at is None else f"{k.last_used_at:%Y-%m-%d %H:%M}"
                 print(
-                    f"{k.id}\t{k.role}\t{k.prefix}...\t{state}\t{k.created_at:%Y-%m-%d}\t{k.name}"
+                    f"{k.id}\t{k.role}\t{k.prefix}...\t{state}\t{k.created_at:%Y-%m-%d}\t"
+                    f"{used}\t{k.name}"
                 )
         else:
             try:
@@ -59,4 +62,5 @@ def main(argv: list[str] | None = None) -> int:
             print(f"key {args.id} revoked")
         return 0
     finally:
+        keys.close()
         engine.dispose()

@@ -26,6 +26,7 @@ from rf_gateway.errors import (
 )
 from server.auth import Viewer, authenticate
 from server.errors import ConflictError, NotFoundError, UnavailableError
+from server.fanout import PoseFanout
 from server.metrics import make_registry, render
 from server.routes import admin, calibration, landmarks, map, remote, robots, streams
 from server.services import SiteServices
@@ -102,6 +103,10 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         app.state.metrics_registry = registry
         app.state.metrics_collector = collector
         await services.start()
+        fanout = PoseFanout(services.poses, flush_s=settings.ws_flush_s)
+        fanout.start()
+        app.state.pose_fanout = fanout
+        collector.fanout = fanout
         viewer = await asyncio.to_thread(_start_viewer, services, settings)
         app.state.viewer = viewer
         try:
@@ -113,6 +118,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
                     await asyncio.to_thread(viewer.stop)
                 except Exception:
                     log.exception("viewer did not stop cleanly")
+            await fanout.stop()
             await services.stop()
 
     app = FastAPI(

@@ -10,6 +10,7 @@ from prometheus_client.core import CounterMetricFamily, GaugeMetricFamily, Metri
 from prometheus_client.registry import Collector
 
 if TYPE_CHECKING:
+    from server.fanout import PoseFanout
     from server.services import SiteServices
 
 
@@ -19,6 +20,7 @@ class SiteCollector(Collector):
     def __init__(self, services: SiteServices) -> None:
         self.services = services
         self.http_errors: dict[str, int] = {}
+        self.fanout: PoseFanout | None = None
 
     def collect(self) -> Iterator[Metric]:
         s = self.services
@@ -45,6 +47,16 @@ class SiteCollector(Collector):
         yield GaugeMetricFamily(
             "irloc_pose_subscribers", "pose bus subscribers", value=len(s.poses)
         )
+        fan = self.fanout
+        if fan is not None:
+            yield GaugeMetricFamily(
+                "irloc_ws_clients", "pose WebSocket clients", value=len(fan.clients)
+            )
+            yield CounterMetricFamily(
+                "irloc_ws_dropped_poses",
+                "poses dropped for WebSocket clients that fell behind",
+                value=fan.dropped_poses,
+            )
         gw = s.gateway
         if gw is not None:
             yield CounterMetricFamily(
@@ -60,6 +72,17 @@ class SiteCollector(Collector):
                 "irloc_landmarks_unreachable", "unreachable landmarks", value=len(gw.unreachable)
             )
         site = s.site
+        wheel_lines = CounterMetricFamily(
+            "irloc_wheel_lines", "serial wheel-speed lines fed to robots", labels=["robot"]
+        )
+        wheel_bad = CounterMetricFamily(
+            "irloc_wheel_bad_lines", "serial wheel-speed lines skipped", labels=["robot"]
+        )
+        for name, src in sorted(getattr(site, "wheels", {}).items()):
+            wheel_lines.add_metric([name], src.lines)
+            wheel_bad.add_metric([name], src.bad_lines)
+        yield wheel_lines
+        yield wheel_bad
         waiting = 0 if site is None or site.leds is None else site.leds.waiting
         yield GaugeMetricFamily("irloc_radio_queue", "LED requests waiting", value=waiting)
         http = CounterMetricFamily("irloc_http_errors", "HTTP error answers", labels=["status"])

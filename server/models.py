@@ -119,6 +119,12 @@ class MapDocument(SQLModel):
 class RobotBase(SQLModel):
     source: str = Field(default="sim", regex=r"^(sim|camera|remote)$")
     device: str | None = Field(default=None, description="camera index or video file (camera)")
+    wheel_port: str | None = Field(
+        default=None,
+        max_length=300,
+        description="serial port (device or pyserial URL) sending `$IRODO` wheel-speed lines",
+    )
+    wheel_baud: int = Field(default=115200, ge=50, le=4_000_000, description="its baud rate")
     wheel_base: float = Field(gt=0, le=10, description="metres between the wheels")
     max_speed: float = Field(default=1.0, gt=0, le=20, description="m/s")
     camera: dict[str, Any] = Field(
@@ -196,3 +202,6 @@ class ApiKeyPublic(SQLModel):
     prefix: str
     created_at: datetime
     revoked: bool
+    last_used_at: datetime | None = Field(
+        default=None, description="last request with this key (UTC, to the minute)"
+    )

@@ -165,6 +165,7 @@ class SiteServices:
             await self.site.stop()
             self.site = None
         self.map.remove_listener(self._on_map_changed)
+        self.keys.close()  # pending last-use writes
         self.engine.dispose()
 
     # -- map -------------------------------------------------------------------------------

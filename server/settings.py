@@ -58,10 +58,13 @@ class Settings(BaseSettings):
         site_enabled: run the live site (robots, radio, clock); off for bare API tests.
         viewer_enabled, viewer_port: the viser viewer (port 0: ephemeral).
         pose_queue: poses buffered per pose-bus subscriber before it drops.
+        ws_queue: messages buffered per `/poses/ws` client before it drops the oldest.
+        ws_flush_s: how long the WebSocket fan-out gathers poses into one message, seconds.
         battery_interval_s: time between battery polls of every landmark; None: never.
         serial_sink: serial port (pyserial URL or device) for the pose lines, or None.
         serial_baud: its baud rate.
         serial_robot: the robot whose poses go to the serial sink (None: every robot).
+        log_format: `text` (human-readable lines) or `json` (one JSON object a line).
         allow_remote_viewer_without_auth: never set this on a shared network.
     """
 
@@ -79,10 +82,13 @@ class Settings(BaseSettings):
     viewer_enabled: bool = True
     viewer_port: int = Field(default=8080, ge=0, le=65535)
     pose_queue: int = Field(default=256, ge=1)
+    ws_queue: int = Field(default=256, ge=1)
+    ws_flush_s: float = Field(default=0.005, ge=0.0, le=1.0)
     battery_interval_s: float | None = 3600.0
     serial_sink: str | None = None
     serial_baud: int = 115200
     serial_robot: str | None = None
+    log_format: Literal["text", "json"] = "text"
     allow_remote_viewer_without_auth: bool = False
 
     @field_validator("radio")

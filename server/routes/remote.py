@@ -3,9 +3,14 @@
 Text messages are JSON:
 - `{"type": "odometry", "v_left": 0.2, "v_right": 0.21, "t_ns": 123}`
 - `{"type": "spots", "pixels": [[c, r], ...], "intensities": [...], "areas": [...], "t_ns": 123}`
-Binary messages are frames: 8 bytes little-endian signed `t_ns` then a PNG or JPEG image.
-`t_ns` is on the server's site clock; omit it (or send 0) to stamp on receipt. The server
-answers each frame or spots message with the resulting pose as JSON (as on `/poses/ws`).
+Binary messages are frames: 8 bytes little-endian signed `t_ns` then a PNG or JPEG image
+(8-bit gray or colour, or 16-bit PNG), or a raw gray frame: `GRY8` (8-bit) or `GR16` (16-bit
+LE), uint32 LE width, uint32 LE height, then the pixels row-major.
+`t_ns` is on the server's site clock; omit it (or send 0 / null) to stamp on receipt. The
+server answers each frame or spots message with the resulting pose as JSON (as on
+`/poses/ws`), and a malformed message with `{"error": "<what is wrong>"}` (the connection
+stays open). The robot must have source `remote`; when the connection closes, its localizer
+keeps its state and waits (no more poses until the robot reconnects).
 """
 
 from __future__ import annotations
@@ -22,15 +27,38 @@ from fastapi import APIRouter, WebSocket, WebSocketDisconnect, status
 from localizer.events import FrameObserved, OdometryMeasured, SpotsObserved
 from server.auth import authenticate
 from server.errors import NotFoundError
+from server.site.serial_wheels import MAX_WHEEL_SPEED
+from server.site.sources import to_gray
 
 router = APIRouter(tags=["robots"])
 MAX_SPOTS = 1000
 
 
+MAX_T_NS = 2**62
+
+
 def _t(services: Any, value: Any) -> int:
-    if isinstance(value, int) and not isinstance(value, bool) and value > 0:
-        return value
-    return int(services.clock_ns())
+    """A message's `t_ns`: absent, null or 0 stamps on receipt (site clock)."""
+    if value is None or value == 0:
+        return int(services.clock_ns())
+    if not isinstance(value, int) or isinstance(value, bool) or not 0 < value < MAX_T_NS:
+        raise ValueError(f"t_ns: expected a positive integer (site clock, ns), got {value!r}")
+    return value
+
+
+def _array(msg: dict[str, Any], key: str, shape: tuple[int, ...]) -> np.ndarray:
+    try:
+        arr = np.asarray(msg.get(key, []), dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError(f"spots: {key} must be numbers") from None
+    if arr.size == 0:
+        arr = arr.reshape((0, *shape[1:]))
+    if arr.ndim != len(shape) or arr.shape[1:] != shape[1:]:
+        want = "(N, 2)" if len(shape) == 2 else "(N,)"
+        raise ValueError(f"spots: {key} must have shape {want}, got {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"spots: {key} must be finite")
+    return arr
 
 
 def event_from_text(services: Any, text: str) -> OdometryMeasured | SpotsObserved:
@@ -44,32 +72,76 @@ def event_from_text(services: Any, text: str) -> OdometryMeasured | SpotsObserve
     kind = msg.get("type")
     t_ns = _t(services, msg.get("t_ns"))
     if kind == "odometry":
-        v = [msg.get("v_left"), msg.get("v_right")]
-        if not all(isinstance(x, int | float) and np.isfinite(x) for x in v):
-            raise ValueError("odometry: v_left and v_right must be finite numbers (m/s)")
-        return OdometryMeasured(t_ns, float(v[0]), float(v[1]))  # type: ignore[arg-type]
+        speeds: list[float] = []
+        for key in ("v_left", "v_right"):
+            v = msg.get(key)
+            if (
+                not isinstance(v, int | float)
+                or isinstance(v, bool)
+                or not abs(v) <= MAX_WHEEL_SPEED
+            ):
+                raise ValueError(
+                    f"odometry: {key} must be a number in [-{MAX_WHEEL_SPEED}, "
+                    f"{MAX_WHEEL_SPEED}] m/s, got {v!r}"
+                )
+            speeds.append(float(v))
+        return OdometryMeasured(t_ns, speeds[0], speeds[1])
     if kind == "spots":
-        try:
-            px = np.asarray(msg.get("pixels", []), dtype=np.float64).reshape(-1, 2)
-            inten = np.asarray(msg.get("intensities", []), dtype=np.float64).reshape(-1)
-            areas = np.asarray(msg.get("areas", []), dtype=np.float64).reshape(-1)
-        except (TypeError, ValueError):
-            raise ValueError("spots: pixels (N,2), intensities (N,), areas (N,)") from None
+        px = _array(msg, "pixels", (0, 2))
+        inten = _array(msg, "intensities", (0,))
+        areas = _array(msg, "areas", (0,))
         n = len(px)
-        if n > MAX_SPOTS or len(inten) != n or len(areas) != n or not np.all(np.isfinite(px)):
-            raise ValueError("spots: pixels (N,2), intensities (N,), areas (N,), N <= 1000")
+        if len(inten) != n or len(areas) != n:
+            raise ValueError(
+                f"spots: {n} pixels but {len(inten)} intensities and {len(areas)} areas"
+            )
+        if n > MAX_SPOTS:
+            raise ValueError(f"spots: {n} spots, at most {MAX_SPOTS}")
         return SpotsObserved(t_ns, px, inten, areas)
     raise ValueError(f"type: expected 'odometry' or 'spots', got {kind!r}")
 
 
+RAW_FORMATS: dict[bytes, np.dtype[Any]] = {b"GRY8": np.dtype(np.uint8), b"GR16": np.dtype("<u2")}
+"""Raw frame magic -> pixel type (row-major gray, little-endian)."""
+MAX_RAW_PIXELS = 4096 * 4096
+
+
+def raw_frame(data: bytes) -> np.ndarray:
+    """A raw frame: 4-byte magic (`GRY8` | `GR16`), uint32 LE width, uint32 LE height, then
+    width x height pixels, row-major. ValueError names what does not fit."""
+    if len(data) < 12:
+        raise ValueError("frame: raw header is 4-byte magic, uint32 width, uint32 height")
+    dtype = RAW_FORMATS[data[:4]]
+    width, height = struct.unpack("<II", data[4:12])
+    if not 0 < width * height <= MAX_RAW_PIXELS:
+        raise ValueError(f"frame: raw size {width} x {height} px is empty or too large")
+    expected = width * height * dtype.itemsize
+    if len(data) - 12 != expected:
+        raise ValueError(
+            f"frame: raw {data[:4].decode()} {width} x {height} needs {expected} pixel bytes, "
+            f"got {len(data) - 12}"
+        )
+    pixels: np.ndarray = np.frombuffer(data, dtype=dtype, offset=12)
+    return pixels.reshape(height, width)
+
+
 def frame_from_bytes(services: Any, data: bytes) -> FrameObserved:
+    """A binary message: 8-byte LE `t_ns`, then a PNG/JPEG image or a raw frame."""
     if len(data) < 9:
         raise ValueError("frame: 8-byte t_ns then an encoded image expected")
     (t_raw,) = struct.unpack("<q", data[:8])
-    image = cv2.imdecode(np.frombuffer(data[8:], dtype=np.uint8), cv2.IMREAD_GRAYSCALE)
-    if image is None:
-        raise ValueError("frame: the image is not a readable PNG/JPEG")
-    return FrameObserved(_t(services, t_raw), np.asarray(image, dtype=np.uint8))
+    payload = data[8:]
+    image: np.ndarray | None
+    if payload[:4] in RAW_FORMATS:
+        image = raw_frame(payload)
+    else:
+        image = cv2.imdecode(np.frombuffer(payload, dtype=np.uint8), cv2.IMREAD_UNCHANGED)
+        if image is None:
+            raise ValueError(
+                f"frame: the {len(payload)} bytes after t_ns are neither a PNG/JPEG image nor "
+                "a raw frame (GRY8/GR16 header)"
+            )
+    return FrameObserved(_t(services, t_raw), to_gray(image))
 
 
 @router.websocket("/robots/{name}/ws")
@@ -85,27 +157,42 @@ async def remote_robot(ws: WebSocket, name: str) -> None:
     except NotFoundError as exc:
         await ws.close(code=status.WS_1008_POLICY_VIOLATION, reason=str(exc))
         return
-    await ws.accept()
-    try:
-        while True:
-            msg = await ws.receive()
-            if msg["type"] == "websocket.disconnect":
-                return
-            try:
-                if msg.get("bytes") is not None:
-                    event: Any = frame_from_bytes(services, msg["bytes"])
-                else:
-                    event = event_from_text(services, msg.get("text") or "")
-            except ValueError as exc:
-                await ws.send_text(json.dumps({"error": str(exc)}))
-                continue
-            await asyncio.to_thread(runner.handle, event)
-            if not isinstance(event, OdometryMeasured):
-                latest = runner.latest
-                await ws.send_text(
-                    latest.json
-                    if latest is not None
-                    else json.dumps({"robot": name, "mode": runner.mode})
-                )
-    except WebSocketDisconnect:
+    if runner.source != "remote":
+        reason = f"robot {name!r} has source {runner.source!r}, not 'remote'"
+        await ws.close(code=status.WS_1008_POLICY_VIOLATION, reason=reason)
         return
+    await ws.accept()
+    services.events.emit("robot_connected", f"remote robot {name} connected", robot=name)
+    try:
+        await _serve(ws, services, runner)
+    except WebSocketDisconnect:
+        pass
+    finally:
+        services.events.emit(
+            "robot_disconnected",
+            f"remote robot {name} disconnected; its pose is no longer updated",
+            robot=name,
+        )
+
+
+async def _serve(ws: WebSocket, services: Any, runner: Any) -> None:
+    while True:
+        msg = await ws.receive()
+        if msg["type"] == "websocket.disconnect":
+            return
+        try:
+            if msg.get("bytes") is not None:
+                event: Any = frame_from_bytes(services, msg["bytes"])
+            else:
+                event = event_from_text(services, msg.get("text") or "")
+        except ValueError as exc:
+            await ws.send_text(json.dumps({"error": str(exc)}))
+            continue
+        await asyncio.to_thread(runner.handle, event)
+        if not isinstance(event, OdometryMeasured):
+            latest = runner.latest
+            await ws.send_text(
+                latest.json
+                if latest is not None and latest.t_ns == event.t_ns
+                else json.dumps({"robot": runner.name, "t_ns": event.t_ns, "mode": runner.mode})
+            )

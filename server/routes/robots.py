@@ -79,8 +79,10 @@ class PoseHint(BaseModel):
     theta: float = Field(0.0, allow_inf_nan=False, ge=-7.0, le=7.0, description="radians")
 
 
+# the routes that feed a localizer are plain `def` (threadpool): the robot's lock may be held
+# by a frame being localized, which must not block the event loop (and the pose streams)
 @router.post("/{name}/relocalize", status_code=status.HTTP_202_ACCEPTED)
-async def relocalize(
+def relocalize(
     name: RobotName, services: ServicesDep, _: Operator, near: PoseHint | None = None
 ) -> RobotStatus:
     """Forget the robot's pose and identify its landmarks again; with a body
@@ -91,7 +93,7 @@ async def relocalize(
 
 
 @router.post("/{name}/odometry", status_code=status.HTTP_202_ACCEPTED)
-async def wheel_speeds(
+def wheel_speeds(
     name: RobotName, body: WheelSpeeds, services: ServicesDep, _: Operator
 ) -> RobotStatus:
     """Wheel speeds for a robot whose camera is on the server (source `camera`)."""
@@ -117,13 +119,13 @@ def put_config(name: RobotName, body: RobotPublic, services: ServicesDep, _: Adm
 
 
 @router.post("/{name}/recording/start")
-async def start_recording(name: RobotName, services: ServicesDep, _: Operator) -> RecordingStatus:
+def start_recording(name: RobotName, services: ServicesDep, _: Operator) -> RecordingStatus:
     """Record this robot's frames, odometry and LED changes (for `irloc replay`)."""
     path = services.start_recording(name)
     return RecordingStatus(robot=name, recording=True, path=str(path))
 
 
 @router.post("/{name}/recording/stop")
-async def stop_recording(name: RobotName, services: ServicesDep, _: Operator) -> RecordingStatus:
+def stop_recording(name: RobotName, services: ServicesDep, _: Operator) -> RecordingStatus:
     path = services.stop_recording(name)
     return RecordingStatus(robot=name, recording=False, path=None if path is None else str(path))

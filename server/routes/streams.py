@@ -12,9 +12,8 @@ from fastapi.responses import StreamingResponse
 from pydantic import BaseModel
 
 from server.auth import Viewer, authenticate
-from server.bus import Subscription
 from server.deps import ServicesDep
-from server.poses import PoseUpdate
+from server.fanout import FanoutClient, PoseFanout
 
 router = APIRouter(tags=["streams"])
 SSE_HEARTBEAT_S = 15.0
@@ -31,41 +30,39 @@ class EventPublic(BaseModel):
     data: dict[str, object]
 
 
-async def _close_on_disconnect(ws: WebSocket, sub: Subscription[PoseUpdate]) -> None:
+async def _close_on_disconnect(ws: WebSocket, client: FanoutClient) -> None:
     with contextlib.suppress(Exception):
         while True:
             msg = await ws.receive()
             if msg["type"] == "websocket.disconnect":
                 break
-    sub.close()
+    client.close()
 
 
 @router.websocket("/poses/ws")
 async def poses_ws(ws: WebSocket, robot: RobotFilter = None) -> None:
     """Every robot's poses (or those named by repeated `?robot=`) as they are computed.
 
-    Each message is a JSON array of pose objects (several when the client fell behind a
-    little); a client that falls far behind loses the oldest (bounded queue). Auth: the
-    `Authorization: Bearer` header or `?token=`.
+    Each message is a JSON array of pose objects (the poses computed within a few
+    milliseconds of each other); a client that falls behind loses the oldest messages
+    (bounded queue, `irloc_ws_dropped_poses_total`). Auth: the `Authorization: Bearer`
+    header or `?token=`.
     """
     principal = authenticate(ws)
     if principal is None:
         await ws.close(code=status.WS_1008_POLICY_VIOLATION, reason="a valid API key is required")
         return
     await ws.accept()
-    services = ws.app.state.services
-    sub = services.subscribe_poses(set(robot) if robot else None)
-    watcher = asyncio.create_task(_close_on_disconnect(ws, sub))
+    fanout: PoseFanout = ws.app.state.pose_fanout
+    client = fanout.add_client(robot, ws.app.state.services.settings.ws_queue)
+    watcher = asyncio.create_task(_close_on_disconnect(ws, client))
     try:
-        while not sub.closed:
-            batch = await sub.get_batch()
-            if not batch:
-                continue
-            await ws.send_text("[" + ",".join(p.json for p in batch) + "]")
+        while (message := await client.get()) is not None:
+            await ws.send_text(message)
     except (WebSocketDisconnect, RuntimeError, OSError):
         pass
     finally:
-        sub.close()
+        fanout.remove_client(client)
         watcher.cancel()
         with contextlib.suppress(asyncio.CancelledError, Exception):
             await watcher

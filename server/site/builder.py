@@ -34,6 +34,7 @@ from server.models import LandmarkPublic, RobotCreate, RobotPublic
 from server.site.leds import LedCoordinator
 from server.site.robot import RobotRunner, make_localizer
 from server.site.serial_sink import SerialSink
+from server.site.serial_wheels import SerialWheelSource
 from server.site.sources import CameraSource
 
 if TYPE_CHECKING:
@@ -60,6 +61,7 @@ class LiveSiteRunner:
         self.gateway: Gateway | None = None
         self.leds: LedCoordinator | None = None
         self.cameras: dict[str, CameraSource] = {}
+        self.wheels: dict[str, SerialWheelSource] = {}
         self._stop = threading.Event()
         self._clock: threading.Thread | None = None
         self._worker: threading.Thread | None = None
@@ -117,6 +119,10 @@ class LiveSiteRunner:
             cam = CameraSource(runner, robot.device, s.clock_ns)
             cam.start()
             self.cameras[robot.name] = cam
+        if robot.source == "camera" and robot.wheel_port:
+            wheels = SerialWheelSource(runner, robot.wheel_port, robot.wheel_baud, s.clock_ns)
+            wheels.start()
+            self.wheels[robot.name] = wheels
         return runner
 
     def stop_robot(self, name: str) -> None:
@@ -124,6 +130,9 @@ class LiveSiteRunner:
         cam = self.cameras.pop(name, None)
         if cam is not None:
             cam.stop()
+        wheels = self.wheels.pop(name, None)
+        if wheels is not None:
+            wheels.stop()
         runner = self.services.robots.remove(name)
         if runner is not None:
             runner.stop_recording()
@@ -296,6 +305,8 @@ class LiveSiteRunner:
             await asyncio.to_thread(self._worker.join, 5.0)
         for cam in self.cameras.values():
             await asyncio.to_thread(cam.stop)
+        for wheels in self.wheels.values():
+            await asyncio.to_thread(wheels.stop)
         for runner in self.services.robots.runners():
             runner.stop_recording()
         if self.serial is not None:

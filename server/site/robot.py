@@ -116,7 +116,12 @@ class RobotRunner:
                 outputs = self.localizer.handle(event)
             except Exception:
                 self.errors += 1
-                log.exception("robot %s: localizer failed on %s", self.name, type(event).__name__)
+                log.exception(
+                    "robot %s: localizer failed on %s",
+                    self.name,
+                    type(event).__name__,
+                    extra={"robot": self.name},
+                )
                 return
             for out in outputs:
                 self._route(out)
@@ -175,6 +180,6 @@ class RobotRunner:
             elif isinstance(event, LedsChanged):
                 rec.add_leds(event)
         except ValueError:
-            log.exception("robot %s: recording stopped", self.name)
+            log.exception("robot %s: recording stopped", self.name, extra={"robot": self.name})
             self.recorder = None
             rec.close()

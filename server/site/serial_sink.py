@@ -7,7 +7,7 @@ Line format (ASCII, CR LF terminated):
 `x`, `y` in metres (3 decimals), `theta` in radians (4 decimals, REP-103, (-pi, pi]); the
 three are empty while there is no pose. `mode` is identifying | landmark | dead_reckoning |
 lost. `CS` is the NMEA checksum: the XOR of every byte between `$` and `*`, two uppercase hex
-digits. Example: `$IRLOC,r1,1500000000,1.234,-0.500,0.7854,landmark*5C`.
+digits (framing in `line_framing`). Example: `$IRLOC,r1,1500000000,1.234,-0.500,0.7854,landmark*5C`.
 """
 
 from __future__ import annotations
@@ -18,24 +18,18 @@ from typing import IO, Any
 
 from server.bus import Subscription
 from server.poses import PoseUpdate
+from server.site.line_framing import frame_line, nmea_checksum, unframe_line
+
+__all__ = ["SerialSink", "nmea_checksum", "parse_pose_line", "pose_line"]
 
 log = logging.getLogger(__name__)
-
-
-def nmea_checksum(body: str) -> str:
-    """XOR of the bytes of `body` (the text between `$` and `*`), two hex digits."""
-    cs = 0
-    for b in body.encode("ascii"):
-        cs ^= b
-    return f"{cs:02X}"
 
 
 def pose_line(upd: PoseUpdate) -> str:
     """The line for one pose, with checksum and CR LF."""
     has = upd.x is not None and upd.y is not None and upd.theta is not None
     xyz = f"{upd.x:.3f},{upd.y:.3f},{upd.theta:.4f}" if has else ",,"
-    body = f"IRLOC,{upd.robot},{upd.t_ns},{xyz},{upd.mode}"
-    return f"${body}*{nmea_checksum(body)}\r\n"
+    return frame_line(f"IRLOC,{upd.robot},{upd.t_ns},{xyz},{upd.mode}")
 
 
 def parse_pose_line(line: str) -> dict[str, Any]:
@@ -44,13 +38,7 @@ def parse_pose_line(line: str) -> dict[str, Any]:
     Raises:
         ValueError: a malformed line or a wrong checksum, naming what is wrong.
     """
-    text = line.strip()
-    if not text.startswith("$") or "*" not in text:
-        raise ValueError(f"pose line {line!r}: expected '$...*CS'")
-    body, _, cs = text[1:].rpartition("*")
-    if nmea_checksum(body) != cs.upper():
-        raise ValueError(f"pose line {line!r}: checksum {cs} != {nmea_checksum(body)}")
-    parts = body.split(",")
+    parts = unframe_line(line, "pose line")
     if len(parts) != 7 or parts[0] != "IRLOC":
         raise ValueError(f"pose line {line!r}: expected 7 fields starting with IRLOC")
     _, robot, t_ns, x, y, theta, mode = parts

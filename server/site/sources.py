@@ -56,14 +56,24 @@ class CameraSource:
         target: int | str = int(self.device) if self.device.isdigit() else self.device
         cap = cv2.VideoCapture(target)
         if not cap.isOpened():
-            log.error("robot %s: cannot open camera %r", self.runner.name, self.device)
+            log.error(
+                "robot %s: cannot open camera %r",
+                self.runner.name,
+                self.device,
+                extra={"robot": self.runner.name},
+            )
             return
         is_file = isinstance(target, str)
         try:
             while not self._stop.is_set():
                 ok, frame = cap.read()
                 if not ok:
-                    log.info("robot %s: camera %r ended", self.runner.name, self.device)
+                    log.info(
+                        "robot %s: camera %r ended",
+                        self.runner.name,
+                        self.device,
+                        extra={"robot": self.runner.name},
+                    )
                     return
                 self.runner.handle(FrameObserved(self.clock_ns(), to_gray(frame)))
                 if is_file:

@@ -46,9 +46,16 @@ def start_api(data_dir: Path, **settings: object) -> Iterator[Api]:
 
 
 @pytest.fixture
-def api(tmp_path: Path) -> Iterator[Api]:
+def db_url(tmp_path: Path) -> str:
+    """The database of a test: a SQLite file in its temporary folder (tests/server/
+    test_postgres.py overrides this with a fresh PostgreSQL database)."""
+    return f"sqlite:///{tmp_path / 'irloc.db'}"
+
+
+@pytest.fixture
+def api(tmp_path: Path, db_url: str) -> Iterator[Api]:
     """The API without a live site (database, auth, map, streams)."""
-    yield from start_api(tmp_path, site_enabled=False)
+    yield from start_api(tmp_path, site_enabled=False, database_url=db_url)
 
 
 LM = {"id": 11, "x": 0.6, "y": 0.3, "z": 2.5, "radio": "0013A20041B2C3D4"}

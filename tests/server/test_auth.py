@@ -2,8 +2,13 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 
+from server import keys_cli
+from server.crud.keys import KeyStore
+from server.db import make_engine, migrate
 from tests.server.conftest import LM, Api
 
 # (method, path, body, lowest role allowed)
@@ -68,3 +73,42 @@ def test_keys_are_stored_hashed(api: Api) -> None:
     assert len(rows) == 3
     for key in api.keys.values():
         assert all(key not in (h, p) for h, p in rows)
+
+
+def test_last_use_is_recorded_at_most_once_a_minute_per_key(tmp_path: Path) -> None:
+    engine = make_engine(f"sqlite:///{tmp_path / 'keys.db'}")
+    migrate(engine)
+    now = [1000.0]
+    store = KeyStore(engine, clock=lambda: now[0])
+    key, rec = store.create("viewer", "k")
+    other, _ = store.create("operator", "o")
+    assert rec.last_used_at is None
+    for t in (1000.0, 1010.0, 1059.9):  # one write for the first minute
+        now[0] = t
+        assert store.role_of(key) == (rec.id, "viewer")
+    first = store.list()[0].last_used_at
+    assert store.touches == 1 and first is not None
+    store.role_of(other)  # another key has its own minute
+    now[0] = 1060.0
+    store.role_of(key)
+    listed = {k.id: k.last_used_at for k in store.list()}
+    second = listed[rec.id]
+    assert store.touches == 3 and second is not None and second >= first
+    assert store.role_of("irloc_unknown") is None and store.touches == 3
+    store.close()
+    engine.dispose()
+
+
+def test_admin_api_and_cli_show_last_use(
+    api: Api, db_url: str, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setenv("IRLOC_DATABASE_URL", db_url)  # the CLI reads the same database
+    api.client.get("/api/v1/landmarks", headers=api.h("viewer"))
+    keys = api.client.get("/api/v1/keys", headers=api.h("admin")).json()
+    used = {k["name"]: k["last_used_at"] for k in keys}
+    assert used["test viewer"] is not None and used["test operator"] is None
+    assert keys_cli.main(["list", "--data-dir", str(api.services.settings.data_dir)]) == 0
+    rows = [line.split("\t") for line in capsys.readouterr().out.splitlines()]
+    assert rows[0][5] == "last used (UTC)"
+    by_name = {r[6]: r[5] for r in rows[1:]}
+    assert by_name["test operator"] == "never" and by_name["test viewer"][:2] == "20"

@@ -123,3 +123,8 @@ def test_kill_9_loses_no_acknowledged_map_change(tmp_path: Path) -> None:
             proc2.wait(20)
         except subprocess.TimeoutExpired:
             proc2.kill()
+    # a graceful stop (uvicorn re-raises SIGTERM after its shutdown, hence -15): every LED
+    # left on, the database closed (the last connection checkpointed and removed the WAL)
+    assert proc2.returncode in (0, -signal.SIGTERM), "".join(lines2)
+    assert "could not leave every LED on" not in "".join(lines2)
+    assert not (tmp_path / "irloc.db-wal").exists()

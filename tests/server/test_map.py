@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from tests.server.conftest import Api
 
-MAP = {
+MAP: dict[str, list[dict[str, Any]]] = {
     "landmarks": [
         {"id": 11, "x": 0.6, "y": 0.3, "z": 2.5, "radio": "0013A20041B2C3D4"},
         {"id": 12, "x": 1.35, "y": 0.3, "z": 2.48, "locked": True, "note": "by the door"},
@@ -15,7 +17,7 @@ MAP = {
 }
 
 
-def _xyz(doc: dict) -> np.ndarray:
+def _xyz(doc: dict[str, Any]) -> np.ndarray:
     return np.array([[lm["id"], lm["x"], lm["y"], lm["z"]] for lm in doc["landmarks"]])
 
 

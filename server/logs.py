@@ -1,0 +1,68 @@
+"""Log output of `irloc serve`: human-readable lines (default) or one JSON object a line.
+
+JSON lines carry `time` (UTC, ISO 8601, milliseconds), `level`, `logger`, `message`, the
+fields given with `extra=` (e.g. `log.warning("...", extra={"robot": "r1"})` gives
+`"robot": "r1"`; `robot`, `landmark`, `port` are the ones the server uses) and `exc` (the
+traceback) when there is one. Everything, uvicorn's own logs included, goes to stderr.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import sys
+from datetime import UTC, datetime
+from typing import IO, Any, Literal
+
+LogFormat = Literal["text", "json"]
+TEXT_FORMAT = "%(asctime)s %(levelname)s %(name)s: %(message)s"
+_STANDARD = set(vars(logging.LogRecord("", 0, "", 0, "", None, None))) | {
+    "message",
+    "asctime",
+    "color_message",  # uvicorn's copy of the message with terminal colours
+}
+QUIET = {"alembic.runtime.plugins": logging.WARNING}
+"""Loggers too chatty at info (alembic lists its plugins at every start)."""
+
+
+class JsonFormatter(logging.Formatter):
+    """One JSON object per record (no newlines inside: tracebacks are escaped)."""
+
+    def format(self, record: logging.LogRecord) -> str:
+        out: dict[str, Any] = {
+            "time": datetime.fromtimestamp(record.created, UTC).isoformat(timespec="milliseconds"),
+            "level": record.levelname,
+            "logger": record.name,
+            "message": record.getMessage(),
+        }
+        for key, value in vars(record).items():
+            if key not in _STANDARD and not key.startswith("_") and key not in out:
+                out[key] = value
+        if record.exc_info:
+            out["exc"] = self.formatException(record.exc_info)
+        elif record.exc_text:
+            out["exc"] = record.exc_text
+        return json.dumps(out, default=str, ensure_ascii=False)
+
+
+def configure_logging(
+    level: str = "info", fmt: LogFormat = "text", stream: IO[str] | None = None
+) -> logging.Handler:
+    """Send every log record of at least `level` to `stream` (stderr) in format `fmt`;
+    replaces the root logger's handlers and makes uvicorn's loggers use them."""
+    if fmt not in ("text", "json"):
+        raise ValueError(f"log format: expected 'text' or 'json', got {fmt!r}")
+    handler = logging.StreamHandler(stream or sys.stderr)
+    handler.setFormatter(JsonFormatter() if fmt == "json" else logging.Formatter(TEXT_FORMAT))
+    root = logging.getLogger()
+    for old in list(root.handlers):
+        root.removeHandler(old)
+    root.addHandler(handler)
+    root.setLevel(level.upper())
+    for name, quiet_level in QUIET.items():
+        logging.getLogger(name).setLevel(quiet_level)
+    for name in ("uvicorn", "uvicorn.error", "uvicorn.access"):
+        lg = logging.getLogger(name)
+        lg.handlers.clear()
+        lg.propagate = True
+    return handler
