@@ -441,6 +441,7 @@ class Localizer:
             return memo[2]
         lit = self._lit or frozenset()
         rows = np.array([self.map.index_of(i) for i in sorted(lit) if i in self.map], np.int64)
+        rows.setflags(write=False)
         self._lit_rows_memo = (self._lit, self.map, rows)
         return rows
 
