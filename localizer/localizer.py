@@ -441,6 +441,7 @@ class Localizer:
             return memo[3]
         lit = (self._identifier.all_lit if self._lit is None else self._lit) - self._changing
         rows = np.array([self.map.index_of(i) for i in sorted(lit) if i in self.map], np.int64)
+        rows.setflags(write=False)
         self._lit_rows_memo = (self._lit, self._changing, self.map, rows)
         return rows
 

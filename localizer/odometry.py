@@ -11,6 +11,7 @@ arrays (vectorised).
 from __future__ import annotations
 
 import math
+from typing import overload
 
 import numpy as np
 import numpy.typing as npt
@@ -37,6 +38,26 @@ def odometry_increments(
     return 0.5 * (v_left + v_right) * dt, (v_right - v_left) / wheel_base * dt
 
 
+@overload
+def integrate_odometry(
+    x: float,
+    y: float,
+    theta: float,
+    v_left: float,
+    v_right: float,
+    dt: float,
+    wheel_base: float,
+) -> tuple[float, float, float]: ...
+@overload
+def integrate_odometry(
+    x: Scalar,
+    y: Scalar,
+    theta: Scalar,
+    v_left: Scalar,
+    v_right: Scalar,
+    dt: Scalar,
+    wheel_base: Scalar,
+) -> tuple[Scalar, Scalar, Scalar]: ...
 def integrate_odometry(
     x: Scalar,
     y: Scalar,
@@ -66,6 +87,26 @@ def integrate_odometry(
     return x + dT * np.cos(heading), y + dT * np.sin(heading), wrap_angle(theta + dR)
 
 
+@overload
+def integrate_arc(
+    x: float,
+    y: float,
+    theta: float,
+    v_left: float,
+    v_right: float,
+    dt: float,
+    wheel_base: float,
+) -> tuple[float, float, float]: ...
+@overload
+def integrate_arc(
+    x: Scalar,
+    y: Scalar,
+    theta: Scalar,
+    v_left: Scalar,
+    v_right: Scalar,
+    dt: Scalar,
+    wheel_base: Scalar,
+) -> tuple[Scalar, Scalar, Scalar]: ...
 def integrate_arc(
     x: Scalar,
     y: Scalar,

@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import csv
+import io
 import math
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -12,7 +14,7 @@ import pytest
 from localizer.events import LedsChanged
 from localizer.geometry import T_world_body_from_pose
 from localizer.robot import RobotGeometry
-from recording.replay_cli import HEADER, main
+from recording.replay_cli import HEADER, main, replay
 from recording.writer import RecordingWriter
 from sim.cameras import wide_angle_camera
 from sim.render import render_frame
@@ -167,3 +169,14 @@ def test_replay_of_a_simulated_scenario_end_to_end(tmp_path: Path) -> None:
         np.array([float(r["y"]) for r in rows]) - np.interp(t, t_gt, gt[:, 1]),
     )
     assert np.percentile(err, 95) < 0.10
+
+
+def test_decoding_threads_do_not_change_the_output(recording: Path) -> None:
+    switch = sys.getswitchinterval()
+    outs = []
+    for threads in (1, 3):
+        buf = io.StringIO()
+        assert replay(recording, buf, threads=threads) == (60, 0)
+        outs.append(buf.getvalue())
+    assert outs[0] == outs[1]
+    assert sys.getswitchinterval() == switch  # restored after the replay
