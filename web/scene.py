@@ -78,10 +78,12 @@ def set_segments(handle: viser.LineSegmentsHandle, segments: FloatArray, color: 
 
 
 def landmark_label(lm: LandmarkState) -> str:
-    """The text next to a landmark: its ID, and "unreachable" or "(surveyed)"."""
+    """The text next to a landmark: its ID, and "unreachable", "doubted", "(surveyed)"."""
     text = str(lm.id)
     if not lm.reachable:
         text += " unreachable"
+    elif lm.doubted:
+        text += " doubted"
     if lm.locked:
         text += " (surveyed)"
     return text
@@ -153,8 +155,6 @@ class SiteScene:
         r = self.config.landmark_radius_m
         seen_ids = set()
         for lm in landmarks:
-            if not lm.position_known:
-                continue
             seen_ids.add(lm.id)
             state = (lm, lm.id in lit)
             if self._landmarks.get(lm.id) == state:
@@ -281,4 +281,4 @@ def draw_coverage(
 
 def landmark_rgb(lm: LandmarkState) -> RGB:
     """The colour `SiteScene` gives a landmark (for panels and tests)."""
-    return landmark_color(lm.percent, reachable=lm.reachable, seen=lm.seen)
+    return landmark_color(lm.percent, reachable=lm.reachable, doubted=lm.doubted)

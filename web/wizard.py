@@ -1,11 +1,14 @@
 """The one-at-a-time LED identification wizard (the logic; `web.panels.wizard` is its GUI).
 
-For each landmark to identify it darkens the others and lights that one alone, takes the
-chosen robot's next camera frame, finds the spot and, when the robot is localized, computes
-the landmark's position on the ceiling: the spot's ray from the camera, placed by the
-robot's pose, intersected with the LED's height (`web.geometry.landmark_from_spot`). Staff
-confirm (saved through the site's data layer and audit log), skip, retry or type the
-position by hand. Cancelling, or finishing, restores every LED to its state before the start.
+It steps through candidates (`web.services.Candidate`): landmarks of the map (doubted, or
+named by staff) and new radios from discovery. For each one it darkens the others and lights
+that one alone, takes the chosen robot's next camera frame, finds the spot and, when the
+robot is localized, computes the landmark's position on the ceiling: the spot's ray from the
+camera, placed by the robot's own estimate for that frame, intersected with the LED's height
+(`web.geometry.landmark_from_spot`). Staff confirm (a landmark is moved, a new radio becomes
+a landmark with that position and its address; both through the site's data layer and audit
+log), skip, retry or type the position by hand. Cancelling, or finishing, restores every LED
+to its state before the start (radios from discovery are left lit, as landmarks are kept).
 
 Methods are called from viser's callback threads: one lock serialises them. Waiting for the
 radio and for a fresh frame happens in the caller's thread.
@@ -24,7 +27,7 @@ import numpy as np
 import numpy.typing as npt
 
 from web.geometry import landmark_from_spot
-from web.services import CameraView, LandmarkState, ViewerSite
+from web.services import CameraView, Candidate, LandmarkState, ViewerSite
 
 Phase = Literal["idle", "measured", "done", "cancelled"]
 
@@ -76,7 +79,7 @@ class WizardState:
     """Where the wizard stands (a copy is handed to the GUI)."""
 
     phase: Phase = "idle"
-    queue: list[int] = field(default_factory=list)
+    queue: list[Candidate] = field(default_factory=list)
     index: int = 0
     robot: str = ""
     measurement: Measurement | None = None
@@ -84,8 +87,15 @@ class WizardState:
     skipped: list[int] = field(default_factory=list)
 
     @property
-    def current(self) -> int | None:
+    def candidate(self) -> Candidate | None:
+        """What is lit alone now."""
         return self.queue[self.index] if self.phase == "measured" else None
+
+    @property
+    def current(self) -> int | None:
+        """The landmark ID lit alone now (for a new radio: the ID it will get)."""
+        c = self.candidate
+        return None if c is None else c.landmark_id
 
     @property
     def progress(self) -> float:
@@ -102,6 +112,7 @@ class IdentificationWizard:
         self._lock = threading.RLock()
         self._state = WizardState()
         self._previous_lit: frozenset[int] | None = None
+        self._radio_lit: str | None = None  # a new radio this wizard lit
         self._snapshot = WizardState()
 
     @property
@@ -120,24 +131,36 @@ class IdentificationWizard:
     def active(self) -> bool:
         return self.state.phase == "measured"
 
-    def start(self, robot: str, landmark_ids: Sequence[int], *, actor: str) -> Measurement:
-        """Remember the LEDs, then light the first landmark alone and measure it.
+    def start(
+        self, robot: str, candidates: Sequence[Candidate | int], *, actor: str
+    ) -> Measurement:
+        """Remember the LEDs, darken the new radios, then light the first candidate alone
+        and measure it. Plain IDs are landmarks of the map.
 
         Raises:
-            ValueError: when already running, the queue is empty, or the robot is unknown.
+            ValueError: when already running, the queue is empty, the robot is unknown, or a
+                new radio does not answer (the LEDs are then restored).
         """
         with self._lock:
             if self._state.phase == "measured":
                 raise ValueError("the identification wizard is already running")
-            if not landmark_ids:
+            queue = [c if isinstance(c, Candidate) else Candidate(int(c)) for c in candidates]
+            if not queue:
                 raise ValueError("nothing to identify")
             if robot not in {r.name for r in self.site.robots()}:
                 raise ValueError(f"unknown robot {robot!r}")
             self._previous_lit = self.site.lit()
             self.site.hold_leds(True)
-            self._state = WizardState(phase="measured", queue=list(landmark_ids), robot=robot)
+            self._state = WizardState(phase="measured", queue=queue, robot=robot)
             try:
+                for c in queue:  # unmapped LEDs would be stray spots in every frame
+                    if c.radio is not None:
+                        self.site.set_radio_led(c.radio, False, actor=actor)
                 return self._measure(actor)
+            except Exception:
+                self._state.phase = "cancelled"
+                self._restore(actor)
+                raise
             finally:
                 self._publish()
 
@@ -167,9 +190,14 @@ class IdentificationWizard:
                 if m is None or m.position is None:
                     raise ValueError("no measured position to save: retry or type it by hand")
                 p = m.position
-            lid = self._state.queue[self._state.index]
-            self.site.update_landmark(lid, actor=actor, x=float(p[0]), y=float(p[1]), z=float(p[2]))
-            self._state.saved.append(lid)
+            c = self._state.queue[self._state.index]
+            x, y, z = float(p[0]), float(p[1]), float(p[2])
+            if c.radio is None:
+                self.site.update_landmark(c.landmark_id, actor=actor, x=x, y=y, z=z)
+            else:
+                self.site.add_landmark(c.landmark_id, x, y, z, actor=actor, radio=c.radio)
+                self._radio_lit = None  # a landmark now: the site switches it
+            self._state.saved.append(c.landmark_id)
             try:
                 return self._advance(actor)
             finally:
@@ -179,7 +207,7 @@ class IdentificationWizard:
         """Leave the current landmark as it is and go to the next."""
         with self._lock:
             self._need_running()
-            self._state.skipped.append(self._state.queue[self._state.index])
+            self._state.skipped.append(self._state.queue[self._state.index].landmark_id)
             try:
                 return self._advance(actor)
             finally:
@@ -202,7 +230,7 @@ class IdentificationWizard:
         s = self._state
         if s.phase == "measured":
             s.phase = "cancelled"
-            self._previous_lit = None
+            self._previous_lit = self._radio_lit = None
             self.site.hold_leds(False)
             self._publish()
 
@@ -212,6 +240,7 @@ class IdentificationWizard:
             raise ValueError("the identification wizard is not running")
 
     def _advance(self, actor: str) -> Measurement | None:
+        self._darken_radio(actor)
         self._state.index += 1
         self._state.measurement = None
         if self._state.index >= len(self._state.queue):
@@ -221,23 +250,46 @@ class IdentificationWizard:
         return self._measure(actor)
 
     def _restore(self, actor: str) -> None:
+        s = self._state
         try:
             if self._previous_lit is not None:
-                self._set_leds(self._previous_lit, actor)
+                self._set_leds(self._relight(), actor)
+            for c in s.queue:
+                if c.radio is not None and c.landmark_id not in s.saved:
+                    self.site.set_radio_led(c.radio, True, actor=actor)
         finally:
-            self._previous_lit = None
+            self._previous_lit = self._radio_lit = None
             self.site.hold_leds(False)
 
-    def _robot_pose(self) -> tuple[tuple[float, float, float] | None, str]:
-        rb = next((r for r in self.site.robots() if r.name == self._state.robot), None)
-        if rb is None:
-            return None, f"robot {self._state.robot!r} is gone"
-        if rb.pose is None or rb.last_fix_t_ns is None:
-            return None, f"robot {rb.name} has no landmark fix"
-        age = (rb.now_ns - rb.last_fix_t_ns) * 1e-9
+    def _darken_radio(self, actor: str) -> None:
+        if self._radio_lit is not None:
+            self.site.set_radio_led(self._radio_lit, False, actor=actor)
+            self._radio_lit = None
+
+    def _relight(self) -> frozenset[int]:
+        """The LEDs to light for the robot to fix its pose (and at the end): those lit
+        before the start and the new landmarks saved since."""
+        s = self._state
+        created = {c.landmark_id for c in s.queue if c.is_new} & set(s.saved)
+        return (self._previous_lit or frozenset()) | created
+
+    def _robot_pose(self, t_ns: int) -> tuple[tuple[float, float, float] | None, str]:
+        """The robot's own estimate for its frame at `t_ns` (waits for the localizer)."""
+        name = self._state.robot
+        deadline = time.monotonic() + self.config.frame_timeout_s
+        at = self.site.pose_at(name, t_ns)
+        while at is None and time.monotonic() < deadline:
+            time.sleep(self.config.poll_s)
+            at = self.site.pose_at(name, t_ns)
+        if at is None:
+            return None, f"robot {name} has no pose for that frame"
+        if at.last_fix_t_ns is None:
+            return None, f"robot {name} has no landmark fix"
+        age = (t_ns - at.last_fix_t_ns) * 1e-9
         if age > self.config.max_fix_age_s:
-            return None, f"robot {rb.name}'s last landmark fix is {age:.1f} s old"
-        return (rb.pose.x, rb.pose.y, rb.pose.theta), ""
+            return None, f"robot {name}'s last landmark fix is {age:.1f} s old"
+        p = at.pose
+        return (p.x, p.y, p.theta), ""
 
     def _wait_frame(self, after_ns: int) -> CameraView | None:
         deadline = time.monotonic() + self.config.frame_timeout_s
@@ -261,17 +313,23 @@ class IdentificationWizard:
         return 0 if rb is None else rb.now_ns
 
     def _measure(self, actor: str) -> Measurement:
-        lid = self._state.queue[self._state.index]
+        c = self._state.queue[self._state.index]
+        lid = c.landmark_id
         landmarks = {lm.id: lm for lm in self.site.landmarks()}
-        if self._previous_lit is not None and self.site.lit() != self._previous_lit:
+        self._darken_radio(actor)
+        relight = self._relight()
+        if self._previous_lit is not None and self.site.lit() != relight:
             # light the others again so that the robot fixes its pose from them
-            self._set_leds(self._previous_lit, actor)
+            self._set_leds(relight, actor)
             self._wait_fix(self._now_ns())
-        alone = frozenset({lid})
+        alone = frozenset() if c.radio is not None else frozenset({lid})
         view = None
         for _ in range(self.config.led_tries):
             if not self._set_leds(alone, actor):
                 break
+            if c.radio is not None and self._radio_lit is None:
+                self.site.set_radio_led(c.radio, True, actor=actor)
+                self._radio_lit = c.radio
             view = self._wait_frame(self._now_ns() + int(self.config.settle_s * 1e9))
             if self.site.lit() == alone:  # still alone after the frame: the frame is good
                 break
@@ -279,8 +337,9 @@ class IdentificationWizard:
         if view is None:
             why = f"could not keep landmark {lid} lit alone: retry"
             return self._keep(Measurement(lid, None, None, None, None, why))
-        pose, why = self._robot_pose()  # dead reckoning since the last fix, at this frame
-        m = measure_landmark(self.site, self._state.robot, lid, landmarks.get(lid), view, pose, why)
+        pose, why = self._robot_pose(view.t_ns)  # its estimate for this very frame
+        known = None if c.radio is not None else landmarks.get(lid)
+        m = measure_landmark(self.site, self._state.robot, lid, known, view, pose, why)
         return self._keep(m)
 
     def _keep(self, m: Measurement) -> Measurement:
@@ -319,7 +378,7 @@ def measure_landmark(
     extra = f" ({len(view.spots)} spots; the brightest is used)" if len(view.spots) > 1 else ""
     if pose is None:
         return Measurement(landmark_id, view, spot, None, None, why_no_pose + extra)
-    height = landmark.z if landmark is not None and landmark.position_known else None
+    height = landmark.z if landmark is not None else None
     if height is None or not math.isfinite(height):
         height = site.ceiling_height()
     cam = next(r.camera for r in site.robots() if r.name == robot)
@@ -327,7 +386,7 @@ def measure_landmark(
     if p is None:
         return Measurement(landmark_id, view, spot, None, pose, "the spot's ray misses the ceiling")
     text = f"landmark {landmark_id} at ({p[0]:.3f}, {p[1]:.3f}, {p[2]:.3f}) m{extra}"
-    if landmark is not None and landmark.position_known:
+    if landmark is not None:
         d = math.hypot(p[0] - landmark.x, p[1] - landmark.y)
         text += f", {100 * d:.1f} cm from the map"
     return Measurement(landmark_id, view, spot, p, pose, text)
