@@ -242,10 +242,11 @@ class Viewer:
         assert self.server is not None and self.scene is not None  # started
         robots = self.site.robots()
         lms = self.site.landmarks() if landmarks_due or panels_due else None
-        with self.server.atomic():
-            self.scene.update_robots(robots)
-            if landmarks_due and lms is not None:
-                self.scene.update_landmarks(lms, self.site.lit())
+        if self.scene.robots_changed(robots) or landmarks_due:  # else nothing to send
+            with self.server.atomic():
+                self.scene.update_robots(robots)
+                if landmarks_due and lms is not None:
+                    self.scene.update_landmarks(lms, self.site.lit())
         if panels_due and lms is not None:
             self.history.add(robots)
             events = self.site.events(self.config.event_limit)

@@ -46,10 +46,17 @@ def test_scene_holds_every_landmark_and_robot(site_viewer: tuple[MemSite, Viewer
     assert scene.landmark_ids() == sorted(site.truth)
     h = viewer.server.scene.get_handle_by_name("/landmarks/17")
     np.testing.assert_allclose(h.position, site.truth[17], atol=1e-6)
-    body = viewer.server.scene.get_handle_by_name("/robots/r1/body")
-    np.testing.assert_allclose(body.position, [1.5, 1.0, 0.125], atol=1e-6)
+    at = viewer.server.scene.get_handle_by_name("/robots/r1/position")
+    np.testing.assert_allclose(at.position, [1.5, 1.0, 0.0], atol=1e-6)
+    body = viewer.server.scene.get_handle_by_name("/robots/r1/position/body")
+    np.testing.assert_allclose(body.position, [0.0, 0.0, 0.125], atol=1e-6)
     np.testing.assert_allclose(body.wxyz, [math.cos(0.15), 0, 0, math.sin(0.15)], atol=1e-6)
-    foot = viewer.server.scene.get_handle_by_name("/robots/r1/body/footprint").points
+    ring = viewer.server.scene.get_handle_by_name("/robots/r1/position/ellipse").points
+    assert ring.shape == (24, 2, 3)  # around the robot: 3 sigma of sqrt(1e-4 m^2) = 3 cm
+    radii = np.hypot(ring[:, 0, 0], ring[:, 0, 1])
+    s_min = np.hypot(0.03, 0.02)  # with the 2 cm floor added in quadrature
+    assert radii.min() == pytest.approx(s_min, rel=1e-3)
+    foot = viewer.server.scene.get_handle_by_name("/robots/r1/position/body/footprint").points
     assert foot.shape == (24, 2, 3)  # 6 border pixels per edge, closed
     np.testing.assert_allclose(foot[..., 2], 2.5 - 0.125, atol=1e-3)  # ceiling, body frame
     rays = viewer.server.scene.get_handle_by_name("/robots/r1/rays").points

@@ -1,39 +1,73 @@
-"""The identification wizard on the running virtual site (no browser)."""
+"""The identification wizard on the running virtual site (no browser): LEDs switched through
+the real gateway and simulated radio, frames rendered by the simulator, spots found by the
+real detector, the position computed from the robot's own localized pose, saved through the
+real data layer. The simulator's truth only checks the result."""
 
 from __future__ import annotations
+
+import time
+from typing import Any
 
 import numpy as np
 import pytest
 
 from server.models import LandmarkUpdate
 from tests.web.conftest import LiveSite
-from tests.web.truth import TruthPoseSite
 from web.adapter import SiteAdapter
 from web.wizard import IdentificationWizard
 
 pytestmark = pytest.mark.slow
 
 
-def nearest_landmarks(services, robot: str, n: int) -> list[int]:
+class LoggingAdapter(SiteAdapter):
+    """The real adapter, recording the LED states it asked for and saw."""
+
+    def __init__(self, services: Any) -> None:
+        super().__init__(services)
+        self.led_log: list[frozenset[int]] = []
+        self.lit_log: list[frozenset[int]] = []
+
+    def lit(self) -> frozenset[int]:
+        lit = super().lit()
+        self.lit_log.append(lit)
+        return lit
+
+    def set_leds(self, lit: frozenset[int], *, actor: str) -> None:
+        self.led_log.append(frozenset(lit))
+        super().set_leds(lit, actor=actor)
+
+
+def nearest_landmarks(services: Any, robot: str, n: int) -> list[int]:
     x, y, _ = services.sim.true_pose(robot)
-    lms = services.sim.world.landmarks.values()
-    reachable = [lm for lm in lms if lm.reachable]
-    reachable.sort(key=lambda lm: np.hypot(lm.p_true[0] - x, lm.p_true[1] - y))
-    return [int(lm.id) for lm in reachable[:n]]
+    lms = [lm for lm in services.sim.world.landmarks.values() if lm.reachable]
+    lms.sort(key=lambda lm: np.hypot(lm.p_true[0] - x, lm.p_true[1] - y))
+    return [int(lm.id) for lm in lms[:n]]
 
 
-# The live site keeps patrolling while the wizard runs: retried, and counted as a failure
-# only when it fails three times (see docs/viewer.md).
-@pytest.mark.flaky(reruns=2)
+def wait_localized(adapter: SiteAdapter, robot: str, timeout_s: float = 30.0) -> None:
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        rb = next(r for r in adapter.robots() if r.name == robot)
+        if rb.mode == "landmark":
+            return
+        time.sleep(0.1)
+    raise AssertionError(f"{robot} did not get a landmark fix in {timeout_s} s")
+
+
+def saved_error_m(services: Any, lid: int) -> float:
+    saved, truth = services.map.get(lid), services.sim.world.landmarks[lid].p_true
+    return float(np.hypot(saved.x - truth[0], saved.y - truth[1]))
+
+
 def test_wizard_lights_each_alone_in_the_virtual_site_and_saves_true_positions(
     live_site: LiveSite,
 ) -> None:
     services = live_site.services
     world = services.sim.world
-    adapter = SiteAdapter(services)
+    site = LoggingAdapter(services)
     try:
-        site = TruthPoseSite(adapter, services)
         robot = "r2"
+        wait_localized(site, robot)
         ids = nearest_landmarks(services, robot, 2)
         for lid in ids:  # doubted: 25 cm off in the map
             lm = services.map.get(lid)
@@ -49,10 +83,37 @@ def test_wizard_lights_each_alone_in_the_virtual_site_and_saves_true_positions(
         # restored to the state at the start (robots' own sweeps resume afterwards)
         assert site.led_log[-1] == site.lit_log[0]
         for lid in ids:
-            saved, truth = services.map.get(lid), world.landmarks[lid].p_true
-            err = np.hypot(saved.x - truth[0], saved.y - truth[1])
-            assert err < 0.02, f"landmark {lid}: saved {saved.x:.3f},{saved.y:.3f} truth {truth}"
+            assert saved_error_m(services, lid) < 0.02, services.map.get(lid)
         actions = [r.actor for r in services.map.audit(2)]
         assert actions == ["viewer:test", "viewer:test"]
     finally:
-        adapter.close()
+        site.close()
+
+
+def test_a_radio_missing_from_the_map_is_found_by_discovery_and_placed(
+    live_site: LiveSite,
+) -> None:
+    services = live_site.services
+    site = SiteAdapter(services)
+    try:
+        robot = "r2"
+        wait_localized(site, robot)
+        lid = nearest_landmarks(services, robot, 1)[0]
+        address = services.map.get(lid).radio
+        services.map.delete(lid, actor="test")  # its radio still answers
+        found = site.to_identify(discover=True)
+        new = [c for c in found if c.radio is not None]
+        assert [(c.landmark_id, c.radio) for c in new] == [(lid, address)]  # "LM<id>"
+        wiz = IdentificationWizard(site)
+        wait_localized(site, robot)
+        m = wiz.start(robot, new, actor="viewer:test")
+        assert services.sim.world.lit_ids() == {lid}  # the radio's LED, alone
+        assert m.position is not None, m.message
+        assert wiz.confirm(actor="viewer:test") is None
+        lm = services.map.get(lid)
+        assert lm.radio == address
+        assert saved_error_m(services, lid) < 0.02, lm
+        assert services.map.audit(1)[0].actor == "viewer:test"
+        assert lid in site.lit()  # a landmark like the others now
+    finally:
+        site.close()
