@@ -79,7 +79,7 @@ def test_scene_renders_with_every_landmark_of_the_map(browser: Any, live_site: L
         assert page.evaluate(f"() => {LANDMARKS_IN_SCENE}") == n_map
         for name in live_site.services.robots.names():
             page.wait_for_function(
-                f"() => !!window.__viserMutable.nodeRefFromName['/robots/{name}/body']",
+                f"() => !!window.__viserMutable.nodeRefFromName['/robots/{name}/position/body']",
                 timeout=30_000,
             )
         page.get_by_text("signed in as admin").wait_for(timeout=10_000)
@@ -107,16 +107,14 @@ def test_viewer_key_sees_but_cannot_edit(browser: Any, live_site: LiveSite) -> N
 def test_wizard_lights_the_landmark_alone_and_saves_its_true_position(
     browser: Any, live_site: LiveSite
 ) -> None:
-    """Through the browser's buttons. The wizard's robot pose is the simulator's truth
-    (`tests.web.truth.TruthPoseSite`): this checks the viewer, not the localizer."""
+    """Through the browser's buttons, on the live site: the position is computed from the
+    robot's own localized pose; the simulator's truth only checks it."""
     from server.models import LandmarkUpdate
-    from tests.web.truth import TruthPoseSite
+    from tests.web.test_wizard_live import wait_localized
 
     services = live_site.services
     world = services.sim.world
     viewer = live_site.app.state.viewer
-    inner = viewer.site
-    viewer.site = viewer.wizard.site = TruthPoseSite(inner, services)
     robot = "r2"
     page = open_viewer(browser, live_site, live_site.admin_key)
     try:
@@ -134,6 +132,7 @@ def test_wizard_lights_the_landmark_alone_and_saves_its_true_position(
         ids.fill(str(lid))
         ids.press("Enter")
         time.sleep(1.0)
+        wait_localized(viewer.site, robot)
         page.get_by_role("button", name="Start identification").click()
         deadline = time.monotonic() + 60
         while viewer.wizard.state.measurement is None and time.monotonic() < deadline:
@@ -151,4 +150,3 @@ def test_wizard_lights_the_landmark_alone_and_saves_its_true_position(
         assert err < 0.02, f"saved ({saved.x:.3f}, {saved.y:.3f}), truth {truth[:2]}"
     finally:
         page.close()
-        viewer.site = viewer.wizard.site = inner
