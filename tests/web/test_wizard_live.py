@@ -117,3 +117,26 @@ def test_a_radio_missing_from_the_map_is_found_by_discovery_and_placed(
         assert lid in site.lit()  # a landmark like the others now
     finally:
         site.close()
+
+
+def test_a_landmark_moved_in_the_map_becomes_doubted_and_is_offered(live_site: LiveSite) -> None:
+    services = live_site.services
+    site = SiteAdapter(services)
+    try:
+        robot = "r2"
+        wait_localized(site, robot)
+        lid = nearest_landmarks(services, robot, 1)[0]
+        before = services.map.get(lid)
+        services.map.update(lid, LandmarkUpdate(y=before.y + 0.3), actor="test")
+        deadline = time.monotonic() + 60.0
+        doubted: list[int] = []
+        while time.monotonic() < deadline and lid not in doubted:
+            time.sleep(0.5)
+            doubted = [lm.id for lm in site.landmarks() if lm.doubted]
+        assert lid in doubted, f"landmark {lid} not doubted; doubted: {doubted}"
+        offered = {c.landmark_id: c for c in site.to_identify()}
+        assert lid in offered and offered[lid].reason.startswith("doubted: expected in view")
+        services.map.update(lid, LandmarkUpdate(y=before.y), actor="test")  # back: forgotten
+        assert lid not in [lm.id for lm in site.landmarks() if lm.doubted]
+    finally:
+        site.close()
