@@ -38,6 +38,8 @@ class WizardConfig:
 
     Attributes:
         frame_timeout_s: how long to wait for a frame taken after the LED change, seconds.
+        fix_timeout_s: how long to wait for the robot to fix its pose from the other
+            landmarks once they are lit again, seconds.
         settle_s: a frame counts once taken this long after the radio confirmed the change.
         max_fix_age_s: the robot's last landmark fix must be this recent, seconds.
         poll_s: polling period while waiting for a frame, seconds.
@@ -46,6 +48,7 @@ class WizardConfig:
     """
 
     frame_timeout_s: float = 3.0
+    fix_timeout_s: float = 10.0
     settle_s: float = 0.05
     max_fix_age_s: float = 3.0
     poll_s: float = 0.03
@@ -301,7 +304,7 @@ class IdentificationWizard:
         return None
 
     def _wait_fix(self, after_ns: int) -> None:
-        deadline = time.monotonic() + self.config.frame_timeout_s
+        deadline = time.monotonic() + self.config.fix_timeout_s
         while time.monotonic() < deadline:
             rb = next((r for r in self.site.robots() if r.name == self._state.robot), None)
             if rb is None or (rb.last_fix_t_ns is not None and rb.last_fix_t_ns >= after_ns):
@@ -319,9 +322,12 @@ class IdentificationWizard:
         self._darken_radio(actor)
         relight = self._relight()
         if self._previous_lit is not None and self.site.lit() != relight:
-            # light the others again so that the robot fixes its pose from them
-            self._set_leds(relight, actor)
+            # light the others again so that the robot fixes its pose from them; its own
+            # LED requests (to identify them again) may reach the radio meanwhile
+            self.site.hold_leds(False)
+            self.site.set_leds(relight, actor=actor)  # once: not to fight a robot's sweep
             self._wait_fix(self._now_ns())
+            self.site.hold_leds(True)
         alone = frozenset() if c.radio is not None else frozenset({lid})
         view = None
         for _ in range(self.config.led_tries):
