@@ -111,7 +111,7 @@ class SiteAdapter:
                     continue
                 camera = cameras.get(upd.robot)
                 if camera is not None:
-                    self._doubt.observe(camera, pose, lit)
+                    self._doubt.observe(upd.robot, camera, pose, lit)
 
     def _battery_of(self, landmark_id: int) -> Any:
         now = time.monotonic()

@@ -1,7 +1,8 @@
 """Doubted landmarks: the ones localized robots expected to see but did not use.
 
 A landmark is *doubted* when, over its last `DoubtConfig.window` chances, the robots that
-should have used it rarely did. A chance is one pose update of a robot that
+should have used it rarely did. A chance is one pose update (at most one per robot every
+`min_interval_s`) of a robot that
 
 - is localized from landmarks (mode "landmark") with a small position error
   (1-sigma <= `max_sigma_m`) and used at least `min_others` other landmarks in that frame,
@@ -47,6 +48,8 @@ class DoubtConfig:
         max_sigma_m: ... and its 1-sigma position error was at most this, metres.
         margin_px: the LED must project at least this far inside the image border, pixels.
         moved_m: a map position change larger than this forgets the landmark's history, m.
+        min_interval_s: a robot's updates closer together than this are skipped, seconds
+            (its frames are highly correlated; this bounds the cost).
     """
 
     window: int = 120
@@ -56,6 +59,7 @@ class DoubtConfig:
     max_sigma_m: float = 0.05
     margin_px: float = 25.0
     moved_m: float = 0.001
+    min_interval_s: float = 0.1
 
 
 @dataclass(frozen=True)
@@ -100,6 +104,7 @@ class DoubtTracker:
         self.config = config or DoubtConfig()
         self._history: dict[int, deque[bool]] = {}
         self._where: dict[int, FloatArray] = {}
+        self._last_t_ns: dict[str, int] = {}
 
     def set_map(self, positions: Mapping[int, npt.ArrayLike]) -> None:
         """The map's landmark positions (id -> (3,)); moved or removed landmarks are forgotten."""
@@ -110,11 +115,17 @@ class DoubtTracker:
                 del self._history[lid]
         self._where = new
 
-    def observe(self, camera: CameraModel, pose: PoseEstimate, lit: Iterable[int]) -> None:
+    def observe(
+        self, robot: str, camera: CameraModel, pose: PoseEstimate, lit: Iterable[int]
+    ) -> None:
         """One robot's pose update (its camera and the LEDs lit at that frame)."""
         cfg = self.config
         if pose.mode != "landmark" or not self._where:
             return
+        last = self._last_t_ns.get(robot)
+        if last is not None and 0 <= pose.t_ns - last < cfg.min_interval_s * 1e9:
+            return
+        self._last_t_ns[robot] = pose.t_ns
         cov = np.asarray(pose.covariance, dtype=np.float64)
         if math.sqrt(max(0.0, float(cov[0, 0] + cov[1, 1]))) > cfg.max_sigma_m:
             return
