@@ -10,6 +10,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
 
 REPO = Path(__file__).resolve().parents[2]
@@ -64,3 +65,23 @@ def live_site(tmp_path_factory: pytest.TempPathFactory) -> Iterator[LiveSite]:
     finally:
         server.should_exit = True
         thread.join(timeout=30)
+
+
+def nearest_landmarks(services: Any, robot: str, n: int) -> list[int]:
+    """The `n` reachable landmarks nearest the robot's true position now (the truth only
+    picks which landmarks a test works on)."""
+    x, y, _ = services.sim.true_pose(robot)
+    lms = [lm for lm in services.sim.world.landmarks.values() if lm.reachable]
+    lms.sort(key=lambda lm: np.hypot(lm.p_true[0] - x, lm.p_true[1] - y))
+    return [int(lm.id) for lm in lms[:n]]
+
+
+def wait_localized(site: Any, robot: str, timeout_s: float = 30.0) -> None:
+    """Wait until the robot's localizer is in landmark mode (a `ViewerSite`'s view)."""
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        rb = next(r for r in site.robots() if r.name == robot)
+        if rb.mode == "landmark":
+            return
+        time.sleep(0.1)
+    raise AssertionError(f"{robot} did not get a landmark fix in {timeout_s} s")

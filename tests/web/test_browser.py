@@ -110,7 +110,7 @@ def test_wizard_lights_the_landmark_alone_and_saves_its_true_position(
     """Through the browser's buttons, on the live site: the position is computed from the
     robot's own localized pose; the simulator's truth only checks it."""
     from server.models import LandmarkUpdate
-    from tests.web.test_wizard_live import wait_localized
+    from tests.web.conftest import wait_localized
 
     services = live_site.services
     world = services.sim.world

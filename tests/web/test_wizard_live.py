@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from server.models import LandmarkUpdate
-from tests.web.conftest import LiveSite
+from tests.web.conftest import LiveSite, nearest_landmarks, wait_localized
 from web.adapter import SiteAdapter
 from web.wizard import IdentificationWizard
 
@@ -35,23 +35,6 @@ class LoggingAdapter(SiteAdapter):
     def set_leds(self, lit: frozenset[int], *, actor: str) -> None:
         self.led_log.append(frozenset(lit))
         super().set_leds(lit, actor=actor)
-
-
-def nearest_landmarks(services: Any, robot: str, n: int) -> list[int]:
-    x, y, _ = services.sim.true_pose(robot)
-    lms = [lm for lm in services.sim.world.landmarks.values() if lm.reachable]
-    lms.sort(key=lambda lm: np.hypot(lm.p_true[0] - x, lm.p_true[1] - y))
-    return [int(lm.id) for lm in lms[:n]]
-
-
-def wait_localized(adapter: SiteAdapter, robot: str, timeout_s: float = 30.0) -> None:
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        rb = next(r for r in adapter.robots() if r.name == robot)
-        if rb.mode == "landmark":
-            return
-        time.sleep(0.1)
-    raise AssertionError(f"{robot} did not get a landmark fix in {timeout_s} s")
 
 
 def saved_error_m(services: Any, lid: int) -> float:
