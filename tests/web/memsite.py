@@ -8,6 +8,7 @@ from __future__ import annotations
 import threading
 import time
 from dataclasses import replace
+from typing import Any
 
 import numpy as np
 
@@ -20,7 +21,11 @@ from web.services import CameraView, Candidate, EventLine, FramePose, LandmarkSt
 
 
 class MemSite:
-    def __init__(self, truth: dict[int, tuple[float, float, float]], poses: dict[str, tuple]):
+    def __init__(
+        self,
+        truth: dict[int, tuple[float, float, float]],
+        poses: dict[str, tuple[float, float, float]],
+    ) -> None:
         self.truth = {k: np.array(v, dtype=float) for k, v in truth.items()}
         self.map = {k: LandmarkState(k, *v) for k, v in truth.items()}
         self.radios: dict[str, np.ndarray] = {}  # address -> true position, not in the map
@@ -114,13 +119,20 @@ class MemSite:
         self.led_log.append(self._lit)
 
     def add_landmark(
-        self, landmark_id: int, x: float, y: float, z: float, *, actor: str, radio=None
-    ):
+        self,
+        landmark_id: int,
+        x: float,
+        y: float,
+        z: float,
+        *,
+        actor: str,
+        radio: str | None = None,
+    ) -> LandmarkState:
         with self.lock:
             if landmark_id in self.map:
                 raise ValueError(f"landmark {landmark_id} exists")
             lm = self.map[landmark_id] = LandmarkState(landmark_id, x, y, z, radio=radio)
-            if radio in self.radios:  # the radio is a landmark now: the site switches it
+            if radio is not None and radio in self.radios:  # a landmark now: the site switches it
                 self.truth[landmark_id] = self.radios.pop(radio)
                 if radio in self.radio_lit:
                     self.radio_lit.discard(radio)
@@ -128,7 +140,7 @@ class MemSite:
             self.audit.append((actor, "create", landmark_id, None, lm))
             return lm
 
-    def update_landmark(self, landmark_id: int, *, actor: str, **fields):
+    def update_landmark(self, landmark_id: int, *, actor: str, **fields: Any) -> LandmarkState:
         with self.lock:
             old = self.map[landmark_id]
             if old.locked and any(fields.get(k) is not None for k in "xyz"):

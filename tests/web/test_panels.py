@@ -90,7 +90,8 @@ def test_typed_targets_become_candidates() -> None:
 
 def test_nearest_landmark_within_radius() -> None:
     lms = grid_site().landmarks()
-    assert nearest_landmark(lms, np.array([1.1, 0.95, 2.5]), 0.25).id == 15
+    hit = nearest_landmark(lms, np.array([1.1, 0.95, 2.5]), 0.25)
+    assert hit is not None and hit.id == 15
     assert nearest_landmark(lms, np.array([1.5, 0.5, 2.5]), 0.25) is None
 
 

@@ -2,6 +2,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 from dataclasses import replace
+from typing import Any
 
 import numpy as np
 import pytest
@@ -18,6 +19,12 @@ def server() -> Iterator[viser.ViserServer]:
         yield s
     finally:
         s.stop()
+
+
+def node(server: viser.ViserServer, name: str) -> Any:
+    h = server.scene.get_handle_by_name(name)
+    assert h is not None, name
+    return h
 
 
 def test_trail_pieces_join_up_and_the_oldest_goes(server: viser.ViserServer) -> None:
@@ -44,12 +51,13 @@ def test_a_robot_is_only_redrawn_for_a_new_estimate(server: viser.ViserServer) -
     rb = robots[0]
     assert rb.pose is not None
     moved = replace(rb, pose=replace(rb.pose, t_ns=rb.pose.t_ns + 1, x=rb.pose.x + 0.5))
+    assert moved.pose is not None
     assert scene.robots_changed([moved, *robots[1:]])
     scene.update_robots([moved, *robots[1:]])
-    at = server.scene.get_handle_by_name(f"/robots/{rb.name}/position")
+    at = node(server, f"/robots/{rb.name}/position")
     np.testing.assert_allclose(at.position, [rb.pose.x + 0.5, rb.pose.y, 0.0])
     # the landmarks used did not change: the rays wait for every third update (10 Hz)
-    rays = server.scene.get_handle_by_name(f"/robots/{rb.name}/rays").points
+    rays = node(server, f"/robots/{rb.name}/rays").points
     c, s = np.cos(rb.pose.theta), np.sin(rb.pose.theta)
     t = rb.camera.T_body_camera[:3, 3]
     cam_x_before = rb.pose.x + c * t[0] - s * t[1]
@@ -57,5 +65,5 @@ def test_a_robot_is_only_redrawn_for_a_new_estimate(server: viser.ViserServer) -
     for k in range(2):  # the third update redraws them from the new position
         later = replace(moved, pose=replace(moved.pose, t_ns=moved.pose.t_ns + 1 + k))
         scene.update_robots([later, *robots[1:]])
-    rays = server.scene.get_handle_by_name(f"/robots/{rb.name}/rays").points
+    rays = node(server, f"/robots/{rb.name}/rays").points
     np.testing.assert_allclose(rays[:, 0, 0], cam_x_before + 0.5, atol=1e-5)
