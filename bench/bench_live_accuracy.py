@@ -1,10 +1,12 @@
-"""Live-site accuracy: run the demo site in-process (no HTTP) and print, every second, each
-robot's mode and its error against the simulator's truth; then a summary per robot and mode.
+"""Live-site accuracy: run the demo site in-process (no HTTP), compare every pose the robots
+publish with the simulator's truth at the pose's time, and print per robot: time to the first
+fix, share of frames per mode, and error percentiles in landmark and dead-reckoning mode.
 
     .venv/bin/python bench/bench_live_accuracy.py [SECONDS]
 
-This measures the multi-robot case that the offline replays do not: robots share the LEDs,
-and one robot's one-at-a-time identification sweep darkens the site for the others.
+This measures the multi-robot case that the offline replays do not: the robots share the
+LEDs, identify by darkening one landmark at a time while the others track, and learn from
+each other's probes.
 """
 
 from __future__ import annotations
@@ -17,6 +19,7 @@ import time
 
 import numpy as np
 
+from server.poses import PoseUpdate
 from server.services import SiteServices
 from server.settings import Settings
 
@@ -24,29 +27,67 @@ from server.settings import Settings
 async def run(duration_s: float) -> None:
     services = SiteServices(Settings(data_dir=tempfile.mkdtemp(), viewer_enabled=False))
     await services.start()
-    assert services.sim is not None
+    sim = services.sim
+    assert sim is not None
+    sub = services.subscribe_poses(maxsize=100_000)
+    updates: list[PoseUpdate] = []
+    truths: dict[tuple[str, int], tuple[float, float, float] | None] = {}
+    t_start = services.clock_ns()
+
+    async def collect() -> None:  # keep the truth of each frame before it is forgotten
+        while True:
+            for u in await sub.get_batch():
+                updates.append(u)
+                truths[(u.robot, u.t_ns)] = sim.true_pose_at(u.robot, u.t_ns)
+
+    task = asyncio.get_running_loop().create_task(collect())
     t0 = time.time()
-    errors: dict[tuple[str, str], list[float]] = collections.defaultdict(list)
     try:
         while time.time() - t0 < duration_s:
-            await asyncio.sleep(1.0)
-            line = [f"{time.time() - t0:5.1f} s"]
-            for r in services.robots.runners():
-                u = r.latest
-                if u is None or u.x is None or u.y is None:
-                    line.append(f"{r.name}: {r.mode}")
-                    continue
-                tx, ty, _ = services.sim.true_pose(r.name)
-                e = float(np.hypot(u.x - tx, u.y - ty))
-                errors[(r.name, u.mode)].append(e)
-                line.append(f"{r.name}: {u.mode:<14} {100 * e:7.1f} cm")
-            print(" | ".join(line), flush=True)
+            await asyncio.sleep(5.0)
+            modes = collections.Counter((u.robot, u.mode) for u in updates[-450:])
+            print(f"{time.time() - t0:5.1f} s  {dict(sorted(modes.items()))}", flush=True)
     finally:
+        task.cancel()
         await services.stop()
-    print("\nrobot  mode            samples  median cm  max cm")
-    for (name, mode), v in sorted(errors.items()):
-        a = np.array(v)
-        print(f"{name:<6} {mode:<15} {len(a):7d} {100 * np.median(a):10.1f} {100 * a.max():7.1f}")
+    report(updates, truths, t_start)
+
+
+def report(
+    updates: list[PoseUpdate],
+    truths: dict[tuple[str, int], tuple[float, float, float] | None],
+    t_start: int,
+) -> None:
+    by_robot: dict[str, list[PoseUpdate]] = collections.defaultdict(list)
+    for u in updates:
+        by_robot[u.robot].append(u)
+    print(
+        "\nrobot  frames  first fix s  landmark %  DR %  other %   p50 cm  p95 cm"
+        "  max cm (landmark)"
+        "   p95 cm (DR)"
+    )
+    for name, us in sorted(by_robot.items()):
+        err: dict[str, list[float]] = collections.defaultdict(list)
+        first = None
+        for u in us:
+            if u.x is None or u.y is None:
+                continue
+            if first is None:
+                first = (u.t_ns - t_start) * 1e-9
+            truth = truths.get((name, u.t_ns))
+            if truth is not None:
+                err[u.mode].append(100 * float(np.hypot(u.x - truth[0], u.y - truth[1])))
+        n = len(us)
+        modes = collections.Counter(u.mode for u in us)
+        lm = np.array(err.get("landmark", [np.nan]))
+        dr = np.array(err.get("dead_reckoning", [np.nan]))
+        other = n - modes["landmark"] - modes["dead_reckoning"]
+        print(
+            f"{name:<6} {n:6d} {first if first is not None else float('nan'):12.2f}"
+            f" {100 * modes['landmark'] / n:10.1f} {100 * modes['dead_reckoning'] / n:5.1f}"
+            f" {100 * other / n:8.1f} {np.percentile(lm, 50):8.2f} {np.percentile(lm, 95):7.2f}"
+            f" {np.max(lm):7.2f} {np.percentile(dr, 95):17.2f}"
+        )
 
 
 if __name__ == "__main__":

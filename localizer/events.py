@@ -57,11 +57,16 @@ class LedsChanged:
     Attributes:
         lit: IDs of the lit landmarks; all others are dark. Ignored when `all_lit`.
         all_lit: every landmark is lit (the normal tracking state).
+        changing: landmarks whose LED is being switched from `t_ns` on (a radio command
+            was sent, not yet confirmed): their state is unknown in frames taken until a
+            later `LedsChanged` no longer lists them. `lit` holds their last confirmed
+            state. A recording's `leds.csv` (exact switching times) has none.
     """
 
     t_ns: int
     lit: frozenset[int] = field(default_factory=frozenset)
     all_lit: bool = False
+    changing: frozenset[int] = field(default_factory=frozenset)
 
 
 @dataclass(frozen=True)
@@ -105,13 +110,20 @@ class NoPose:
 
 @dataclass(frozen=True)
 class LedRequest:
-    """The localizer asks its owner to light exactly `lit` (or every LED when `all_lit`).
+    """The localizer asks its owner to light exactly `lit`, or, when `all_lit`, every LED
+    but those in `dark` (a probe that darkens one landmark while the others stay lit for
+    the robots that track them).
 
     The owner answers with a `LedsChanged` once the radio confirms the change.
     """
 
     lit: frozenset[int] = field(default_factory=frozenset)
     all_lit: bool = False
+    dark: frozenset[int] = field(default_factory=frozenset)
+
+    def __post_init__(self) -> None:
+        if self.dark and not self.all_lit:
+            raise ValueError("LedRequest: `dark` only goes with all_lit=True")
 
 
 Output = PoseEstimate | NoPose | LedRequest

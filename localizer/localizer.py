@@ -94,6 +94,7 @@ class Localizer:
         self._mode: Mode = "identifying"
         self._latest: PoseEstimate | None = None
         self._lit: frozenset[int] | None = None  # None: all lit (or unknown)
+        self._changing: frozenset[int] = frozenset()  # LEDs being switched (state unknown)
         self._t_state: int | None = None
         self._speeds = (0.0, 0.0)
         self._t_odom: int | None = None
@@ -133,6 +134,9 @@ class Localizer:
         self._identifier = Identifier(
             self.config.identification,
             landmark_map.ids.tolist(),
+            positions=landmark_map.positions,
+            image_size=(self.camera.width, self.camera.height),
+            principal_point=(self.camera.cu, self.camera.cv),
             motion_px=self._motion_bound_px,
         )
         self._start_identification()
@@ -160,7 +164,8 @@ class Localizer:
             return []
         if isinstance(event, LedsChanged):
             self._lit = None if event.all_lit else frozenset(event.lit)
-            self._identifier.led_confirmed(event.t_ns, self._lit)
+            self._changing = frozenset(event.changing)
+            self._identifier.led_confirmed(event.t_ns, self._known_lit())
             return self._requests(event.t_ns)
         if isinstance(event, RelocalizeRequested):
             self._filter = None
@@ -238,7 +243,7 @@ class Localizer:
         used: tuple[int, ...] = ()
         if self._filter is None or self._mode in ("identifying", "lost"):
             spots = self._full_spots(e)
-            self._identifier.observe(t, self._lit, spots.pixels, spots.intensities)
+            self._identifier.observe(t, self._known_lit(), spots.pixels, spots.intensities)
             fix = self._fix_from_sightings(t)
             if fix is not None:
                 self._reset_filter(fix.x, fix.y, fix.theta, fix.covariance, t)
@@ -323,7 +328,7 @@ class Localizer:
             return ()
         state, cov = filt.state, filt.covariance[:3, :3]
         pose = (float(state[0]), float(state[1]), float(state[2]))
-        cand = None if self._lit is None else self._lit_rows()
+        cand = None if self._lit is None and not self._changing else self._lit_rows()
         sigma_xy = position_sigma_m(cov)
         pred = predict_landmarks(
             self.camera,
@@ -432,8 +437,16 @@ class Localizer:
         self._rejections = 0
         return ids
 
+    def _known_lit(self) -> frozenset[int] | None:
+        """The IDs lit now (every mapped one when all are lit); None while a switch is in
+        flight (the state is unknown)."""
+        if self._changing:
+            return None
+        return self._identifier.all_lit if self._lit is None else self._lit
+
     def _lit_rows(self) -> npt.NDArray[np.int64]:
-        lit = self._lit or frozenset()
+        """Rows of the landmarks surely lit (not being switched)."""
+        lit = (self._identifier.all_lit if self._lit is None else self._lit) - self._changing
         return np.array([self.map.index_of(i) for i in sorted(lit) if i in self.map], np.int64)
 
     # -- modes and outputs ---------------------------------------------------------------------
@@ -477,7 +490,7 @@ class Localizer:
         if req is None or req == self._last_request:
             return []
         self._last_request = req
-        if req.all_lit:
+        if req.all_lit and not req.dark and self._identifier.done:
             self._sweeping = False
         return [req]
 

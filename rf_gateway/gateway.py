@@ -94,6 +94,7 @@ class Gateway:
         self._unreachable: set[int] = set()
         self._sweep_lock = asyncio.Lock()
         self._leds_hub: Hub[LedsChanged] = Hub(self.config.subscriber_queue)
+        self._led_listeners: list[Callable[[LedsChanged], None]] = []
         self._events_hub: Hub[GatewayEvent] = Hub(self.config.subscriber_queue)
         self._last_leds: LedsChanged | None = None
         self._battery_task: asyncio.Task[None] | None = None
@@ -179,6 +180,16 @@ class Gateway:
     def subscribe(self) -> Subscription[LedsChanged]:
         """LED state events for one consumer; the current state (if any) comes first."""
         return self._leds_hub.subscribe(self._last_leds)
+
+    def add_led_listener(self, listener: Callable[[LedsChanged], None]) -> None:
+        """Call `listener` with every LED state synchronously, as it is published (before
+        any radio command of an announced change is sent): for consumers that must know
+        of a change before the LEDs can switch, such as the robots' localizers."""
+        self._led_listeners.append(listener)
+
+    def remove_led_listener(self, listener: Callable[[LedsChanged], None]) -> None:
+        with contextlib.suppress(ValueError):
+            self._led_listeners.remove(listener)
 
     def subscribe_events(self) -> Subscription[GatewayEvent]:
         """Gateway events: unreachable/reachable landmarks, low battery, transport state."""
@@ -268,6 +279,8 @@ class Gateway:
             waits.append((lid, fut))
             if not pending:
                 self._syncers[lid] = loop.create_task(self._sync_led(lid))
+        if waits:
+            self._publish_state(announce=True)  # these LEDs are unknown until confirmed
         results = await asyncio.gather(*(f for _, f in waits), return_exceptions=True)
         event = self._publish_state()
         errors = [r for r in results if isinstance(r, BaseException)]
@@ -275,16 +288,26 @@ class Gateway:
             raise errors[0]
         return event
 
-    def _publish_state(self) -> LedsChanged:
+    def _publish_state(self, *, announce: bool = False) -> LedsChanged:
+        """Publish the confirmed state, with the LEDs whose commands are in flight as
+        `changing`; stamped now when announcing commands about to be sent, else with the
+        last confirmation."""
         ids = set(self._addresses)
         lit = frozenset(lid for lid in ids if self._confirmed.get(lid, (False, 0, 0))[0])
+        changing = frozenset(self._syncers) & ids
         times = [c[2] for lid, c in self._confirmed.items() if lid in ids]
-        t_ns = max(times) if times else self.clock_ns()
+        t_ns = self.clock_ns() if announce or not times else max(times)
         if self._last_leds is not None:
             t_ns = max(t_ns, self._last_leds.t_ns)
-        event = LedsChanged(t_ns, all_lit=True) if ids and lit == ids else LedsChanged(t_ns, lit)
+        all_lit = bool(ids) and lit == ids
+        event = LedsChanged(t_ns, frozenset() if all_lit else lit, all_lit, changing)
         self._last_leds = event
         self.stats.published += 1
+        for listener in list(self._led_listeners):
+            try:
+                listener(event)
+            except Exception:
+                log.exception("LED listener failed")
         self._leds_hub.publish(event)
         return event
 

@@ -199,6 +199,14 @@ class SiteServices:
         self.map.get(landmark_id)
         return await self._gw().blink(landmark_id)
 
+    def hold_leds(self, held: bool) -> None:
+        """Hold the site's LEDs for a caller that switches them itself (the viewer's
+        identification wizard): the robots' own LED requests wait until released
+        (thread-safe; nothing to hold without a live site)."""
+        coordinator = getattr(self.site, "leds", None)
+        if coordinator is not None:
+            coordinator.hold(held)
+
     def lit(self) -> frozenset[int]:
         """IDs of the landmarks whose LED is confirmed lit now."""
         gw = self.gateway

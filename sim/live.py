@@ -7,6 +7,7 @@ Time: the first `step(t_ns)` fixes the site's start; every sample carries the ca
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -58,7 +59,12 @@ class LiveSite:
     """
 
     def __init__(
-        self, scenario: Scenario | str, *, seed: int | None = None, max_frame_lag_s: float = 0.2
+        self,
+        scenario: Scenario | str,
+        *,
+        seed: int | None = None,
+        max_frame_lag_s: float = 0.2,
+        clock_ns: Callable[[], int] | None = None,
     ) -> None:
         self.scenario = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
         sc = self.scenario
@@ -76,6 +82,18 @@ class LiveSite:
         self._t0_ns: int | None = None
         self._t_local_ns = 0
         self._max_lag_ns = round(max_frame_lag_s * 1e9)
+        self.truth_history = 1000
+        self._frame_truth: dict[str, dict[int, tuple[float, float, float]]] = {
+            name: {} for name in self._rigs
+        }
+        if clock_ns is not None:
+            # The radio switches LEDs between steps: log each switch at its own time, so
+            # that a frame shows the LEDs as they were at the frame's time.
+            self.world.led_clock_ns = lambda: self._site_time_ns(clock_ns())
+
+    def _site_time_ns(self, t_ns: int) -> int:
+        """A time of the caller's clock on the site's time (0 before the first step)."""
+        return 0 if self._t0_ns is None else t_ns - self._t0_ns
 
     @property
     def robot_names(self) -> list[str]:
@@ -103,11 +121,19 @@ class LiveSite:
         """The robot's true (x, y, theta) at the last stepped time."""
         return self.rig(name).robot.pose_at(self._t_local_ns)
 
-    def render(self, name: str, T_world_body: npt.NDArray[np.float64]) -> npt.NDArray[np.uint8]:
-        """The frame robot `name`'s true camera sees from a body pose, with the world now."""
+    def true_pose_at(self, name: str, t_ns: int) -> tuple[float, float, float] | None:
+        """The robot's true (x, y, theta) when it took its frame stamped `t_ns` (one of the
+        last `truth_history` frames), or None."""
+        return self._frame_truth[name].get(t_ns)
+
+    def render(
+        self, name: str, T_world_body: npt.NDArray[np.float64], *, t_ns: int | None = None
+    ) -> npt.NDArray[np.uint8]:
+        """The frame robot `name`'s true camera sees from a body pose, with the world now
+        (with the LEDs as they were at site time `t_ns` when given)."""
         cam = self.rig(name).camera_true
         p_cam = (T_world_body @ cam.T_body_camera)[:3, 3]
-        sources, intensities = self.world.point_sources(p_cam)
+        sources, intensities = self.world.point_sources(p_cam, t_ns=t_ns)
         return render_frame(
             cam, T_world_body, sources, intensities, rng=self._render_rng,
             config=self.scenario.render, extended=self.world.extended,
@@ -117,7 +143,8 @@ class LiveSite:
         """Advance robots, batteries and people to `t_ns`; the samples due, in time order.
 
         The first call only fixes the start time. Frames are rendered with the LEDs lit at
-        the moment of the call.
+        their own time when the site has a clock (`clock_ns`), else at the moment of the
+        call.
         """
         if self._t0_ns is None:
             self._t0_ns = t_ns
@@ -139,7 +166,11 @@ class LiveSite:
                 out.append(SensorSample(name, OdometryMeasured(t_out, item.v_left, item.v_right)))
             elif local - t_local <= self._max_lag_ns:
                 self.world.advance(t_local)
-                image = self.render(name, item.T_world_body)
+                image = self.render(name, item.T_world_body, t_ns=t_local)
+                truth = self._frame_truth[name]
+                truth[t_out] = item.pose
+                if len(truth) > self.truth_history:
+                    del truth[next(iter(truth))]
                 out.append(SensorSample(name, FrameObserved(t_out, image)))
         self.world.advance(local)
         self._t_local_ns = local

@@ -8,6 +8,8 @@ the simulated radio switches LEDs from another thread, so LED state sits behind 
 from __future__ import annotations
 
 import threading
+from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -132,8 +134,11 @@ class World:
     people: list[Person] = field(default_factory=list)
     t_ns: int = 0
     battery_step_s: float = 0.25
+    led_clock_ns: Callable[[], int] | None = None
+    led_log_s: float = 2.0
     _lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
     _battery_t_ns: int = 0
+    _led_log: deque[tuple[int, int, bool]] = field(default_factory=deque, repr=False)
 
     def __post_init__(self) -> None:
         self._battery_t_ns = self.t_ns
@@ -143,9 +148,28 @@ class World:
         return self._by_address.get(address.upper())
 
     def set_led(self, landmark_id: int, on: bool) -> None:
-        """Switch one landmark's LED pin (what a delivered radio command does)."""
+        """Switch one landmark's LED pin (what a delivered radio command does).
+
+        The switch is logged at `led_clock_ns()` (the world's time when there is no LED
+        clock), so a frame can be rendered with the LEDs as they were at its own time.
+        """
         with self._lock:
-            self.landmarks[landmark_id].led_on = on
+            lm = self.landmarks[landmark_id]
+            if lm.led_on != on:
+                t = self.led_clock_ns() if self.led_clock_ns is not None else self.t_ns
+                self._led_log.append((t, landmark_id, lm.led_on))
+            lm.led_on = on
+
+    def _lit_at(self, t_ns: int | None) -> dict[int, bool]:
+        """Each landmark's LED state at `t_ns` (now when None): the current state with the
+        logged switches after `t_ns` undone. Call with the lock held."""
+        state = {lid: lm.led_on for lid, lm in self.landmarks.items()}
+        if t_ns is not None:
+            for t, lid, before in reversed(self._led_log):
+                if t <= t_ns:
+                    break
+                state[lid] = before
+        return state
 
     def set_lit(self, lit: set[int] | None) -> None:
         """Light exactly `lit` (None: all) of the landmarks the radio reaches."""
@@ -166,6 +190,10 @@ class World:
         if t_ns <= self.t_ns:
             return
         self.t_ns = t_ns
+        horizon = t_ns - round(self.led_log_s * 1e9)
+        with self._lock:
+            while self._led_log and self._led_log[0][0] < horizon:
+                self._led_log.popleft()
         dt_s = (t_ns - self._battery_t_ns) * 1e-9
         if dt_s < self.battery_step_s:
             return
@@ -174,19 +202,25 @@ class World:
                 lm.battery.advance(dt_s, lm.led_on)
         self._battery_t_ns = t_ns
 
-    def point_sources(self, p_camera_world: FloatArray) -> tuple[FloatArray, FloatArray]:
+    def point_sources(
+        self, p_camera_world: FloatArray, *, t_ns: int | None = None
+    ) -> tuple[FloatArray, FloatArray]:
         """Lit point sources seen from a camera position (people block them).
 
         Args:
             p_camera_world: the camera's optical centre, metres, shape (3,).
+            t_ns: take the LEDs as they were at this time (on the LED clock, within the
+                last `led_log_s`); None: as they are now.
 
         Returns:
             (positions shape (N, 3), intensities shape (N,)), 1.0 = a nominal LED.
         """
         t_s = self.t_ns * 1e-9
         with self._lock:
-            pos = [lm.p_true for lm in self.landmarks.values() if lm.led_on]
-            inten = [lm.battery.led_brightness() for lm in self.landmarks.values() if lm.led_on]
+            on = self._lit_at(t_ns)
+            lit = [lm for lid, lm in self.landmarks.items() if on[lid]]
+            pos = [lm.p_true for lm in lit]
+            inten = [lm.battery.led_brightness() for lm in lit]
         for g in self.glints:
             if g.blink_period_s <= 0 or (t_s % g.blink_period_s) < g.blink_period_s / 2:
                 pos.append(np.asarray(g.p_world, dtype=np.float64))

@@ -132,7 +132,11 @@ class LiveSiteRunner:
         from sim.live import LiveSite
         from sim.scenario import load_scenario
 
-        return LiveSite(load_scenario(self.settings.scenario), seed=self.settings.seed)
+        return LiveSite(
+            load_scenario(self.settings.scenario),
+            seed=self.settings.seed,
+            clock_ns=self.services.clock_ns,
+        )
 
     def _sim_names(self) -> list[str]:
         return list(self.sim.robot_names) if self.sim is not None else []

@@ -1,4 +1,4 @@
-"""The LED coordinator: robots' `LedRequest`s go to the gateway one at a time, and every
+"""The LED coordinator: the robots' `LedRequest`s go to the gateway one at a time, and every
 confirmed `LedsChanged` goes to every robot's localizer."""
 
 from __future__ import annotations
@@ -6,9 +6,10 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import logging
+import threading
 from collections.abc import Callable, Iterable
 
-from localizer.events import LedRequest
+from localizer.events import LedRequest, LedsChanged
 from rf_gateway.errors import RfGatewayError
 from rf_gateway.gateway import Gateway
 from server.site.robot import RobotRunner
@@ -17,18 +18,25 @@ log = logging.getLogger(__name__)
 
 
 class LedCoordinator:
-    """Serialise the robots' LED requests (identification sweeps) on the server's loop.
+    """Share the site's LEDs between the robots' identifications (on the server's loop).
 
-    One robot at a time owns the LEDs for its identification sweep: its requests are applied
-    in order, one `set_leds` at a time, until it asks for all LEDs lit (the sweep's end) or
-    stays silent for `owner_timeout_s`. Meanwhile other robots' requests wait (only each
-    robot's latest is kept) and are served in arrival order afterwards. The gateway publishes
-    each confirmed state to every subscriber, so all robots see every sweep step.
+    Robots identify by darkening one landmark of the lit ceiling at a time, so the robots
+    that track go on with the others. Requests are applied one at a time in arrival order
+    (only each robot's latest is kept), and each LED state a robot asked for is held at least
+    `dwell_s` so that it gets the frames it needs. Every robot sees every state (the gateway
+    publishes each to all subscribers), so the identifying robots learn from each other's
+    probes. A state that is not "all lit" is never left behind: when no request came for
+    `idle_restore_s`, every LED is lit again.
+
+    While the LEDs are *held* (`hold(True)`, e.g. by the viewer's identification wizard,
+    which switches them itself), requests wait and nothing is restored.
 
     Args:
         gateway: the site's gateway.
         runners: returns the robots to inform of LED changes.
         on_error: called with (robot name, error message) when a request fails.
+        dwell_s: minimum time a requested state is held before the next is applied, s.
+        idle_restore_s: light everything after this long without requests, seconds.
     """
 
     def __init__(
@@ -37,28 +45,32 @@ class LedCoordinator:
         runners: Callable[[], Iterable[RobotRunner]],
         on_error: Callable[[str, str], None] | None = None,
         *,
-        owner_timeout_s: float = 2.0,
+        dwell_s: float = 0.12,
+        idle_restore_s: float = 1.5,
     ) -> None:
         self.gateway = gateway
         self.runners = runners
         self.on_error = on_error
+        self.dwell_s = dwell_s
+        self.idle_restore_s = idle_restore_s
         self.requests = 0
+        self.applied = 0
         self.failures = 0
-        self._queue: asyncio.Queue[tuple[str, LedRequest]] = asyncio.Queue()
+        self._pending: dict[str, LedRequest] = {}
+        self._wake = asyncio.Event()
         self._loop = asyncio.get_running_loop()
         self._tasks: list[asyncio.Task[None]] = []
-        self.owner_timeout_s = owner_timeout_s
-        self.owner: str | None = None
-        self._owner_seen = 0.0
-        self._deferred: dict[str, LedRequest] = {}
+        self._held = False
+        self._hold_lock = threading.Lock()
 
     def start(self) -> None:
-        self._tasks = [
-            self._loop.create_task(self._apply_loop()),
-            self._loop.create_task(self._forward_loop()),
-        ]
+        self.gateway.add_led_listener(self._forward)
+        self._tasks = [self._loop.create_task(self._apply_loop())]
+        if self.gateway.leds is not None:
+            self._forward(self.gateway.leds)
 
     async def stop(self) -> None:
+        self.gateway.remove_led_listener(self._forward)
         for task in self._tasks:
             task.cancel()
         for task in self._tasks:
@@ -68,43 +80,69 @@ class LedCoordinator:
 
     @property
     def waiting(self) -> int:
-        """Requests not yet applied (queued, and deferred while another robot sweeps)."""
-        return self._queue.qsize() + len(self._deferred)
+        """Requests not yet applied."""
+        return len(self._pending)
+
+    @property
+    def held(self) -> bool:
+        return self._held
 
     def request(self, robot: str, req: LedRequest) -> None:
         """Queue a robot's request (thread-safe, never blocks)."""
-        self._loop.call_soon_threadsafe(self._queue.put_nowait, (robot, req))
+        self._loop.call_soon_threadsafe(self._put, robot, req)
+
+    def hold(self, held: bool) -> None:
+        """Hold the LEDs for someone who switches them directly (thread-safe): robots'
+        requests wait until released."""
+        with self._hold_lock:
+            self._held = held
+        self._loop.call_soon_threadsafe(self._wake.set)
+
+    def _put(self, robot: str, req: LedRequest) -> None:
+        self.requests += 1
+        self._pending.pop(robot, None)  # latest wins, and goes to the back of the queue
+        self._pending[robot] = req
+        self._wake.set()
+
+    def _lit_for(self, req: LedRequest) -> set[int]:
+        if req.all_lit:
+            return set(self.gateway.landmarks) - set(req.dark)
+        return set(req.lit)
 
     async def _apply_loop(self) -> None:
+        all_lit = True
         while True:
-            timeout = None if self.owner is None else self.owner_timeout_s
-            try:
-                robot, req = await asyncio.wait_for(self._queue.get(), timeout)
-            except TimeoutError:
-                log.info("robot %s left the LEDs without ending its sweep", self.owner)
-                self.owner = None
-                await self._serve_deferred()
+            timeout = None if all_lit else self.idle_restore_s
+            self._wake.clear()
+            if not self._pending or self._held:
+                try:
+                    await asyncio.wait_for(self._wake.wait(), timeout)
+                except TimeoutError:
+                    if not self._held and not self._pending:
+                        log.info("no LED request for %.1f s: lighting every LED", timeout)
+                        all_lit = await self._apply("site", LedRequest(all_lit=True))
+                    continue
                 continue
-            if self.owner is not None and robot != self.owner:
-                if req.all_lit:
-                    self._deferred.pop(robot, None)  # all lit comes when the owner ends
-                else:
-                    self._deferred[robot] = req
+            robot = next(iter(self._pending))
+            req = self._pending.pop(robot)
+            lit = self._lit_for(req)
+            all_lit = lit == set(self.gateway.landmarks)
+            if self._current() == lit:
                 continue
-            await self._apply(robot, req)
-            await self._serve_deferred()
+            all_lit = await self._apply(robot, req)
+            if not all_lit:
+                await asyncio.sleep(self.dwell_s)
 
-    async def _serve_deferred(self) -> None:
-        while self.owner is None and self._deferred:
-            robot = next(iter(self._deferred))
-            await self._apply(robot, self._deferred.pop(robot))
+    def _current(self) -> set[int] | None:
+        state = self.gateway.leds
+        if state is None or state.changing:
+            return None
+        return set(self.gateway.landmarks) if state.all_lit else set(state.lit)
 
-    async def _apply(self, robot: str, req: LedRequest) -> None:
-        """Apply one request; the robot owns the LEDs until it asks for all lit."""
-        self.requests += 1
-        self.owner = None if req.all_lit else robot
-        self._owner_seen = self._loop.time()
-        lit = self.gateway.landmarks.keys() if req.all_lit else req.lit
+    async def _apply(self, robot: str, req: LedRequest) -> bool:
+        """Apply one request; True when every LED is now meant to be lit."""
+        lit = self._lit_for(req)
+        self.applied += 1
         try:
             await self.gateway.set_leds(lit)
         except (RfGatewayError, KeyError) as exc:
@@ -112,12 +150,10 @@ class LedCoordinator:
             log.warning("LED request of robot %s failed: %s", robot, exc)
             if self.on_error is not None:
                 self.on_error(robot, str(exc))
+        return lit == set(self.gateway.landmarks)
 
-    async def _forward_loop(self) -> None:
-        sub = self.gateway.subscribe()
-        try:
-            async for event in sub:
-                for runner in self.runners():
-                    runner.post(event)
-        finally:
-            sub.close()
+    def _forward(self, event: LedsChanged) -> None:
+        """Every LED state to every robot, synchronously as the gateway publishes it: an
+        announced change reaches the localizers before the LEDs can switch."""
+        for runner in self.runners():
+            runner.post(event)

@@ -98,8 +98,11 @@ def drive(
         t = t_ns * 1e-9
         outs: list[object] = []
         if pending is not None:
-            lit = set(ids) if pending.all_lit else set(pending.lit)
-            outs += loc.handle(LedsChanged(t_ns, frozenset(lit), all_lit=pending.all_lit))
+            lit = set(ids) - set(pending.dark) if pending.all_lit else set(pending.lit)
+            all_lit = lit == set(ids)
+            outs += loc.handle(
+                LedsChanged(t_ns, frozenset() if all_lit else frozenset(lit), all_lit)
+            )
             pending = None
         if kind == 0:
             a, b = trajectory(max(t - h, 0.0)), trajectory(t + h)

@@ -1,4 +1,5 @@
-"""One-at-a-time identification (Sec. III-A) from LED states and spots."""
+"""Identification (Sec. III-A) from LED switches and spots: the paper's one-lit sweep and
+darkening one landmark of a lit ceiling at a time."""
 
 from __future__ import annotations
 
@@ -13,6 +14,8 @@ STRAY = (100.0, 100.0)
 
 
 def _ident(**kw: object) -> Identifier:
+    """The paper's sweep (one LED lit at a time) unless `probe` is given."""
+    kw.setdefault("probe", "light_one")
     return Identifier(IdentificationConfig(**kw), [1, 2, 3], motion_px=lambda a, b: 0.0)  # type: ignore[arg-type]
 
 
@@ -138,3 +141,82 @@ def test_candidate_order_and_restart_after_all_tried() -> None:
 def test_config_validation() -> None:
     with pytest.raises(ValueError):
         IdentificationConfig(landmarks_needed=1)
+    with pytest.raises(ValueError, match="probe"):
+        IdentificationConfig(probe="all_at_once")  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match="dark"):
+        LedRequest(lit=frozenset({1}), dark=frozenset({2}))
+
+
+# -- darkening one landmark of a lit ceiling --------------------------------------------------
+ALL = {1, 2, 3}
+A, B, C = (200.0, 150.0, 500.0), (320.0, 260.0, 480.0), (420.0, 330.0, 510.0)
+
+
+def _dark_ident(**kw: object) -> Identifier:
+    return Identifier(
+        IdentificationConfig(probe="darken_one", **kw),  # type: ignore[arg-type]
+        [1, 2, 3],
+        positions=np.array([[0.0, 0.0, 2.5], [5.0, 0.0, 2.5], [0.6, 0.0, 2.5]]),
+        image_size=(640, 480),
+        motion_px=lambda a, b: 0.0,
+    )
+
+
+def test_darkened_landmark_is_identified_when_it_vanishes_and_comes_back() -> None:
+    ident = _dark_ident()
+    _obs(ident, 0, ALL, A, B, C, (*STRAY, 900.0))
+    # 1 darkened: A vanished. Against a lit ceiling one switch is not enough ...
+    assert _obs(ident, 33, ALL - {1}, B, C, (*STRAY, 900.0)) == []
+    assert [e.appeared for e in ident.evidence[1]] == [False]
+    # ... 1 relit and 2 darkened: A came back at the same place, B vanished.
+    new = _obs(ident, 66, ALL - {2}, A, C, (*STRAY, 900.0))
+    assert {s.landmark_id: s.pixel for s in new} == {1: A[:2]}
+    new = _obs(ident, 99, ALL, A, B, C, (*STRAY, 900.0))
+    assert {s.landmark_id: s.pixel for s in new} == {2: B[:2]}
+    assert ident.done
+
+
+def test_a_spot_that_vanished_elsewhere_is_not_confirmed() -> None:
+    ident = _dark_ident()
+    _obs(ident, 0, ALL, A, B)
+    _obs(ident, 33, ALL - {1}, B)  # A vanished (say, a person stepped under it)
+    _obs(ident, 66, ALL - {2}, (500.0, 100.0, 500.0))  # relit 1 shows up somewhere else
+    assert 1 not in ident.sightings
+
+
+def test_spots_at_the_border_or_ambiguous_changes_give_no_evidence() -> None:
+    ident = _dark_ident()
+    edge = (2.0, 240.0, 700.0)
+    _obs(ident, 0, ALL, A, B, edge)
+    _obs(ident, 33, ALL - {1}, A, B)  # only the spot at the border went: leaving the view
+    assert ident.evidence == {}
+    ident = _dark_ident()
+    _obs(ident, 0, ALL, A, B, C)
+    _obs(ident, 33, ALL - {2}, A)  # B and C (about as bright) both vanished: ambiguous
+    assert ident.evidence == {}
+
+
+def test_frames_with_a_switch_in_flight_are_not_used() -> None:
+    ident = _dark_ident()
+    _obs(ident, 0, ALL, A, B)
+    _obs(ident, 33, None, B)  # unknown state: A may or may not be switched yet
+    assert ident.evidence == {}
+
+
+def test_darken_requests_try_the_found_landmarks_neighbours_first() -> None:
+    ident = _dark_ident(frames_per_led=1)
+    _obs(ident, 0, ALL, A, C)
+    req = ident.next_request(1 * MS)
+    assert req == LedRequest(all_lit=True, dark=frozenset({1}))
+    ident.led_confirmed(2 * MS, frozenset(ALL - {1}))
+    _obs(ident, 33, ALL - {1}, C)  # landmark 1 shows itself
+    # Landmark 3 is 0.6 m from landmark 1, landmark 2 is 5 m away: 3 goes first.
+    assert ident.next_request(34 * MS) == LedRequest(all_lit=True, dark=frozenset({3}))
+    ident.led_confirmed(40 * MS, frozenset(ALL - {3}))
+    _obs(ident, 66, ALL - {3}, A)
+    assert set(ident.sightings) == {1}
+    assert ident.next_request(67 * MS) == LedRequest(all_lit=True, dark=frozenset({2}))
+    ident.led_confirmed(70 * MS, frozenset(ALL - {2}))
+    _obs(ident, 99, ALL - {2}, A, C)
+    assert set(ident.sightings) == {1, 3} and ident.done
+    assert ident.next_request(100 * MS) == LedRequest(all_lit=True)

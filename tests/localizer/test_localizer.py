@@ -58,7 +58,8 @@ def test_round_trip_parked_pose_is_recovered(lens: str, mount: str) -> None:
     assert np.std(err) < 0.001  # jitter
     assert run.modes()[-1] == "landmark"
     assert run.outputs[-1].landmark_ids == (1, 2, 3)
-    assert run.requests[0] == LedRequest(lit=frozenset())
+    # Live identification darkens one landmark at a time (the others stay lit).
+    assert run.requests[0] == LedRequest(all_lit=True, dark=frozenset({1}))
     assert run.requests[-1] == LedRequest(all_lit=True)
 
 
@@ -178,7 +179,7 @@ def test_relocalize_request_identifies_again() -> None:
     assert loc.mode == "landmark"
     outs = loc.handle(RelocalizeRequested(10**9))
     assert loc.mode == "identifying"
-    assert outs == [LedRequest(lit=frozenset())]
+    assert outs == [LedRequest(all_lit=True, dark=frozenset({1}))]
 
 
 def test_spots_observed_input_and_lost_when_the_map_disagrees() -> None:
@@ -205,8 +206,9 @@ def test_spots_observed_input_and_lost_when_the_map_disagrees() -> None:
             loc.handle(OdometryMeasured(t - 1, 0.0, 0.0))
             for o in loc.handle(spots(t, state["lit"], TRIANGLE)):
                 if isinstance(o, LedRequest):
-                    state["lit"] = [1, 2, 3] if o.all_lit else sorted(o.lit)
-                    loc.handle(LedsChanged(t + 1, o.lit, all_lit=o.all_lit))
+                    state["lit"] = sorted({1, 2, 3} - o.dark) if o.all_lit else sorted(o.lit)
+                    all_lit = o.all_lit and not o.dark
+                    loc.handle(LedsChanged(t + 1, frozenset(state["lit"]), all_lit=all_lit))
                 else:
                     modes.append(o.mode)
         return modes
@@ -217,7 +219,7 @@ def test_spots_observed_input_and_lost_when_the_map_disagrees() -> None:
     # The map is replaced by one shifted 0.5 m: the spots no longer agree -> lost.
     shifted = LandmarkMap(TRIANGLE.ids, TRIANGLE.positions + np.array([0.5, 0.0, 0.0]))
     loc.set_map(shifted)
-    seen = frames(40)
+    seen = frames(60)
     assert "lost" in seen
     assert seen[-1] == "landmark"
     assert loc.latest.x == pytest.approx(pose[0] + 0.5, abs=1e-3)

@@ -143,7 +143,8 @@ def run_gateway_sequence(
             await gw.close()
         events = []
         while (ev := sub.get_nowait()) is not None:
-            events.append(ev)
+            if not ev.changing:  # the confirmed states, not the announcements
+                events.append(ev)
         return gw, events
 
     return asyncio.run(main())

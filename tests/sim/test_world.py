@@ -53,3 +53,21 @@ def test_batteries_drain_with_time_only_when_advanced() -> None:
     drawn = world.landmarks[1].battery.drawn_mah - before
     assert drawn == pytest.approx(55.0, rel=0.05)  # ~54 mA LED + 1 mA idle for an hour
     assert world.landmark_records()[1]["radio"] == "0013A20041000002"
+
+
+def test_frames_see_the_leds_as_they_were_at_their_own_time() -> None:
+    clock = {"t": 1_000}
+    world = _world(led_clock_ns=lambda: clock["t"])
+    camera = np.array([1.0, 0.0, 0.3])
+    clock["t"] = 5_000
+    world.set_led(1, False)  # switched at t = 5000
+    clock["t"] = 9_000
+    world.set_led(2, False)  # switched at t = 9000
+    assert len(world.point_sources(camera, t_ns=4_999)[0]) == 2  # both still lit then
+    p, _ = world.point_sources(camera, t_ns=7_000)
+    np.testing.assert_allclose(p, [[2.0, 0.0, 2.5]])  # landmark 1 off, 2 still lit
+    assert len(world.point_sources(camera, t_ns=9_000)[0]) == 0
+    assert len(world.point_sources(camera)[0]) == 0  # now
+    world.set_led(2, False)  # no change: not logged
+    world.advance(9_000 + 3_000_000_000)  # the log keeps the last `led_log_s` only
+    assert len(world.point_sources(camera, t_ns=0)[0]) == 0
