@@ -65,7 +65,6 @@ class SiteAdapter:
         self._map_cache: list[Any] | None = None
         self._battery: dict[int, tuple[float, Any]] = {}
         self._view: CameraView | None = None
-        self._parked: Any = None
         self._doubt = DoubtTracker(doubt)
         self._history: dict[str, deque[Any]] = {}
         self._pose_history = pose_history
@@ -99,7 +98,7 @@ class SiteAdapter:
             updates = self._poses.drain()
             if not updates:
                 return
-            lit = self.lit()
+            lit = frozenset(self.services.lit())  # the LEDs now (not via an override)
             cameras = {r.name: r.camera for r in self.services.robots.runners()}
             for upd in updates:
                 q = self._history.get(upd.robot)
@@ -226,24 +225,8 @@ class SiteAdapter:
             raise ValueError(f"radio {address} did not switch its LED: {exc}") from exc
 
     def hold_leds(self, held: bool) -> None:
-        """Keep the robots' LED requests off the radio while the wizard drives the LEDs.
-
-        Uses `services.hold_leds(held)` when the server offers it; until then (stopgap) it
-        parks the live site's LED coordinator (`services.site.leds`), so robots' requests
-        are dropped (their identification times out and retries) while confirmed LED
-        changes still reach every localizer.
-        """
-        if hasattr(self.services, "hold_leds"):
-            self.services.hold_leds(held)
-            return
-        site = getattr(self.services, "site", None)
-        if site is None or not hasattr(site, "leds"):
-            return
-        with self._lock:
-            if held and self._parked is None and site.leds is not None:
-                self._parked, site.leds = site.leds, None
-            elif not held and self._parked is not None:
-                site.leds, self._parked = self._parked, None
+        """Keep the robots' LED requests off the radio while the wizard drives the LEDs."""
+        self.services.hold_leds(held)
 
     def add_landmark(
         self,

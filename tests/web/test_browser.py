@@ -101,9 +101,6 @@ def test_viewer_key_sees_but_cannot_edit(browser: Any, live_site: LiveSite) -> N
         page.close()
 
 
-# The live site keeps patrolling while the wizard runs: retried, and counted as a failure
-# only when it fails three times (see docs/viewer.md).
-@pytest.mark.flaky(reruns=2)
 def test_wizard_lights_the_landmark_alone_and_saves_its_true_position(
     browser: Any, live_site: LiveSite
 ) -> None:
