@@ -129,7 +129,7 @@ def test_wizard_lights_the_landmark_alone_and_saves_its_true_position(
         ids.fill(str(lid))
         ids.press("Enter")
         time.sleep(1.0)
-        wait_localized(viewer.site, robot)
+        wait_localized(viewer.site, robot, services)
         page.get_by_role("button", name="Start identification").click()
         deadline = time.monotonic() + 60
         while viewer.wizard.state.measurement is None and time.monotonic() < deadline:

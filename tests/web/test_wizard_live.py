@@ -50,11 +50,12 @@ def test_wizard_lights_each_alone_in_the_virtual_site_and_saves_true_positions(
     site = LoggingAdapter(services)
     try:
         robot = "r2"
-        wait_localized(site, robot)
+        wait_localized(site, robot, services)
         ids = nearest_landmarks(services, robot, 2)
         for lid in ids:  # doubted: 25 cm off in the map
             lm = services.map.get(lid)
             services.map.update(lid, LandmarkUpdate(x=lm.x + 0.25), actor="test")
+        wait_localized(site, robot, services)  # still right with the others
         wiz = IdentificationWizard(site)
         m = wiz.start(robot, ids, actor="viewer:test")
         assert world.lit_ids() == {ids[0]}
@@ -80,7 +81,7 @@ def test_a_radio_missing_from_the_map_is_found_by_discovery_and_placed(
     site = SiteAdapter(services)
     try:
         robot = "r2"
-        wait_localized(site, robot)
+        wait_localized(site, robot, services)
         lid = nearest_landmarks(services, robot, 1)[0]
         address = services.map.get(lid).radio
         services.map.delete(lid, actor="test")  # its radio still answers
@@ -88,7 +89,7 @@ def test_a_radio_missing_from_the_map_is_found_by_discovery_and_placed(
         new = [c for c in found if c.radio is not None]
         assert [(c.landmark_id, c.radio) for c in new] == [(lid, address)]  # "LM<id>"
         wiz = IdentificationWizard(site)
-        wait_localized(site, robot)
+        wait_localized(site, robot, services)
         m = wiz.start(robot, new, actor="viewer:test")
         assert services.sim.world.lit_ids() == {lid}  # the radio's LED, alone
         assert m.position is not None, m.message
@@ -107,7 +108,7 @@ def test_a_landmark_moved_in_the_map_becomes_doubted_and_is_offered(live_site: L
     site = SiteAdapter(services)
     try:
         robot = "r2"
-        wait_localized(site, robot)
+        wait_localized(site, robot, services)
         lid = nearest_landmarks(services, robot, 1)[0]
         before = services.map.get(lid)
         services.map.update(lid, LandmarkUpdate(y=before.y + 0.3), actor="test")
