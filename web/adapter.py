@@ -281,7 +281,10 @@ class SiteAdapter:
             doubted = self._doubt.doubted()
         out = doubted_candidates(doubted, {lm.id for lm in lms if lm.locked})
         if discover:
-            radios = self.services.call(self.services.discover(), timeout_s=60.0)
+            try:
+                radios = self.services.call(self.services.discover(), timeout_s=60.0)
+            except (RfGatewayError, UnavailableError, TimeoutError) as exc:
+                raise ValueError(f"radio discovery failed: {exc}") from exc
             known = {lm.radio for lm in lms if lm.radio}
             found = [(r.address, r.node_id) for r in radios if r.address not in known]
             out += new_radio_candidates(found, {lm.id for lm in lms})

@@ -210,5 +210,5 @@ class ViewerSite(Protocol):
 
     def to_identify(self, *, discover: bool = False) -> list[Candidate]:
         """What to identify: doubted landmarks and, with `discover`, the radios a discovery
-        finds that are not in the map (it waits for the radio)."""
+        finds that are not in the map (it waits for the radio; ValueError when it fails)."""
         ...

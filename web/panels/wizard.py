@@ -156,7 +156,7 @@ class WizardPanel:
     def _suggest(self) -> None:
         try:
             found = self.site.to_identify(discover=True)
-        except (KeyError, ValueError, RuntimeError, TimeoutError) as exc:
+        except ValueError as exc:
             self.notify("Discovery failed", f"{exc}; showing doubted landmarks only")
             found = self.site.to_identify()
         self._suggested = found
