@@ -107,7 +107,7 @@ def test_wizard_lights_the_landmark_alone_and_saves_its_true_position(
     """Through the browser's buttons, on the live site: the position is computed from the
     robot's own localized pose; the simulator's truth only checks it."""
     from server.models import LandmarkUpdate
-    from tests.web.conftest import wait_localized
+    from tests.web.conftest import landmark_always_in_view, wait_localized
 
     services = live_site.services
     world = services.sim.world
@@ -118,11 +118,9 @@ def test_wizard_lights_the_landmark_alone_and_saves_its_true_position(
         page.get_by_role("tab", name="Commission").click()
         page.get_by_label("Camera of").click()  # a Mantine select: open it, pick the option
         page.get_by_role("option", name=robot, exact=True).click()
-        # the landmark nearest the robot now (it patrols); its map position 30 cm off
-        x, y, _ = services.sim.true_pose(robot)
-        near = [lm for lm in world.landmarks.values() if lm.reachable]
-        target = min(near, key=lambda lm: np.hypot(lm.p_true[0] - x, lm.p_true[1] - y))
-        lid, truth = int(target.id), np.array(target.p_true)
+        # a landmark the patrolling robot always sees; its map position 30 cm off
+        lid = landmark_always_in_view(services, robot)
+        truth = np.array(world.landmarks[lid].p_true)
         services.map.update(lid, LandmarkUpdate(x=float(truth[0]) + 0.3), actor="test")
         # viser's text input's label does not point at it (its `for` is another id)
         ids = page.locator("xpath=//label[normalize-space()='Landmark IDs']/following::input[1]")

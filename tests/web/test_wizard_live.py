@@ -12,7 +12,12 @@ import numpy as np
 import pytest
 
 from server.models import LandmarkUpdate
-from tests.web.conftest import LiveSite, nearest_landmarks, wait_localized
+from tests.web.conftest import (
+    LiveSite,
+    landmark_always_in_view,
+    nearest_landmarks,
+    wait_localized,
+)
 from web.adapter import SiteAdapter
 from web.wizard import IdentificationWizard
 
@@ -82,7 +87,7 @@ def test_a_radio_missing_from_the_map_is_found_by_discovery_and_placed(
     try:
         robot = "r2"
         wait_localized(site, robot, services)
-        lid = nearest_landmarks(services, robot, 1)[0]
+        lid = landmark_always_in_view(services, robot)
         address = services.map.get(lid).radio
         services.map.delete(lid, actor="test")  # its radio still answers
         found = site.to_identify(discover=True)
