@@ -16,7 +16,6 @@ radio and for a fresh frame happens in the caller's thread.
 
 from __future__ import annotations
 
-import math
 import threading
 import time
 from collections.abc import Sequence
@@ -26,8 +25,8 @@ from typing import Literal
 import numpy as np
 import numpy.typing as npt
 
-from web.geometry import landmark_from_spot
-from web.services import CameraView, Candidate, LandmarkState, ViewerSite
+from web.measure import Measurement, describe, measure_landmark
+from web.services import CameraView, Candidate, ViewerSite
 
 Phase = Literal["idle", "measured", "done", "cancelled"]
 
@@ -45,6 +44,7 @@ class WizardConfig:
         poll_s: polling period while waiting for a frame, seconds.
         led_tries: how often to (re)send an LED state that something else overrode.
         led_check_s: wait this long after sending before checking the LED state, seconds.
+        frames: positions from up to this many consecutive frames are combined (median).
     """
 
     frame_timeout_s: float = 3.0
@@ -54,27 +54,7 @@ class WizardConfig:
     poll_s: float = 0.03
     led_tries: int = 6
     led_check_s: float = 0.3
-
-
-@dataclass(frozen=True, eq=False)
-class Measurement:
-    """What one lighting of a landmark gave.
-
-    Attributes:
-        landmark_id: the landmark lit alone.
-        view: the frame used, with its detected spots (None when no frame came).
-        spot: the chosen spot's pixel (col, row), None when no spot was seen.
-        position: the computed LED position in the world frame, shape (3,), or None.
-        robot_pose: (x, y, theta) used, or None when the robot was not localized.
-        message: what happened, for the staff.
-    """
-
-    landmark_id: int
-    view: CameraView | None
-    spot: npt.NDArray[np.float64] | None
-    position: npt.NDArray[np.float64] | None
-    robot_pose: tuple[float, float, float] | None
-    message: str
+    frames: int = 5
 
 
 @dataclass
@@ -343,10 +323,26 @@ class IdentificationWizard:
         if view is None:
             why = f"could not keep landmark {lid} lit alone: retry"
             return self._keep(Measurement(lid, None, None, None, None, why))
-        pose, why = self._robot_pose(view.t_ns)  # its estimate for this very frame
         known = None if c.radio is not None else landmarks.get(lid)
-        m = measure_landmark(self.site, self._state.robot, lid, known, view, pose, why)
-        return self._keep(m)
+        robot = self._state.robot
+        pose, why = self._robot_pose(view.t_ns)  # its estimate for this very frame
+        first = measure_landmark(self.site, robot, lid, known, view, pose, why)
+        positions = [] if first.position is None else [first.position]
+        while positions and len(positions) < self.config.frames:
+            nxt = self._wait_frame(view.t_ns + 1)
+            if nxt is None or self.site.lit() != alone:
+                break
+            view = nxt
+            pose, why = self._robot_pose(view.t_ns)
+            m = measure_landmark(self.site, robot, lid, known, view, pose, why)
+            if m.position is None:
+                break
+            positions.append(m.position)
+        if len(positions) < 2:
+            return self._keep(first)
+        p = np.median(np.array(positions), axis=0)
+        text = describe(lid, p, known, f", median of {len(positions)} frames")
+        return self._keep(Measurement(lid, first.view, first.spot, p, first.robot_pose, text))
 
     def _keep(self, m: Measurement) -> Measurement:
         self._state.measurement = m
@@ -361,38 +357,3 @@ class IdentificationWizard:
             if self.site.lit() == lit:
                 return True
         return False
-
-
-def measure_landmark(
-    site: ViewerSite,
-    robot: str,
-    landmark_id: int,
-    landmark: LandmarkState | None,
-    view: CameraView | None,
-    pose: tuple[float, float, float] | None,
-    why_no_pose: str,
-) -> Measurement:
-    """Turn a frame with one lit LED into a proposed landmark position."""
-    if view is None:
-        return Measurement(landmark_id, None, None, None, pose, f"no new frame from {robot}")
-    if len(view.spots) == 0:
-        return Measurement(
-            landmark_id, view, None, None, pose,
-            f"no spot seen: is landmark {landmark_id} in {robot}'s view? Move it, or retry",
-        )  # fmt: skip
-    spot = np.asarray(view.spots[0], dtype=np.float64)
-    extra = f" ({len(view.spots)} spots; the brightest is used)" if len(view.spots) > 1 else ""
-    if pose is None:
-        return Measurement(landmark_id, view, spot, None, None, why_no_pose + extra)
-    height = landmark.z if landmark is not None else None
-    if height is None or not math.isfinite(height):
-        height = site.ceiling_height()
-    cam = next(r.camera for r in site.robots() if r.name == robot)
-    p = landmark_from_spot(cam, *pose, spot, height)
-    if p is None:
-        return Measurement(landmark_id, view, spot, None, pose, "the spot's ray misses the ceiling")
-    text = f"landmark {landmark_id} at ({p[0]:.3f}, {p[1]:.3f}, {p[2]:.3f}) m{extra}"
-    if landmark is not None:
-        d = math.hypot(p[0] - landmark.x, p[1] - landmark.y)
-        text += f", {100 * d:.1f} cm from the map"
-    return Measurement(landmark_id, view, spot, p, pose, text)

@@ -14,9 +14,10 @@ import numpy.typing as npt
 import viser
 
 from web.candidates import landmark_id_for_radio
+from web.measure import Measurement
 from web.roles import Session
 from web.services import CameraView, Candidate, ViewerSite
-from web.wizard import IdentificationWizard, Measurement, WizardState
+from web.wizard import IdentificationWizard, WizardState
 
 
 def annotated_frame(
