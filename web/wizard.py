@@ -39,6 +39,7 @@ class WizardConfig:
         frame_timeout_s: how long to wait for a frame taken after the LED change, seconds.
         fix_timeout_s: how long to wait for the robot to fix its pose from the other
             landmarks once they are lit again, seconds.
+        fix_settle_s: ... and then for it to stay fixed this long, seconds.
         settle_s: a frame counts once taken this long after the radio confirmed the change.
         max_fix_age_s: the robot's last landmark fix must be this recent, seconds.
         poll_s: polling period while waiting for a frame, seconds.
@@ -49,6 +50,7 @@ class WizardConfig:
 
     frame_timeout_s: float = 3.0
     fix_timeout_s: float = 10.0
+    fix_settle_s: float = 0.5
     settle_s: float = 0.05
     max_fix_age_s: float = 3.0
     poll_s: float = 0.03
@@ -284,11 +286,19 @@ class IdentificationWizard:
         return None
 
     def _wait_fix(self, after_ns: int) -> None:
+        """Wait for the robot to be in landmark mode `fix_settle_s` after its first fix
+        since `after_ns` (a fix just re-acquired is rough)."""
         deadline = time.monotonic() + self.config.fix_timeout_s
+        first: int | None = None
         while time.monotonic() < deadline:
             rb = next((r for r in self.site.robots() if r.name == self._state.robot), None)
-            if rb is None or (rb.last_fix_t_ns is not None and rb.last_fix_t_ns >= after_ns):
+            if rb is None:
                 return
+            fix = rb.last_fix_t_ns
+            if fix is not None and fix >= after_ns:
+                first = fix if first is None else first
+                if rb.mode == "landmark" and fix - first >= self.config.fix_settle_s * 1e9:
+                    return
             time.sleep(self.config.poll_s)
 
     def _now_ns(self) -> int:

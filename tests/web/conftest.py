@@ -95,7 +95,7 @@ def landmark_always_in_view(services: Any, robot: str) -> int:
 
 
 def wait_localized(
-    site: Any, robot: str, services: Any, *, tol_m: float = 0.05, timeout_s: float = 60.0
+    site: Any, robot: str, services: Any, *, tol_m: float = 0.02, timeout_s: float = 60.0
 ) -> None:
     """Wait until the robot's localizer holds a landmark fix that agrees with the simulator's
     truth for the same frame (the truth checks the localizer; it never feeds the wizard).

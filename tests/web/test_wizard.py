@@ -6,7 +6,9 @@ import pytest
 from tests.web.memsite import grid_site
 from web.wizard import IdentificationWizard, WizardConfig
 
-FAST = WizardConfig(frame_timeout_s=0.5, settle_s=0.0, poll_s=0.001, led_check_s=0.0)
+FAST = WizardConfig(
+    frame_timeout_s=0.5, settle_s=0.0, poll_s=0.001, led_check_s=0.0, fix_settle_s=0.0
+)
 
 
 def test_wizard_lights_each_alone_saves_true_positions_and_restores_leds() -> None:
