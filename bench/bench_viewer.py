@@ -21,13 +21,12 @@ import os
 import subprocess
 import sys
 import time
-from collections.abc import Sequence
 
 import numpy as np
 
 from localizer.events import PoseEstimate
 from sim.cameras import wide_angle_camera
-from web.services import CameraView, EventLine, LandmarkState, RobotState
+from web.services import CameraView, Candidate, EventLine, FramePose, LandmarkState, RobotState
 from web.viewer import Viewer
 
 
@@ -71,8 +70,11 @@ class SyntheticSite:
     def ceiling_height(self) -> float:
         return 2.5
 
-    def to_identify(self) -> Sequence[int]:
+    def to_identify(self, *, discover: bool = False) -> list[Candidate]:
         return []
+
+    def pose_at(self, robot: str, t_ns: int) -> FramePose | None:
+        return None
 
     def hold_leds(self, held: bool) -> None:
         pass

@@ -23,8 +23,9 @@ from sqlalchemy import Engine
 
 from localizer.events import LedsChanged, Mode
 from rf_gateway.battery import BatteryConfig, BatteryReading, days_left
+from rf_gateway.errors import RadioTimeout
 from rf_gateway.gateway import Gateway
-from rf_gateway.transport import DiscoveredRadio
+from rf_gateway.transport import DiscoveredRadio, normalize_address
 from server.bus import Bus, Subscription
 from server.crud import EventLog, KeyStore, MapRepository, RobotStore
 from server.db import make_engine, migrate
@@ -218,6 +219,23 @@ class SiteServices:
         """Radios that answer and are not in the map (kept in `discovered`)."""
         self.discovered = await self._gw().discover()
         return self.discovered
+
+    async def radio_led(self, address: str, on: bool, *, tries: int = 3) -> None:
+        """Switch the LED of a radio that is not a landmark of the map (the viewer's wizard
+        lights a radio from discovery alone to find where it is). Retried on timeouts;
+        raises as the transport's `set_pin` (RadioTimeout, RemoteCommandError,
+        TransportUnavailable), ValueError for a bad address or a landmark's radio."""
+        address = normalize_address(address, source="radio")
+        gw = self._gw()
+        if address in set(gw.landmarks.values()):
+            raise ValueError(f"radio {address} belongs to a landmark: switch it with set_leds")
+        for attempt in range(tries):
+            try:
+                await gw.transport.set_pin(address, on)
+                return
+            except RadioTimeout:
+                if attempt == tries - 1:
+                    raise
 
     # -- batteries ---------------------------------------------------------------------------
     async def read_battery(self, landmark_id: int) -> BatteryReading:

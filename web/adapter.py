@@ -3,7 +3,11 @@
 Reads go to the map repository (cached until its change listener fires), the robot registry,
 the gateway and the battery log (cached for `battery_ttl_s`); actions go through the same
 data layer and audit log as the REST API, with the viewer user as the actor. LED commands
-are coroutines on the server's loop, awaited here with `services.call`.
+and discovery are coroutines on the server's loop, awaited here with `services.call`.
+
+Every pose update of every robot reaches the adapter through a subscription to the pose bus
+(drained whenever the viewer reads the robots): it keeps each robot's recent estimates (the
+wizard takes the one for its frame, `pose_at`) and feeds the doubt tracker (`web.doubt`).
 """
 
 from __future__ import annotations
@@ -11,7 +15,7 @@ from __future__ import annotations
 import statistics
 import threading
 import time
-from collections.abc import Sequence
+from collections import deque
 from typing import Any
 
 import numpy as np
@@ -19,7 +23,18 @@ import numpy as np
 from localizer.camera import CameraModel, sensor_from_camera
 from localizer.events import PoseEstimate
 from localizer.spots import DetectionConfig, detect_spots
-from web.services import CameraView, EventLine, LandmarkState, RobotState
+from rf_gateway.errors import RfGatewayError
+from server.errors import UnavailableError
+from web.candidates import doubted_candidates, new_radio_candidates
+from web.doubt import DoubtConfig, DoubtTracker
+from web.services import (
+    CameraView,
+    Candidate,
+    EventLine,
+    FramePose,
+    LandmarkState,
+    RobotState,
+)
 
 
 class SiteAdapter:
@@ -29,6 +44,8 @@ class SiteAdapter:
         services: the running site's `SiteServices`.
         battery_ttl_s: battery readings are re-read from the database this often, seconds.
         detection: spot detector settings for the camera view.
+        doubt: when a landmark counts as doubted.
+        pose_history: estimates kept per robot for `pose_at` (frames).
     """
 
     def __init__(
@@ -37,21 +54,27 @@ class SiteAdapter:
         *,
         battery_ttl_s: float = 10.0,
         detection: DetectionConfig | None = None,
+        doubt: DoubtConfig | None = None,
+        pose_history: int = 300,
     ) -> None:
         self.services = services
         self.battery_ttl_s = battery_ttl_s
         self.detection = detection or DetectionConfig()
         self._lock = threading.Lock()
+        self._pose_lock = threading.Lock()
         self._map_cache: list[Any] | None = None
         self._battery: dict[int, tuple[float, Any]] = {}
-        self._seen: set[int] = set()
         self._view: CameraView | None = None
-        self._parked: Any = None
+        self._doubt = DoubtTracker(doubt)
+        self._history: dict[str, deque[Any]] = {}
+        self._pose_history = pose_history
         services.map.add_listener(self._on_map_changed)
+        self._poses = services.subscribe_poses(maxsize=4096)
 
     def close(self) -> None:
-        """Stop listening to map changes."""
+        """Stop listening to map changes and pose updates."""
         self.services.map.remove_listener(self._on_map_changed)
+        self._poses.close()
 
     def _on_map_changed(self, _landmarks: list[Any]) -> None:
         with self._lock:
@@ -64,7 +87,30 @@ class SiteAdapter:
             cached = self.services.map.list()
             with self._lock:
                 self._map_cache = cached
+            with self._pose_lock:
+                self._doubt.set_map({lm.id: (lm.x, lm.y, lm.z) for lm in cached})
         return cached
+
+    def _drain(self) -> None:
+        """Take the pose updates published since the last call: history and doubt."""
+        self._map()  # the doubt tracker needs the current map
+        with self._pose_lock:
+            updates = self._poses.drain()
+            if not updates:
+                return
+            lit = frozenset(self.services.lit())  # the LEDs now (not via an override)
+            cameras = {r.name: r.camera for r in self.services.robots.runners()}
+            for upd in updates:
+                q = self._history.get(upd.robot)
+                if q is None:
+                    q = self._history[upd.robot] = deque(maxlen=self._pose_history)
+                q.append(upd)
+                pose = _estimate(upd)
+                if pose is None:
+                    continue
+                camera = cameras.get(upd.robot)
+                if camera is not None:
+                    self._doubt.observe(upd.robot, camera, pose, lit)
 
     def _battery_of(self, landmark_id: int) -> Any:
         now = time.monotonic()
@@ -82,6 +128,9 @@ class SiteAdapter:
     def landmarks(self) -> list[LandmarkState]:
         gw = self.services.gateway
         unreachable = gw.unreachable if gw is not None else frozenset()
+        self._drain()
+        with self._pose_lock:
+            doubted = self._doubt.doubted()
         out = []
         for lm in self._map():
             b = self._battery_of(lm.id)
@@ -91,22 +140,18 @@ class SiteAdapter:
                     supply_mv=None if b is None else b.supply_mv,
                     percent=None if b is None else b.percent,
                     days_left=None if b is None else b.days_left,
-                    reachable=lm.id not in unreachable, seen=lm.id in self._seen,
+                    reachable=lm.id not in unreachable, doubted=lm.id in doubted,
                 )
             )  # fmt: skip
         return out
 
     def robots(self) -> list[RobotState]:
+        self._drain()
         now = self.services.clock_ns()
         out = []
         for runner in self.services.robots.runners():
             upd = runner.latest
-            pose = None
-            if upd is not None and upd.x is not None:
-                cov = np.zeros((3, 3)) if upd.covariance is None else np.asarray(upd.covariance)
-                ids = tuple(int(i) for i in upd.landmark_ids)
-                self._seen.update(ids)
-                pose = PoseEstimate(upd.t_ns, upd.x, upd.y, upd.theta, cov, upd.mode, ids)
+            pose = None if upd is None else _estimate(upd)
             out.append(
                 RobotState(runner.name, runner.camera, pose, str(runner.mode),
                            runner.last_fix_t_ns, now)
@@ -143,6 +188,21 @@ class SiteAdapter:
         zs = [lm.z for lm in self._map()]
         return float(statistics.median(zs)) if zs else 2.5
 
+    def pose_at(self, robot: str, t_ns: int) -> FramePose | None:
+        self._drain()
+        with self._pose_lock:
+            hist = list(self._history.get(robot, ()))
+        upd = next((u for u in reversed(hist) if u.t_ns == t_ns), None)
+        pose = None if upd is None else _estimate(upd)
+        if pose is None:
+            return None
+        fixes = [u.t_ns for u in hist if u.mode == "landmark" and u.x is not None]
+        last_fix = max((t for t in fixes if t <= t_ns), default=None)
+        if last_fix is None:  # older than the history: the runner's own record
+            runner_fix = self.services.robots.get(robot).last_fix_t_ns
+            last_fix = runner_fix if runner_fix is not None and runner_fix <= t_ns else None
+        return FramePose(pose, last_fix)
+
     # -- actions -----------------------------------------------------------------------------
     def relocalize(self, robot: str, *, actor: str) -> None:
         self.services.relocalize(robot)
@@ -158,32 +218,30 @@ class SiteAdapter:
     def set_leds(self, lit: frozenset[int], *, actor: str) -> None:
         self.services.call(self.services.set_leds(frozenset(lit)), timeout_s=30.0)
 
-    def hold_leds(self, held: bool) -> None:
-        """Keep the robots' LED requests off the radio while the wizard drives the LEDs.
+    def set_radio_led(self, address: str, on: bool, *, actor: str) -> None:
+        try:
+            self.services.call(self.services.radio_led(address, on), timeout_s=30.0)
+        except (RfGatewayError, UnavailableError, TimeoutError) as exc:
+            raise ValueError(f"radio {address} did not switch its LED: {exc}") from exc
 
-        Uses `services.hold_leds(held)` when the server offers it; until then (stopgap) it
-        parks the live site's LED coordinator (`services.site.leds`), so robots' requests
-        are dropped (their identification times out and retries) while confirmed LED
-        changes still reach every localizer.
-        """
-        if hasattr(self.services, "hold_leds"):
-            self.services.hold_leds(held)
-            return
-        site = getattr(self.services, "site", None)
-        if site is None or not hasattr(site, "leds"):
-            return
-        with self._lock:
-            if held and self._parked is None and site.leds is not None:
-                self._parked, site.leds = site.leds, None
-            elif not held and self._parked is not None:
-                site.leds, self._parked = self._parked, None
+    def hold_leds(self, held: bool) -> None:
+        """Keep the robots' LED requests off the radio while the wizard drives the LEDs."""
+        self.services.hold_leds(held)
 
     def add_landmark(
-        self, landmark_id: int, x: float, y: float, z: float, *, actor: str
+        self,
+        landmark_id: int,
+        x: float,
+        y: float,
+        z: float,
+        *,
+        actor: str,
+        radio: str | None = None,
     ) -> LandmarkState:
         from server.models import LandmarkCreate
 
-        lm = self.services.map.create(LandmarkCreate(id=landmark_id, x=x, y=y, z=z), actor=actor)
+        data = LandmarkCreate(id=landmark_id, x=x, y=y, z=z, radio=radio)
+        lm = self.services.map.create(data, actor=actor)
         return LandmarkState(lm.id, lm.x, lm.y, lm.z, lm.locked, lm.radio)
 
     def update_landmark(
@@ -214,6 +272,29 @@ class SiteAdapter:
             raise ValueError("nothing to undo")
         return f"undid {rec.action} of landmark {rec.landmark_id} by {rec.actor}"
 
-    def to_identify(self) -> Sequence[int]:
-        """Unlocked landmarks no robot has used for a fix since the viewer started."""
-        return [lm.id for lm in self._map() if not lm.locked and lm.id not in self._seen]
+    def to_identify(self, *, discover: bool = False) -> list[Candidate]:
+        """Doubted unlocked landmarks, then (with `discover`) the radios a node discovery
+        finds that are not in the map (`SiteServices.discover`, as `POST /radio/discover`)."""
+        self._drain()
+        lms = self._map()
+        with self._pose_lock:
+            doubted = self._doubt.doubted()
+        out = doubted_candidates(doubted, {lm.id for lm in lms if lm.locked})
+        if discover:
+            try:
+                radios = self.services.call(self.services.discover(), timeout_s=60.0)
+            except (RfGatewayError, UnavailableError, TimeoutError) as exc:
+                raise ValueError(f"radio discovery failed: {exc}") from exc
+            known = {lm.radio for lm in lms if lm.radio}
+            found = [(r.address, r.node_id) for r in radios if r.address not in known]
+            out += new_radio_candidates(found, {lm.id for lm in lms})
+        return out
+
+
+def _estimate(upd: Any) -> PoseEstimate | None:
+    """A `PoseUpdate` as the localizer's estimate; None when it carries no pose."""
+    if upd.x is None or upd.y is None or upd.theta is None:
+        return None
+    cov = np.zeros((3, 3)) if upd.covariance is None else np.asarray(upd.covariance)
+    ids = tuple(int(i) for i in upd.landmark_ids)
+    return PoseEstimate(upd.t_ns, upd.x, upd.y, upd.theta, cov, upd.mode, ids)

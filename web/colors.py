@@ -19,7 +19,7 @@ MODE_COLORS: dict[str, RGB] = {
 }
 UNKNOWN_COLOR: RGB = (150, 150, 150)
 UNREACHABLE_COLOR: RGB = (120, 40, 160)
-NEVER_SEEN_COLOR: RGB = (90, 90, 90)
+DOUBTED_COLOR: RGB = (235, 80, 200)  # pink: robots expected it but did not use it
 LIT_COLOR: RGB = (255, 255, 200)
 DARK_COLOR: RGB = (50, 50, 60)
 
@@ -41,10 +41,10 @@ def mode_color(mode: Mode | str | None) -> RGB:
     return MODE_COLORS.get(mode, UNKNOWN_COLOR)
 
 
-def landmark_color(percent: float | None, *, reachable: bool = True, seen: bool = True) -> RGB:
-    """A landmark sphere's colour: unreachable and never-seen take precedence over battery."""
+def landmark_color(percent: float | None, *, reachable: bool = True, doubted: bool = False) -> RGB:
+    """A landmark sphere's colour: unreachable, then doubted, take precedence over battery."""
     if not reachable:
         return UNREACHABLE_COLOR
-    if not seen:
-        return NEVER_SEEN_COLOR
+    if doubted:
+        return DOUBTED_COLOR
     return battery_color(percent)

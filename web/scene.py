@@ -1,11 +1,15 @@
 """The 3D scene: floor, ceiling, landmarks and robots, kept in step with site snapshots.
 
 Node names are hierarchical: `/landmarks/17` (sphere), `/landmarks/17/label`,
-`/landmarks/17/glow` (shown while lit), `/robots/r1/body`, `/robots/r1/trail`,
-`/robots/r1/ellipse`, `/robots/r1/body/footprint`, `/robots/r1/rays`, `/coverage/*`.
-`/robots/<name>` itself stays at the world origin so that its children are in world
-coordinates. Only one thread (the viewer's update loop) calls `update`; it diffs against
-the last snapshot and sends only what changed, inside `server.atomic()`.
+`/landmarks/17/glow` (shown while lit), `/robots/r1/position` (follows the robot's position
+without turning), `/robots/r1/position/body` (turns with its heading),
+`/robots/r1/position/body/footprint`, `/robots/r1/position/ellipse`, `/robots/r1/trail/<k>`,
+`/robots/r1/rays`, `/coverage/*`. `/robots/<name>` itself stays at the world origin so that
+the trail and rays are in world coordinates. Only one thread (the viewer's update loop)
+calls `update`; it diffs against the last snapshot and sends only what changed: a robot's
+pose when it has a new estimate, its ellipse when the covariance changed by more than
+`ellipse_rtol`, its rays when the landmarks used changed (else at `rays_every`), and only
+the newest piece of its trail.
 """
 
 from __future__ import annotations
@@ -44,17 +48,24 @@ class SceneConfig:
 
     Attributes:
         landmark_radius_m: radius of a landmark's sphere, metres.
-        trail_len: poses kept in a robot's trail.
-        trail_every: append to (and resend) the trail every this many updates (15: 2 Hz).
+        trail_len: poses kept in a robot's trail (about; whole pieces are dropped).
+        trail_every: append to the trail every this many pose updates (15: 2 Hz at 30 Hz).
+        trail_piece: points per trail piece: only the newest piece is resent.
         ellipse_sigma: the uncertainty ellipse's scale, standard deviations.
         ellipse_min_m: ellipses are drawn at least this large, metres (to stay visible).
+        ellipse_rtol: redraw the ellipse when its covariance changed by this share.
+        rays_every: redraw the rays every this many pose updates while the landmarks used
+            stay the same (3: 10 Hz at 30 Hz); at once when they change.
     """
 
     landmark_radius_m: float = 0.1
     trail_len: int = 300
     trail_every: int = 15
+    trail_piece: int = 20
     ellipse_sigma: float = 3.0
     ellipse_min_m: float = 0.02
+    ellipse_rtol: float = 0.05
+    rays_every: int = 3
 
 
 def wxyz_from_heading(theta: float) -> tuple[float, float, float, float]:
@@ -71,17 +82,63 @@ def polyline_segments(points: FloatArray) -> FloatArray:
 
 
 def set_segments(handle: viser.LineSegmentsHandle, segments: FloatArray, color: RGB) -> None:
-    """Replace a line-segments node's segments (N, 2, 3), all in one colour."""
+    """Replace a line-segments node's segments (N, 2, 3), all in one colour (the colours
+    are only sent when their number or the colour changed; call inside `server.atomic()`
+    so that a browser applies both together)."""
     seg = np.asarray(segments, dtype=np.float32).reshape(-1, 2, 3)
+    colors = handle.colors
+    if colors.shape != seg.shape or (len(seg) > 0 and tuple(colors[0, 0]) != tuple(color)):
+        handle.colors = np.broadcast_to(np.array(color, dtype=np.uint8), seg.shape).copy()
     handle.points = seg
-    handle.colors = np.broadcast_to(np.array(color, dtype=np.uint8), seg.shape).copy()
+
+
+class Trail:
+    """A robot's trail as pieces of `piece` points: finished pieces stay in the scene as
+    they are, only the newest is resent; the oldest is removed beyond `max_points`."""
+
+    def __init__(self, scene: viser.SceneApi, root: str, *, piece: int, max_points: int) -> None:
+        self.scene, self.root = scene, root
+        self.piece, self.max_pieces = max(2, piece), max(1, max_points // max(2, piece))
+        self._pieces: deque[viser.LineSegmentsHandle] = deque()
+        self._points: list[tuple[float, float]] = []
+        self._k = 0
+        self.shown: deque[tuple[float, float]] = deque(maxlen=self.piece * self.max_pieces)
+        """The points drawn (about; for tests), oldest first."""
+
+    def append(self, x: float, y: float) -> None:
+        """Add a point (world x, y, metres) and send the newest piece."""
+        if len(self._points) >= self.piece:  # finish this piece; the next starts at its end
+            self._points = self._points[-1:]
+            self._pieces.append(self._new_piece())
+            while len(self._pieces) > self.max_pieces:
+                self._pieces.popleft().remove()
+        if not self._pieces:
+            self._pieces.append(self._new_piece())
+        self._points.append((x, y))
+        self.shown.append((x, y))
+        p = np.array(self._points)
+        seg = polyline_segments(np.column_stack([p, np.full(len(p), 0.01)]))
+        set_segments(self._pieces[-1], seg, TRAIL_COLOR)
+
+    def _new_piece(self) -> viser.LineSegmentsHandle:
+        self._k += 1
+        return self.scene.add_line_segments(
+            f"{self.root}/{self._k}", np.zeros((0, 2, 3)), TRAIL_COLOR, thickness=0.01
+        )
+
+    @property
+    def pieces(self) -> list[viser.LineSegmentsHandle]:
+        """The trail's nodes, oldest first."""
+        return list(self._pieces)
 
 
 def landmark_label(lm: LandmarkState) -> str:
-    """The text next to a landmark: its ID, and "unreachable" or "(surveyed)"."""
+    """The text next to a landmark: its ID, and "unreachable", "doubted", "(surveyed)"."""
     text = str(lm.id)
     if not lm.reachable:
         text += " unreachable"
+    elif lm.doubted:
+        text += " doubted"
     if lm.locked:
         text += " (surveyed)"
     return text
@@ -91,24 +148,29 @@ class _RobotNodes:
     def __init__(self, scene: viser.SceneApi, name: str, cfg: SceneConfig) -> None:
         root = f"/robots/{name}"
         self.root = scene.add_frame(root, show_axes=False)
+        at = f"{root}/position"
+        self.at = scene.add_frame(at, show_axes=False, visible=False)
         self.body = scene.add_box(
-            f"{root}/body", color=UNKNOWN_COLOR, dimensions=(0.45, 0.35, 0.25),
+            f"{at}/body", color=UNKNOWN_COLOR, dimensions=(0.45, 0.35, 0.25),
             position=(0.0, 0.0, BODY_Z_M),
         )  # fmt: skip
         self.nose = scene.add_box(
-            f"{root}/body/nose", color=(30, 30, 30), dimensions=(0.15, 0.08, 0.05),
+            f"{at}/body/nose", color=(30, 30, 30), dimensions=(0.15, 0.08, 0.05),
             position=(0.25, 0.0, 0.1),
         )  # fmt: skip
-        self.label = scene.add_label(f"{root}/body/label", name, position=(0.0, 0.0, 0.35))
+        self.label = scene.add_label(f"{at}/body/label", name, position=(0.0, 0.0, 0.35))
         empty = np.zeros((0, 2, 3))
-        self.trail = scene.add_line_segments(f"{root}/trail", empty, TRAIL_COLOR, thickness=0.01)
-        self.ellipse = scene.add_line_segments(f"{root}/ellipse", empty, UNKNOWN_COLOR)
-        self.footprint = scene.add_line_segments(f"{root}/body/footprint", empty, FOOTPRINT_COLOR)
+        scene.add_frame(f"{root}/trail", show_axes=False)
+        self.trail = Trail(scene, f"{root}/trail", piece=cfg.trail_piece, max_points=cfg.trail_len)
+        self.ellipse = scene.add_line_segments(f"{at}/ellipse", empty, UNKNOWN_COLOR)
+        self.footprint = scene.add_line_segments(f"{at}/body/footprint", empty, FOOTPRINT_COLOR)
         self.footprint_set = False
         self.rays = scene.add_line_segments(f"{root}/rays", empty, RAY_COLOR, thickness=0.005)
-        self.history: deque[tuple[float, float]] = deque(maxlen=cfg.trail_len)
         self.updates = 0
         self.mode = ""
+        self.t_ns: int | None = None
+        self.cov: FloatArray | None = None
+        self.used: tuple[int, ...] | None = None
 
     def remove(self) -> None:
         self.root.remove()
@@ -153,8 +215,6 @@ class SiteScene:
         r = self.config.landmark_radius_m
         seen_ids = set()
         for lm in landmarks:
-            if not lm.position_known:
-                continue
             seen_ids.add(lm.id)
             state = (lm, lm.id in lit)
             if self._landmarks.get(lm.id) == state:
@@ -191,6 +251,18 @@ class SiteScene:
         return self._landmarks[landmark_id][1]
 
     # -- robots ------------------------------------------------------------------------------
+    def robots_changed(self, robots: list[RobotState]) -> bool:
+        """Whether `update_robots` would send anything (a robot came or went, or has a new
+        estimate or mode)."""
+        if {r.name for r in robots} != set(self._robots):
+            return True
+        for rb in robots:
+            nodes = self._robots[rb.name]
+            t_ns = None if rb.pose is None else rb.pose.t_ns
+            if rb.mode != nodes.mode or t_ns != nodes.t_ns:
+                return True
+        return False
+
     def update_robots(self, robots: list[RobotState]) -> None:
         """Move every robot and redraw its trail, ellipse, footprint and rays."""
         scene = self.server.scene
@@ -206,31 +278,37 @@ class SiteScene:
     def _update_robot(self, nodes: _RobotNodes, rb: RobotState) -> None:
         cfg = self.config
         color = mode_color(rb.mode)
-        if rb.mode != nodes.mode:
+        mode_changed = rb.mode != nodes.mode
+        if mode_changed:
             nodes.body.color = color
             nodes.mode = rb.mode
         pose = rb.pose
-        nodes.body.visible = pose is not None
-        if pose is None:
-            return
-        nodes.body.position = (pose.x, pose.y, BODY_Z_M)
+        if nodes.at.visible != (pose is not None):
+            nodes.at.visible = pose is not None
+        if pose is None or (pose.t_ns == nodes.t_ns and not mode_changed):
+            return  # no new estimate: nothing to send
+        nodes.t_ns = pose.t_ns
+        nodes.at.position = (pose.x, pose.y, 0.0)
         nodes.body.wxyz = wxyz_from_heading(pose.theta)
         nodes.updates += 1
         if nodes.updates % cfg.trail_every == 1 or cfg.trail_every == 1:
-            nodes.history.append((pose.x, pose.y))
-            trail = np.array(nodes.history)
-            seg = polyline_segments(np.column_stack([trail, np.full(len(trail), 0.01)]))
-            set_segments(nodes.trail, seg, TRAIL_COLOR)
-        cov = np.asarray(pose.covariance)[:2, :2]
-        cov = 0.5 * (cov + cov.T) + np.eye(2) * (cfg.ellipse_min_m / cfg.ellipse_sigma) ** 2
-        ring = ellipse_points((pose.x, pose.y), cov, n_sigma=cfg.ellipse_sigma, n_points=24)
-        ring3 = np.column_stack([ring, np.full(len(ring), 0.02)])
-        set_segments(nodes.ellipse, polyline_segments(ring3), color)
+            nodes.trail.append(pose.x, pose.y)
+        cov = np.asarray(pose.covariance, dtype=np.float64)[:2, :2]
+        old = nodes.cov
+        if mode_changed or old is None or not np.allclose(cov, old, rtol=cfg.ellipse_rtol,
+                                                          atol=1e-8):  # fmt: skip
+            nodes.cov = cov
+            c = 0.5 * (cov + cov.T) + np.eye(2) * (cfg.ellipse_min_m / cfg.ellipse_sigma) ** 2
+            ring = ellipse_points((0.0, 0.0), c, n_sigma=cfg.ellipse_sigma, n_points=24)
+            ring3 = np.column_stack([ring, np.full(len(ring), 0.02)])
+            set_segments(nodes.ellipse, polyline_segments(ring3), color)
         if not nodes.footprint_set:  # fixed to the body: computed once, moves with it
             foot = camera_footprint(rb.camera, 0.0, 0.0, 0.0, self.ceiling_z, per_edge=6)
             foot[:, 2] -= BODY_Z_M
             set_segments(nodes.footprint, polyline_segments(foot), FOOTPRINT_COLOR)
             nodes.footprint_set = True
+        if not self._rays_due(nodes, tuple(pose.landmark_ids)):
+            return
         cam_world = np.array([pose.x, pose.y, 0.0]) + np.array(
             [[math.cos(pose.theta), -math.sin(pose.theta), 0.0],
              [math.sin(pose.theta), math.cos(pose.theta), 0.0], [0.0, 0.0, 1.0]]
@@ -238,6 +316,12 @@ class SiteScene:
         used = [self._positions[i] for i in pose.landmark_ids if i in self._positions]
         rays = np.stack([np.stack([cam_world, p]) for p in used]) if used else np.zeros((0, 2, 3))
         set_segments(nodes.rays, rays, RAY_COLOR)
+
+    def _rays_due(self, nodes: _RobotNodes, used: tuple[int, ...]) -> bool:
+        if used != nodes.used:
+            nodes.used = used
+            return True
+        return bool(used) and nodes.updates % max(1, self.config.rays_every) == 0
 
 
 def draw_coverage(
@@ -281,4 +365,4 @@ def draw_coverage(
 
 def landmark_rgb(lm: LandmarkState) -> RGB:
     """The colour `SiteScene` gives a landmark (for panels and tests)."""
-    return landmark_color(lm.percent, reachable=lm.reachable, seen=lm.seen)
+    return landmark_color(lm.percent, reachable=lm.reachable, doubted=lm.doubted)

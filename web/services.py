@@ -8,7 +8,6 @@ the same protocol.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Protocol
 
@@ -31,8 +30,7 @@ class LandmarkState:
         percent: rough charge 0-100 (the server's `BatteryStatus.percent`), None when unknown.
         days_left: estimated days until the cut-off voltage, None when unknown.
         reachable: False once the radio stopped answering.
-        seen: False when no robot has used it for a fix since the viewer started.
-        position_known: False for a radio found by discovery with no surveyed position yet.
+        doubted: localized robots expected it in view but rarely used it (`web.doubt`).
     """
 
     id: int
@@ -45,8 +43,40 @@ class LandmarkState:
     percent: float | None = None
     days_left: float | None = None
     reachable: bool = True
-    seen: bool = True
-    position_known: bool = True
+    doubted: bool = False
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """Something the identification wizard can identify.
+
+    Attributes:
+        landmark_id: the landmark (for a new radio: the ID it gets when saved).
+        radio: for a new radio from discovery (not in the map): its 64-bit address.
+        reason: why it is offered, for people ("doubted: ...", "new radio ...").
+    """
+
+    landmark_id: int
+    radio: str | None = None
+    reason: str = ""
+
+    @property
+    def is_new(self) -> bool:
+        """A radio from discovery, not yet a landmark of the map."""
+        return self.radio is not None
+
+
+@dataclass(frozen=True, eq=False)
+class FramePose:
+    """A robot's estimate at one frame's time.
+
+    Attributes:
+        pose: the localizer's estimate for that frame (a landmark fix or dead reckoning).
+        last_fix_t_ns: time of the latest landmark fix at or before that frame, None if none.
+    """
+
+    pose: PoseEstimate
+    last_fix_t_ns: int | None
 
 
 @dataclass(frozen=True, eq=False)
@@ -125,11 +155,20 @@ class ViewerSite(Protocol):
         """The nominal ceiling (LED) height, metres."""
         ...
 
+    def pose_at(self, robot: str, t_ns: int) -> FramePose | None:
+        """The robot's estimate for its frame taken at `t_ns`; None when there is none (yet)."""
+        ...
+
     # -- actions (role checked by the caller); ValueError/KeyError carry the reason --------
     def relocalize(self, robot: str, *, actor: str) -> None: ...
 
     def set_leds(self, lit: frozenset[int], *, actor: str) -> None:
         """Light exactly `lit`, darken the others (waits for the radio)."""
+        ...
+
+    def set_radio_led(self, address: str, on: bool, *, actor: str) -> None:
+        """Switch the LED of a radio that is not (yet) a landmark of the map (waits for the
+        acknowledgement)."""
         ...
 
     def hold_leds(self, held: bool) -> None:
@@ -138,7 +177,14 @@ class ViewerSite(Protocol):
         ...
 
     def add_landmark(
-        self, landmark_id: int, x: float, y: float, z: float, *, actor: str
+        self,
+        landmark_id: int,
+        x: float,
+        y: float,
+        z: float,
+        *,
+        actor: str,
+        radio: str | None = None,
     ) -> LandmarkState: ...
 
     def update_landmark(
@@ -162,6 +208,7 @@ class ViewerSite(Protocol):
         """Replace the robot's camera (lens and mounting) and restart its localizer."""
         ...
 
-    def to_identify(self) -> Sequence[int]:
-        """Landmarks to identify: new radios from discovery, unknown or doubted positions."""
+    def to_identify(self, *, discover: bool = False) -> list[Candidate]:
+        """What to identify: doubted landmarks and, with `discover`, the radios a discovery
+        finds that are not in the map (it waits for the radio; ValueError when it fails)."""
         ...

@@ -28,6 +28,7 @@ from web.panels.wizard import WizardPanel
 from web.roles import ANONYMOUS, Session
 from web.scene import SiteScene
 from web.services import ViewerSite
+from web.viser_compat import ViserCompatError, check_viser, request_path
 from web.wizard import IdentificationWizard
 
 log = logging.getLogger(__name__)
@@ -140,6 +141,10 @@ class Viewer:
             self.site = self._adapter
         self.wizard = IdentificationWizard(self.site)
         self.server = viser.ViserServer(self.host, self._port, label="irloc", verbose=False)
+        try:
+            check_viser(self.server)
+        except ViserCompatError as exc:  # every browser will be read-only
+            log.error("viewer: %s", exc)
         self.scene = SiteScene(self.server)
         lms = self.site.landmarks()
         pos = np.array([[lm.x, lm.y] for lm in lms]).reshape(-1, 2)
@@ -183,16 +188,15 @@ class Viewer:
         return ticket
 
     def _session_for(self, client: viser.ClientHandle) -> Session:
-        # viser 1.1 keeps each client's websockets connection here (private): its request
-        # path carries the proxy's ticket. Without it the browser is read-only.
+        assert self.server is not None  # started
         try:
-            conn = self.server._websock_server._live_connections[client.client_id]  # type: ignore[union-attr]
-            if conn.request is None:
-                return ANONYMOUS
-            query = parse_qs(urlsplit(conn.request.path).query)
-            ticket = query.get(TICKET_PARAM, [""])[0]
-        except (AttributeError, KeyError):
+            path = request_path(self.server, client)
+        except ViserCompatError as exc:
+            log.error("viewer: %s", exc)
             return ANONYMOUS
+        if path is None:
+            return ANONYMOUS
+        ticket = parse_qs(urlsplit(path).query).get(TICKET_PARAM, [""])[0]
         with self._lock:
             hit = self._tickets.pop(ticket, None)
         if hit is None or time.monotonic() - hit[0] > self.config.ticket_ttl_s:
@@ -238,10 +242,11 @@ class Viewer:
         assert self.server is not None and self.scene is not None  # started
         robots = self.site.robots()
         lms = self.site.landmarks() if landmarks_due or panels_due else None
-        with self.server.atomic():
-            self.scene.update_robots(robots)
-            if landmarks_due and lms is not None:
-                self.scene.update_landmarks(lms, self.site.lit())
+        if self.scene.robots_changed(robots) or landmarks_due:  # else nothing to send
+            with self.server.atomic():
+                self.scene.update_robots(robots)
+                if landmarks_due and lms is not None:
+                    self.scene.update_landmarks(lms, self.site.lit())
         if panels_due and lms is not None:
             self.history.add(robots)
             events = self.site.events(self.config.event_limit)

@@ -1,11 +1,14 @@
 """The one-at-a-time LED identification wizard (the logic; `web.panels.wizard` is its GUI).
 
-For each landmark to identify it darkens the others and lights that one alone, takes the
-chosen robot's next camera frame, finds the spot and, when the robot is localized, computes
-the landmark's position on the ceiling: the spot's ray from the camera, placed by the
-robot's pose, intersected with the LED's height (`web.geometry.landmark_from_spot`). Staff
-confirm (saved through the site's data layer and audit log), skip, retry or type the
-position by hand. Cancelling, or finishing, restores every LED to its state before the start.
+It steps through candidates (`web.services.Candidate`): landmarks of the map (doubted, or
+named by staff) and new radios from discovery. For each one it darkens the others and lights
+that one alone, takes the chosen robot's next camera frame, finds the spot and, when the
+robot is localized, computes the landmark's position on the ceiling: the spot's ray from the
+camera, placed by the robot's own estimate for that frame, intersected with the LED's height
+(`web.geometry.landmark_from_spot`). Staff confirm (a landmark is moved, a new radio becomes
+a landmark with that position and its address; both through the site's data layer and audit
+log), skip, retry or type the position by hand. Cancelling, or finishing, restores every LED
+to its state before the start (radios from discovery are left lit, as landmarks are kept).
 
 Methods are called from viser's callback threads: one lock serialises them. Waiting for the
 radio and for a fresh frame happens in the caller's thread.
@@ -13,7 +16,6 @@ radio and for a fresh frame happens in the caller's thread.
 
 from __future__ import annotations
 
-import math
 import threading
 import time
 from collections.abc import Sequence
@@ -23,8 +25,8 @@ from typing import Literal
 import numpy as np
 import numpy.typing as npt
 
-from web.geometry import landmark_from_spot
-from web.services import CameraView, LandmarkState, ViewerSite
+from web.measure import Measurement, describe, measure_landmark
+from web.services import CameraView, Candidate, ViewerSite
 
 Phase = Literal["idle", "measured", "done", "cancelled"]
 
@@ -35,40 +37,26 @@ class WizardConfig:
 
     Attributes:
         frame_timeout_s: how long to wait for a frame taken after the LED change, seconds.
+        fix_timeout_s: how long to wait for the robot to fix its pose from the other
+            landmarks once they are lit again, seconds.
+        fix_settle_s: ... and then for it to stay fixed this long, seconds.
         settle_s: a frame counts once taken this long after the radio confirmed the change.
         max_fix_age_s: the robot's last landmark fix must be this recent, seconds.
         poll_s: polling period while waiting for a frame, seconds.
         led_tries: how often to (re)send an LED state that something else overrode.
         led_check_s: wait this long after sending before checking the LED state, seconds.
+        frames: positions from up to this many consecutive frames are combined (median).
     """
 
     frame_timeout_s: float = 3.0
+    fix_timeout_s: float = 10.0
+    fix_settle_s: float = 0.5
     settle_s: float = 0.05
     max_fix_age_s: float = 3.0
     poll_s: float = 0.03
     led_tries: int = 6
     led_check_s: float = 0.3
-
-
-@dataclass(frozen=True, eq=False)
-class Measurement:
-    """What one lighting of a landmark gave.
-
-    Attributes:
-        landmark_id: the landmark lit alone.
-        view: the frame used, with its detected spots (None when no frame came).
-        spot: the chosen spot's pixel (col, row), None when no spot was seen.
-        position: the computed LED position in the world frame, shape (3,), or None.
-        robot_pose: (x, y, theta) used, or None when the robot was not localized.
-        message: what happened, for the staff.
-    """
-
-    landmark_id: int
-    view: CameraView | None
-    spot: npt.NDArray[np.float64] | None
-    position: npt.NDArray[np.float64] | None
-    robot_pose: tuple[float, float, float] | None
-    message: str
+    frames: int = 5
 
 
 @dataclass
@@ -76,7 +64,7 @@ class WizardState:
     """Where the wizard stands (a copy is handed to the GUI)."""
 
     phase: Phase = "idle"
-    queue: list[int] = field(default_factory=list)
+    queue: list[Candidate] = field(default_factory=list)
     index: int = 0
     robot: str = ""
     measurement: Measurement | None = None
@@ -84,8 +72,15 @@ class WizardState:
     skipped: list[int] = field(default_factory=list)
 
     @property
-    def current(self) -> int | None:
+    def candidate(self) -> Candidate | None:
+        """What is lit alone now."""
         return self.queue[self.index] if self.phase == "measured" else None
+
+    @property
+    def current(self) -> int | None:
+        """The landmark ID lit alone now (for a new radio: the ID it will get)."""
+        c = self.candidate
+        return None if c is None else c.landmark_id
 
     @property
     def progress(self) -> float:
@@ -102,6 +97,7 @@ class IdentificationWizard:
         self._lock = threading.RLock()
         self._state = WizardState()
         self._previous_lit: frozenset[int] | None = None
+        self._radio_lit: str | None = None  # a new radio this wizard lit
         self._snapshot = WizardState()
 
     @property
@@ -120,24 +116,36 @@ class IdentificationWizard:
     def active(self) -> bool:
         return self.state.phase == "measured"
 
-    def start(self, robot: str, landmark_ids: Sequence[int], *, actor: str) -> Measurement:
-        """Remember the LEDs, then light the first landmark alone and measure it.
+    def start(
+        self, robot: str, candidates: Sequence[Candidate | int], *, actor: str
+    ) -> Measurement:
+        """Remember the LEDs, darken the new radios, then light the first candidate alone
+        and measure it. Plain IDs are landmarks of the map.
 
         Raises:
-            ValueError: when already running, the queue is empty, or the robot is unknown.
+            ValueError: when already running, the queue is empty, the robot is unknown, or a
+                new radio does not answer (the LEDs are then restored).
         """
         with self._lock:
             if self._state.phase == "measured":
                 raise ValueError("the identification wizard is already running")
-            if not landmark_ids:
+            queue = [c if isinstance(c, Candidate) else Candidate(int(c)) for c in candidates]
+            if not queue:
                 raise ValueError("nothing to identify")
             if robot not in {r.name for r in self.site.robots()}:
                 raise ValueError(f"unknown robot {robot!r}")
             self._previous_lit = self.site.lit()
             self.site.hold_leds(True)
-            self._state = WizardState(phase="measured", queue=list(landmark_ids), robot=robot)
+            self._state = WizardState(phase="measured", queue=queue, robot=robot)
             try:
+                for c in queue:  # unmapped LEDs would be stray spots in every frame
+                    if c.radio is not None:
+                        self.site.set_radio_led(c.radio, False, actor=actor)
                 return self._measure(actor)
+            except Exception:
+                self._state.phase = "cancelled"
+                self._restore(actor)
+                raise
             finally:
                 self._publish()
 
@@ -167,9 +175,14 @@ class IdentificationWizard:
                 if m is None or m.position is None:
                     raise ValueError("no measured position to save: retry or type it by hand")
                 p = m.position
-            lid = self._state.queue[self._state.index]
-            self.site.update_landmark(lid, actor=actor, x=float(p[0]), y=float(p[1]), z=float(p[2]))
-            self._state.saved.append(lid)
+            c = self._state.queue[self._state.index]
+            x, y, z = float(p[0]), float(p[1]), float(p[2])
+            if c.radio is None:
+                self.site.update_landmark(c.landmark_id, actor=actor, x=x, y=y, z=z)
+            else:
+                self.site.add_landmark(c.landmark_id, x, y, z, actor=actor, radio=c.radio)
+                self._radio_lit = None  # a landmark now: the site switches it
+            self._state.saved.append(c.landmark_id)
             try:
                 return self._advance(actor)
             finally:
@@ -179,7 +192,7 @@ class IdentificationWizard:
         """Leave the current landmark as it is and go to the next."""
         with self._lock:
             self._need_running()
-            self._state.skipped.append(self._state.queue[self._state.index])
+            self._state.skipped.append(self._state.queue[self._state.index].landmark_id)
             try:
                 return self._advance(actor)
             finally:
@@ -202,7 +215,7 @@ class IdentificationWizard:
         s = self._state
         if s.phase == "measured":
             s.phase = "cancelled"
-            self._previous_lit = None
+            self._previous_lit = self._radio_lit = None
             self.site.hold_leds(False)
             self._publish()
 
@@ -212,6 +225,7 @@ class IdentificationWizard:
             raise ValueError("the identification wizard is not running")
 
     def _advance(self, actor: str) -> Measurement | None:
+        self._darken_radio(actor)
         self._state.index += 1
         self._state.measurement = None
         if self._state.index >= len(self._state.queue):
@@ -221,23 +235,46 @@ class IdentificationWizard:
         return self._measure(actor)
 
     def _restore(self, actor: str) -> None:
+        s = self._state
         try:
             if self._previous_lit is not None:
-                self._set_leds(self._previous_lit, actor)
+                self._set_leds(self._relight(), actor)
+            for c in s.queue:
+                if c.radio is not None and c.landmark_id not in s.saved:
+                    self.site.set_radio_led(c.radio, True, actor=actor)
         finally:
-            self._previous_lit = None
+            self._previous_lit = self._radio_lit = None
             self.site.hold_leds(False)
 
-    def _robot_pose(self) -> tuple[tuple[float, float, float] | None, str]:
-        rb = next((r for r in self.site.robots() if r.name == self._state.robot), None)
-        if rb is None:
-            return None, f"robot {self._state.robot!r} is gone"
-        if rb.pose is None or rb.last_fix_t_ns is None:
-            return None, f"robot {rb.name} has no landmark fix"
-        age = (rb.now_ns - rb.last_fix_t_ns) * 1e-9
+    def _darken_radio(self, actor: str) -> None:
+        if self._radio_lit is not None:
+            self.site.set_radio_led(self._radio_lit, False, actor=actor)
+            self._radio_lit = None
+
+    def _relight(self) -> frozenset[int]:
+        """The LEDs to light for the robot to fix its pose (and at the end): those lit
+        before the start and the new landmarks saved since."""
+        s = self._state
+        created = {c.landmark_id for c in s.queue if c.is_new} & set(s.saved)
+        return (self._previous_lit or frozenset()) | created
+
+    def _robot_pose(self, t_ns: int) -> tuple[tuple[float, float, float] | None, str]:
+        """The robot's own estimate for its frame at `t_ns` (waits for the localizer)."""
+        name = self._state.robot
+        deadline = time.monotonic() + self.config.frame_timeout_s
+        at = self.site.pose_at(name, t_ns)
+        while at is None and time.monotonic() < deadline:
+            time.sleep(self.config.poll_s)
+            at = self.site.pose_at(name, t_ns)
+        if at is None:
+            return None, f"robot {name} has no pose for that frame"
+        if at.last_fix_t_ns is None:
+            return None, f"robot {name} has no landmark fix"
+        age = (t_ns - at.last_fix_t_ns) * 1e-9
         if age > self.config.max_fix_age_s:
-            return None, f"robot {rb.name}'s last landmark fix is {age:.1f} s old"
-        return (rb.pose.x, rb.pose.y, rb.pose.theta), ""
+            return None, f"robot {name}'s last landmark fix is {age:.1f} s old"
+        p = at.pose
+        return (p.x, p.y, p.theta), ""
 
     def _wait_frame(self, after_ns: int) -> CameraView | None:
         deadline = time.monotonic() + self.config.frame_timeout_s
@@ -249,11 +286,19 @@ class IdentificationWizard:
         return None
 
     def _wait_fix(self, after_ns: int) -> None:
-        deadline = time.monotonic() + self.config.frame_timeout_s
+        """Wait for the robot to be in landmark mode `fix_settle_s` after its first fix
+        since `after_ns` (a fix just re-acquired is rough)."""
+        deadline = time.monotonic() + self.config.fix_timeout_s
+        first: int | None = None
         while time.monotonic() < deadline:
             rb = next((r for r in self.site.robots() if r.name == self._state.robot), None)
-            if rb is None or (rb.last_fix_t_ns is not None and rb.last_fix_t_ns >= after_ns):
+            if rb is None:
                 return
+            fix = rb.last_fix_t_ns
+            if fix is not None and fix >= after_ns:
+                first = fix if first is None else first
+                if rb.mode == "landmark" and fix - first >= self.config.fix_settle_s * 1e9:
+                    return
             time.sleep(self.config.poll_s)
 
     def _now_ns(self) -> int:
@@ -261,17 +306,26 @@ class IdentificationWizard:
         return 0 if rb is None else rb.now_ns
 
     def _measure(self, actor: str) -> Measurement:
-        lid = self._state.queue[self._state.index]
+        c = self._state.queue[self._state.index]
+        lid = c.landmark_id
         landmarks = {lm.id: lm for lm in self.site.landmarks()}
-        if self._previous_lit is not None and self.site.lit() != self._previous_lit:
-            # light the others again so that the robot fixes its pose from them
-            self._set_leds(self._previous_lit, actor)
+        self._darken_radio(actor)
+        relight = self._relight()
+        if self._previous_lit is not None and self.site.lit() != relight:
+            # light the others again so that the robot fixes its pose from them; its own
+            # LED requests (to identify them again) may reach the radio meanwhile
+            self.site.hold_leds(False)
+            self.site.set_leds(relight, actor=actor)  # once: not to fight a robot's sweep
             self._wait_fix(self._now_ns())
-        alone = frozenset({lid})
+            self.site.hold_leds(True)
+        alone = frozenset() if c.radio is not None else frozenset({lid})
         view = None
         for _ in range(self.config.led_tries):
             if not self._set_leds(alone, actor):
                 break
+            if c.radio is not None and self._radio_lit is None:
+                self.site.set_radio_led(c.radio, True, actor=actor)
+                self._radio_lit = c.radio
             view = self._wait_frame(self._now_ns() + int(self.config.settle_s * 1e9))
             if self.site.lit() == alone:  # still alone after the frame: the frame is good
                 break
@@ -279,9 +333,26 @@ class IdentificationWizard:
         if view is None:
             why = f"could not keep landmark {lid} lit alone: retry"
             return self._keep(Measurement(lid, None, None, None, None, why))
-        pose, why = self._robot_pose()  # dead reckoning since the last fix, at this frame
-        m = measure_landmark(self.site, self._state.robot, lid, landmarks.get(lid), view, pose, why)
-        return self._keep(m)
+        known = None if c.radio is not None else landmarks.get(lid)
+        robot = self._state.robot
+        pose, why = self._robot_pose(view.t_ns)  # its estimate for this very frame
+        first = measure_landmark(self.site, robot, lid, known, view, pose, why)
+        positions = [] if first.position is None else [first.position]
+        while positions and len(positions) < self.config.frames:
+            nxt = self._wait_frame(view.t_ns + 1)
+            if nxt is None or self.site.lit() != alone:
+                break
+            view = nxt
+            pose, why = self._robot_pose(view.t_ns)
+            m = measure_landmark(self.site, robot, lid, known, view, pose, why)
+            if m.position is None:
+                break
+            positions.append(m.position)
+        if len(positions) < 2:
+            return self._keep(first)
+        p = np.median(np.array(positions), axis=0)
+        text = describe(lid, p, known, f", median of {len(positions)} frames")
+        return self._keep(Measurement(lid, first.view, first.spot, p, first.robot_pose, text))
 
     def _keep(self, m: Measurement) -> Measurement:
         self._state.measurement = m
@@ -296,38 +367,3 @@ class IdentificationWizard:
             if self.site.lit() == lit:
                 return True
         return False
-
-
-def measure_landmark(
-    site: ViewerSite,
-    robot: str,
-    landmark_id: int,
-    landmark: LandmarkState | None,
-    view: CameraView | None,
-    pose: tuple[float, float, float] | None,
-    why_no_pose: str,
-) -> Measurement:
-    """Turn a frame with one lit LED into a proposed landmark position."""
-    if view is None:
-        return Measurement(landmark_id, None, None, None, pose, f"no new frame from {robot}")
-    if len(view.spots) == 0:
-        return Measurement(
-            landmark_id, view, None, None, pose,
-            f"no spot seen: is landmark {landmark_id} in {robot}'s view? Move it, or retry",
-        )  # fmt: skip
-    spot = np.asarray(view.spots[0], dtype=np.float64)
-    extra = f" ({len(view.spots)} spots; the brightest is used)" if len(view.spots) > 1 else ""
-    if pose is None:
-        return Measurement(landmark_id, view, spot, None, None, why_no_pose + extra)
-    height = landmark.z if landmark is not None and landmark.position_known else None
-    if height is None or not math.isfinite(height):
-        height = site.ceiling_height()
-    cam = next(r.camera for r in site.robots() if r.name == robot)
-    p = landmark_from_spot(cam, *pose, spot, height)
-    if p is None:
-        return Measurement(landmark_id, view, spot, None, pose, "the spot's ray misses the ceiling")
-    text = f"landmark {landmark_id} at ({p[0]:.3f}, {p[1]:.3f}, {p[2]:.3f}) m{extra}"
-    if landmark is not None and landmark.position_known:
-        d = math.hypot(p[0] - landmark.x, p[1] - landmark.y)
-        text += f", {100 * d:.1f} cm from the map"
-    return Measurement(landmark_id, view, spot, p, pose, text)

@@ -10,6 +10,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
 
 REPO = Path(__file__).resolve().parents[2]
@@ -64,3 +65,67 @@ def live_site(tmp_path_factory: pytest.TempPathFactory) -> Iterator[LiveSite]:
     finally:
         server.should_exit = True
         thread.join(timeout=30)
+
+
+def nearest_landmarks(services: Any, robot: str, n: int) -> list[int]:
+    """The `n` reachable landmarks nearest the robot's true position now (the truth only
+    picks which landmarks a test works on)."""
+    x, y, _ = services.sim.true_pose(robot)
+    lms = [lm for lm in services.sim.world.landmarks.values() if lm.reachable]
+    lms.sort(key=lambda lm: np.hypot(lm.p_true[0] - x, lm.p_true[1] - y))
+    return [int(lm.id) for lm in lms[:n]]
+
+
+def landmark_always_in_view(services: Any, robot: str) -> int:
+    """The reachable landmark nearest to the robot's whole patrol route (the largest
+    horizontal distance from the route is the smallest): in its camera's view wherever it
+    is when a slow step (a browser click) finally measures it."""
+    spec = next(r for r in services.sim.scenario.robots if r.name == robot)
+    corners = [(float(spec.start[0]), float(spec.start[1]))]
+    corners += [(float(st.x), float(st.y)) for st in spec.route.steps if hasattr(st, "x")]
+    route = np.vstack(
+        [np.linspace(a, b, 20) for a, b in zip(corners, corners[1:] + corners[:1], strict=True)]
+    )
+    lms = [lm for lm in services.sim.world.landmarks.values() if lm.reachable]
+
+    def worst(lm: Any) -> float:
+        return float(np.max(np.hypot(route[:, 0] - lm.p_true[0], route[:, 1] - lm.p_true[1])))
+
+    return int(min(lms, key=worst).id)
+
+
+def wait_localized(
+    site: Any, robot: str, services: Any, *, tol_m: float = 0.02, timeout_s: float = 60.0
+) -> None:
+    """Wait until the robot's localizer holds a landmark fix that agrees with the simulator's
+    truth for the same frame (the truth checks the localizer; it never feeds the wizard).
+
+    A robot locked onto a wrong fix (in a regular grid, a fix shifted by whole cells is
+    self-consistent: a localizer issue, not the viewer's) is relocalized, as an operator
+    would with the viewer's Relocalize button, at most every 15 s.
+    """
+    deadline = time.monotonic() + timeout_s
+    last_relocalize = wrong_since = None
+    err = None
+    while time.monotonic() < deadline:
+        rb = next(r for r in site.robots() if r.name == robot)
+        truth = None if rb.pose is None else services.sim.true_pose_at(robot, rb.pose.t_ns)
+        if rb.mode == "landmark" and rb.pose is not None and truth is not None:
+            err = float(np.hypot(rb.pose.x - truth[0], rb.pose.y - truth[1]))
+            now = time.monotonic()
+            if err <= tol_m:
+                return
+            wrong_since = wrong_since or now
+            if (
+                err > 0.5
+                and now - wrong_since > 2.0
+                and (last_relocalize is None or now - last_relocalize > 15.0)
+            ):
+                site.relocalize(robot, actor="test")
+                last_relocalize, wrong_since = now, None
+        else:
+            wrong_since = None
+        time.sleep(0.1)
+    raise AssertionError(
+        f"{robot} did not hold a correct landmark fix in {timeout_s} s (last error {err} m)"
+    )

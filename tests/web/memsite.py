@@ -1,13 +1,14 @@
 """A small in-memory `ViewerSite` for the viewer's unit tests: true landmark positions, a map
-that may differ from them, robots standing still, LEDs, and camera views computed from the
-truth with `predict_pixels` (no image rendering)."""
+that may differ from them, radios not in the map (found by "discovery"), robots standing
+still, LEDs, and camera views computed from the truth with `predict_pixels` (no image
+rendering)."""
 
 from __future__ import annotations
 
 import threading
 import time
-from collections.abc import Sequence
 from dataclasses import replace
+from typing import Any
 
 import numpy as np
 
@@ -15,13 +16,20 @@ from localizer.camera import CameraModel, predict_pixels
 from localizer.events import PoseEstimate
 from localizer.geometry import T_world_body_from_pose
 from sim.cameras import wide_angle_camera
-from web.services import CameraView, EventLine, LandmarkState, RobotState
+from web.candidates import new_radio_candidates
+from web.services import CameraView, Candidate, EventLine, FramePose, LandmarkState, RobotState
 
 
 class MemSite:
-    def __init__(self, truth: dict[int, tuple[float, float, float]], poses: dict[str, tuple]):
+    def __init__(
+        self,
+        truth: dict[int, tuple[float, float, float]],
+        poses: dict[str, tuple[float, float, float]],
+    ) -> None:
         self.truth = {k: np.array(v, dtype=float) for k, v in truth.items()}
         self.map = {k: LandmarkState(k, *v) for k, v in truth.items()}
+        self.radios: dict[str, np.ndarray] = {}  # address -> true position, not in the map
+        self.radio_lit: set[str] = set()
         self.poses = poses
         self.camera: CameraModel = wide_angle_camera("pinhole")
         self._lit = frozenset(truth)
@@ -40,7 +48,7 @@ class MemSite:
 
     def _visible_lit(self, name: str) -> list[int]:
         x, y, th = self.poses[name]
-        ids = sorted(self._lit)
+        ids = sorted(i for i in self._lit if i in self.truth)
         if not ids:
             return []
         p = np.array([self.truth[i] for i in ids])
@@ -70,14 +78,22 @@ class MemSite:
 
     def camera_view(self, robot: str) -> CameraView | None:
         x, y, th = self.poses[robot]
-        ids = sorted(self._lit)
-        p = np.array([self.truth[i] for i in ids]).reshape(-1, 3)
+        ids = sorted(i for i in self._lit if i in self.truth)
+        lit = [self.truth[i] for i in ids] + [self.radios[a] for a in sorted(self.radio_lit)]
+        p = np.array(lit).reshape(-1, 3)
         px, ok = predict_pixels(self.camera, T_world_body_from_pose(x, y, th), p)
         img = np.zeros((self.camera.height, self.camera.width), np.uint8)
         return CameraView(time.monotonic_ns(), img, px[ok])
 
     def ceiling_height(self) -> float:
         return 2.5
+
+    def pose_at(self, robot: str, t_ns: int) -> FramePose | None:
+        x, y, th = self.poses[robot]
+        fixed = len(self._visible_lit(robot)) >= 2
+        pose = PoseEstimate(t_ns, x, y, th, np.diag([1e-4, 4e-4, 1e-4]),
+                            "landmark" if fixed else "dead_reckoning")  # fmt: skip
+        return FramePose(pose, t_ns if fixed else self._lit_at)
 
     # -- actions -----------------------------------------------------------------------------
     def relocalize(self, robot: str, *, actor: str) -> None:
@@ -91,20 +107,40 @@ class MemSite:
     def hold_leds(self, held: bool) -> None:
         self.held = held
 
+    def set_radio_led(self, address: str, on: bool, *, actor: str) -> None:
+        if address not in self.radios:
+            raise ValueError(f"radio {address} does not answer")
+        (self.radio_lit.add if on else self.radio_lit.discard)(address)
+        self.led_log.append(frozenset(self._lit))
+
     def set_leds(self, lit: frozenset[int], *, actor: str) -> None:
         self._lit = frozenset(lit)
         self._lit_at = time.monotonic_ns()
         self.led_log.append(self._lit)
 
-    def add_landmark(self, landmark_id: int, x: float, y: float, z: float, *, actor: str):
+    def add_landmark(
+        self,
+        landmark_id: int,
+        x: float,
+        y: float,
+        z: float,
+        *,
+        actor: str,
+        radio: str | None = None,
+    ) -> LandmarkState:
         with self.lock:
             if landmark_id in self.map:
                 raise ValueError(f"landmark {landmark_id} exists")
-            lm = self.map[landmark_id] = LandmarkState(landmark_id, x, y, z)
+            lm = self.map[landmark_id] = LandmarkState(landmark_id, x, y, z, radio=radio)
+            if radio is not None and radio in self.radios:  # a landmark now: the site switches it
+                self.truth[landmark_id] = self.radios.pop(radio)
+                if radio in self.radio_lit:
+                    self.radio_lit.discard(radio)
+                    self._lit = self._lit | {landmark_id}
             self.audit.append((actor, "create", landmark_id, None, lm))
             return lm
 
-    def update_landmark(self, landmark_id: int, *, actor: str, **fields):
+    def update_landmark(self, landmark_id: int, *, actor: str, **fields: Any) -> LandmarkState:
         with self.lock:
             old = self.map[landmark_id]
             if old.locked and any(fields.get(k) is not None for k in "xyz"):
@@ -130,8 +166,13 @@ class MemSite:
                 self.map[lid] = before
             return f"undid {act} of landmark {lid} by {who}"
 
-    def to_identify(self) -> Sequence[int]:
-        return [i for i, lm in self.map.items() if not lm.locked and not lm.seen]
+    def to_identify(self, *, discover: bool = False) -> list[Candidate]:
+        out = [Candidate(i, None, "doubted") for i, lm in sorted(self.map.items())
+               if not lm.locked and lm.doubted]  # fmt: skip
+        if discover:
+            found = [(a, f"LM{a[-4:]}") for a in self.radios]
+            out += new_radio_candidates(found, set(self.map))
+        return out
 
 
 def grid_site(*, doubted: dict[int, tuple[float, float]] | None = None) -> MemSite:
@@ -142,5 +183,5 @@ def grid_site(*, doubted: dict[int, tuple[float, float]] | None = None) -> MemSi
     site = MemSite(truth, {"r1": (1.5, 1.0, 0.3), "r2": (0.5, 0.2, -2.0)})
     for lid, (dx, dy) in (doubted or {}).items():
         lm = site.map[lid]
-        site.map[lid] = replace(lm, x=lm.x + dx, y=lm.y + dy, seen=False)
+        site.map[lid] = replace(lm, x=lm.x + dx, y=lm.y + dy, doubted=True)
     return site

@@ -79,7 +79,7 @@ def test_scene_renders_with_every_landmark_of_the_map(browser: Any, live_site: L
         assert page.evaluate(f"() => {LANDMARKS_IN_SCENE}") == n_map
         for name in live_site.services.robots.names():
             page.wait_for_function(
-                f"() => !!window.__viserMutable.nodeRefFromName['/robots/{name}/body']",
+                f"() => !!window.__viserMutable.nodeRefFromName['/robots/{name}/position/body']",
                 timeout=30_000,
             )
         page.get_by_text("signed in as admin").wait_for(timeout=10_000)
@@ -101,39 +101,33 @@ def test_viewer_key_sees_but_cannot_edit(browser: Any, live_site: LiveSite) -> N
         page.close()
 
 
-# The live site keeps patrolling while the wizard runs: retried, and counted as a failure
-# only when it fails three times (see docs/viewer.md).
-@pytest.mark.flaky(reruns=2)
 def test_wizard_lights_the_landmark_alone_and_saves_its_true_position(
     browser: Any, live_site: LiveSite
 ) -> None:
-    """Through the browser's buttons. The wizard's robot pose is the simulator's truth
-    (`tests.web.truth.TruthPoseSite`): this checks the viewer, not the localizer."""
+    """Through the browser's buttons, on the live site: the position is computed from the
+    robot's own localized pose; the simulator's truth only checks it."""
     from server.models import LandmarkUpdate
-    from tests.web.truth import TruthPoseSite
+    from tests.web.conftest import landmark_always_in_view, wait_localized
 
     services = live_site.services
     world = services.sim.world
     viewer = live_site.app.state.viewer
-    inner = viewer.site
-    viewer.site = viewer.wizard.site = TruthPoseSite(inner, services)
     robot = "r2"
     page = open_viewer(browser, live_site, live_site.admin_key)
     try:
         page.get_by_role("tab", name="Commission").click()
         page.get_by_label("Camera of").click()  # a Mantine select: open it, pick the option
         page.get_by_role("option", name=robot, exact=True).click()
-        # the landmark nearest the robot now (it patrols); its map position 30 cm off
-        x, y, _ = services.sim.true_pose(robot)
-        near = [lm for lm in world.landmarks.values() if lm.reachable]
-        target = min(near, key=lambda lm: np.hypot(lm.p_true[0] - x, lm.p_true[1] - y))
-        lid, truth = int(target.id), np.array(target.p_true)
+        # a landmark the patrolling robot always sees; its map position 30 cm off
+        lid = landmark_always_in_view(services, robot)
+        truth = np.array(world.landmarks[lid].p_true)
         services.map.update(lid, LandmarkUpdate(x=float(truth[0]) + 0.3), actor="test")
         # viser's text input's label does not point at it (its `for` is another id)
         ids = page.locator("xpath=//label[normalize-space()='Landmark IDs']/following::input[1]")
         ids.fill(str(lid))
         ids.press("Enter")
         time.sleep(1.0)
+        wait_localized(viewer.site, robot, services)
         page.get_by_role("button", name="Start identification").click()
         deadline = time.monotonic() + 60
         while viewer.wizard.state.measurement is None and time.monotonic() < deadline:
@@ -151,4 +145,3 @@ def test_wizard_lights_the_landmark_alone_and_saves_its_true_position(
         assert err < 0.02, f"saved ({saved.x:.3f}, {saved.y:.3f}), truth {truth[:2]}"
     finally:
         page.close()
-        viewer.site = viewer.wizard.site = inner

@@ -1,8 +1,8 @@
 from __future__ import annotations
 
 from web.colors import (
+    DOUBTED_COLOR,
     MODE_COLORS,
-    NEVER_SEEN_COLOR,
     UNKNOWN_COLOR,
     UNREACHABLE_COLOR,
     battery_color,
@@ -26,6 +26,7 @@ def test_mode_and_landmark_colors() -> None:
     assert mode_color("landmark") != mode_color("dead_reckoning")
     assert mode_color(None) == UNKNOWN_COLOR
     assert landmark_color(90.0, reachable=False) == UNREACHABLE_COLOR
-    assert landmark_color(90.0, seen=False) == NEVER_SEEN_COLOR
+    assert landmark_color(90.0, doubted=True) == DOUBTED_COLOR
+    assert landmark_color(90.0, reachable=False, doubted=True) == UNREACHABLE_COLOR
     assert landmark_color(100.0) == (40, 200, 40)
     assert landmark_color(None) == UNKNOWN_COLOR

@@ -1,6 +1,7 @@
 from __future__ import annotations
 
 import math
+from typing import Literal
 
 import numpy as np
 import pytest
@@ -46,13 +47,14 @@ def test_ellipse_axes_refuses_bad_matrices() -> None:
 
 def test_ray_plane_point() -> None:
     p = ray_plane_point([1.0, 2.0, 10.0], [0.5, 0.0, -1.0], 2.5)
-    np.testing.assert_allclose(p, [4.75, 2.0, 2.5])
+    assert p is not None
+    np.testing.assert_allclose(p, np.array([4.75, 2.0, 2.5]))
     assert ray_plane_point([0, 0, 0], [1, 0, 0], 2.5) is None
     assert ray_plane_point([0, 0, 3], [0, 0, 1], 2.5) is None
 
 
 @pytest.mark.parametrize("lens", ["pinhole", "fisheye"])
-def test_landmark_from_spot_inverts_predict_pixels(lens: str) -> None:
+def test_landmark_from_spot_inverts_predict_pixels(lens: Literal["pinhole", "fisheye"]) -> None:
     cam = wide_angle_camera(lens, T_body_camera=T_body_camera_upward(offset_xy=(0.1, 0.0)))
     x, y, theta = 3.0, -1.0, 2.5
     truth = np.array([[3.6, -0.7, 2.55]])

@@ -12,8 +12,15 @@ from web.panels.monitor import (
     position_sigma_m,
     robots_table,
 )
-from web.panels.wizard import annotated_frame, parse_ids, status_text
-from web.services import CameraView, LandmarkState
+from web.panels.wizard import (
+    annotated_frame,
+    candidates_for,
+    parse_targets,
+    status_text,
+    suggestions_text,
+    targets_text,
+)
+from web.services import CameraView, Candidate, LandmarkState
 from web.wizard import WizardState
 
 
@@ -51,17 +58,40 @@ def test_uncertainty_history_series_ends_at_zero() -> None:
     assert len(h.series("nobody")[0]) == 0
 
 
-def test_parse_ids_and_status() -> None:
-    assert parse_ids("3, 5 7") == [3, 5, 7]
-    with pytest.raises(ValueError, match="'x'"):
-        parse_ids("3 x")
-    st = WizardState(phase="done", queue=[3, 5], index=2, saved=[3], skipped=[5])
+def test_parse_targets_and_status() -> None:
+    assert parse_targets("3, 5 7 0013a20041000105") == [3, 5, 7, "0013A20041000105"]
+    with pytest.raises(ValueError, match="'x' is neither"):
+        parse_targets("3 x")
+    with pytest.raises(ValueError, match="'0013A2004100010' is neither"):
+        parse_targets("0013A2004100010")  # 15 hex digits
+    st = WizardState(phase="done", queue=[Candidate(3), Candidate(5)], index=2, saved=[3],
+                     skipped=[5])  # fmt: skip
     assert "saved [3], skipped [5]" in status_text(st)
+    new = Candidate(109, "0013A2004100006D", "new radio")
+    st = WizardState(phase="measured", queue=[Candidate(3), new], index=1)
+    assert status_text(st).startswith(
+        "New radio `0013A2004100006D` (to be landmark **109**) (2 of 2), lit alone."
+    )
+
+
+def test_typed_targets_become_candidates() -> None:
+    suggested = [Candidate(12, None, "doubted: x"), Candidate(40, "0013A20041000028", "new")]
+    assert targets_text(suggested) == "12 0013A20041000028"
+    assert suggestions_text(suggested) == "- **12**: doubted: x\n- **40** (new): new"
+    typed = parse_targets("0013A20041000028 12 13 0013A200410000FF")
+    queue = candidates_for(typed, suggested, taken_ids={12, 13, 39})
+    assert queue == [
+        suggested[1],
+        suggested[0],
+        Candidate(13),
+        Candidate(41, "0013A200410000FF"),  # a free ID above the map's and the suggestions'
+    ]
 
 
 def test_nearest_landmark_within_radius() -> None:
     lms = grid_site().landmarks()
-    assert nearest_landmark(lms, np.array([1.1, 0.95, 2.5]), 0.25).id == 15
+    hit = nearest_landmark(lms, np.array([1.1, 0.95, 2.5]), 0.25)
+    assert hit is not None and hit.id == 15
     assert nearest_landmark(lms, np.array([1.5, 0.5, 2.5]), 0.25) is None
 
 

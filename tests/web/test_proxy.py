@@ -7,10 +7,12 @@ import asyncio
 import httpx
 import pytest
 import websockets
+from websockets.typing import Subprotocol
 
 from tests.web.conftest import LiveSite
 
 pytestmark = pytest.mark.slow
+VISER = Subprotocol("viser-v1.1.1")
 
 
 def test_page_needs_a_key_and_moves_it_to_a_cookie(live_site: LiveSite) -> None:
@@ -32,11 +34,14 @@ def test_websocket_relays_viser_only_with_a_key(live_site: LiveSite) -> None:
 
     async def run() -> None:
         with pytest.raises(websockets.InvalidStatus):
-            async with websockets.connect(url, subprotocols=["viser-v1.1.1"]):
+            async with websockets.connect(url, subprotocols=[VISER]):
                 pass
         headers = {"Authorization": f"Bearer {live_site.viewer_key}"}
         async with websockets.connect(
-            url, subprotocols=["viser-v1.1.1"], additional_headers=headers, max_size=None
+            url,
+            subprotocols=[VISER],
+            additional_headers=headers,
+            max_size=None,
         ) as ws:
             assert ws.subprotocol == "viser-v1.1.1"
             first = await asyncio.wait_for(ws.recv(), timeout=10)

@@ -2,13 +2,15 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
+from typing import Any
 
 import numpy as np
 import pytest
 
+from server.cli import is_loopback
 from tests.web.memsite import MemSite, grid_site
-from web.viewer import Viewer, ViewerConfig, is_loopback  # re-used from server.cli
+from web.viewer import Viewer, ViewerConfig
 
 
 @pytest.fixture
@@ -22,12 +24,19 @@ def site_viewer() -> Iterator[tuple[MemSite, Viewer]]:
         viewer.stop()
 
 
-def wait_for(cond, timeout_s: float = 5.0) -> None:
+def wait_for(cond: Callable[[], bool], timeout_s: float = 5.0) -> None:
     deadline = time.monotonic() + timeout_s
     while not cond():
         if time.monotonic() > deadline:
             raise AssertionError("condition not met in time")
         time.sleep(0.02)
+
+
+def node(viewer: Viewer, name: str) -> Any:
+    assert viewer.server is not None
+    h = viewer.server.scene.get_handle_by_name(name)
+    assert h is not None, name
+    return h
 
 
 def test_refuses_a_public_viser_port() -> None:
@@ -44,16 +53,25 @@ def test_scene_holds_every_landmark_and_robot(site_viewer: tuple[MemSite, Viewer
     scene = viewer.scene
     assert scene is not None
     assert scene.landmark_ids() == sorted(site.truth)
-    h = viewer.server.scene.get_handle_by_name("/landmarks/17")
+    h = node(viewer, "/landmarks/17")
     np.testing.assert_allclose(h.position, site.truth[17], atol=1e-6)
-    body = viewer.server.scene.get_handle_by_name("/robots/r1/body")
-    np.testing.assert_allclose(body.position, [1.5, 1.0, 0.125], atol=1e-6)
+    at = node(viewer, "/robots/r1/position")
+    np.testing.assert_allclose(at.position, [1.5, 1.0, 0.0], atol=1e-6)
+    body = node(viewer, "/robots/r1/position/body")
+    np.testing.assert_allclose(body.position, [0.0, 0.0, 0.125], atol=1e-6)
     np.testing.assert_allclose(body.wxyz, [math.cos(0.15), 0, 0, math.sin(0.15)], atol=1e-6)
-    foot = viewer.server.scene.get_handle_by_name("/robots/r1/body/footprint").points
+    ring = node(viewer, "/robots/r1/position/ellipse").points
+    assert ring.shape == (24, 2, 3)  # around the robot: 3 sigma of sqrt(1e-4 m^2) = 3 cm
+    radii = np.hypot(ring[:, 0, 0], ring[:, 0, 1])
+    s_min = np.hypot(0.03, 0.02)  # with the 2 cm floor added in quadrature
+    assert radii.min() == pytest.approx(s_min, rel=1e-3)
+    foot = node(viewer, "/robots/r1/position/body/footprint").points
     assert foot.shape == (24, 2, 3)  # 6 border pixels per edge, closed
     np.testing.assert_allclose(foot[..., 2], 2.5 - 0.125, atol=1e-3)  # ceiling, body frame
-    rays = viewer.server.scene.get_handle_by_name("/robots/r1/rays").points
-    used = site.robots()[0].pose.landmark_ids
+    rays = node(viewer, "/robots/r1/rays").points
+    pose = site.robots()[0].pose
+    assert pose is not None
+    used = pose.landmark_ids
     assert len(rays) == len(used) >= 2
     np.testing.assert_allclose(
         np.sort(rays[:, 1, 0]), np.sort([site.truth[i][0] for i in used]), atol=1e-3
@@ -69,7 +87,7 @@ def test_map_edits_and_leds_reach_the_scene(site_viewer: tuple[MemSite, Viewer])
     site.set_leds(frozenset({11}), actor="t")
     wait_for(lambda: 99 in scene.landmark_ids() and 10 not in scene.landmark_ids())
     wait_for(lambda: scene.is_lit(11) and not scene.is_lit(12))
-    h = viewer.server.scene.get_handle_by_name("/landmarks/99")
+    h = node(viewer, "/landmarks/99")
     np.testing.assert_allclose(h.position, [4.0, 4.0, 2.6])
 
 

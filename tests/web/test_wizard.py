@@ -6,14 +6,16 @@ import pytest
 from tests.web.memsite import grid_site
 from web.wizard import IdentificationWizard, WizardConfig
 
-FAST = WizardConfig(frame_timeout_s=0.5, settle_s=0.0, poll_s=0.001, led_check_s=0.0)
+FAST = WizardConfig(
+    frame_timeout_s=0.5, settle_s=0.0, poll_s=0.001, led_check_s=0.0, fix_settle_s=0.0
+)
 
 
 def test_wizard_lights_each_alone_saves_true_positions_and_restores_leds() -> None:
     site = grid_site(doubted={15: (0.3, -0.2), 16: (-0.25, 0.1)})
     before = site.lit()
     wiz = IdentificationWizard(site, FAST)
-    assert list(site.to_identify()) == [15, 16]
+    assert [c.landmark_id for c in site.to_identify()] == [15, 16]
     m = wiz.start("r1", site.to_identify(), actor="alice")
     assert site.lit() == frozenset({15}) and site.held
     assert m.landmark_id == 15 and m.position is not None
@@ -78,3 +80,42 @@ def test_abandon_releases_the_hold_without_touching_leds() -> None:
     wiz.abandon()
     assert wiz.state.phase == "cancelled" and not site.held
     assert len(site.led_log) == sent
+
+
+def test_a_new_radio_from_discovery_is_lit_alone_and_becomes_a_landmark() -> None:
+    site = grid_site(doubted={15: (0.3, -0.2)})
+    site.radios["0013A20041000063"] = np.array([1.7, 1.4, 2.5])  # not in the map
+    before = site.lit()
+    found = site.to_identify(discover=True)
+    assert [(c.landmark_id, c.radio) for c in found] == [(15, None), (63, "0013A20041000063")]
+    wiz = IdentificationWizard(site, FAST)
+    wiz.start("r1", found, actor="carol")
+    assert site.lit() == frozenset({15}) and site.radio_lit == set()  # the radio darkened
+    m2 = wiz.confirm(actor="carol")
+    assert m2 is not None and m2.landmark_id == 63
+    assert site.lit() == frozenset() and site.radio_lit == {"0013A20041000063"}  # alone
+    assert m2.position is not None
+    np.testing.assert_allclose(m2.position, [1.7, 1.4, 2.5], atol=1e-6)  # at the map's median
+    assert "from the map" not in m2.message
+    assert wiz.confirm(actor="carol") is None
+    lm = site.map[63]
+    assert lm.radio == "0013A20041000063"
+    np.testing.assert_allclose([lm.x, lm.y, lm.z], [1.7, 1.4, 2.5], atol=1e-6)
+    assert [a[:3] for a in site.audit] == [("carol", "update", 15), ("carol", "create", 63)]
+    assert site.lit() == before | {63} and not site.held  # the new landmark lit like the rest
+
+
+def test_skipped_and_cancelled_radios_are_left_lit() -> None:
+    site = grid_site()
+    site.radios["0013A20041000063"] = np.array([1.7, 1.4, 2.5])
+    site.radio_lit.add("0013A20041000063")
+    before = site.lit()
+    wiz = IdentificationWizard(site, FAST)
+    new = site.to_identify(discover=True)
+    wiz.start("r1", [12, *new], actor="x")
+    assert site.radio_lit == set()
+    m = wiz.skip(actor="x")
+    assert m is not None and site.radio_lit == {"0013A20041000063"}
+    wiz.cancel(actor="x")
+    assert site.lit() == before and site.radio_lit == {"0013A20041000063"}
+    assert 63 not in site.map and site.audit == []

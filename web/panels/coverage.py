@@ -40,7 +40,7 @@ class CoveragePanel:
             self.gui_text.content = ""
             return ""
         robots = self.site.robots()
-        lms = [lm for lm in self.site.landmarks() if lm.position_known]
+        lms = self.site.landmarks()
         if not robots or not lms:
             self.gui_text.content = "needs a robot (for its camera) and landmarks"
             return self.gui_text.content

@@ -1,18 +1,23 @@
-"""The identification wizard's GUI: robot, landmarks to identify, the camera frame with its
-detections, the proposed position, and confirm / retry / skip / type by hand / cancel."""
+"""The identification wizard's GUI: robot, what to identify (landmark IDs and radio
+addresses; "Suggest" fills in the doubted landmarks and the new radios a discovery finds),
+the camera frame with its detections, the proposed position, and confirm / retry / skip /
+type by hand / cancel."""
 
 from __future__ import annotations
 
-from collections.abc import Callable
+import re
+from collections.abc import Callable, Sequence
 
 import cv2
 import numpy as np
 import numpy.typing as npt
 import viser
 
+from web.candidates import landmark_id_for_radio
+from web.measure import Measurement
 from web.roles import Session
-from web.services import CameraView, ViewerSite
-from web.wizard import IdentificationWizard, Measurement, WizardState
+from web.services import CameraView, Candidate, ViewerSite
+from web.wizard import IdentificationWizard, WizardState
 
 
 def annotated_frame(
@@ -30,15 +35,56 @@ def annotated_frame(
     return np.asarray(img, dtype=np.uint8)
 
 
-def parse_ids(text: str) -> list[int]:
-    """Landmark IDs from "3, 5 7": ValueError names a bad token."""
-    out = []
+_RADIO = re.compile(r"^[0-9A-Fa-f]{16}$")
+
+
+def parse_targets(text: str) -> list[int | str]:
+    """Landmark IDs and radio addresses (16 hex digits, upper-cased) from
+    "3, 5 0013A20041000105": ValueError names a bad token."""
+    out: list[int | str] = []
     for tok in text.replace(",", " ").split():
+        if _RADIO.match(tok):
+            out.append(tok.upper())
+            continue
         try:
             out.append(int(tok))
         except ValueError:
-            raise ValueError(f"landmark IDs: {tok!r} is not an integer") from None
+            raise ValueError(
+                f"landmarks to identify: {tok!r} is neither a landmark ID nor a radio address "
+                "(16 hex digits)"
+            ) from None
     return out
+
+
+def candidates_for(
+    targets: Sequence[int | str], suggested: Sequence[Candidate], taken_ids: set[int]
+) -> list[Candidate]:
+    """The wizard's queue for typed targets: a suggested candidate when it matches (its
+    reason, a new radio's ID), else a landmark of the map or a new radio with a free ID."""
+    by_id = {c.landmark_id: c for c in suggested if c.radio is None}
+    by_radio = {c.radio: c for c in suggested if c.radio is not None}
+    taken = set(taken_ids) | {c.landmark_id for c in suggested}
+    out = []
+    for t in targets:
+        if isinstance(t, str):
+            out.append(by_radio.get(t) or Candidate(landmark_id_for_radio("", taken), t))
+        else:
+            out.append(by_id.get(t) or Candidate(t))
+    return out
+
+
+def targets_text(candidates: Sequence[Candidate]) -> str:
+    """The text field's content for candidates: IDs and radio addresses."""
+    return " ".join(c.radio if c.radio is not None else str(c.landmark_id) for c in candidates)
+
+
+def suggestions_text(candidates: Sequence[Candidate]) -> str:
+    """Markdown list of suggested candidates with the reason for each."""
+    if not candidates:
+        return "_nothing doubted, no new radios_"
+    return "\n".join(
+        f"- **{c.landmark_id}**{' (new)' if c.is_new else ''}: {c.reason}" for c in candidates
+    )
 
 
 def status_text(state: WizardState) -> str:
@@ -51,7 +97,11 @@ def status_text(state: WizardState) -> str:
             " LEDs restored."
         )
     m = state.measurement
-    head = f"Landmark **{state.current}** ({state.index + 1} of {len(state.queue)}), lit alone."
+    c = state.candidate
+    what = f"Landmark **{state.current}**"
+    if c is not None and c.radio is not None:
+        what = f"New radio `{c.radio}` (to be landmark **{c.landmark_id}**)"
+    head = f"{what} ({state.index + 1} of {len(state.queue)}), lit alone."
     return head if m is None else f"{head}\n\n{m.message}"
 
 
@@ -72,6 +122,7 @@ class WizardPanel:
             self.gui_robot = gui.add_dropdown("Camera of", names)
             self.gui_ids = gui.add_text("Landmark IDs", "")
             self.gui_suggest = gui.add_button("Suggest landmarks to identify")
+            self.gui_suggested = gui.add_markdown("")
             self.gui_start = gui.add_button("Start identification")
             self.gui_progress = gui.add_progress_bar(0.0)
             self.gui_status = gui.add_markdown(status_text(wizard.state))
@@ -96,6 +147,7 @@ class WizardPanel:
         )
         self.gui_cancel.on_click(lambda _: self._run(lambda: self.wizard.cancel(actor=self.actor)))
         self._shown: tuple[str, int, int | None] | None = None
+        self._suggested: list[Candidate] = []
         self.refresh()
 
     @property
@@ -103,11 +155,22 @@ class WizardPanel:
         return self.session.actor
 
     def _suggest(self) -> None:
-        self.gui_ids.value = " ".join(str(i) for i in self.site.to_identify())  # type: ignore[misc]
+        try:
+            found = self.site.to_identify(discover=True)
+        except ValueError as exc:
+            self.notify("Discovery failed", f"{exc}; showing doubted landmarks only")
+            found = self.site.to_identify()
+        self._suggested = found
+        self.gui_suggested.content = suggestions_text(found)
+        self.gui_ids.value = targets_text(found)  # type: ignore[misc]
 
     def _start(self) -> Measurement | None:
-        ids = parse_ids(self.gui_ids.value) or list(self.site.to_identify())
-        return self.wizard.start(self.gui_robot.value, ids, actor=self.actor)
+        targets = parse_targets(self.gui_ids.value)
+        if not targets:
+            return self.wizard.start(self.gui_robot.value, self._suggested, actor=self.actor)
+        taken = {lm.id for lm in self.site.landmarks()}
+        queue = candidates_for(targets, self._suggested, taken)
+        return self.wizard.start(self.gui_robot.value, queue, actor=self.actor)
 
     def _run(self, step: Callable[[], Measurement | None]) -> None:
         try:

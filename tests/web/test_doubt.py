@@ -1,0 +1,121 @@
+from __future__ import annotations
+
+import numpy as np
+
+from localizer.events import PoseEstimate
+from sim.cameras import wide_angle_camera
+from web.doubt import DoubtConfig, DoubtTracker, expected_in_view
+
+CAM = wide_angle_camera("pinhole")
+GRID = {10 + 4 * j + i: (float(i), float(j), 2.5) for j in range(3) for i in range(4)}
+POSE = (1.5, 1.0, 0.3)
+CFG = DoubtConfig(window=40, min_chances=20, max_used_fraction=0.1)
+
+
+def in_view(pose: tuple[float, float, float] = POSE, margin_px: float = 25.0) -> list[int]:
+    ids = sorted(GRID)
+    ok = expected_in_view(CAM, pose, np.array([GRID[i] for i in ids]), margin_px=margin_px)
+    return [i for i, v in zip(ids, ok, strict=True) if v]
+
+
+_T = [0]
+
+
+def estimate(used: list[int], *, mode: str = "landmark", sigma_m: float = 0.01) -> PoseEstimate:
+    """The next frame's estimate (frames 0.1 s apart: every one is a chance)."""
+    _T[0] += 100_000_000
+    cov = np.diag([sigma_m**2 / 2, sigma_m**2 / 2, 1e-4])
+    return PoseEstimate(_T[0], *POSE, cov, mode, tuple(used))  # type: ignore[arg-type]
+
+
+def tracker() -> DoubtTracker:
+    t = DoubtTracker(CFG)
+    t.set_map(GRID)
+    return t
+
+
+def test_expected_in_view_matches_the_camera_and_its_margin() -> None:
+    view = in_view()
+    assert len(view) >= 4
+    wide = in_view(margin_px=0.0)
+    assert set(view) <= set(wide)
+    far = expected_in_view(CAM, (20.0, 20.0, 0.0), np.array(list(GRID.values())), margin_px=0)
+    assert not far.any()
+    assert expected_in_view(CAM, POSE, np.zeros((0, 3)), margin_px=0).shape == (0,)
+
+
+def test_a_landmark_in_view_but_never_used_is_doubted_after_enough_chances() -> None:
+    view = in_view()
+    bad = view[0]
+    t = tracker()
+    for k in range(CFG.min_chances):
+        assert bad not in t.doubted(), k
+        t.observe("r1", CAM, estimate([i for i in view if i != bad]), GRID)
+    assert list(t.doubted()) == [bad]
+    d = t.doubted()[bad]
+    assert (d.chances, d.used) == (CFG.min_chances, 0)
+    assert d.reason == f"expected in view {CFG.min_chances} times, used 0"
+    assert t.record(view[1]).chances == CFG.min_chances and t.record(view[1]).used == 20
+
+
+def test_the_used_share_decides_within_the_window() -> None:
+    view = in_view()
+    bad = view[0]
+    t = tracker()
+    # used in 2 of 20 chances (10 %): doubted; a third use (15 %) clears it
+    for k in range(20):
+        used = view if k in (3, 9) else [i for i in view if i != bad]
+        t.observe("r1", CAM, estimate(used), GRID)
+    assert bad in t.doubted()
+    t.observe("r1", CAM, estimate(view), GRID)
+    assert bad not in t.doubted()
+    # the window forgets: 40 more misses make it doubted again
+    for _ in range(40):
+        t.observe("r1", CAM, estimate([i for i in view if i != bad]), GRID)
+    assert t.record(bad).chances == 40 and t.record(bad).used == 0
+    assert bad in t.doubted()
+
+
+def test_frames_that_are_no_chance_do_not_count() -> None:
+    view = in_view()
+    bad, others = view[0], view[1:]
+    t = tracker()
+    for _ in range(30):
+        t.observe("r1", CAM, estimate(others, mode="dead_reckoning"), GRID)  # not localized
+        t.observe("r1", CAM, estimate(others, sigma_m=0.2), GRID)  # too uncertain
+        t.observe("r1", CAM, estimate(others[:1]), GRID)  # used one other only
+        t.observe("r1", CAM, estimate(others), set(GRID) - {bad})  # its LED was dark
+    assert t.record(bad).chances == 0 and t.doubted() == {}
+    t.set_map({**GRID, 99: (9.0, 9.0, 2.5)})
+    for _ in range(30):
+        t.observe("r1", CAM, estimate(others), {*GRID, 99})
+    assert t.record(99).chances == 0  # lit, but out of view
+
+
+def test_moving_a_landmark_in_the_map_forgets_its_history() -> None:
+    view = in_view()
+    bad = view[0]
+    t = tracker()
+    for _ in range(25):
+        t.observe("r1", CAM, estimate([i for i in view if i != bad]), GRID)
+    assert bad in t.doubted()
+    t.set_map(GRID)  # unchanged: kept
+    assert bad in t.doubted()
+    moved = dict(GRID)
+    moved[bad] = (GRID[bad][0] + 0.02, GRID[bad][1], 2.5)
+    t.set_map(moved)
+    assert bad not in t.doubted() and t.record(bad).chances == 0
+    assert t.record(view[1]).chances == 25  # the others are kept
+    del moved[view[1]]
+    t.set_map(moved)
+    assert t.record(view[1]).chances == 0
+
+
+def test_a_robots_updates_count_at_most_every_min_interval() -> None:
+    view = in_view()
+    t = tracker()
+    for k in range(30):  # 30 frames at 25 Hz: every third is 0.1 s or more after the last
+        pose = PoseEstimate(k * 40_000_000, *POSE, np.eye(3) * 1e-6, "landmark", tuple(view))
+        t.observe("r1", CAM, pose, GRID)
+        t.observe("r2", CAM, pose, GRID)  # another robot counts on its own
+    assert t.record(view[0]).chances == 2 * 10
