@@ -23,6 +23,8 @@ class GatewayConfig:
         skip_confirmed: do not resend a level the landmark already confirmed.
         light_all_on_start: `start()` lights every LED in the background (the normal tracking
             state), so that the LED state is known and published from the start.
+        discover_rounds: node discoveries per `discover` (their answers merged: a radio's
+            answer lost on the air, or colliding with another's, is caught by the next).
         blink_count, blink_period_s: `blink` toggles the LED this many times, one period each.
         subscriber_queue: events buffered per subscriber.
         battery: battery monitoring settings.
@@ -36,6 +38,7 @@ class GatewayConfig:
     command_timeout_s: float = 10.0
     skip_confirmed: bool = True
     light_all_on_start: bool = True
+    discover_rounds: int = 2
     blink_count: int = 3
     blink_period_s: float = 0.4
     subscriber_queue: int = 256

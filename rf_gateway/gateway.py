@@ -406,8 +406,12 @@ class Gateway:
             await asyncio.sleep(self.config.battery.interval_s)
 
     async def discover(self) -> list[DiscoveredRadio]:
-        """Radios that answer node discovery and are not in the landmark map."""
-        async with self._slots.slot(Priority.HOUSEKEEPING):
-            radios = await self.transport.discover()
+        """Radios that answer node discovery (`discover_rounds` of them, merged) and are not
+        in the landmark map, by address."""
+        found: dict[str, DiscoveredRadio] = {}
+        for _ in range(max(1, self.config.discover_rounds)):
+            async with self._slots.slot(Priority.HOUSEKEEPING):
+                for r in await self.transport.discover():
+                    found.setdefault(r.address, r)
         known = set(self._addresses.values())
-        return [r for r in radios if r.address not in known]
+        return [r for a, r in sorted(found.items()) if a not in known]

@@ -23,7 +23,7 @@ import numpy as np
 from localizer.camera import CameraModel, sensor_from_camera
 from localizer.events import PoseEstimate
 from localizer.spots import DetectionConfig, detect_spots
-from rf_gateway.errors import RfGatewayError
+from rf_gateway.errors import LandmarkUnreachableError, RfGatewayError
 from server.errors import UnavailableError
 from web.candidates import doubted_candidates, new_radio_candidates
 from web.doubt import DoubtConfig, DoubtTracker
@@ -215,8 +215,13 @@ class SiteAdapter:
 
         self.services.call(store(), timeout_s=30.0)
 
-    def set_leds(self, lit: frozenset[int], *, actor: str) -> None:
-        self.services.call(self.services.set_leds(frozenset(lit)), timeout_s=30.0)
+    def set_leds(self, lit: frozenset[int], *, actor: str) -> frozenset[int]:
+        try:
+            self.services.call(self.services.set_leds(frozenset(lit)), timeout_s=30.0)
+        except LandmarkUnreachableError as exc:  # the others were switched
+            gw = self.services.gateway
+            return frozenset({exc.landmark_id}) | (gw.unreachable if gw is not None else set())
+        return frozenset()
 
     def set_radio_led(self, address: str, on: bool, *, actor: str) -> None:
         try:

@@ -162,8 +162,13 @@ class ViewerSite(Protocol):
     # -- actions (role checked by the caller); ValueError/KeyError carry the reason --------
     def relocalize(self, robot: str, *, actor: str) -> None: ...
 
-    def set_leds(self, lit: frozenset[int], *, actor: str) -> None:
-        """Light exactly `lit`, darken the others (waits for the radio)."""
+    def set_leds(self, lit: frozenset[int], *, actor: str) -> frozenset[int]:
+        """Light exactly `lit`, darken the others (waits for the radio).
+
+        Returns:
+            the landmarks whose radio did not answer (their LED state is unknown; the
+            others were switched).
+        """
         ...
 
     def set_radio_led(self, address: str, on: bool, *, actor: str) -> None:

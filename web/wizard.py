@@ -98,6 +98,7 @@ class IdentificationWizard:
         self._state = WizardState()
         self._previous_lit: frozenset[int] | None = None
         self._radio_lit: str | None = None  # a new radio this wizard lit
+        self._mute: frozenset[int] = frozenset()  # landmarks whose radio did not answer
         self._snapshot = WizardState()
 
     @property
@@ -135,6 +136,7 @@ class IdentificationWizard:
             if robot not in {r.name for r in self.site.robots()}:
                 raise ValueError(f"unknown robot {robot!r}")
             self._previous_lit = self.site.lit()
+            self._mute = frozenset()
             self.site.hold_leds(True)
             self._state = WizardState(phase="measured", queue=queue, robot=robot)
             try:
@@ -311,25 +313,29 @@ class IdentificationWizard:
         landmarks = {lm.id: lm for lm in self.site.landmarks()}
         self._darken_radio(actor)
         relight = self._relight()
-        if self._previous_lit is not None and self.site.lit() != relight:
+        if self._previous_lit is not None and not self._lit_is(relight):
             # light the others again so that the robot fixes its pose from them; its own
             # LED requests (to identify them again) may reach the radio meanwhile
             self.site.hold_leds(False)
-            self.site.set_leds(relight, actor=actor)  # once: not to fight a robot's sweep
+            self._mute |= self.site.set_leds(relight, actor=actor)  # once: not to fight a
+            # robot's sweep
             self._wait_fix(self._now_ns())
             self.site.hold_leds(True)
         alone = frozenset() if c.radio is not None else frozenset({lid})
         view = None
         for _ in range(self.config.led_tries):
-            if not self._set_leds(alone, actor):
+            if not self._set_leds(alone, actor) or lid in self._mute:
                 break
             if c.radio is not None and self._radio_lit is None:
                 self.site.set_radio_led(c.radio, True, actor=actor)
                 self._radio_lit = c.radio
             view = self._wait_frame(self._now_ns() + int(self.config.settle_s * 1e9))
-            if self.site.lit() == alone:  # still alone after the frame: the frame is good
+            if self._lit_is(alone):  # still alone after the frame: the frame is good
                 break
             view = None
+        if lid in self._mute:
+            why = f"landmark {lid} does not answer its radio (flat battery?): skip it"
+            return self._keep(Measurement(lid, None, None, None, None, why))
         if view is None:
             why = f"could not keep landmark {lid} lit alone: retry"
             return self._keep(Measurement(lid, None, None, None, None, why))
@@ -340,7 +346,7 @@ class IdentificationWizard:
         positions = [] if first.position is None else [first.position]
         while positions and len(positions) < self.config.frames:
             nxt = self._wait_frame(view.t_ns + 1)
-            if nxt is None or self.site.lit() != alone:
+            if nxt is None or not self._lit_is(alone):
                 break
             view = nxt
             pose, why = self._robot_pose(view.t_ns)
@@ -362,8 +368,13 @@ class IdentificationWizard:
         """Send an LED state until it is the confirmed one (robots' requests queued before
         the hold may still override it once or twice)."""
         for _ in range(self.config.led_tries):
-            self.site.set_leds(lit, actor=actor)
+            self._mute |= self.site.set_leds(lit, actor=actor)
             time.sleep(self.config.led_check_s)
-            if self.site.lit() == lit:
+            if self._lit_is(lit):
                 return True
         return False
+
+    def _lit_is(self, lit: frozenset[int]) -> bool:
+        """Whether the confirmed LEDs are `lit`, leaving out the landmarks whose radio does
+        not answer (their LED state is unknown; a flat battery has darkened it)."""
+        return self.site.lit() - self._mute == lit - self._mute

@@ -30,6 +30,7 @@ class MemSite:
         self.map = {k: LandmarkState(k, *v) for k, v in truth.items()}
         self.radios: dict[str, np.ndarray] = {}  # address -> true position, not in the map
         self.radio_lit: set[str] = set()
+        self.dead: frozenset[int] = frozenset()  # flat batteries: dark, their radio silent
         self.poses = poses
         self.camera: CameraModel = wide_angle_camera("pinhole")
         self._lit = frozenset(truth)
@@ -113,10 +114,11 @@ class MemSite:
         (self.radio_lit.add if on else self.radio_lit.discard)(address)
         self.led_log.append(frozenset(self._lit))
 
-    def set_leds(self, lit: frozenset[int], *, actor: str) -> None:
-        self._lit = frozenset(lit)
+    def set_leds(self, lit: frozenset[int], *, actor: str) -> frozenset[int]:
+        self._lit = frozenset(lit) - self.dead
         self._lit_at = time.monotonic_ns()
-        self.led_log.append(self._lit)
+        self.led_log.append(frozenset(lit))
+        return frozenset(self.dead)
 
     def add_landmark(
         self,

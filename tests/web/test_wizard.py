@@ -48,6 +48,20 @@ def test_cancel_restores_every_led_and_skip_saves_nothing() -> None:
     assert site.audit == []
 
 
+def test_a_landmark_whose_radio_is_silent_neither_stalls_nor_fools_the_wizard() -> None:
+    site = grid_site(doubted={15: (0.3, -0.2), 16: (-0.25, 0.1)})
+    site.dead = frozenset({12, 16})  # flat batteries: 12 elsewhere, 16 to be identified
+    wiz = IdentificationWizard(site, FAST)
+    m = wiz.start("r1", [15, 16], actor="x")
+    assert m.landmark_id == 15 and m.position is not None  # 12 silent: 15 still lit alone
+    np.testing.assert_allclose(m.position, site.truth[15], atol=1e-6)
+    m2 = wiz.confirm(actor="x")
+    assert m2 is not None and m2.landmark_id == 16 and m2.position is None
+    assert "16 does not answer its radio" in m2.message
+    assert wiz.skip(actor="x") is None
+    assert wiz.state.saved == [15] and wiz.state.skipped == [16] and not site.held
+
+
 def test_manual_position_and_errors() -> None:
     site = grid_site(doubted={13: (0.2, 0.0)})
     wiz = IdentificationWizard(site, FAST)

@@ -38,9 +38,9 @@ class LoggingAdapter(SiteAdapter):
         self.lit_log.append(lit)
         return lit
 
-    def set_leds(self, lit: frozenset[int], *, actor: str) -> None:
+    def set_leds(self, lit: frozenset[int], *, actor: str) -> frozenset[int]:
         self.led_log.append(frozenset(lit))
-        super().set_leds(lit, actor=actor)
+        return super().set_leds(lit, actor=actor)
 
 
 def measured_on_a_good_pose(
