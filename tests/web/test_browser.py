@@ -62,7 +62,18 @@ def open_viewer(browser: Any, site: LiveSite, key: str) -> Any:
     return page
 
 
+def dismiss_software_webgl_notice(page: Any) -> None:
+    """Close viser's "Software WebGL rendering detected" notice (headless Chromium has no
+    GPU; a staff member's browser does not show it)."""
+    notice = page.locator(".mantine-Notification-root", has_text="Software WebGL")
+    if notice.count():
+        notice.first.locator("button").first.click()
+        notice.first.wait_for(state="hidden", timeout=10_000)
+
+
 def save_shot(page: Any, name: str, *, doc: bool = False) -> None:
+    if doc:
+        dismiss_software_webgl_notice(page)
     ARTIFACTS.mkdir(exist_ok=True)
     path = ARTIFACTS / name
     page.screenshot(path=str(path))
