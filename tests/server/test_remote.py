@@ -26,12 +26,10 @@ WS = "/api/v1/robots/rem/ws"
 
 @pytest.fixture(scope="module")
 def site(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Api]:
-    """The live virtual site (its one simulated robot's localizer stopped, so that the
-    remote robot alone asks for LEDs) plus a robot `rem` of source `remote` with the
-    simulated robot's camera."""
+    """The live virtual site (its simulated robot patrolling and localizing too: both ask
+    for LEDs) plus a robot `rem` of source `remote` with the simulated robot's camera."""
     for api in start_api(tmp_path_factory.mktemp("remote"), scenario="paper_floor"):
         sim_name = api.services.sim.robot_names[0]
-        api.services.site.stop_robot(sim_name)
         conf = api.client.get(f"/api/v1/robots/{sim_name}/config", headers=api.h("viewer"))
         body = {**conf.json(), "name": "rem", "source": "remote"}
         r = api.client.put("/api/v1/robots/rem/config", json=body, headers=api.h("admin"))
