@@ -2,7 +2,7 @@
 publish with the simulator's truth at the pose's time, and print per robot: time to the first
 fix, share of frames per mode, and error percentiles in landmark and dead-reckoning mode.
 
-    .venv/bin/python bench/bench_live_accuracy.py [SECONDS]
+    .venv/bin/python bench/bench_live_accuracy.py [--seconds 60] [--seed 0]
 
 This measures the multi-robot case that the offline replays do not: the robots share the
 LEDs, identify by darkening one landmark at a time while the others track, and learn from
@@ -11,11 +11,12 @@ each other's probes.
 
 from __future__ import annotations
 
+import argparse
 import asyncio
 import collections
-import sys
 import tempfile
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -24,8 +25,9 @@ from server.services import SiteServices
 from server.settings import Settings
 
 
-async def run(duration_s: float) -> None:
-    services = SiteServices(Settings(data_dir=tempfile.mkdtemp(), viewer_enabled=False))
+async def run(duration_s: float, seed: int = 0) -> None:
+    settings = Settings(data_dir=Path(tempfile.mkdtemp()), viewer_enabled=False, seed=seed)
+    services = SiteServices(settings)
     await services.start()
     sim = services.sim
     assert sim is not None
@@ -91,4 +93,8 @@ def report(
 
 
 if __name__ == "__main__":
-    asyncio.run(run(float(sys.argv[1]) if len(sys.argv) > 1 else 60.0))
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seconds", type=float, default=60.0, help="how long to run the site")
+    parser.add_argument("--seed", type=int, default=0, help="the demo site's seed")
+    args = parser.parse_args()
+    asyncio.run(run(args.seconds, args.seed))
