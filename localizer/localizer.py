@@ -21,7 +21,6 @@ bound or the observations keep disagreeing with the map (then it re-identifies).
 from __future__ import annotations
 
 import math
-from collections import deque
 
 import numpy as np
 import numpy.typing as npt
@@ -54,7 +53,7 @@ from localizer.handoff import (
 )
 from localizer.identification import Identifier
 from localizer.landmark_map import LandmarkMap
-from localizer.odometry import integrate_arc
+from localizer.odometry_track import OdometryTrack
 from localizer.pose import PoseFix, solve_pose
 from localizer.pose_filter import PoseFilter
 from localizer.robot import RobotGeometry
@@ -95,11 +94,9 @@ class Localizer:
         self._latest: PoseEstimate | None = None
         self._lit: frozenset[int] | None = None  # None: all lit (or unknown)
         self._changing: frozenset[int] = frozenset()  # LEDs being switched (state unknown)
-        self._t_state: int | None = None
-        self._speeds = (0.0, 0.0)
-        self._t_odom: int | None = None
-        self._odo = (0.0, 0.0, 0.0)
-        self._odo_hist: deque[tuple[int, float, float, float]] = deque()
+        self._odometry = OdometryTrack(
+            self.robot.wheel_base, self.config.fusion.odometry_history_s
+        )
         self._t_frame: int | None = None
         self._rejections = 0
         self._background: tuple[float, float] | None = None
@@ -155,7 +152,7 @@ class Localizer:
 
     def skip_frame(self, t_ns: int) -> PoseEstimate | NoPose:
         """A frame that could not be read: the pose at `t_ns` from odometry alone."""
-        self._advance(t_ns, *self._speeds)
+        self._advance(t_ns, *self._odometry.speeds)
         if self._filter is not None and self._mode == "landmark":
             self._mode = "dead_reckoning"
         return self._output(t_ns, ())
@@ -191,61 +188,40 @@ class Localizer:
             )
         else:
             self._filter.reset(x, y, theta, cov)
-        self._t_state = t_ns if self._t_state is None else max(self._t_state, t_ns)
+        t_state = self._odometry.t_state_ns
+        self._odometry.t_state_ns = t_ns if t_state is None else max(t_state, t_ns)
         self._rejections = 0
 
     def _advance(self, t_ns: int, v_left: float, v_right: float) -> None:
         """Integrate odometry (filter and raw) from the last state time to `t_ns`."""
-        if self._t_state is None:
-            self._t_state = t_ns
-        dt = (t_ns - self._t_state) * _NS
-        if dt <= 0:
-            return
-        if self._filter is not None:
+        dt = self._odometry.step(t_ns, v_left, v_right)
+        if dt > 0 and self._filter is not None:
             self._filter.predict(v_left, v_right, dt)
-        x, y, th = integrate_arc(*self._odo, v_left, v_right, dt, self.robot.wheel_base)
-        self._odo = (float(x), float(y), float(th))
-        self._t_state = t_ns
 
     def _on_odometry(self, e: OdometryMeasured) -> None:
-        vl, vr = (self._speeds[0] + e.v_left) / 2, (self._speeds[1] + e.v_right) / 2
-        if self._t_odom is None:
-            vl, vr = e.v_left, e.v_right
-        self._advance(e.t_ns, vl, vr)
-        self._speeds = (e.v_left, e.v_right)
-        self._t_odom = e.t_ns
-        self._odo_hist.append((e.t_ns, *self._odo))
-        horizon = e.t_ns - int(self.config.fusion.odometry_history_s / _NS)
-        while len(self._odo_hist) > 2 and self._odo_hist[1][0] < horizon:
-            self._odo_hist.popleft()
+        vl, vr, dt = self._odometry.add_sample(e.t_ns, e.v_left, e.v_right)
+        if dt > 0 and self._filter is not None:
+            self._filter.predict(vl, vr, dt)
 
     def _motion_bound_px(self, t0_ns: int, t1_ns: int) -> float:
         """Bound on a spot's image motion between two times: from odometry (with 20 % slack)
         when there is any, else from the maximum speed and turn rate."""
-        if self._t_odom is None:
+        track = self._odometry
+        if track.t_sample_ns is None:
             dt = abs(t1_ns - t0_ns) * _NS
             return dt * (self.robot.max_speed * self._scale + self._omega_max * self._half_diag)
-        a, b = self._odo_at(t0_ns), self._odo_at(t1_ns)
+        a, b = track.pose_at(t0_ns), track.pose_at(t1_ns)
         move = math.hypot(b[0] - a[0], b[1] - a[1]) * self._scale
         turn = abs(float(wrap_angle(b[2] - a[2]))) * self._half_diag
         return 1.2 * (move + turn) + 1.0
 
-    def _odo_at(self, t_ns: int) -> tuple[float, float, float]:
-        """Raw odometry pose at `t_ns` (the latest sample at or before it)."""
-        best = self._odo
-        for t, x, y, th in reversed(self._odo_hist):
-            if t <= t_ns:
-                return (x, y, th)
-            best = (x, y, th)
-        return best if self._odo_hist else self._odo
-
     # -- frames --------------------------------------------------------------------------------
     def _on_frame(self, e: FrameObserved | SpotsObserved) -> PoseEstimate | NoPose:
         t = e.t_ns
-        self._advance(t, *self._speeds)
+        self._advance(t, *self._odometry.speeds)
         dt_frame = min((t - self._t_frame) * _NS, 1.0) if self._t_frame is not None else 0.0
         self._t_frame = t
-        self._odo_hist.append((t, *self._odo))
+        self._odometry.mark(t)
         used: tuple[int, ...] = ()
         if self._filter is None or self._mode in ("identifying", "lost"):
             spots = self._full_spots(e)
@@ -284,7 +260,7 @@ class Localizer:
             self.camera,
             self.map,
             sightings,
-            self._odo_at,
+            self._odometry.pose_at,
             t_ns,
             pixel_sigma_px=fc.pixel_sigma_px,
             max_residual_px=fc.max_residual_px,
@@ -326,7 +302,8 @@ class Localizer:
         if len(pred) == 0:
             return ()
         tc = self.config.tracking
-        fresh_odom = self._t_odom is not None and (e.t_ns - self._t_odom) * _NS < 0.2
+        t_sample = self._odometry.t_sample_ns
+        fresh_odom = t_sample is not None and (e.t_ns - t_sample) * _NS < 0.2
         dt_free = dt_frame * (tc.odometry_speed_fraction if fresh_odom else 1.0)
         px = pred.pixels
         radial = np.hypot(px[:, 0] - self.camera.cu, px[:, 1] - self.camera.cv)

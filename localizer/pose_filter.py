@@ -109,16 +109,10 @@ class OdometryCalibration:
 
 
 _N_STATE = 6
-_CALIBRATION_DIAGONAL = (np.arange(3, 6), np.arange(3, 6))
 
 State = list[float]  # (x, y, theta, k_r, k_l, k_b)
 Rows = list[list[float]]
 
-_CALIBRATION_ROWS = (  # the calibration rows of F: the factors stay put
-    (0.0, 0.0, 0.0, 1.0, 0.0, 0.0),
-    (0.0, 0.0, 0.0, 0.0, 1.0, 0.0),
-    (0.0, 0.0, 0.0, 0.0, 0.0, 1.0),
-)
 
 
 def motion_model(X: State, v_left: float, v_right: float, dt: float, wheel_base: float) -> State:
@@ -191,9 +185,9 @@ class PoseFilter:
         self.config = config or FilterConfig()
         self.wheel_base = float(wheel_base)
         self._X: State = [0.0, 0.0, 0.0, 1.0, 1.0, 1.0]
-        self._P = np.zeros((6, 6))
-        if self.config.estimate_calibration:
-            self._P[3:, 3:] = np.eye(3) * self.config.calibration_prior_sigma**2
+        k2 = self.config.calibration_prior_sigma**2 if self.config.estimate_calibration else 0.0
+        # P as nested Python lists: for 6 states numpy's per-call overhead dominates
+        self._P: Rows = [[k2 if i == j >= 3 else 0.0 for j in range(6)] for i in range(6)]
         self._offset = [0.0, 0.0, 0.0]  # output_state - state
         self._age_s = 0.0  # time since the last reset
         # deferred propagation: composed pose rows of F, accumulated pose noise (upper
@@ -221,7 +215,8 @@ class PoseFilter:
     def covariance(self) -> FloatArray:
         """Covariance of (x, y, theta), shape (3, 3) (a copy)."""
         self._flush()
-        return self._P[:3, :3].copy()
+        P = self._P
+        return np.array([P[0][:3], P[1][:3], P[2][:3]])
 
     @property
     def full_state(self) -> FloatArray:
@@ -232,7 +227,7 @@ class PoseFilter:
     def full_covariance(self) -> FloatArray:
         """Covariance of `full_state`, shape (6, 6) (a copy)."""
         self._flush()
-        return self._P.copy()
+        return np.array(self._P)
 
     @property
     def output_state(self) -> FloatArray:
@@ -251,7 +246,7 @@ class PoseFilter:
         """The estimated odometry factors."""
         self._flush()
         k_r, k_l, k_b = self._X[3:]
-        return OdometryCalibration(k_r, k_l, k_b, self._P[3:, 3:].copy())
+        return OdometryCalibration(k_r, k_l, k_b, np.array([r[3:] for r in self._P[3:]]))
 
     def reset(self, x: float, y: float, theta: float, covariance: npt.ArrayLike) -> None:
         """Restart from a pose; keeps the calibration learnt so far (and its covariance)."""
@@ -262,9 +257,10 @@ class PoseFilter:
             raise ValueError(f"PoseFilter.reset: non-finite pose {(x, y, theta)}")
         self._flush()
         self._X[:3] = [float(x), float(y), float(wrap_angle(theta))]
-        self._P[:3, :] = 0.0
-        self._P[:, :3] = 0.0
-        self._P[:3, :3] = 0.5 * (cov + cov.T)
+        sym = (0.5 * (cov + cov.T)).tolist()
+        self._P = [sym[i] + [0.0] * 3 for i in range(3)] + [
+            [0.0, 0.0, 0.0, *row[3:]] for row in self._P[3:]
+        ]
         self._offset = [0.0, 0.0, 0.0]
         self._age_s = 0.0
 
@@ -331,16 +327,43 @@ class PoseFilter:
         self._pending = False
 
     def _flush(self) -> None:
-        """Apply the deferred covariance propagation: P = F P F^T + Q, F = [[Phi], [0 I]]."""
+        """Apply the deferred covariance propagation: P = F P F^T + Q, F = [[Phi], [0 I]].
+
+        Phi's pose block keeps the form [[1, 0, a], [0, 1, b], [0, 0, 1]] (a product of such
+        blocks), so with B = Phi[:, 3:]: M = Phi P, the pose rows of F P; then
+        P_pp = M Phi^T, P_pc = M[:, 3:], P_cc unchanged.
+        """
         if not self._pending:
             return
+        (_, _, a, *B0), (_, _, b, *B1), (_, _, _, *B2) = self._Phi
+        P = self._P
+        P0, P1, P2, P3, P4, P5 = P
+        M = [
+            [u + c * w + d0 * p + d1 * q + d2 * r for u, w, p, q, r in zip(Pi, P2, P3, P4, P5)]
+            for Pi, c, (d0, d1, d2) in ((P0, a, B0), (P1, b, B1), (P2, 0.0, B2))
+        ]
         q00, q01, q02, q11, q12, q22 = self._Q
+        Q = ((q00, q01, q02), (q01, q11, q12), (q02, q12, q22))
+        top = []
+        for Mi, Qi in zip(M, Q, strict=True):
+            m0, m1, m2, m3, m4, m5 = Mi
+            tail = m3 * B0[0] + m4 * B0[1] + m5 * B0[2], m3 * B1[0] + m4 * B1[1] + m5 * B1[2]
+            top.append(
+                [
+                    m0 + a * m2 + tail[0] + Qi[0],
+                    m1 + b * m2 + tail[1] + Qi[1],
+                    m2 + m3 * B2[0] + m4 * B2[1] + m5 * B2[2] + Qi[2],
+                    m3,
+                    m4,
+                    m5,
+                ]
+            )
         w = self._walk
-        F = np.array([*self._Phi, *_CALIBRATION_ROWS])
-        P = F @ self._P @ F.T
-        P[:3, :3] += np.array([[q00, q01, q02], [q01, q11, q12], [q02, q12, q22]])
-        P[_CALIBRATION_DIAGONAL] += w
-        self._P = P
+        cal = [
+            [*(t[3 + k] for t in top), *(v + w if j == k else v for j, v in enumerate(Pk[3:]))]
+            for k, Pk in enumerate((P3, P4, P5))
+        ]
+        self._P = top + cal
         self._clear_pending()
 
     # -- update ---------------------------------------------------------------------------------
@@ -349,7 +372,7 @@ class PoseFilter:
         self._flush()
         x, y, th = observation_model(self._X)
         innovation = [fix.x - x, fix.y - y, float(wrap_angle(fix.theta - th))]
-        (p00, p01, p02), (_, p11, p12), (_, _, p22) = self._P[:3, :3].tolist()
+        (p00, p01, p02), (_, p11, p12), (_, _, p22) = (row[:3] for row in self._P[:3])
         (r00, r01, r02), (_, r11, r12), (_, _, r22) = np.asarray(fix.covariance).tolist()
         S_inv = inverse_3x3_sym([p00 + r00, p01 + r01, p02 + r02, p11 + r11, p12 + r12, p22 + r22])
         return innovation, S_inv
@@ -379,7 +402,7 @@ class PoseFilter:
             return nis
         # Plain floats: for a 6-state filter numpy's per-call overhead dominates.
         i00, i01, i02, i11, i12, i22 = S_inv
-        P = self._P.tolist()
+        P = self._P
         K = [  # P H^T S^-1 = P[:, :3] S^-1, 6 x 3
             (
                 a * i00 + b * i01 + c * i02,
@@ -395,9 +418,9 @@ class PoseFilter:
             [p - (k0 * u + k1 * v + k2 * w) for p, u, v, w in zip(row, P0, P1, P2, strict=True)]
             for row, (k0, k1, k2) in zip(P, K, strict=True)
         ]
-        self._P = np.array(
-            [[0.5 * (A[i][j] + A[j][i]) for j in range(_N_STATE)] for i in range(_N_STATE)]
-        )
+        self._P = [
+            [0.5 * (A[i][j] + A[j][i]) for j in range(_N_STATE)] for i in range(_N_STATE)
+        ]
 
         old = self._X
         X = [u + d for u, d in zip(old, dX, strict=True)]
