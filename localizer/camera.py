@@ -40,7 +40,8 @@ class CameraModel:
         fu, fv, cu, cv: focal lengths and principal point, pixels.
         distortion_model: "radial-tangential" (OpenCV k1 k2 p1 p2 [k3]) or
             "equidistant" (OpenCV fisheye k1 k2 k3 k4).
-        distortion: the coefficients, shape (4,) or (5,).
+        distortion: the coefficients, shape (4,) or (5,); `coefficients` holds them as a
+            tuple of floats (derived).
         T_body_camera: body-from-camera transform, shape (4, 4) (EuRoC `T_BS`).
         rate_hz: nominal frame rate.
     """
@@ -59,6 +60,7 @@ class CameraModel:
     K_matrix: FloatArray = field(init=False, repr=False, compare=False)
     T_camera_body: FloatArray = field(init=False, repr=False, compare=False)
     invertible: bool = field(init=False, repr=False, compare=False)
+    coefficients: tuple[float, ...] = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         if self.width <= 0 or self.height <= 0:
@@ -84,6 +86,7 @@ class CameraModel:
             )
         d.setflags(write=False)
         object.__setattr__(self, "distortion", d)
+        object.__setattr__(self, "coefficients", tuple(d.tolist()))
         T = check_transform(self.T_body_camera, "camera T_BS").copy()
         T.setflags(write=False)
         object.__setattr__(self, "T_body_camera", T)

@@ -19,12 +19,9 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from localizer.camera import (
-    CameraModel,
-    bearings_body_from_pixels,
-    pixels_from_points_camera,
-)
+from localizer.camera import CameraModel, bearings_body_from_pixels
 from localizer.geometry import rotation_2d, wrap_angle
+from localizer.lens import pixel_from_point
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
@@ -118,34 +115,34 @@ def predict_landmarks(
     (r00, r01, r02, t0), (r10, r11, r12, t1), (r20, r21, r22, t2) = camera.T_camera_body[
         :3
     ].tolist()
+    sigma_xy = position_sigma_m(covariance)
+    sigma_t = math.sqrt(max(float(covariance[2, 2]), 0.0))
+    T_bc = camera.T_body_camera
+    offset_px = scale_px_per_m * math.hypot(float(T_bc[0, 3]), float(T_bc[1, 3]))
+    cu, cv = camera.cu, camera.cv
     kept: list[int] = []
-    p_cam: list[tuple[float, float, float]] = []
+    pixels: list[tuple[float, float]] = []
+    sigmas: list[float] = []
     for row, (X, Y, Z) in zip(rows.tolist(), positions[rows].tolist(), strict=True):
         dx, dy = X - x, Y - y
         if math.hypot(dx, dy) > reach_m:
             continue
         bx, by = c * dx + s * dy, c * dy - s * dx
-        kept.append(row)
-        p_cam.append(
-            (
-                r00 * bx + r01 * by + r02 * Z + t0,
-                r10 * bx + r11 * by + r12 * Z + t1,
-                r20 * bx + r21 * by + r22 * Z + t2,
-            )
+        px = pixel_from_point(
+            camera,
+            r00 * bx + r01 * by + r02 * Z + t0,
+            r10 * bx + r11 * by + r12 * Z + t1,
+            r20 * bx + r21 * by + r22 * Z + t2,
         )
+        if px is None:
+            continue
+        kept.append(row)
+        pixels.append(px)
+        radial = math.hypot(px[0] - cu, px[1] - cv)
+        sigmas.append((radial + offset_px) * sigma_t + scale_px_per_m * sigma_xy)
     if not kept:
         return Prediction(np.zeros(0, np.int64), np.zeros((0, 2)), np.zeros(0))
-    px, valid = pixels_from_points_camera(camera, np.array(p_cam))
-    rows = np.array(kept, dtype=np.int64)
-    if not valid.all():
-        rows, px = rows[valid], px[valid]
-    sigma_xy = position_sigma_m(covariance)
-    sigma_t = math.sqrt(max(float(covariance[2, 2]), 0.0))
-    T_bc = camera.T_body_camera
-    offset_px = scale_px_per_m * math.hypot(float(T_bc[0, 3]), float(T_bc[1, 3]))
-    radial = np.hypot(px[:, 0] - camera.cu, px[:, 1] - camera.cv)
-    sigma = (radial + offset_px) * sigma_t + scale_px_per_m * sigma_xy
-    return Prediction(rows, px, sigma)
+    return Prediction(np.array(kept, dtype=np.int64), np.array(pixels), np.array(sigmas))
 
 
 def position_sigma_m(covariance: FloatArray) -> float:

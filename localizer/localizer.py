@@ -57,7 +57,7 @@ from localizer.odometry_track import OdometryTrack
 from localizer.pose import PoseFix, solve_pose
 from localizer.pose_filter import PoseFilter
 from localizer.robot import RobotGeometry
-from localizer.spots import Spots, detect_spots, detect_spots_in_windows, estimate_background
+from localizer.spots import Spots, detect_spots, estimate_background, spot_rows_in_windows
 from localizer.tracking import (
     bottleneck_assignment,
     default_angular_speed,
@@ -94,9 +94,7 @@ class Localizer:
         self._latest: PoseEstimate | None = None
         self._lit: frozenset[int] | None = None  # None: all lit (or unknown)
         self._changing: frozenset[int] = frozenset()  # LEDs being switched (state unknown)
-        self._odometry = OdometryTrack(
-            self.robot.wheel_base, self.config.fusion.odometry_history_s
-        )
+        self._odometry = OdometryTrack(self.robot.wheel_base, self.config.fusion.odometry_history_s)
         self._t_frame: int | None = None
         self._rejections = 0
         self._background: tuple[float, float] | None = None
@@ -123,6 +121,7 @@ class Localizer:
         observations disagree with it the localizer gets lost and re-identifies); without a
         pose, identification starts over."""
         self.map = landmark_map
+        self._ids: list[int] = landmark_map.ids.tolist()
         heights = landmark_map.positions[:, 2] - self.camera.T_body_camera[2, 3]
         self._ceiling_m = float(np.median(heights)) if len(heights) else 2.2
         self._scale = scale_px_per_m(max(self.camera.fu, self.camera.fv), self._ceiling_m)
@@ -305,48 +304,52 @@ class Localizer:
         t_sample = self._odometry.t_sample_ns
         fresh_odom = t_sample is not None and (e.t_ns - t_sample) * _NS < 0.2
         dt_free = dt_frame * (tc.odometry_speed_fraction if fresh_odom else 1.0)
-        px = pred.pixels
-        radial = np.hypot(px[:, 0] - self.camera.cu, px[:, 1] - self.camera.cv)
-        motion = motion_bound_px(
-            radial,
-            max_speed_m_s=self.robot.max_speed,
-            max_angular_speed_rad_s=self._omega_max,
-            dt_s=dt_free,
-            scale_px_per_m=self._scale,
-        )
-        gates = tc.min_half_size_px + tc.sigma_gate * pred.sigma_px + motion
-        reacquire = reacquire or sigma_xy > self.config.handoff.reacquire_sigma_m
-        if spots is not None:
-            pass
-        elif isinstance(e, SpotsObserved):
-            spots = Spots(np.asarray(e.pixels, float).reshape(-1, 2), e.intensities, e.areas)
-        elif reacquire or float(gates.max()) > tc.max_half_size_px:
-            spots = self._full_spots(e)
-        else:
-            half = gates[:, None].repeat(2, axis=1)
-            spots = detect_spots_in_windows(
-                e.image, px, half, self.config.detection, background=self._background
+        px = pred.pixels.tolist()
+        cu, cv = self.camera.cu, self.camera.cv
+        gates = [  # window half sizes and assignment gates, pixels
+            tc.min_half_size_px
+            + tc.sigma_gate * sigma
+            + motion_bound_px(
+                math.hypot(u - cu, v - cv),
+                max_speed_m_s=self.robot.max_speed,
+                max_angular_speed_rad_s=self._omega_max,
+                dt_s=dt_free,
+                scale_px_per_m=self._scale,
             )
-        if len(spots) == 0:
+            for (u, v), sigma in zip(px, pred.sigma_px.tolist(), strict=True)
+        ]
+        reacquire = reacquire or sigma_xy > self.config.handoff.reacquire_sigma_m
+        if spots is None and (
+            isinstance(e, SpotsObserved) or reacquire or max(gates) > tc.max_half_size_px
+        ):
+            spots = self._full_spots(e)
+        if spots is not None:
+            spot_px = spots.pixels.tolist()
+        else:
+            det = self.config.detection
+            bg = self._background or estimate_background(e.image, det)
+            half = [[g, g] for g in gates]
+            found = spot_rows_in_windows(e.image, px, half, det, bg)
+            spot_px = [[col, row] for col, row, _, _ in found]
+        if not spot_px:
             return ()
         if len(pred) >= 2:
             self._rejections += 1  # reset by a fused fix: spots seen but none explained
-        if reacquire:
+        if reacquire and spots is not None:  # (reacquiring always detects the full frame)
             pairs = self._reacquire(pred, spots, gates, pose, cov)
         else:
-            sp = spots.pixels
-            d = np.hypot(px[:, None, 0] - sp[None, :, 0], px[:, None, 1] - sp[None, :, 1])
+            d = [[math.hypot(u - a, v - b) for a, b in spot_px] for u, v in px]
             rows = pred.rows.tolist()
             pairs = [(rows[k], s) for k, s in bottleneck_assignment(d, gates)]
         if len(pairs) < 2:
             return ()
-        return self._fuse(filt, pairs, spots, pose, cov)
+        return self._fuse(filt, pairs, spot_px, pose)
 
     def _reacquire(
         self,
         pred: Prediction,
         spots: Spots,
-        gates: FloatArray,
+        gates: list[float],
         pose: tuple[float, float, float],
         cov: FloatArray,
     ) -> list[tuple[int, int]]:
@@ -372,15 +375,14 @@ class Localizer:
         self,
         filt: PoseFilter,
         pairs: list[tuple[int, int]],
-        spots: Spots,
+        spot_px: list[list[float]],
         pose: tuple[float, float, float],
-        cov: FloatArray,
     ) -> tuple[int, ...]:
-        """Solve the pose from matched landmarks; fuse it when consistent."""
+        """Solve the pose from matched (map row, spot) pairs; fuse it when consistent."""
         fc = self.config.fusion
         rows = [r for r, _ in pairs]
-        px = spots.pixels[[s for _, s in pairs]]
-        ids = tuple(self.map.ids[rows].tolist())
+        px = [spot_px[s] for _, s in pairs]
+        ids = tuple(self._ids[r] for r in rows)
         fix = solve_pose(
             self.camera,
             px,

@@ -114,7 +114,6 @@ State = list[float]  # (x, y, theta, k_r, k_l, k_b)
 Rows = list[list[float]]
 
 
-
 def motion_model(X: State, v_left: float, v_right: float, dt: float, wheel_base: float) -> State:
     """X_t = f(X, u): eqs. (5)-(6) with the calibrated speeds k_l v_l, k_r v_r and base k_b W."""
     x, y, theta, k_r, k_l, k_b = X
@@ -339,7 +338,10 @@ class PoseFilter:
         P = self._P
         P0, P1, P2, P3, P4, P5 = P
         M = [
-            [u + c * w + d0 * p + d1 * q + d2 * r for u, w, p, q, r in zip(Pi, P2, P3, P4, P5)]
+            [
+                u + c * w + d0 * p + d1 * q + d2 * r
+                for u, w, p, q, r in zip(Pi, P2, P3, P4, P5, strict=True)
+            ]
             for Pi, c, (d0, d1, d2) in ((P0, a, B0), (P1, b, B1), (P2, 0.0, B2))
         ]
         q00, q01, q02, q11, q12, q22 = self._Q
@@ -418,9 +420,7 @@ class PoseFilter:
             [p - (k0 * u + k1 * v + k2 * w) for p, u, v, w in zip(row, P0, P1, P2, strict=True)]
             for row, (k0, k1, k2) in zip(P, K, strict=True)
         ]
-        self._P = [
-            [0.5 * (A[i][j] + A[j][i]) for j in range(_N_STATE)] for i in range(_N_STATE)
-        ]
+        self._P = [[0.5 * (A[i][j] + A[j][i]) for j in range(_N_STATE)] for i in range(_N_STATE)]
 
         old = self._X
         X = [u + d for u, d in zip(old, dX, strict=True)]

@@ -23,6 +23,8 @@ import numpy.typing as npt
 
 FloatArray = npt.NDArray[np.float64]
 ImageU8 = npt.NDArray[np.uint8]
+SpotRow = tuple[float, float, float, float]
+"""One spot as (col, row, intensity, area), the fields of `Spots`."""
 
 
 @dataclass(frozen=True)
@@ -92,7 +94,7 @@ class Spots:
         return cls(np.zeros((0, 2)), np.zeros(0), np.zeros(0))
 
     @classmethod
-    def from_lists(cls, rows: list[tuple[float, float, float, float]]) -> Spots:
+    def from_lists(cls, rows: list[SpotRow]) -> Spots:
         """Build from (col, row, intensity, area) tuples."""
         if not rows:
             return cls.empty()
@@ -129,7 +131,7 @@ def _spots_in_region(
     background: float,
     threshold: float,
     config: DetectionConfig,
-    out: list[tuple[float, float, float, float]],
+    out: list[SpotRow],
     *,
     cut_sides: tuple[bool, bool, bool, bool] = (False, False, False, False),
 ) -> None:
@@ -178,7 +180,7 @@ def _centroid(
     background: float,
     area: float,
     config: DetectionConfig,
-    out: list[tuple[float, float, float, float]],
+    out: list[SpotRow],
     peak: float | None = None,
 ) -> None:
     """Intensity-weighted centroid of the background-free pixels on the component's box
@@ -221,7 +223,7 @@ def bright_boxes(image: ImageU8, threshold: float, margin_px: int) -> FloatArray
         by `margin_px` on each side.
     """
     row_max = image.max(axis=1)  # numpy's reductions beat cv2.reduce here by 10-50x
-    boxes: list[tuple[float, float, float, float]] = []
+    boxes: list[SpotRow] = []
     for r0, r1 in _runs(row_max > threshold):
         col_max = image[r0:r1].max(axis=0)
         for c0, c1 in _runs(col_max > threshold):
@@ -236,10 +238,8 @@ def bright_boxes(image: ImageU8, threshold: float, margin_px: int) -> FloatArray
     return np.asarray(boxes, dtype=np.float64).reshape(-1, 4)
 
 
-def _brightest(rows: list[tuple[float, float, float, float]], limit: int) -> Spots:
-    if len(rows) > limit:
-        rows = sorted(rows, key=lambda r: -r[2])[:limit]
-    return Spots.from_lists(rows)
+def _brightest(rows: list[SpotRow], limit: int) -> list[SpotRow]:
+    return sorted(rows, key=lambda r: -r[2])[:limit] if len(rows) > limit else rows
 
 
 def detect_spots(
@@ -264,10 +264,10 @@ def detect_spots(
     thr = threshold_for(bg, noise, config)
     boxes = bright_boxes(image, thr, config.centroid_margin_px)
     H, W = image.shape
-    rows: list[tuple[float, float, float, float]] = []
+    rows: list[SpotRow] = []
     for c0, r0, c1, r1 in window_boxes(boxes[:, :2], boxes[:, 2:], W, H):
         _spots_in_region(image[r0:r1, c0:c1], (c0, r0), bg, thr, config, rows)
-    return _brightest(rows, config.max_spots)
+    return Spots.from_lists(_brightest(rows, config.max_spots))
 
 
 def detect_spots_in_windows(
@@ -300,12 +300,32 @@ def detect_spots_in_windows(
         raise ValueError(f"detect_spots_in_windows: {len(c)} centers but {len(hs)} half sizes")
     if len(c) == 0:
         return Spots.empty()
-    bg, noise = estimate_background(image, config) if background is None else background
+    bg_noise = estimate_background(image, config) if background is None else background
+    return Spots.from_lists(spot_rows_in_windows(image, c.tolist(), hs.tolist(), config, bg_noise))
+
+
+def spot_rows_in_windows(
+    image: ImageU8,
+    centers: list[list[float]],
+    half_sizes: list[list[float]],
+    config: DetectionConfig,
+    background: tuple[float, float],
+) -> list[SpotRow]:
+    """`detect_spots_in_windows` on Python lists, unchecked: the localizer's hot path.
+
+    Args:
+        image: 8-bit grayscale frame, shape (H, W).
+        centers, half_sizes: per window (col, row) and (half width, half height), pixels.
+        background: (level, noise), counts.
+
+    Returns:
+        (col, row, intensity, area) of each spot, at most `config.max_spots`.
+    """
+    bg, noise = background
     thr = threshold_for(bg, noise, config)
     H, W = image.shape
-    boxes = window_boxes(c, hs, W, H)
-    rows: list[tuple[float, float, float, float]] = []
-    for c0, r0, c1, r1 in boxes:
+    rows: list[SpotRow] = []
+    for c0, r0, c1, r1 in window_boxes(centers, half_sizes, W, H):
         region = image[r0:r1, c0:c1]
         _, peak, _, loc = cv2.minMaxLoc(region)
         if peak <= thr:
@@ -328,7 +348,7 @@ def _single_spot(
     background: float,
     threshold: float,
     config: DetectionConfig,
-    out: list[tuple[float, float, float, float]],
+    out: list[SpotRow],
     cut_sides: tuple[bool, bool, bool, bool],
 ) -> bool:
     """The usual tracking case without labelling: one compact spot around the peak.
@@ -367,15 +387,22 @@ def _single_spot(
 
 
 def window_boxes(
-    centers: FloatArray, half_sizes: FloatArray, width: int, height: int
+    centers: FloatArray | list[list[float]],
+    half_sizes: FloatArray | list[list[float]],
+    width: int,
+    height: int,
 ) -> list[tuple[int, int, int, int]]:
     """Integer boxes (c0, r0, c1, r1), end-exclusive, clipped to the image, overlaps merged.
 
     Args:
-        centers: shape (M, 2); half_sizes: shape (M, 2), pixels.
+        centers: shape (M, 2); half_sizes: shape (M, 2), pixels (arrays or nested lists).
     """
+    if isinstance(centers, np.ndarray):
+        centers = centers.tolist()
+    if isinstance(half_sizes, np.ndarray):
+        half_sizes = half_sizes.tolist()
     boxes: list[list[int]] = []
-    for (cu, cv), (hu, hv) in zip(centers.tolist(), half_sizes.tolist(), strict=True):
+    for (cu, cv), (hu, hv) in zip(centers, half_sizes, strict=True):
         a, b = max(math.floor(cu - hu), 0), max(math.floor(cv - hv), 0)
         c, d = min(math.ceil(cu + hu) + 1, width), min(math.ceil(cv + hv) + 1, height)
         if c > a and d > b:
@@ -409,6 +436,7 @@ __all__ = [
     "detect_spots",
     "detect_spots_in_windows",
     "estimate_background",
+    "spot_rows_in_windows",
     "threshold_for",
     "window_boxes",
 ]
