@@ -193,7 +193,7 @@ def consistent_hypotheses(
     prediction: Prediction,
     positions: FloatArray,
     spot_pixels: FloatArray,
-    gates_px: FloatArray,
+    gates_px: FloatArray | list[float],
     config: HandoffConfig,
 ) -> list[list[tuple[int, int]]]:
     """Assignments of spots to predicted landmarks that agree with the map's geometry.

@@ -319,18 +319,16 @@ class Localizer:
             for (u, v), sigma in zip(px, pred.sigma_px.tolist(), strict=True)
         ]
         reacquire = reacquire or sigma_xy > self.config.handoff.reacquire_sigma_m
-        if spots is None and (
-            isinstance(e, SpotsObserved) or reacquire or max(gates) > tc.max_half_size_px
-        ):
-            spots = self._full_spots(e)
-        if spots is not None:
-            spot_px = spots.pixels.tolist()
-        else:
+        windows = not reacquire and max(gates) <= tc.max_half_size_px
+        if spots is None and windows and isinstance(e, FrameObserved):
             det = self.config.detection
             bg = self._background or estimate_background(e.image, det)
             half = [[g, g] for g in gates]
             found = spot_rows_in_windows(e.image, px, half, det, bg)
             spot_px = [[col, row] for col, row, _, _ in found]
+        else:
+            spots = self._full_spots(e) if spots is None else spots
+            spot_px = spots.pixels.tolist()
         if not spot_px:
             return ()
         if len(pred) >= 2:

@@ -29,7 +29,7 @@ import numpy as np
 import numpy.typing as npt
 
 from localizer.geometry import wrap_angle
-from localizer.odometry import integrate_odometry, odometry_increments, odometry_partials
+from localizer.odometry import odometry_increments, odometry_partials
 from localizer.pose import PoseFix
 from localizer.small_linalg import inverse_3x3_sym
 
@@ -116,9 +116,7 @@ Rows = list[list[float]]
 
 def motion_model(X: State, v_left: float, v_right: float, dt: float, wheel_base: float) -> State:
     """X_t = f(X, u): eqs. (5)-(6) with the calibrated speeds k_l v_l, k_r v_r and base k_b W."""
-    x, y, theta, k_r, k_l, k_b = X
-    pose = integrate_odometry(x, y, theta, k_l * v_left, k_r * v_right, dt, k_b * wheel_base)
-    return [float(pose[0]), float(pose[1]), float(pose[2]), k_r, k_l, k_b]
+    return motion_step(X, v_left, v_right, dt, wheel_base)[0]
 
 
 def jacob_f(
@@ -131,11 +129,21 @@ def jacob_f(
          pose block is [[1, 0, a], [0, 1, b], [0, 0, 1]] as eq. (5) gives),
          G: d(x, y, theta)_t / d(true wheel speeds k_l v_l, k_r v_r), 3 x 2).
     """
-    _, _, theta, k_r, k_l, k_b = X
+    _, F_top, G = motion_step(X, v_left, v_right, dt, wheel_base)
+    return F_top, G
+
+
+def motion_step(
+    X: State, v_left: float, v_right: float, dt: float, wheel_base: float
+) -> tuple[State, Rows, Rows]:
+    """`motion_model` and `jacob_f` in one pass (they share the increments and the midpoint
+    heading's sine and cosine): (X_t, F_top, G)."""
+    x, y, theta, k_r, k_l, k_b = X
     W = k_b * wheel_base
     inc_T, inc_R = odometry_increments(k_l * v_left, k_r * v_right, dt, W)
     dT, dR = float(inc_T), float(inc_R)
-    xT, yT, xR, yR = odometry_partials(theta, dT, dR)
+    xT, yT, xR, yR = odometry_partials(theta, dT, dR)  # xT, yT: the midpoint heading's cos, sin
+    X_t = [x + dT * xT, y + dT * yT, float(wrap_angle(theta + dR)), k_r, k_l, k_b]  # eq. (5)
     # chain rule through dT = (k_l v_l + k_r v_r) dt / 2 and dR = (k_r v_r - k_l v_l) dt / (k_b W)
     T_r, R_r = 0.5 * v_right * dt, v_right * dt / W  # d dT / d k_r, d dR / d k_r
     T_l, R_l = 0.5 * v_left * dt, -v_left * dt / W  # d dT / d k_l, d dR / d k_l
@@ -151,7 +159,7 @@ def jacob_f(
         [yT * T_v - yR * R_v, yT * T_v + yR * R_v],
         [-R_v, R_v],
     ]
-    return F_top, G
+    return X_t, F_top, G
 
 
 def observation_model(X: State) -> list[float]:
@@ -191,7 +199,13 @@ class PoseFilter:
         self._age_s = 0.0  # time since the last reset
         # deferred propagation: composed pose rows of F, accumulated pose noise (upper
         # triangle), accumulated calibration walk variance
-        self._Phi: Rows = []
+        self._Phi: tuple[float, float, list[float], list[float], list[float]] = (
+            0.0,
+            0.0,
+            [],
+            [],
+            [],
+        )
         self._Q: list[float] = []
         self._walk = 0.0
         self._pending = False
@@ -273,24 +287,23 @@ class PoseFilter:
             return
         cfg = self.config
         X = self._X
-        F_top, G = jacob_f(X, v_left, v_right, dt, self.wheel_base)
-        self._X = motion_model(X, v_left, v_right, dt, self.wheel_base)
+        self._X, F_top, G = motion_step(X, v_left, v_right, dt, self.wheel_base)
         # M: variance of each wheel's true speed, from its travel's noise over the step
         q2, s2 = cfg.wheel_noise_m_per_sqrt_s**2 * dt, cfg.wheel_slip_m_per_sqrt_m**2
         m_l = (q2 + s2 * abs(X[4] * v_left * dt)) / (dt * dt)
         m_r = (q2 + s2 * abs(X[3] * v_right * dt)) / (dt * dt)
 
-        # Phi <- F Phi (pose rows; F's pose block is [[1, 0, a], [0, 1, b], [0, 0, 1]])
+        # Phi <- F Phi, Phi = [[1, 0, a_, B0], [0, 1, b_, B1], [0, 0, 1, B2]] (pose rows; F's
+        # pose block is [[1, 0, a], [0, 1, b], [0, 0, 1]], its calibration rows [0 I])
         a, b = F_top[0][2], F_top[1][2]
-        p0, p1, p2 = self._Phi
-        p0 = [u + a * w for u, w in zip(p0, p2, strict=True)]
-        p1 = [u + b * w for u, w in zip(p1, p2, strict=True)]
-        p2 = p2[:]
-        for row, f in ((p0, F_top[0]), (p1, F_top[1]), (p2, F_top[2])):
-            row[3] += f[3]
-            row[4] += f[4]
-            row[5] += f[5]
-        self._Phi = [p0, p1, p2]
+        a_, b_, B0, B1, B2 = self._Phi
+        self._Phi = (
+            a_ + a,
+            b_ + b,
+            [u + a * w + f for u, w, f in zip(B0, B2, F_top[0][3:], strict=True)],
+            [u + b * w + f for u, w, f in zip(B1, B2, F_top[1][3:], strict=True)],
+            [w + f for w, f in zip(B2, F_top[2][3:], strict=True)],
+        )
         # Q <- A Q A^T + G M G^T (A: the pose block of F)
         q00, q01, q02, q11, q12, q22 = self._Q
         t00, t01, t02 = q00 + a * q02, q01 + a * q12, q02 + a * q22
@@ -316,11 +329,7 @@ class PoseFilter:
             self._offset = [0.0, 0.0, 0.0]
 
     def _clear_pending(self) -> None:
-        self._Phi = [
-            [1.0, 0.0, 0.0, 0.0, 0.0, 0.0],
-            [0.0, 1.0, 0.0, 0.0, 0.0, 0.0],
-            [0.0, 0.0, 1.0, 0.0, 0.0, 0.0],
-        ]
+        self._Phi = (0.0, 0.0, [0.0] * 3, [0.0] * 3, [0.0] * 3)
         self._Q = [0.0] * 6
         self._walk = 0.0
         self._pending = False
@@ -334,7 +343,7 @@ class PoseFilter:
         """
         if not self._pending:
             return
-        (_, _, a, *B0), (_, _, b, *B1), (_, _, _, *B2) = self._Phi
+        a, b, B0, B1, B2 = self._Phi
         P = self._P
         P0, P1, P2, P3, P4, P5 = P
         M = [
