@@ -112,6 +112,8 @@ _N_STATE = 6
 
 State = list[float]  # (x, y, theta, k_r, k_l, k_b)
 Rows = list[list[float]]
+Vec3 = tuple[float, float, float]
+_ZERO3: Vec3 = (0.0, 0.0, 0.0)
 
 
 def motion_model(X: State, v_left: float, v_right: float, dt: float, wheel_base: float) -> State:
@@ -199,14 +201,8 @@ class PoseFilter:
         self._age_s = 0.0  # time since the last reset
         # deferred propagation: composed pose rows of F, accumulated pose noise (upper
         # triangle), accumulated calibration walk variance
-        self._Phi: tuple[float, float, list[float], list[float], list[float]] = (
-            0.0,
-            0.0,
-            [],
-            [],
-            [],
-        )
-        self._Q: list[float] = []
+        self._Phi: tuple[float, float, Vec3, Vec3, Vec3] = (0.0, 0.0, _ZERO3, _ZERO3, _ZERO3)
+        self._Q: tuple[float, ...] = ()
         self._walk = 0.0
         self._pending = False
         self._clear_pending()
@@ -295,28 +291,28 @@ class PoseFilter:
 
         # Phi <- F Phi, Phi = [[1, 0, a_, B0], [0, 1, b_, B1], [0, 0, 1, B2]] (pose rows; F's
         # pose block is [[1, 0, a], [0, 1, b], [0, 0, 1]], its calibration rows [0 I])
-        a, b = F_top[0][2], F_top[1][2]
-        a_, b_, B0, B1, B2 = self._Phi
-        self._Phi = (
+        (_, _, a, f03, f04, f05), (_, _, b, f13, f14, f15), (_, _, _, f23, f24, f25) = F_top
+        a_, b_, B0, B1, (c0, c1, c2) = self._Phi
+        self._Phi = (  # (written out: for 3-vectors a comprehension costs more than its work)
             a_ + a,
             b_ + b,
-            [u + a * w + f for u, w, f in zip(B0, B2, F_top[0][3:], strict=True)],
-            [u + b * w + f for u, w, f in zip(B1, B2, F_top[1][3:], strict=True)],
-            [w + f for w, f in zip(B2, F_top[2][3:], strict=True)],
+            (B0[0] + a * c0 + f03, B0[1] + a * c1 + f04, B0[2] + a * c2 + f05),
+            (B1[0] + b * c0 + f13, B1[1] + b * c1 + f14, B1[2] + b * c2 + f15),
+            (c0 + f23, c1 + f24, c2 + f25),
         )
         # Q <- A Q A^T + G M G^T (A: the pose block of F)
         q00, q01, q02, q11, q12, q22 = self._Q
         t00, t01, t02 = q00 + a * q02, q01 + a * q12, q02 + a * q22
         t11, t12 = q11 + b * q12, q12 + b * q22
-        gl, gr = (G[0][0], G[1][0], G[2][0]), (G[0][1], G[1][1], G[2][1])
-        self._Q = [
-            t00 + a * t02 + m_l * gl[0] * gl[0] + m_r * gr[0] * gr[0],
-            t01 + b * t02 + m_l * gl[0] * gl[1] + m_r * gr[0] * gr[1],
-            t02 + m_l * gl[0] * gl[2] + m_r * gr[0] * gr[2],
-            t11 + b * t12 + m_l * gl[1] * gl[1] + m_r * gr[1] * gr[1],
-            t12 + m_l * gl[1] * gl[2] + m_r * gr[1] * gr[2],
-            q22 + m_l * gl[2] * gl[2] + m_r * gr[2] * gr[2],
-        ]
+        (l0, r0), (l1, r1), (l2, r2) = G
+        self._Q = (
+            t00 + a * t02 + m_l * l0 * l0 + m_r * r0 * r0,
+            t01 + b * t02 + m_l * l0 * l1 + m_r * r0 * r1,
+            t02 + m_l * l0 * l2 + m_r * r0 * r2,
+            t11 + b * t12 + m_l * l1 * l1 + m_r * r1 * r1,
+            t12 + m_l * l1 * l2 + m_r * r1 * r2,
+            q22 + m_l * l2 * l2 + m_r * r2 * r2,
+        )
         if cfg.estimate_calibration:
             self._walk += cfg.calibration_walk_per_sqrt_s**2 * dt
         self._pending = True
@@ -324,13 +320,14 @@ class PoseFilter:
         self._age_s += dt
         if cfg.output_time_constant_s > 0:
             decay = math.exp(-dt / cfg.output_time_constant_s)
-            self._offset = [o * decay for o in self._offset]
+            o0, o1, o2 = self._offset
+            self._offset = [o0 * decay, o1 * decay, o2 * decay]
         else:
             self._offset = [0.0, 0.0, 0.0]
 
     def _clear_pending(self) -> None:
-        self._Phi = (0.0, 0.0, [0.0] * 3, [0.0] * 3, [0.0] * 3)
-        self._Q = [0.0] * 6
+        self._Phi = (0.0, 0.0, _ZERO3, _ZERO3, _ZERO3)
+        self._Q = (0.0,) * 6
         self._walk = 0.0
         self._pending = False
 
@@ -369,12 +366,14 @@ class PoseFilter:
                     m5,
                 ]
             )
+        (_, _, _, t03, t04, t05), (_, _, _, t13, t14, t15), (_, _, _, t23, t24, t25) = top
         w = self._walk
-        cal = [
-            [*(t[3 + k] for t in top), *(v + w if j == k else v for j, v in enumerate(Pk[3:]))]
-            for k, Pk in enumerate((P3, P4, P5))
+        self._P = [
+            *top,
+            [t03, t13, t23, P3[3] + w, P3[4], P3[5]],
+            [t04, t14, t24, P4[3], P4[4] + w, P4[5]],
+            [t05, t15, t25, P5[3], P5[4], P5[5] + w],
         ]
-        self._P = top + cal
         self._clear_pending()
 
     # -- update ---------------------------------------------------------------------------------

@@ -191,14 +191,18 @@ def _centroid(
     x0, y0, w, h = box
     c0, r0 = max(x0 - m, 0), max(y0 - m, 0)
     c1, r1 = min(x0 + w + m, rw), min(y0 + h + m, rh)
-    patch = region[r0:r1, c0:c1].astype(np.float32)
+    patch = region[r0:r1, c0:c1]
     if peak is None:
         peak = float(patch.max())
     if peak - np.float32(background) < config.min_peak_contrast_counts:
         return
-    patch -= np.float32(background)
-    np.maximum(patch, 0.0, out=patch)
-    mom = cv2.moments(patch)  # sums in double: m00 = sum w, m10 = sum w col, m01 = sum w row
+    if background.is_integer():  # max(I - bg, 0) exactly, in one call (saturating uint8)
+        weights = cv2.subtract(patch, background)
+    else:
+        weights = patch.astype(np.float32)
+        weights -= np.float32(background)
+        np.maximum(weights, 0.0, out=weights)
+    mom = cv2.moments(weights)  # sums in double: m00 = sum w, m10 = sum w col, m01 = sum w row
     total = mom["m00"]
     col, row = c0 + mom["m10"] / total, r0 + mom["m01"] / total
     out.append((col + origin[0], row + origin[1], total, area))
@@ -362,27 +366,24 @@ def _single_spot(
     x, y = peak_loc
     c0, r0, c1, r1 = max(x - r, 0), max(y - r, 0), min(x + r + 1, rw), min(y + r + 1, rh)
     _, binary = cv2.threshold(region, threshold, 1, cv2.THRESH_BINARY)
-    above = binary[r0:r1, c0:c1]
-    area = cv2.countNonZero(above)
-    if cv2.countNonZero(binary) != area:
-        return False  # more above the threshold than the patch holds: label it
+    bx, by, w, h = cv2.boundingRect(binary)  # of every pixel above the threshold
+    if bx < c0 or by < r0 or bx + w > c1 or by + h > r1:
+        return False  # pixels above the threshold outside the patch: label the region
     # The blob must not touch the patch's edge unless that edge is the image's border.
-    bx, by, w, h = cv2.boundingRect(above)
-    touches = (
-        (bx == 0 and (c0 > 0 or cut_sides[0]))
-        or (by == 0 and (r0 > 0 or cut_sides[1]))
-        or (bx + w == c1 - c0 and (c1 < rw or cut_sides[2]))
-        or (by + h == r1 - r0 and (r1 < rh or cut_sides[3]))
-    )
-    if touches:
+    if (
+        (bx == c0 and (c0 > 0 or cut_sides[0]))
+        or (by == r0 and (r0 > 0 or cut_sides[1]))
+        or (bx + w == c1 and (c1 < rw or cut_sides[2]))
+        or (by + h == r1 and (r1 < rh or cut_sides[3]))
+    ):
         return False
+    area = cv2.countNonZero(binary)
     if (
         config.min_area_px <= area <= config.max_area_px
         and area / (w * h) >= config.min_fill_ratio
         and max(w, h) / min(w, h) <= config.max_elongation
     ):
-        box = (c0 + bx, r0 + by, w, h)
-        _centroid(region, box, origin, background, float(area), config, out, peak)
+        _centroid(region, (bx, by, w, h), origin, background, float(area), config, out, peak)
     return True  # one blob (kept, or rejected by the filters)
 
 
