@@ -108,8 +108,6 @@ class OdometryCalibration:
     covariance: FloatArray
 
 
-_N_STATE = 6
-
 State = list[float]  # (x, y, theta, k_r, k_l, k_b)
 Rows = list[list[float]]
 Vec3 = tuple[float, float, float]
@@ -382,7 +380,7 @@ class PoseFilter:
         self._flush()
         x, y, th = observation_model(self._X)
         innovation = [fix.x - x, fix.y - y, float(wrap_angle(fix.theta - th))]
-        (p00, p01, p02), (_, p11, p12), (_, _, p22) = (row[:3] for row in self._P[:3])
+        (p00, p01, p02, *_), (_, p11, p12, *_), (_, _, p22, *_) = self._P[:3]
         (r00, r01, r02), (_, r11, r12), (_, _, r22) = np.asarray(fix.covariance).tolist()
         S_inv = inverse_3x3_sym([p00 + r00, p01 + r01, p02 + r02, p11 + r11, p12 + r12, p22 + r22])
         return innovation, S_inv
@@ -413,28 +411,28 @@ class PoseFilter:
         # Plain floats: for a 6-state filter numpy's per-call overhead dominates.
         i00, i01, i02, i11, i12, i22 = S_inv
         P = self._P
-        K = [  # P H^T S^-1 = P[:, :3] S^-1, 6 x 3
-            (
-                a * i00 + b * i01 + c * i02,
-                a * i01 + b * i11 + c * i12,
-                a * i02 + b * i12 + c * i22,
-            )
-            for a, b, c in (row[:3] for row in P)
-        ]
-        y0, y1, y2 = y
-        dX = [k0 * y0 + k1 * y1 + k2 * y2 for k0, k1, k2 in K]
         P0, P1, P2 = P[0], P[1], P[2]  # H P = P[:3, :]
-        A = [
-            [p - (k0 * u + k1 * v + k2 * w) for p, u, v, w in zip(row, P0, P1, P2, strict=True)]
-            for row, (k0, k1, k2) in zip(P, K, strict=True)
+        y0, y1, y2 = y
+        dX, A = [], []
+        for row in P:
+            a, b, c = row[0], row[1], row[2]
+            k0 = a * i00 + b * i01 + c * i02  # the row of K = P H^T S^-1 = P[:, :3] S^-1
+            k1 = a * i01 + b * i11 + c * i12
+            k2 = a * i02 + b * i12 + c * i22
+            dX.append(k0 * y0 + k1 * y1 + k2 * y2)
+            A.append(
+                [p - (k0 * u + k1 * v + k2 * w) for p, u, v, w in zip(row, P0, P1, P2, strict=True)]
+            )
+        self._P = [  # symmetrised: (A + A^T) / 2
+            [0.5 * (u + v) for u, v in zip(row, col, strict=True)]
+            for row, col in zip(A, zip(*A, strict=True), strict=True)
         ]
-        self._P = [[0.5 * (A[i][j] + A[j][i]) for j in range(_N_STATE)] for i in range(_N_STATE)]
 
         old = self._X
         X = [u + d for u, d in zip(old, dX, strict=True)]
         X[2] = float(wrap_angle(X[2]))
         lo, hi = self.config.calibration_bounds
-        X[3:] = [min(max(k, lo), hi) for k in X[3:]]
+        X[3], X[4], X[5] = min(max(X[3], lo), hi), min(max(X[4], lo), hi), min(max(X[5], lo), hi)
         self._X = X
 
         jump = [old[0] - X[0], old[1] - X[1], float(wrap_angle(old[2] - X[2]))]

@@ -196,8 +196,8 @@ def _centroid(
         peak = float(patch.max())
     if peak - np.float32(background) < config.min_peak_contrast_counts:
         return
-    if background.is_integer():  # max(I - bg, 0) exactly, in one call (saturating uint8)
-        weights = cv2.subtract(patch, background)
+    if float(background).is_integer():  # max(I - bg, 0) exactly, in one call (saturating uint8)
+        weights = cv2.subtract(patch, background)  # type: ignore[call-overload]
     else:
         weights = patch.astype(np.float32)
         weights -= np.float32(background)
