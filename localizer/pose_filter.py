@@ -8,16 +8,15 @@ three are observable from fixes: driving straight shows (k_r - k_l) / k_b throug
 drift and (k_r + k_l) / 2 through the distance, turning shows (k_r + k_l) / k_b.
 
 Written line for line like the math (PythonRobotics style): `motion_model`, `jacob_f`,
-`observation_model`, `jacob_h`, then the predict and update equations.
+`observation_model` (H = [I 0]), then the predict and update equations.
 
 The output can be smoothed (`output_state`): a fix moves the estimate at once, but the
 output follows it with a time constant, so the reported pose has no jumps.
 
-Speed: odometry arrives at 50-200 Hz, so `predict` works on Python floats and defers the
-covariance: it composes the step Jacobians into Phi = F_n ... F_1 and accumulates the pose
-noise Q = sum F..G M G^T..F^T, and P <- Phi P Phi^T + Q is applied once, when the covariance
-is next needed (an update, or a read). The calibration random walk is added at that moment
-too (its propagation into the pose within one batch, a second-order effect, is dropped).
+Speed: odometry arrives at 50-200 Hz, so `predict` works on Python floats (the covariance
+too, as nested lists) and folds each step into a `DeferredPropagation`: the covariance of all
+the steps since the last read is propagated at once, when next needed (an update, or a
+read), with the composed Jacobian (`propagation.py`; exact, not an approximation).
 """
 
 from __future__ import annotations
@@ -31,6 +30,7 @@ import numpy.typing as npt
 from localizer.geometry import wrap_angle
 from localizer.odometry import odometry_increments, odometry_partials
 from localizer.pose import PoseFix
+from localizer.propagation import DeferredPropagation
 from localizer.small_linalg import inverse_3x3_sym
 
 FloatArray = npt.NDArray[np.float64]
@@ -110,8 +110,6 @@ class OdometryCalibration:
 
 State = list[float]  # (x, y, theta, k_r, k_l, k_b)
 Rows = list[list[float]]
-Vec3 = tuple[float, float, float]
-_ZERO3: Vec3 = (0.0, 0.0, 0.0)
 
 
 def motion_model(X: State, v_left: float, v_right: float, dt: float, wheel_base: float) -> State:
@@ -197,13 +195,7 @@ class PoseFilter:
         self._P: Rows = [[k2 if i == j >= 3 else 0.0 for j in range(6)] for i in range(6)]
         self._offset = [0.0, 0.0, 0.0]  # output_state - state
         self._age_s = 0.0  # time since the last reset
-        # deferred propagation: composed pose rows of F, accumulated pose noise (upper
-        # triangle), accumulated calibration walk variance
-        self._Phi: tuple[float, float, Vec3, Vec3, Vec3] = (0.0, 0.0, _ZERO3, _ZERO3, _ZERO3)
-        self._Q: tuple[float, ...] = ()
-        self._walk = 0.0
-        self._pending = False
-        self._clear_pending()
+        self._propagation = DeferredPropagation()
         self.reset(x, y, theta, covariance)
 
     # -- state ----------------------------------------------------------------------------------
@@ -287,33 +279,8 @@ class PoseFilter:
         m_l = (q2 + s2 * abs(X[4] * v_left * dt)) / (dt * dt)
         m_r = (q2 + s2 * abs(X[3] * v_right * dt)) / (dt * dt)
 
-        # Phi <- F Phi, Phi = [[1, 0, a_, B0], [0, 1, b_, B1], [0, 0, 1, B2]] (pose rows; F's
-        # pose block is [[1, 0, a], [0, 1, b], [0, 0, 1]], its calibration rows [0 I])
-        (_, _, a, f03, f04, f05), (_, _, b, f13, f14, f15), (_, _, _, f23, f24, f25) = F_top
-        a_, b_, B0, B1, (c0, c1, c2) = self._Phi
-        self._Phi = (  # (written out: for 3-vectors a comprehension costs more than its work)
-            a_ + a,
-            b_ + b,
-            (B0[0] + a * c0 + f03, B0[1] + a * c1 + f04, B0[2] + a * c2 + f05),
-            (B1[0] + b * c0 + f13, B1[1] + b * c1 + f14, B1[2] + b * c2 + f15),
-            (c0 + f23, c1 + f24, c2 + f25),
-        )
-        # Q <- A Q A^T + G M G^T (A: the pose block of F)
-        q00, q01, q02, q11, q12, q22 = self._Q
-        t00, t01, t02 = q00 + a * q02, q01 + a * q12, q02 + a * q22
-        t11, t12 = q11 + b * q12, q12 + b * q22
-        (l0, r0), (l1, r1), (l2, r2) = G
-        self._Q = (
-            t00 + a * t02 + m_l * l0 * l0 + m_r * r0 * r0,
-            t01 + b * t02 + m_l * l0 * l1 + m_r * r0 * r1,
-            t02 + m_l * l0 * l2 + m_r * r0 * r2,
-            t11 + b * t12 + m_l * l1 * l1 + m_r * r1 * r1,
-            t12 + m_l * l1 * l2 + m_r * r1 * r2,
-            q22 + m_l * l2 * l2 + m_r * r2 * r2,
-        )
-        if cfg.estimate_calibration:
-            self._walk += cfg.calibration_walk_per_sqrt_s**2 * dt
-        self._pending = True
+        walk = cfg.calibration_walk_per_sqrt_s**2 * dt if cfg.estimate_calibration else 0.0
+        self._propagation.add_step(F_top, G, m_l, m_r, walk)
 
         self._age_s += dt
         if cfg.output_time_constant_s > 0:
@@ -323,56 +290,10 @@ class PoseFilter:
         else:
             self._offset = [0.0, 0.0, 0.0]
 
-    def _clear_pending(self) -> None:
-        self._Phi = (0.0, 0.0, _ZERO3, _ZERO3, _ZERO3)
-        self._Q = (0.0,) * 6
-        self._walk = 0.0
-        self._pending = False
-
     def _flush(self) -> None:
-        """Apply the deferred covariance propagation: P = F P F^T + Q, F = [[Phi], [0 I]].
-
-        Phi's pose block keeps the form [[1, 0, a], [0, 1, b], [0, 0, 1]] (a product of such
-        blocks), so with B = Phi[:, 3:]: M = Phi P, the pose rows of F P; then
-        P_pp = M Phi^T, P_pc = M[:, 3:], P_cc unchanged.
-        """
-        if not self._pending:
-            return
-        a, b, B0, B1, B2 = self._Phi
-        P = self._P
-        P0, P1, P2, P3, P4, P5 = P
-        M = [
-            [
-                u + c * w + d0 * p + d1 * q + d2 * r
-                for u, w, p, q, r in zip(Pi, P2, P3, P4, P5, strict=True)
-            ]
-            for Pi, c, (d0, d1, d2) in ((P0, a, B0), (P1, b, B1), (P2, 0.0, B2))
-        ]
-        q00, q01, q02, q11, q12, q22 = self._Q
-        Q = ((q00, q01, q02), (q01, q11, q12), (q02, q12, q22))
-        top = []
-        for Mi, Qi in zip(M, Q, strict=True):
-            m0, m1, m2, m3, m4, m5 = Mi
-            tail = m3 * B0[0] + m4 * B0[1] + m5 * B0[2], m3 * B1[0] + m4 * B1[1] + m5 * B1[2]
-            top.append(
-                [
-                    m0 + a * m2 + tail[0] + Qi[0],
-                    m1 + b * m2 + tail[1] + Qi[1],
-                    m2 + m3 * B2[0] + m4 * B2[1] + m5 * B2[2] + Qi[2],
-                    m3,
-                    m4,
-                    m5,
-                ]
-            )
-        (_, _, _, t03, t04, t05), (_, _, _, t13, t14, t15), (_, _, _, t23, t24, t25) = top
-        w = self._walk
-        self._P = [
-            *top,
-            [t03, t13, t23, P3[3] + w, P3[4], P3[5]],
-            [t04, t14, t24, P4[3], P4[4] + w, P4[5]],
-            [t05, t15, t25, P5[3], P5[4], P5[5] + w],
-        ]
-        self._clear_pending()
+        """Apply the deferred covariance propagation (see `DeferredPropagation`)."""
+        if self._propagation.pending:
+            self._P = self._propagation.apply(self._P)
 
     # -- update ---------------------------------------------------------------------------------
     def _innovation(self, fix: PoseFix) -> tuple[list[float], list[float] | None]:
