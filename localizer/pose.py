@@ -233,7 +233,7 @@ def solve_pose(
     # Undistort the pixels and two offset copies in one call: m and A = d m / d pixel.
     h = _JACOBIAN_STEP_PX
     shifted = pl + [[c + h, r] for c, r in pl] + [[c, r + h] for c, r in pl]
-    nl = normalized_from_pixels(camera, np.array(shifted)).tolist()
+    nl = normalized_from_pixels(camera, shifted).tolist()
     m = [(mx, my) for mx, my in nl[:n]]
     A = [
         ((ux - mx) / h, (vx - mx) / h, (uy - my) / h, (vy - my) / h)
@@ -291,6 +291,6 @@ def solve_pose(
         covariance=covariance,
         tilt=tilt,
         residual_rms_px=rms,
-        landmark_ids=tuple(int(i) for i in landmark_ids),
+        landmark_ids=tuple(map(int, landmark_ids)),
         n_landmarks=n,
     )

@@ -344,10 +344,8 @@ class PoseFilter:
             A.append(
                 [p - (k0 * u + k1 * v + k2 * w) for p, u, v, w in zip(row, P0, P1, P2, strict=True)]
             )
-        self._P = [  # symmetrised: (A + A^T) / 2
-            [0.5 * (u + v) for u, v in zip(row, col, strict=True)]
-            for row, col in zip(A, zip(*A, strict=True), strict=True)
-        ]
+        cols = list(zip(*A, strict=True))  # symmetric: the upper triangle, mirrored
+        self._P = [[*cols[i][:i], *A[i][i:]] for i in range(6)]
 
         old = self._X
         X = [u + d for u, d in zip(old, dX, strict=True)]

@@ -93,10 +93,10 @@ class DeferredPropagation:
             (P1, b, B1, (q01, q11, q12)),
             (P2, 0.0, B2, (q02, q12, q22)),
         ):
-            m0, m1, m2, m3, m4, m5 = (  # row i of M
+            m0, m1, m2, m3, m4, m5 = [  # row i of M
                 u + c * w + d0 * p + d1 * q + d2 * r
                 for u, w, p, q, r in zip(Pi, P2, P3, P4, P5, strict=True)
-            )
+            ]
             x0 = m0 + a * m2 + m3 * B0[0] + m4 * B0[1] + m5 * B0[2]  # row i of M Phi^T
             x1 = m1 + b * m2 + m3 * B1[0] + m4 * B1[1] + m5 * B1[2]
             x2 = m2 + m3 * B2[0] + m4 * B2[1] + m5 * B2[2]
