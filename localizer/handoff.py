@@ -56,20 +56,36 @@ _VECTOR_FILTER_ABOVE = 16  # more candidates than this are pre-filtered by dista
 
 @dataclass(frozen=True, eq=False)
 class Prediction:
-    """Landmarks predicted in view.
+    """Landmarks predicted in view, as Python lists (the tracking hot path reads them so);
+    `rows`, `pixels` and `sigma_px` give them as arrays.
 
     Attributes:
-        rows: rows of the landmarks in the map, shape (K,).
-        pixels: predicted pixels, shape (K, 2).
-        sigma_px: standard deviation of each predicted pixel, shape (K,).
+        row_list: rows of the landmarks in the map, K.
+        pixel_list: predicted pixels (col, row), K.
+        sigma_list: standard deviation of each predicted pixel, pixels, K.
     """
 
-    rows: IntArray
-    pixels: FloatArray
-    sigma_px: FloatArray
+    row_list: list[int]
+    pixel_list: list[tuple[float, float]]
+    sigma_list: list[float]
 
     def __len__(self) -> int:
-        return len(self.rows)
+        return len(self.row_list)
+
+    @property
+    def rows(self) -> IntArray:
+        """Map rows, shape (K,)."""
+        return np.array(self.row_list, dtype=np.int64)
+
+    @property
+    def pixels(self) -> FloatArray:
+        """Predicted pixels, shape (K, 2)."""
+        return np.array(self.pixel_list, dtype=np.float64).reshape(-1, 2)
+
+    @property
+    def sigma_px(self) -> FloatArray:
+        """Standard deviation of each predicted pixel, shape (K,)."""
+        return np.array(self.sigma_list, dtype=np.float64)
 
 
 def visible_radius_m(camera: CameraModel, ceiling_above_camera_m: float) -> float:
@@ -140,9 +156,7 @@ def predict_landmarks(
         pixels.append(px)
         radial = math.hypot(px[0] - cu, px[1] - cv)
         sigmas.append((radial + offset_px) * sigma_t + scale_px_per_m * sigma_xy)
-    if not kept:
-        return Prediction(np.zeros(0, np.int64), np.zeros((0, 2)), np.zeros(0))
-    return Prediction(np.array(kept, dtype=np.int64), np.array(pixels), np.array(sigmas))
+    return Prediction(kept, pixels, sigmas)
 
 
 def position_sigma_m(covariance: FloatArray) -> float:
@@ -214,10 +228,11 @@ def consistent_hypotheses(
     Returns:
         Hypotheses as lists of (map row, spot index), the largest first.
     """
+    pred_px = prediction.pixels
     k_idx, s_idx = np.nonzero(
         np.hypot(
-            prediction.pixels[:, None, 0] - spot_pixels[None, :, 0],
-            prediction.pixels[:, None, 1] - spot_pixels[None, :, 1],
+            pred_px[:, None, 0] - spot_pixels[None, :, 0],
+            pred_px[:, None, 1] - spot_pixels[None, :, 1],
         )
         <= np.asarray(gates_px)[:, None]
     )

@@ -15,7 +15,7 @@ without a full-frame pass.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 import numpy.typing as npt
@@ -48,8 +48,7 @@ FloatArray = npt.NDArray[np.float64]
 Frame = FrameObserved | SpotsObserved
 
 
-@dataclass(frozen=True)
-class TrackResult:
+class TrackResult(NamedTuple):
     """What a tracking step found.
 
     Attributes:
@@ -150,7 +149,7 @@ class LandmarkTracker:
             return _NOTHING
         tc = self.config.tracking
         dt_free = dt_frame_s * (tc.odometry_speed_fraction if fresh_odometry else 1.0)
-        px = pred.pixels.tolist()
+        px = pred.pixel_list
         cu, cv = self.camera.cu, self.camera.cv
         gates = [  # window half sizes and assignment gates, pixels
             tc.min_half_size_px
@@ -162,7 +161,7 @@ class LandmarkTracker:
                 dt_s=dt_free,
                 scale_px_per_m=self.scale_px_per_m,
             )
-            for (u, v), sigma in zip(px, pred.sigma_px.tolist(), strict=True)
+            for (u, v), sigma in zip(px, pred.sigma_list, strict=True)
         ]
         reacquire = reacquire or sigma_xy > self.config.handoff.reacquire_sigma_m
         windows = not reacquire and max(gates) <= tc.max_half_size_px
@@ -181,7 +180,7 @@ class LandmarkTracker:
             pairs = self._reacquire(pred, spots, gates, pose, cov)
         else:
             d = [[math.hypot(u - a, v - b) for a, b in spot_px] for u, v in px]
-            rows = pred.rows.tolist()
+            rows = pred.row_list
             pairs = [(rows[k], s) for k, s in bottleneck_assignment(d, gates)]
         used = self._fuse(filt, pairs, spot_px, pose) if len(pairs) >= 2 else ()
         return TrackResult(used, unexplained=not used and len(pred) >= 2)

@@ -15,6 +15,7 @@ point-spread function.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import cv2
@@ -310,8 +311,8 @@ def detect_spots_in_windows(
 
 def spot_rows_in_windows(
     image: ImageU8,
-    centers: list[list[float]],
-    half_sizes: list[list[float]],
+    centers: Sequence[Sequence[float]],
+    half_sizes: Sequence[Sequence[float]],
     config: DetectionConfig,
     background: tuple[float, float],
 ) -> list[SpotRow]:
@@ -388,8 +389,8 @@ def _single_spot(
 
 
 def window_boxes(
-    centers: FloatArray | list[list[float]],
-    half_sizes: FloatArray | list[list[float]],
+    centers: FloatArray | Sequence[Sequence[float]],
+    half_sizes: FloatArray | Sequence[Sequence[float]],
     width: int,
     height: int,
 ) -> list[tuple[int, int, int, int]]:
