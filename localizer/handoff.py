@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import itertools
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -25,6 +26,7 @@ from localizer.lens import pixel_from_point
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
+Covariance = FloatArray | Sequence[Sequence[float]]
 
 
 @dataclass(frozen=True)
@@ -98,7 +100,7 @@ def visible_radius_m(camera: CameraModel, ceiling_above_camera_m: float) -> floa
 def predict_landmarks(
     camera: CameraModel,
     pose: tuple[float, float, float],
-    covariance: FloatArray,
+    covariance: Covariance,
     positions: FloatArray,
     *,
     candidates: IntArray | None = None,
@@ -113,7 +115,7 @@ def predict_landmarks(
 
     Args:
         pose: (x, y, theta) of the body.
-        covariance: of the pose, shape (3, 3).
+        covariance: of the pose, 3 x 3 (an array or nested sequences).
         positions: all landmark positions, shape (N, 3).
         candidates: rows to consider (e.g. the lit landmarks); None: all.
         scale_px_per_m: image scale of the ceiling.
@@ -132,7 +134,7 @@ def predict_landmarks(
         :3
     ].tolist()
     sigma_xy = position_sigma_m(covariance)
-    sigma_t = math.sqrt(max(float(covariance[2, 2]), 0.0))
+    sigma_t = math.sqrt(max(float(covariance[2][2]), 0.0))
     T_bc = camera.T_body_camera
     offset_px = scale_px_per_m * math.hypot(float(T_bc[0, 3]), float(T_bc[1, 3]))
     cu, cv = camera.cu, camera.cv
@@ -159,10 +161,14 @@ def predict_landmarks(
     return Prediction(kept, pixels, sigmas)
 
 
-def position_sigma_m(covariance: FloatArray) -> float:
+def position_sigma_m(covariance: Covariance) -> float:
     """Standard deviation along the worst direction of the (x, y) block of a covariance:
-    the square root of the larger eigenvalue of a 2x2 symmetric matrix (closed form)."""
-    a, b, c = float(covariance[0, 0]), float(covariance[0, 1]), float(covariance[1, 1])
+    the square root of the larger eigenvalue of a 2x2 symmetric matrix (closed form).
+
+    Args:
+        covariance: of (x, y, ...), an array or nested sequences, at least 2 x 2.
+    """
+    a, b, c = float(covariance[0][0]), float(covariance[0][1]), float(covariance[1][1])
     return math.sqrt(max(0.5 * (a + c) + math.hypot(0.5 * (a - c), b), 0.0))
 
 

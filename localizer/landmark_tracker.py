@@ -134,7 +134,7 @@ class LandmarkTracker:
             reacquire: require a map-consistent hypothesis (also forced by a large
                 position uncertainty).
         """
-        pose, cov = filt.pose, filt.covariance
+        pose, cov = filt.pose, filt.covariance_rows
         sigma_xy = position_sigma_m(cov)
         pred = predict_landmarks(
             self.camera,
@@ -191,7 +191,7 @@ class LandmarkTracker:
         spots: Spots,
         gates: list[float],
         pose: tuple[float, float, float],
-        cov: FloatArray,
+        cov: tuple[list[float], list[float], list[float]],
     ) -> list[tuple[int, int]]:
         """A hand-off after long dead reckoning: the one map-consistent hypothesis, or none."""
         hc = self.config.handoff
@@ -199,7 +199,7 @@ class LandmarkTracker:
         if not hyps:
             return []
         size = len(hyps[0])
-        prior_cov = cov + np.diag([1e-4, 1e-4, 1e-4])
+        prior_cov = np.array(cov) + np.diag([1e-4, 1e-4, 1e-4])
         passing = [
             h
             for h in hyps

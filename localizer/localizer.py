@@ -301,8 +301,7 @@ class Localizer:
         if self._filter is None or self._mode in ("identifying", "lost"):
             return
         fc = self.config.fusion
-        cov = self._filter.covariance
-        sigma = position_sigma_m(cov)
+        sigma = position_sigma_m(self._filter.covariance_rows)
         if sigma > fc.lost_sigma_m or self._rejections >= fc.lost_after_rejections:
             self._mode = "lost"
             self._start_identification()

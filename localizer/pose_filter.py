@@ -218,6 +218,13 @@ class PoseFilter:
         return np.array([P[0][:3], P[1][:3], P[2][:3]])
 
     @property
+    def covariance_rows(self) -> tuple[list[float], list[float], list[float]]:
+        """`covariance` as three rows of floats (no array; do not modify them)."""
+        self._flush()
+        P0, P1, P2 = self._P[0], self._P[1], self._P[2]
+        return P0[:3], P1[:3], P2[:3]
+
+    @property
     def full_state(self) -> FloatArray:
         """(x, y, theta, k_r, k_l, k_b), shape (6,)."""
         return np.array(self._X)
