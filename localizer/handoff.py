@@ -122,11 +122,16 @@ def predict_landmarks(
         reach_m: skip landmarks horizontally farther than this from the robot (a cheap
             pre-filter before projecting).
     """
-    rows = np.arange(len(positions)) if candidates is None else np.asarray(candidates)
     x, y, theta = pose
-    if len(rows) > _VECTOR_FILTER_ABOVE:  # a large map: drop the far landmarks at once
-        P = positions[rows]
-        rows = rows[np.hypot(P[:, 0] - x, P[:, 1] - y) <= reach_m]
+    if candidates is None and len(positions) <= _VECTOR_FILTER_ABOVE:
+        row_list: Sequence[int] = range(len(positions))
+        P_list = positions.tolist()
+    else:
+        rows = np.arange(len(positions)) if candidates is None else np.asarray(candidates)
+        if len(rows) > _VECTOR_FILTER_ABOVE:  # a large map: drop the far landmarks at once
+            P = positions[rows]
+            rows = rows[np.hypot(P[:, 0] - x, P[:, 1] - y) <= reach_m]
+        row_list, P_list = rows.tolist(), positions[rows].tolist()
     # Few landmarks: plain floats beat numpy's per-call overhead. Eq. (3) in 3D: a landmark
     # in the camera frame is T_camera_body T_body_world P.
     c, s = math.cos(theta), math.sin(theta)
@@ -141,7 +146,7 @@ def predict_landmarks(
     kept: list[int] = []
     pixels: list[tuple[float, float]] = []
     sigmas: list[float] = []
-    for row, (X, Y, Z) in zip(rows.tolist(), positions[rows].tolist(), strict=True):
+    for row, (X, Y, Z) in zip(row_list, P_list, strict=True):
         dx, dy = X - x, Y - y
         if math.hypot(dx, dy) > reach_m:
             continue

@@ -187,17 +187,19 @@ def _centroid(
     """Intensity-weighted centroid of the background-free pixels on the component's box
     (left, top, width, height) grown by `centroid_margin_px`; appended to `out` unless the
     spot is too faint (its brightest pixel, `peak` when known, less the background)."""
-    rh, rw = region.shape
     m = config.centroid_margin_px
     x0, y0, w, h = box
-    c0, r0 = max(x0 - m, 0), max(y0 - m, 0)
-    c1, r1 = min(x0 + w + m, rw), min(y0 + h + m, rh)
-    patch = region[r0:r1, c0:c1]
+    c0, r0 = (x0 - m if x0 > m else 0), (y0 - m if y0 > m else 0)
+    patch = region[r0 : y0 + h + m, c0 : x0 + w + m]  # (the slice stops at the region's end)
     if peak is None:
         peak = float(patch.max())
-    if peak - np.float32(background) < config.min_peak_contrast_counts:
+    integral = float(background).is_integer()
+    if (
+        peak - (background if integral else np.float32(background))
+        < config.min_peak_contrast_counts
+    ):
         return
-    if float(background).is_integer():  # max(I - bg, 0) exactly, in one call (saturating uint8)
+    if integral:  # max(I - bg, 0) exactly, in one call (saturating uint8)
         weights = cv2.subtract(patch, background)  # type: ignore[call-overload]
     else:
         weights = patch.astype(np.float32)
