@@ -36,7 +36,8 @@ from localizer.landmark_map import LandmarkMap
 from localizer.pose import solve_pose
 from localizer.pose_filter import PoseFilter
 from localizer.robot import RobotGeometry
-from localizer.spots import Spots, detect_spots, estimate_background, spot_rows_in_windows
+from localizer.spot_windows import spot_rows_in_windows
+from localizer.spots import Spots, detect_spots, estimate_background
 from localizer.tracking import (
     bottleneck_assignment,
     default_angular_speed,

@@ -8,8 +8,7 @@ faint are dropped. A spot's position is the intensity-weighted centroid of the b
 pixel values on a small patch around the component, which is unbiased for a symmetric
 point-spread function.
 
-`detect_spots_in_windows` is the tracking fast path: it only looks inside given search windows
-(array slices, no full-frame operation).
+The tracking fast path, which only looks inside search windows, is `spot_windows.py`.
 """
 
 from __future__ import annotations
@@ -126,7 +125,7 @@ def threshold_for(background: float, noise: float, config: DetectionConfig) -> f
     )
 
 
-def _spots_in_region(
+def spots_in_region(
     region: ImageU8,
     origin: tuple[int, int],
     background: float,
@@ -171,10 +170,10 @@ def _spots_in_region(
         keep &= ~((y0s + h == rh) & cut_sides[3])
     for i in np.flatnonzero(keep):
         box = (int(x0s[i]), int(y0s[i]), int(w[i]), int(h[i]))
-        _centroid(region, box, origin, background, float(area[i]), config, out)
+        append_centroid(region, box, origin, background, float(area[i]), config, out)
 
 
-def _centroid(
+def append_centroid(
     region: ImageU8,
     box: tuple[int, int, int, int],
     origin: tuple[int, int],
@@ -245,7 +244,8 @@ def bright_boxes(image: ImageU8, threshold: float, margin_px: int) -> FloatArray
     return np.asarray(boxes, dtype=np.float64).reshape(-1, 4)
 
 
-def _brightest(rows: list[SpotRow], limit: int) -> list[SpotRow]:
+def brightest(rows: list[SpotRow], limit: int) -> list[SpotRow]:
+    """At most `limit` spots, the brightest (by intensity) when there are more."""
     return sorted(rows, key=lambda r: -r[2])[:limit] if len(rows) > limit else rows
 
 
@@ -266,128 +266,15 @@ def detect_spots(
     Raises:
         ValueError: when the image is not a 2-D uint8 array.
     """
-    _check_image(image)
+    check_image(image)
     bg, noise = estimate_background(image, config) if background is None else background
     thr = threshold_for(bg, noise, config)
     boxes = bright_boxes(image, thr, config.centroid_margin_px)
     H, W = image.shape
     rows: list[SpotRow] = []
     for c0, r0, c1, r1 in window_boxes(boxes[:, :2], boxes[:, 2:], W, H):
-        _spots_in_region(image[r0:r1, c0:c1], (c0, r0), bg, thr, config, rows)
-    return Spots.from_lists(_brightest(rows, config.max_spots))
-
-
-def detect_spots_in_windows(
-    image: ImageU8,
-    centers: npt.ArrayLike,
-    half_sizes: npt.ArrayLike,
-    config: DetectionConfig,
-    *,
-    background: tuple[float, float] | None = None,
-) -> Spots:
-    """Detect spots only inside search windows (the tracking fast path, Sec. IV-A.1).
-
-    Overlapping windows are merged into their bounding box so that a spot is found once.
-
-    Args:
-        image: 8-bit grayscale frame, shape (H, W).
-        centers: window centres (col, row), pixels, shape (M, 2).
-        half_sizes: half widths and heights of the windows, pixels, shape (M, 2).
-        config: detector tuning.
-        background: (level, noise) counts; None estimates them from the frame (a strided
-            subsample, not a full-frame pass); pass the last known values to save that.
-
-    Returns:
-        The spots inside the windows.
-    """
-    _check_image(image)
-    c = np.asarray(centers, dtype=np.float64).reshape(-1, 2)
-    hs = np.asarray(half_sizes, dtype=np.float64).reshape(-1, 2)
-    if len(c) != len(hs):
-        raise ValueError(f"detect_spots_in_windows: {len(c)} centers but {len(hs)} half sizes")
-    if len(c) == 0:
-        return Spots.empty()
-    bg_noise = estimate_background(image, config) if background is None else background
-    return Spots.from_lists(spot_rows_in_windows(image, c.tolist(), hs.tolist(), config, bg_noise))
-
-
-def spot_rows_in_windows(
-    image: ImageU8,
-    centers: Sequence[Sequence[float]],
-    half_sizes: Sequence[Sequence[float]],
-    config: DetectionConfig,
-    background: tuple[float, float],
-) -> list[SpotRow]:
-    """`detect_spots_in_windows` on Python lists, unchecked: the localizer's hot path.
-
-    Args:
-        image: 8-bit grayscale frame, shape (H, W).
-        centers, half_sizes: per window (col, row) and (half width, half height), pixels.
-        background: (level, noise), counts.
-
-    Returns:
-        (col, row, intensity, area) of each spot, at most `config.max_spots`.
-    """
-    bg, noise = background
-    thr = threshold_for(bg, noise, config)
-    H, W = image.shape
-    rows: list[SpotRow] = []
-    for c0, r0, c1, r1 in window_boxes(centers, half_sizes, W, H):
-        region = image[r0:r1, c0:c1]
-        _, peak, _, loc = cv2.minMaxLoc(region)
-        if peak <= thr:
-            continue
-        cut = (c0 > 0, r0 > 0, c1 < W, r1 < H)
-        peak_loc = (int(loc[0]), int(loc[1]))
-        if not _single_spot(region, peak_loc, peak, (c0, r0), bg, thr, config, rows, cut):
-            _spots_in_region(region, (c0, r0), bg, thr, config, rows, cut_sides=cut)
-    return _brightest(rows, config.max_spots)
-
-
-_FAST_RADIUS_PX = 4
-
-
-def _single_spot(
-    region: ImageU8,
-    peak_loc: tuple[int, int],
-    peak: float,
-    origin: tuple[int, int],
-    background: float,
-    threshold: float,
-    config: DetectionConfig,
-    out: list[SpotRow],
-    cut_sides: tuple[bool, bool, bool, bool],
-) -> bool:
-    """The usual tracking case without labelling: one compact spot around the peak.
-
-    Returns False (the caller labels the region) unless every above-threshold pixel of the
-    region lies well inside a small patch around the peak, i.e. the region holds exactly one
-    small blob; its shape is then checked like `_spots_in_region` does.
-    """
-    rh, rw = region.shape
-    r = _FAST_RADIUS_PX
-    x, y = peak_loc
-    c0, r0, c1, r1 = max(x - r, 0), max(y - r, 0), min(x + r + 1, rw), min(y + r + 1, rh)
-    _, binary = cv2.threshold(region, threshold, 1, cv2.THRESH_BINARY)
-    bx, by, w, h = cv2.boundingRect(binary)  # of every pixel above the threshold
-    if bx < c0 or by < r0 or bx + w > c1 or by + h > r1:
-        return False  # pixels above the threshold outside the patch: label the region
-    # The blob must not touch the patch's edge unless that edge is the image's border.
-    if (
-        (bx == c0 and (c0 > 0 or cut_sides[0]))
-        or (by == r0 and (r0 > 0 or cut_sides[1]))
-        or (bx + w == c1 and (c1 < rw or cut_sides[2]))
-        or (by + h == r1 and (r1 < rh or cut_sides[3]))
-    ):
-        return False
-    area = cv2.countNonZero(binary)
-    if (
-        config.min_area_px <= area <= config.max_area_px
-        and area / (w * h) >= config.min_fill_ratio
-        and max(w, h) / min(w, h) <= config.max_elongation
-    ):
-        _centroid(region, (bx, by, w, h), origin, background, float(area), config, out, peak)
-    return True  # one blob (kept, or rejected by the filters)
+        spots_in_region(image[r0:r1, c0:c1], (c0, r0), bg, thr, config, rows)
+    return Spots.from_lists(brightest(rows, config.max_spots))
 
 
 def window_boxes(
@@ -427,7 +314,8 @@ def window_boxes(
     return [(b[0], b[1], b[2], b[3]) for b in boxes]
 
 
-def _check_image(image: ImageU8) -> None:
+def check_image(image: ImageU8) -> None:
+    """Raise ValueError unless `image` is a 2-D uint8 array."""
     if not isinstance(image, np.ndarray) or image.ndim != 2 or image.dtype != np.uint8:
         shape = getattr(image, "shape", None)
         dtype = getattr(image, "dtype", None)
@@ -436,11 +324,14 @@ def _check_image(image: ImageU8) -> None:
 
 __all__ = [
     "DetectionConfig",
+    "SpotRow",
     "Spots",
+    "append_centroid",
+    "brightest",
+    "check_image",
     "detect_spots",
-    "detect_spots_in_windows",
     "estimate_background",
-    "spot_rows_in_windows",
+    "spots_in_region",
     "threshold_for",
     "window_boxes",
 ]
