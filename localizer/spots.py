@@ -294,8 +294,14 @@ def window_boxes(
         half_sizes = half_sizes.tolist()
     boxes: list[list[int]] = []
     for (cu, cv), (hu, hv) in zip(centers, half_sizes, strict=True):
-        a, b = max(math.floor(cu - hu), 0), max(math.floor(cv - hv), 0)
-        c, d = min(math.ceil(cu + hu) + 1, width), min(math.ceil(cv + hv) + 1, height)
+        a, b, c, d = (
+            math.floor(cu - hu),
+            math.floor(cv - hv),
+            math.ceil(cu + hu) + 1,
+            math.ceil(cv + hv) + 1,
+        )
+        a, b = (a if a > 0 else 0), (b if b > 0 else 0)  # (cheaper than max/min calls)
+        c, d = (c if c < width else width), (d if d < height else height)
         if c > a and d > b:
             boxes.append([a, b, c, d])
     merged = True
