@@ -341,18 +341,20 @@ class PoseFilter:
         P = self._P
         P0, P1, P2 = P[0], P[1], P[2]  # H P = P[:3, :]
         y0, y1, y2 = y
-        dX, A = [], []
-        for row in P:
+        dX, U = [], []  # U[i]: row i of P - K H P from the diagonal on (it is symmetric)
+        for i, row in enumerate(P):
             a, b, c = row[0], row[1], row[2]
             k0 = a * i00 + b * i01 + c * i02  # the row of K = P H^T S^-1 = P[:, :3] S^-1
             k1 = a * i01 + b * i11 + c * i12
             k2 = a * i02 + b * i12 + c * i22
             dX.append(k0 * y0 + k1 * y1 + k2 * y2)
-            A.append(
-                [p - (k0 * u + k1 * v + k2 * w) for p, u, v, w in zip(row, P0, P1, P2, strict=True)]
+            U.append(
+                [
+                    p - (k0 * u + k1 * v + k2 * w)
+                    for p, u, v, w in zip(row[i:], P0[i:], P1[i:], P2[i:], strict=True)
+                ]
             )
-        cols = list(zip(*A, strict=True))  # symmetric: the upper triangle, mirrored
-        self._P = [[*cols[i][:i], *A[i][i:]] for i in range(6)]
+        self._P = [[U[j][i - j] for j in range(i)] + U[i] for i in range(6)]
 
         old = self._X
         X = [u + d for u, d in zip(old, dX, strict=True)]
