@@ -135,13 +135,11 @@ def predict_landmarks(
     # Few landmarks: plain floats beat numpy's per-call overhead. Eq. (3) in 3D: a landmark
     # in the camera frame is T_camera_body T_body_world P.
     c, s = math.cos(theta), math.sin(theta)
-    (r00, r01, r02, t0), (r10, r11, r12, t1), (r20, r21, r22, t2) = camera.T_camera_body[
-        :3
-    ].tolist()
+    (r00, r01, r02, t0), (r10, r11, r12, t1), (r20, r21, r22, t2) = camera.T_camera_body_rows
     sigma_xy = position_sigma_m(covariance)
     sigma_t = math.sqrt(max(float(covariance[2][2]), 0.0))
-    T_bc = camera.T_body_camera
-    offset_px = scale_px_per_m * math.hypot(float(T_bc[0, 3]), float(T_bc[1, 3]))
+    (*_, cx), (*_, cy), _ = camera.T_body_camera_rows
+    offset_px = scale_px_per_m * math.hypot(cx, cy)
     cu, cv = camera.cu, camera.cv
     kept: list[int] = []
     pixels: list[tuple[float, float]] = []

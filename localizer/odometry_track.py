@@ -58,8 +58,7 @@ class OdometryTrack:
         if dt <= 0:
             return 0.0
         x, y, th = self.pose
-        x, y, th = integrate_arc(x, y, th, v_left, v_right, dt, self.wheel_base)
-        self.pose = (float(x), float(y), float(th))
+        self.pose = integrate_arc(x, y, th, v_left, v_right, dt, self.wheel_base)
         self.t_state_ns = t_ns
         return dt
 

@@ -239,7 +239,7 @@ def solve_pose(
         ((ux - mx) / h, (vx - mx) / h, (uy - my) / h, (vy - my) / h)
         for (mx, my), (ux, uy), (vx, vy) in zip(m, nl[n : 2 * n], nl[2 * n :], strict=True)
     ]
-    floor = floor_points(m, A, [p[2] for p in Pl], camera.T_body_camera.tolist())
+    floor = floor_points(m, A, [p[2] for p in Pl], camera.T_body_camera_rows)
     if floor is None:
         return None
     q, G = floor

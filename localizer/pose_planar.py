@@ -22,6 +22,7 @@ with the derivatives in roll and pitch by forward differences of `floor_points`.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 import numpy.typing as npt
@@ -38,7 +39,7 @@ def floor_points(
     m: list[Point],
     A: list[Mat2],
     z: list[float],
-    T_body_camera: list[list[float]],
+    T_body_camera: Sequence[Sequence[float]],
 ) -> tuple[list[Point], list[Mat2]] | None:
     """Body-frame points q_i on each landmark's height plane and their G_i = d q_i / d pixel.
 
