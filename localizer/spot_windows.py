@@ -91,8 +91,7 @@ def spot_rows_in_windows(
         if peak <= thr:
             continue
         cut = (c0 > 0, r0 > 0, c1 < W, r1 < H)
-        peak_loc = (int(loc[0]), int(loc[1]))
-        if not _single_spot(region, peak_loc, peak, (c0, r0), bg, thr, config, rows, cut):
+        if not _single_spot(region, loc, peak, (c0, r0), bg, thr, config, rows, cut):
             spots_in_region(region, (c0, r0), bg, thr, config, rows, cut_sides=cut)
     return brightest(rows, config.max_spots)
 
@@ -102,7 +101,7 @@ _FAST_RADIUS_PX = 4
 
 def _single_spot(
     region: ImageU8,
-    peak_loc: tuple[int, int],
+    peak_loc: Sequence[int],
     peak: float,
     origin: tuple[int, int],
     background: float,
