@@ -38,6 +38,8 @@ ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
+import localizer.first_fix as first_fix_module  # noqa: E402
+import localizer.landmark_tracker as tracker_module  # noqa: E402
 import localizer.localizer as localizer_module  # noqa: E402
 from localizer.camera import CameraModel, predict_pixels  # noqa: E402
 from localizer.geometry import wrap_angle  # noqa: E402
@@ -69,12 +71,12 @@ class Claim:
 @contextmanager
 def watch_fixes() -> Iterator[list[Claim]]:
     """Record, per frame the localizer outputs with landmark IDs, the pixels of the fix that
-    used those IDs (by wrapping `solve_pose` and `Localizer._on_frame` in the localizer
-    module; nothing else changes)."""
+    used those IDs (by wrapping `solve_pose` where the localizer calls it, in the tracker
+    and first-fix modules, and `Localizer._on_frame`; nothing else changes)."""
     claims: list[Claim] = []
     calls: list[tuple[tuple[int, ...], FloatArray]] = []
-    namespace = vars(localizer_module)  # the names the localizer module calls
-    real_solve = namespace["solve_pose"]
+    namespaces = [vars(tracker_module), vars(first_fix_module)]  # where it is called
+    real_solve = namespaces[0]["solve_pose"]
     real_on_frame = localizer_module.Localizer._on_frame
 
     def solve_pose(camera: CameraModel, pixels: Any, p_world: Any, **kw: Any) -> PoseFix | None:
@@ -97,12 +99,14 @@ def watch_fixes() -> Iterator[list[Claim]]:
             )
         return est
 
-    namespace["solve_pose"] = solve_pose
+    for namespace in namespaces:
+        namespace["solve_pose"] = solve_pose
     localizer_module.Localizer._on_frame = on_frame  # type: ignore[method-assign]
     try:
         yield claims
     finally:
-        namespace["solve_pose"] = real_solve
+        for namespace in namespaces:
+            namespace["solve_pose"] = real_solve
         localizer_module.Localizer._on_frame = real_on_frame  # type: ignore[method-assign]
 
 

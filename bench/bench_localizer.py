@@ -20,8 +20,12 @@
 3. `irloc replay` wall time against merely decoding the same PNG frames on one thread
    (target <= 1.25x); the replay decodes ahead on one thread per core while the localizer
    runs. Three replays interleaved with four decode passes; the ratio of the medians.
+4. With `--compare-with DIR` (another checkout, e.g. `git worktree add /tmp/old REV`): the
+   640x480 tracking timing of this tree and of DIR, alternately in fresh processes
+   (`--rounds` each), so that both see the same machine load; medians and their ratio.
 
     .venv/bin/python bench/bench_localizer.py [--duration 180] [--frames 300]
+        [--compare-with DIR [--rounds 5]]
 """
 
 from __future__ import annotations
@@ -29,8 +33,10 @@ from __future__ import annotations
 import argparse
 import csv
 import io
+import json
 import math
 import os
+import subprocess
 import sys
 import tempfile
 import time
@@ -208,6 +214,42 @@ def timing(width: int, height: int, frames: int, runs: int = 3) -> dict[str, flo
     }  # fmt: skip
 
 
+_TIMING_CHILD = """
+import json, os, sys
+sys.path.insert(0, sys.argv[1])
+import cv2
+cv2.setNumThreads(1)
+from bench.bench_localizer import timing
+print(json.dumps(timing(int(sys.argv[2]), int(sys.argv[3]), int(sys.argv[4]))))
+"""
+
+
+def timing_alternating(
+    other: Path, width: int, height: int, frames: int, rounds: int
+) -> tuple[list[float], list[float]]:
+    """Median tracking times (microseconds) of this tree and of the checkout `other`, each
+    measured `rounds` times by `timing` in a fresh process, alternating (this, other, ...).
+
+    Returns:
+        (this tree's medians, the other's medians), one per round.
+    """
+    mine: list[float] = []
+    theirs: list[float] = []
+    for _ in range(rounds):
+        for root, out in ((ROOT, mine), (other, theirs)):
+            args = [str(root), str(width), str(height), str(frames)]
+            run = subprocess.run(
+                [sys.executable, "-c", _TIMING_CHILD, *args],
+                capture_output=True,
+                text=True,
+                check=False,
+            )
+            if run.returncode != 0:
+                raise RuntimeError(f"timing in {root} failed:\n{run.stderr}")
+            out.append(float(json.loads(run.stdout.splitlines()[-1])["track_med_us"]))
+    return mine, theirs
+
+
 def replay_vs_decode(
     rec: Path, rounds: int = 3
 ) -> tuple[list[float], list[float], list[float], list[float]]:
@@ -247,6 +289,10 @@ def main(argv: list[str] | None = None) -> int:
     )
     parser.add_argument("--frames", type=int, default=300, help="frames per timing run")
     parser.add_argument("--recording", type=Path, default=None, help="reuse a recording")
+    parser.add_argument(
+        "--compare-with", type=Path, default=None, help="another checkout to time alternately"
+    )
+    parser.add_argument("--rounds", type=int, default=5, help="rounds of --compare-with")
     args = parser.parse_args(argv)
     cv2.setNumThreads(1)
     cores = os.sched_getaffinity(0) if hasattr(os, "sched_getaffinity") else set()
@@ -292,6 +338,16 @@ def main(argv: list[str] | None = None) -> int:
             print(f"  {f'{w}x{h}':<12}{s['track_med_us']:>11.0f}{s['track_p99_us']:>9.0f}"
                   f"{s['full_med_us']:>10.0f}{s['full_p99_us']:>9.0f}"
                   f"{s['copy_med_us']:>10.1f}{s['copy_p99_us']:>8.1f}")  # fmt: skip
+        print("  (target while tracking at 640x480: median <= 300 us)")
+        if args.compare_with is not None:
+            mine, theirs = timing_alternating(args.compare_with, 640, 480, args.frames, args.rounds)
+            m, t = float(np.median(mine)), float(np.median(theirs))
+            print(
+                f"  alternating with {args.compare_with} ({args.rounds} rounds, fresh processes, "
+                f"640x480 track median):\n    this tree {m:.0f} us "
+                f"({', '.join(f'{v:.0f}' for v in mine)}), other {t:.0f} us "
+                f"({', '.join(f'{v:.0f}' for v in theirs)}): {m / t:.2f}x"
+            )
         if cores:
             os.sched_setaffinity(0, cores)  # replay may overlap decoding on a second core
         replays, decodes, replay_cpu, decode_cpu = replay_vs_decode(rec)

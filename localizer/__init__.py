@@ -23,7 +23,8 @@ from localizer.localizer import Localizer
 from localizer.pose import PoseFix, pose_from_landmark_pair, solve_pose
 from localizer.pose_filter import FilterConfig, PoseFilter
 from localizer.robot import RobotGeometry
-from localizer.spots import DetectionConfig, Spots, detect_spots, detect_spots_in_windows
+from localizer.spot_windows import detect_spots_in_windows
+from localizer.spots import DetectionConfig, Spots, detect_spots
 from localizer.tracking import TrackingConfig, bottleneck_assignment
 
 __all__ = [

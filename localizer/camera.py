@@ -21,6 +21,8 @@ from localizer.geometry import check_transform, invert_transform, transform_poin
 FloatArray = npt.NDArray[np.float64]
 BoolArray = npt.NDArray[np.bool_]
 DistortionModel = Literal["radial-tangential", "equidistant"]
+Row4 = tuple[float, float, float, float]
+Rows3x4 = tuple[Row4, Row4, Row4]
 DISTORTION_MODELS: tuple[DistortionModel, ...] = ("radial-tangential", "equidistant")
 
 _UNDISTORT_CRITERIA = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-12)
@@ -40,8 +42,11 @@ class CameraModel:
         fu, fv, cu, cv: focal lengths and principal point, pixels.
         distortion_model: "radial-tangential" (OpenCV k1 k2 p1 p2 [k3]) or
             "equidistant" (OpenCV fisheye k1 k2 k3 k4).
-        distortion: the coefficients, shape (4,) or (5,).
-        T_body_camera: body-from-camera transform, shape (4, 4) (EuRoC `T_BS`).
+        distortion: the coefficients, shape (4,) or (5,); `coefficients` holds them as a
+            tuple of floats (derived).
+        T_body_camera: body-from-camera transform, shape (4, 4) (EuRoC `T_BS`);
+            `T_body_camera_rows` and `T_camera_body_rows` hold the top three rows of it and of
+            its inverse as tuples of floats (derived, for code on Python floats).
         rate_hz: nominal frame rate.
     """
 
@@ -59,6 +64,9 @@ class CameraModel:
     K_matrix: FloatArray = field(init=False, repr=False, compare=False)
     T_camera_body: FloatArray = field(init=False, repr=False, compare=False)
     invertible: bool = field(init=False, repr=False, compare=False)
+    coefficients: tuple[float, ...] = field(init=False, repr=False, compare=False)
+    T_body_camera_rows: Rows3x4 = field(init=False, repr=False, compare=False)
+    T_camera_body_rows: Rows3x4 = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         if self.width <= 0 or self.height <= 0:
@@ -84,6 +92,7 @@ class CameraModel:
             )
         d.setflags(write=False)
         object.__setattr__(self, "distortion", d)
+        object.__setattr__(self, "coefficients", tuple(d.tolist()))
         T = check_transform(self.T_body_camera, "camera T_BS").copy()
         T.setflags(write=False)
         object.__setattr__(self, "T_body_camera", T)
@@ -95,6 +104,8 @@ class CameraModel:
         T_cb = invert_transform(T)
         T_cb.setflags(write=False)
         object.__setattr__(self, "T_camera_body", T_cb)
+        object.__setattr__(self, "T_body_camera_rows", _rows3x4(T))
+        object.__setattr__(self, "T_camera_body_rows", _rows3x4(T_cb))
         object.__setattr__(self, "invertible", _every_pixel_inverts(self))
         object.__setattr__(self, "max_angle_rad", _field_of_view_half_angle(self))
 
@@ -107,6 +118,12 @@ class CameraModel:
     def resolution(self) -> tuple[int, int]:
         """(width, height) in pixels."""
         return (self.width, self.height)
+
+
+def _rows3x4(T: FloatArray) -> Rows3x4:
+    """The top three rows of a (4, 4) transform as tuples of floats."""
+    (a, b, c, d), (e, f, g, h), (i, j, k, m) = T[:3].tolist()
+    return (a, b, c, d), (e, f, g, h), (i, j, k, m)
 
 
 def _field_of_view_half_angle(cam: CameraModel) -> float:

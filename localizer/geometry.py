@@ -24,7 +24,7 @@ def wrap_angle(angle: float | FloatArray) -> float | FloatArray:
     Returns:
         The same angle(s) in (-pi, pi]; a float for a float input.
     """
-    if isinstance(angle, float | int):  # scalars: plain floats are ~20x faster than numpy
+    if type(angle) is float or isinstance(angle, float | int):  # scalars: ~20x faster as floats
         a = float(angle)
         if -math.pi < a <= math.pi:
             return a

@@ -14,20 +14,19 @@ from __future__ import annotations
 
 import itertools
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
 
-from localizer.camera import (
-    CameraModel,
-    bearings_body_from_pixels,
-    pixels_from_points_camera,
-)
+from localizer.camera import CameraModel, bearings_body_from_pixels
 from localizer.geometry import rotation_2d, wrap_angle
+from localizer.lens import pixel_from_point
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
+Covariance = FloatArray | Sequence[Sequence[float]]
 
 
 @dataclass(frozen=True)
@@ -59,20 +58,36 @@ _VECTOR_FILTER_ABOVE = 16  # more candidates than this are pre-filtered by dista
 
 @dataclass(frozen=True, eq=False)
 class Prediction:
-    """Landmarks predicted in view.
+    """Landmarks predicted in view, as Python lists (the tracking hot path reads them so);
+    `rows`, `pixels` and `sigma_px` give them as arrays.
 
     Attributes:
-        rows: rows of the landmarks in the map, shape (K,).
-        pixels: predicted pixels, shape (K, 2).
-        sigma_px: standard deviation of each predicted pixel, shape (K,).
+        row_list: rows of the landmarks in the map, K.
+        pixel_list: predicted pixels (col, row), K.
+        sigma_list: standard deviation of each predicted pixel, pixels, K.
     """
 
-    rows: IntArray
-    pixels: FloatArray
-    sigma_px: FloatArray
+    row_list: list[int]
+    pixel_list: list[tuple[float, float]]
+    sigma_list: list[float]
 
     def __len__(self) -> int:
-        return len(self.rows)
+        return len(self.row_list)
+
+    @property
+    def rows(self) -> IntArray:
+        """Map rows, shape (K,)."""
+        return np.array(self.row_list, dtype=np.int64)
+
+    @property
+    def pixels(self) -> FloatArray:
+        """Predicted pixels, shape (K, 2)."""
+        return np.array(self.pixel_list, dtype=np.float64).reshape(-1, 2)
+
+    @property
+    def sigma_px(self) -> FloatArray:
+        """Standard deviation of each predicted pixel, shape (K,)."""
+        return np.array(self.sigma_list, dtype=np.float64)
 
 
 def visible_radius_m(camera: CameraModel, ceiling_above_camera_m: float) -> float:
@@ -85,7 +100,7 @@ def visible_radius_m(camera: CameraModel, ceiling_above_camera_m: float) -> floa
 def predict_landmarks(
     camera: CameraModel,
     pose: tuple[float, float, float],
-    covariance: FloatArray,
+    covariance: Covariance,
     positions: FloatArray,
     *,
     candidates: IntArray | None = None,
@@ -100,58 +115,63 @@ def predict_landmarks(
 
     Args:
         pose: (x, y, theta) of the body.
-        covariance: of the pose, shape (3, 3).
+        covariance: of the pose, 3 x 3 (an array or nested sequences).
         positions: all landmark positions, shape (N, 3).
         candidates: rows to consider (e.g. the lit landmarks); None: all.
         scale_px_per_m: image scale of the ceiling.
         reach_m: skip landmarks horizontally farther than this from the robot (a cheap
             pre-filter before projecting).
     """
-    rows = np.arange(len(positions)) if candidates is None else np.asarray(candidates)
     x, y, theta = pose
-    if len(rows) > _VECTOR_FILTER_ABOVE:  # a large map: drop the far landmarks at once
-        P = positions[rows]
-        rows = rows[np.hypot(P[:, 0] - x, P[:, 1] - y) <= reach_m]
+    if candidates is None and len(positions) <= _VECTOR_FILTER_ABOVE:
+        row_list: Sequence[int] = range(len(positions))
+        P_list = positions.tolist()
+    else:
+        rows = np.arange(len(positions)) if candidates is None else np.asarray(candidates)
+        if len(rows) > _VECTOR_FILTER_ABOVE:  # a large map: drop the far landmarks at once
+            P = positions[rows]
+            rows = rows[np.hypot(P[:, 0] - x, P[:, 1] - y) <= reach_m]
+        row_list, P_list = rows.tolist(), positions[rows].tolist()
     # Few landmarks: plain floats beat numpy's per-call overhead. Eq. (3) in 3D: a landmark
     # in the camera frame is T_camera_body T_body_world P.
     c, s = math.cos(theta), math.sin(theta)
-    (r00, r01, r02, t0), (r10, r11, r12, t1), (r20, r21, r22, t2) = camera.T_camera_body[
-        :3
-    ].tolist()
+    (r00, r01, r02, t0), (r10, r11, r12, t1), (r20, r21, r22, t2) = camera.T_camera_body_rows
+    sigma_xy = position_sigma_m(covariance)
+    sigma_t = math.sqrt(max(float(covariance[2][2]), 0.0))
+    (*_, cx), (*_, cy), _ = camera.T_body_camera_rows
+    offset_px = scale_px_per_m * math.hypot(cx, cy)
+    cu, cv = camera.cu, camera.cv
     kept: list[int] = []
-    p_cam: list[tuple[float, float, float]] = []
-    for row, (X, Y, Z) in zip(rows.tolist(), positions[rows].tolist(), strict=True):
+    pixels: list[tuple[float, float]] = []
+    sigmas: list[float] = []
+    for row, (X, Y, Z) in zip(row_list, P_list, strict=True):
         dx, dy = X - x, Y - y
         if math.hypot(dx, dy) > reach_m:
             continue
         bx, by = c * dx + s * dy, c * dy - s * dx
-        kept.append(row)
-        p_cam.append(
-            (
-                r00 * bx + r01 * by + r02 * Z + t0,
-                r10 * bx + r11 * by + r12 * Z + t1,
-                r20 * bx + r21 * by + r22 * Z + t2,
-            )
+        px = pixel_from_point(
+            camera,
+            r00 * bx + r01 * by + r02 * Z + t0,
+            r10 * bx + r11 * by + r12 * Z + t1,
+            r20 * bx + r21 * by + r22 * Z + t2,
         )
-    if not kept:
-        return Prediction(np.zeros(0, np.int64), np.zeros((0, 2)), np.zeros(0))
-    px, valid = pixels_from_points_camera(camera, np.array(p_cam))
-    rows = np.array(kept, dtype=np.int64)
-    if not valid.all():
-        rows, px = rows[valid], px[valid]
-    sigma_xy = position_sigma_m(covariance)
-    sigma_t = math.sqrt(max(float(covariance[2, 2]), 0.0))
-    T_bc = camera.T_body_camera
-    offset_px = scale_px_per_m * math.hypot(float(T_bc[0, 3]), float(T_bc[1, 3]))
-    radial = np.hypot(px[:, 0] - camera.cu, px[:, 1] - camera.cv)
-    sigma = (radial + offset_px) * sigma_t + scale_px_per_m * sigma_xy
-    return Prediction(rows, px, sigma)
+        if px is None:
+            continue
+        kept.append(row)
+        pixels.append(px)
+        radial = math.hypot(px[0] - cu, px[1] - cv)
+        sigmas.append((radial + offset_px) * sigma_t + scale_px_per_m * sigma_xy)
+    return Prediction(kept, pixels, sigmas)
 
 
-def position_sigma_m(covariance: FloatArray) -> float:
+def position_sigma_m(covariance: Covariance) -> float:
     """Standard deviation along the worst direction of the (x, y) block of a covariance:
-    the square root of the larger eigenvalue of a 2x2 symmetric matrix (closed form)."""
-    a, b, c = float(covariance[0, 0]), float(covariance[0, 1]), float(covariance[1, 1])
+    the square root of the larger eigenvalue of a 2x2 symmetric matrix (closed form).
+
+    Args:
+        covariance: of (x, y, ...), an array or nested sequences, at least 2 x 2.
+    """
+    a, b, c = float(covariance[0][0]), float(covariance[0][1]), float(covariance[1][1])
     return math.sqrt(max(0.5 * (a + c) + math.hypot(0.5 * (a - c), b), 0.0))
 
 
@@ -196,7 +216,7 @@ def consistent_hypotheses(
     prediction: Prediction,
     positions: FloatArray,
     spot_pixels: FloatArray,
-    gates_px: FloatArray,
+    gates_px: FloatArray | list[float],
     config: HandoffConfig,
 ) -> list[list[tuple[int, int]]]:
     """Assignments of spots to predicted landmarks that agree with the map's geometry.
@@ -217,10 +237,11 @@ def consistent_hypotheses(
     Returns:
         Hypotheses as lists of (map row, spot index), the largest first.
     """
+    pred_px = prediction.pixels
     k_idx, s_idx = np.nonzero(
         np.hypot(
-            prediction.pixels[:, None, 0] - spot_pixels[None, :, 0],
-            prediction.pixels[:, None, 1] - spot_pixels[None, :, 1],
+            pred_px[:, None, 0] - spot_pixels[None, :, 0],
+            pred_px[:, None, 1] - spot_pixels[None, :, 1],
         )
         <= np.asarray(gates_px)[:, None]
     )

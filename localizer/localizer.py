@@ -21,7 +21,6 @@ bound or the observations keep disagreeing with the map (then it re-identifies).
 from __future__ import annotations
 
 import math
-from collections import deque
 
 import numpy as np
 import numpy.typing as npt
@@ -43,28 +42,15 @@ from localizer.events import (
 )
 from localizer.first_fix import first_fix
 from localizer.geometry import wrap_angle
-from localizer.handoff import (
-    Prediction,
-    consistent_hypotheses,
-    hypothesis_pose,
-    pose_mahalanobis2,
-    position_sigma_m,
-    predict_landmarks,
-    visible_radius_m,
-)
+from localizer.handoff import position_sigma_m
 from localizer.identification import Identifier
 from localizer.landmark_map import LandmarkMap
-from localizer.odometry import integrate_arc
-from localizer.pose import PoseFix, solve_pose
+from localizer.landmark_tracker import LandmarkTracker
+from localizer.odometry_track import OdometryTrack
+from localizer.pose import PoseFix
 from localizer.pose_filter import PoseFilter
 from localizer.robot import RobotGeometry
-from localizer.spots import Spots, detect_spots, detect_spots_in_windows, estimate_background
-from localizer.tracking import (
-    bottleneck_assignment,
-    default_angular_speed,
-    motion_bound_px,
-    scale_px_per_m,
-)
+from localizer.spots import Spots
 
 FloatArray = npt.NDArray[np.float64]
 _NS = 1e-9
@@ -95,19 +81,15 @@ class Localizer:
         self._latest: PoseEstimate | None = None
         self._lit: frozenset[int] | None = None  # None: all lit (or unknown)
         self._changing: frozenset[int] = frozenset()  # LEDs being switched (state unknown)
-        self._t_state: int | None = None
-        self._speeds = (0.0, 0.0)
-        self._t_odom: int | None = None
-        self._odo = (0.0, 0.0, 0.0)
-        self._odo_hist: deque[tuple[int, float, float, float]] = deque()
+        self._odometry = OdometryTrack(self.robot.wheel_base, self.config.fusion.odometry_history_s)
         self._t_frame: int | None = None
-        self._rejections = 0
-        self._background: tuple[float, float] | None = None
+        self._rejections = 0  # frames in a row whose spots no fused fix explained
         self._last_request: LedRequest | None = None
         self._want_all = False
         self._lit_rows_memo: (
             tuple[frozenset[int] | None, frozenset[int], LandmarkMap, npt.NDArray[np.int64]] | None
         ) = None
+        self._tracker = LandmarkTracker(camera, robot, self.config, landmark_map)
         self.set_map(landmark_map)
 
     # -- public API ----------------------------------------------------------------------------
@@ -126,13 +108,7 @@ class Localizer:
         observations disagree with it the localizer gets lost and re-identifies); without a
         pose, identification starts over."""
         self.map = landmark_map
-        heights = landmark_map.positions[:, 2] - self.camera.T_body_camera[2, 3]
-        self._ceiling_m = float(np.median(heights)) if len(heights) else 2.2
-        self._scale = scale_px_per_m(max(self.camera.fu, self.camera.fv), self._ceiling_m)
-        self._reach = visible_radius_m(self.camera, float(np.max(heights, initial=self._ceiling_m)))
-        self._omega_max = self.config.tracking.max_angular_speed_rad_s or default_angular_speed(
-            self.robot.max_speed, self.robot.wheel_base
-        )
+        self._tracker.set_map(landmark_map)
         self._half_diag = math.hypot(self.camera.width, self.camera.height) / 2
         self._identifier = Identifier(
             self.config.identification,
@@ -155,7 +131,7 @@ class Localizer:
 
     def skip_frame(self, t_ns: int) -> PoseEstimate | NoPose:
         """A frame that could not be read: the pose at `t_ns` from odometry alone."""
-        self._advance(t_ns, *self._speeds)
+        self._advance(t_ns, *self._odometry.speeds)
         if self._filter is not None and self._mode == "landmark":
             self._mode = "dead_reckoning"
         return self._output(t_ns, ())
@@ -191,64 +167,45 @@ class Localizer:
             )
         else:
             self._filter.reset(x, y, theta, cov)
-        self._t_state = t_ns if self._t_state is None else max(self._t_state, t_ns)
+        t_state = self._odometry.t_state_ns
+        self._odometry.t_state_ns = t_ns if t_state is None else max(t_state, t_ns)
         self._rejections = 0
 
     def _advance(self, t_ns: int, v_left: float, v_right: float) -> None:
         """Integrate odometry (filter and raw) from the last state time to `t_ns`."""
-        if self._t_state is None:
-            self._t_state = t_ns
-        dt = (t_ns - self._t_state) * _NS
-        if dt <= 0:
-            return
-        if self._filter is not None:
+        dt = self._odometry.step(t_ns, v_left, v_right)
+        if dt > 0 and self._filter is not None:
             self._filter.predict(v_left, v_right, dt)
-        x, y, th = integrate_arc(*self._odo, v_left, v_right, dt, self.robot.wheel_base)
-        self._odo = (float(x), float(y), float(th))
-        self._t_state = t_ns
 
     def _on_odometry(self, e: OdometryMeasured) -> None:
-        vl, vr = (self._speeds[0] + e.v_left) / 2, (self._speeds[1] + e.v_right) / 2
-        if self._t_odom is None:
-            vl, vr = e.v_left, e.v_right
-        self._advance(e.t_ns, vl, vr)
-        self._speeds = (e.v_left, e.v_right)
-        self._t_odom = e.t_ns
-        self._odo_hist.append((e.t_ns, *self._odo))
-        horizon = e.t_ns - int(self.config.fusion.odometry_history_s / _NS)
-        while len(self._odo_hist) > 2 and self._odo_hist[1][0] < horizon:
-            self._odo_hist.popleft()
+        vl, vr, dt = self._odometry.add_sample(e.t_ns, e.v_left, e.v_right)
+        if dt > 0 and self._filter is not None:
+            self._filter.predict(vl, vr, dt)
 
     def _motion_bound_px(self, t0_ns: int, t1_ns: int) -> float:
         """Bound on a spot's image motion between two times: from odometry (with 20 % slack)
         when there is any, else from the maximum speed and turn rate."""
-        if self._t_odom is None:
+        track = self._odometry
+        scale = self._tracker.scale_px_per_m
+        if track.t_sample_ns is None:
             dt = abs(t1_ns - t0_ns) * _NS
-            return dt * (self.robot.max_speed * self._scale + self._omega_max * self._half_diag)
-        a, b = self._odo_at(t0_ns), self._odo_at(t1_ns)
-        move = math.hypot(b[0] - a[0], b[1] - a[1]) * self._scale
+            omega = self._tracker.max_angular_speed_rad_s
+            return dt * (self.robot.max_speed * scale + omega * self._half_diag)
+        a, b = track.pose_at(t0_ns), track.pose_at(t1_ns)
+        move = math.hypot(b[0] - a[0], b[1] - a[1]) * scale
         turn = abs(float(wrap_angle(b[2] - a[2]))) * self._half_diag
         return 1.2 * (move + turn) + 1.0
-
-    def _odo_at(self, t_ns: int) -> tuple[float, float, float]:
-        """Raw odometry pose at `t_ns` (the latest sample at or before it)."""
-        best = self._odo
-        for t, x, y, th in reversed(self._odo_hist):
-            if t <= t_ns:
-                return (x, y, th)
-            best = (x, y, th)
-        return best if self._odo_hist else self._odo
 
     # -- frames --------------------------------------------------------------------------------
     def _on_frame(self, e: FrameObserved | SpotsObserved) -> PoseEstimate | NoPose:
         t = e.t_ns
-        self._advance(t, *self._speeds)
+        self._advance(t, *self._odometry.speeds)
         dt_frame = min((t - self._t_frame) * _NS, 1.0) if self._t_frame is not None else 0.0
         self._t_frame = t
-        self._odo_hist.append((t, *self._odo))
+        self._odometry.mark(t)
         used: tuple[int, ...] = ()
         if self._filter is None or self._mode in ("identifying", "lost"):
-            spots = self._full_spots(e)
+            spots = self._tracker.full_spots(e)
             self._identifier.observe(t, self._known_lit(), spots.pixels, spots.intensities)
             fix = self._fix_from_sightings(t)
             if fix is not None:
@@ -268,11 +225,33 @@ class Localizer:
         self._check_lost(t)
         return self._output(t, used)
 
-    def _full_spots(self, e: FrameObserved | SpotsObserved) -> Spots:
-        if isinstance(e, SpotsObserved):
-            return Spots(np.asarray(e.pixels, float).reshape(-1, 2), e.intensities, e.areas)
-        self._background = estimate_background(e.image, self.config.detection)
-        return detect_spots(e.image, self.config.detection, background=self._background)
+    def _track(
+        self,
+        e: FrameObserved | SpotsObserved,
+        dt_frame: float,
+        *,
+        spots: Spots | None = None,
+        reacquire: bool = False,
+    ) -> tuple[int, ...]:
+        """A tracking step (`LandmarkTracker.step`); returns the IDs fused."""
+        if self._filter is None:
+            return ()
+        cand = None if self._lit is None and not self._changing else self._lit_rows()
+        t_sample = self._odometry.t_sample_ns
+        result = self._tracker.step(
+            self._filter,
+            e,
+            dt_frame_s=dt_frame,
+            fresh_odometry=t_sample is not None and (e.t_ns - t_sample) * _NS < 0.2,
+            candidates=cand,
+            spots=spots,
+            reacquire=reacquire,
+        )
+        if result.used:
+            self._rejections = 0
+        elif result.unexplained:
+            self._rejections += 1
+        return result.used
 
     def _fix_from_sightings(self, t_ns: int) -> PoseFix | None:
         """First fix from identified landmarks, each carried by odometry to the frame time."""
@@ -284,7 +263,7 @@ class Localizer:
             self.camera,
             self.map,
             sightings,
-            self._odo_at,
+            self._odometry.pose_at,
             t_ns,
             pixel_sigma_px=fc.pixel_sigma_px,
             max_residual_px=fc.max_residual_px,
@@ -292,134 +271,6 @@ class Localizer:
         if fix is None:
             self._start_identification()  # inconsistent sightings: identify again
         return fix
-
-    def _track(
-        self,
-        e: FrameObserved | SpotsObserved,
-        dt_frame: float,
-        *,
-        spots: Spots | None = None,
-        reacquire: bool = False,
-    ) -> tuple[int, ...]:
-        """Find the lit landmarks near their predictions, solve and fuse; returns IDs used.
-
-        Args:
-            spots: the frame's spots when already detected (full frame).
-            reacquire: require a map-consistent hypothesis (also forced by a large
-                position uncertainty).
-        """
-        filt = self._filter
-        if filt is None:
-            return ()
-        pose, cov = filt.pose, filt.covariance
-        cand = None if self._lit is None and not self._changing else self._lit_rows()
-        sigma_xy = position_sigma_m(cov)
-        pred = predict_landmarks(
-            self.camera,
-            pose,
-            cov,
-            self.map.positions,
-            candidates=cand,
-            scale_px_per_m=self._scale,
-            reach_m=self._reach + 3 * sigma_xy,
-        )
-        if len(pred) == 0:
-            return ()
-        tc = self.config.tracking
-        fresh_odom = self._t_odom is not None and (e.t_ns - self._t_odom) * _NS < 0.2
-        dt_free = dt_frame * (tc.odometry_speed_fraction if fresh_odom else 1.0)
-        px = pred.pixels
-        radial = np.hypot(px[:, 0] - self.camera.cu, px[:, 1] - self.camera.cv)
-        motion = motion_bound_px(
-            radial,
-            max_speed_m_s=self.robot.max_speed,
-            max_angular_speed_rad_s=self._omega_max,
-            dt_s=dt_free,
-            scale_px_per_m=self._scale,
-        )
-        gates = tc.min_half_size_px + tc.sigma_gate * pred.sigma_px + motion
-        reacquire = reacquire or sigma_xy > self.config.handoff.reacquire_sigma_m
-        if spots is not None:
-            pass
-        elif isinstance(e, SpotsObserved):
-            spots = Spots(np.asarray(e.pixels, float).reshape(-1, 2), e.intensities, e.areas)
-        elif reacquire or float(gates.max()) > tc.max_half_size_px:
-            spots = self._full_spots(e)
-        else:
-            half = gates[:, None].repeat(2, axis=1)
-            spots = detect_spots_in_windows(
-                e.image, px, half, self.config.detection, background=self._background
-            )
-        if len(spots) == 0:
-            return ()
-        if len(pred) >= 2:
-            self._rejections += 1  # reset by a fused fix: spots seen but none explained
-        if reacquire:
-            pairs = self._reacquire(pred, spots, gates, pose, cov)
-        else:
-            sp = spots.pixels
-            d = np.hypot(px[:, None, 0] - sp[None, :, 0], px[:, None, 1] - sp[None, :, 1])
-            rows = pred.rows.tolist()
-            pairs = [(rows[k], s) for k, s in bottleneck_assignment(d, gates)]
-        if len(pairs) < 2:
-            return ()
-        return self._fuse(filt, pairs, spots, pose, cov)
-
-    def _reacquire(
-        self,
-        pred: Prediction,
-        spots: Spots,
-        gates: FloatArray,
-        pose: tuple[float, float, float],
-        cov: FloatArray,
-    ) -> list[tuple[int, int]]:
-        """A hand-off after long dead reckoning: the one map-consistent hypothesis, or none."""
-        hc = self.config.handoff
-        hyps = consistent_hypotheses(self.camera, pred, self.map.positions, spots.pixels, gates, hc)
-        if not hyps:
-            return []
-        size = len(hyps[0])
-        prior_cov = cov + np.diag([1e-4, 1e-4, 1e-4])
-        passing = [
-            h
-            for h in hyps
-            if len(h) == size
-            and pose_mahalanobis2(
-                hypothesis_pose(self.camera, self.map.positions, spots.pixels, h), pose, prior_cov
-            )
-            <= hc.prior_gate_chi2
-        ]
-        return passing[0] if len(passing) == 1 else []
-
-    def _fuse(
-        self,
-        filt: PoseFilter,
-        pairs: list[tuple[int, int]],
-        spots: Spots,
-        pose: tuple[float, float, float],
-        cov: FloatArray,
-    ) -> tuple[int, ...]:
-        """Solve the pose from matched landmarks; fuse it when consistent."""
-        fc = self.config.fusion
-        rows = [r for r, _ in pairs]
-        px = spots.pixels[[s for _, s in pairs]]
-        ids = tuple(self.map.ids[rows].tolist())
-        fix = solve_pose(
-            self.camera,
-            px,
-            self.map.positions[rows],
-            initial=pose,
-            estimate_tilt=fc.tilt_from_landmarks and len(pairs) >= 3,
-            tilt_sigma_rad=fc.tilt_sigma_rad,
-            pixel_sigma_px=fc.pixel_sigma_px,
-            landmark_ids=ids,
-        )
-        if fix is None or fix.residual_rms_px > fc.max_residual_px:
-            return ()
-        if not filt.update_fix(fix, max_nis=fc.nis_gate) <= fc.nis_gate:
-            return ()
-        self._rejections = 0
-        return ids
 
     def _known_lit(self) -> frozenset[int] | None:
         """The IDs lit now (every mapped one when all are lit); None while a switch is in
@@ -450,8 +301,7 @@ class Localizer:
         if self._filter is None or self._mode in ("identifying", "lost"):
             return
         fc = self.config.fusion
-        cov = self._filter.covariance
-        sigma = position_sigma_m(cov)
+        sigma = position_sigma_m(self._filter.covariance_rows)
         if sigma > fc.lost_sigma_m or self._rejections >= fc.lost_after_rejections:
             self._mode = "lost"
             self._start_identification()

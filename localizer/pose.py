@@ -233,13 +233,13 @@ def solve_pose(
     # Undistort the pixels and two offset copies in one call: m and A = d m / d pixel.
     h = _JACOBIAN_STEP_PX
     shifted = pl + [[c + h, r] for c, r in pl] + [[c, r + h] for c, r in pl]
-    nl = normalized_from_pixels(camera, np.array(shifted)).tolist()
+    nl = normalized_from_pixels(camera, shifted).tolist()
     m = [(mx, my) for mx, my in nl[:n]]
     A = [
         ((ux - mx) / h, (vx - mx) / h, (uy - my) / h, (vy - my) / h)
         for (mx, my), (ux, uy), (vx, vy) in zip(m, nl[n : 2 * n], nl[2 * n :], strict=True)
     ]
-    floor = floor_points(m, A, [p[2] for p in Pl], camera.T_body_camera.tolist())
+    floor = floor_points(m, A, [p[2] for p in Pl], camera.T_body_camera_rows)
     if floor is None:
         return None
     q, G = floor
@@ -291,6 +291,6 @@ def solve_pose(
         covariance=covariance,
         tilt=tilt,
         residual_rms_px=rms,
-        landmark_ids=tuple(int(i) for i in landmark_ids),
+        landmark_ids=tuple(map(int, landmark_ids)),
         n_landmarks=n,
     )

@@ -8,16 +8,15 @@ three are observable from fixes: driving straight shows (k_r - k_l) / k_b throug
 drift and (k_r + k_l) / 2 through the distance, turning shows (k_r + k_l) / k_b.
 
 Written line for line like the math (PythonRobotics style): `motion_model`, `jacob_f`,
-`observation_model`, `jacob_h`, then the predict and update equations.
+`observation_model` (H = [I 0]), then the predict and update equations.
 
 The output can be smoothed (`output_state`): a fix moves the estimate at once, but the
 output follows it with a time constant, so the reported pose has no jumps.
 
-Speed: odometry arrives at 50-200 Hz, so `predict` works on Python floats and defers the
-covariance: it composes the step Jacobians into Phi = F_n ... F_1 and accumulates the pose
-noise Q = sum F..G M G^T..F^T, and P <- Phi P Phi^T + Q is applied once, when the covariance
-is next needed (an update, or a read). The calibration random walk is added at that moment
-too (its propagation into the pose within one batch, a second-order effect, is dropped).
+Speed: odometry arrives at 50-200 Hz, so `predict` works on Python floats (the covariance
+too, as nested lists) and folds each step into a `DeferredPropagation`: the covariance of all
+the steps since the last read is propagated at once, when next needed (an update, or a
+read), with the composed Jacobian (`propagation.py`; exact, not an approximation).
 """
 
 from __future__ import annotations
@@ -29,8 +28,9 @@ import numpy as np
 import numpy.typing as npt
 
 from localizer.geometry import wrap_angle
-from localizer.odometry import integrate_odometry, odometry_increments, odometry_partials
+from localizer.odometry import odometry_increments, odometry_partials
 from localizer.pose import PoseFix
+from localizer.propagation import DeferredPropagation
 from localizer.small_linalg import inverse_3x3_sym
 
 FloatArray = npt.NDArray[np.float64]
@@ -108,24 +108,13 @@ class OdometryCalibration:
     covariance: FloatArray
 
 
-_N_STATE = 6
-_CALIBRATION_DIAGONAL = (np.arange(3, 6), np.arange(3, 6))
-
 State = list[float]  # (x, y, theta, k_r, k_l, k_b)
 Rows = list[list[float]]
-
-_CALIBRATION_ROWS = (  # the calibration rows of F: the factors stay put
-    (0.0, 0.0, 0.0, 1.0, 0.0, 0.0),
-    (0.0, 0.0, 0.0, 0.0, 1.0, 0.0),
-    (0.0, 0.0, 0.0, 0.0, 0.0, 1.0),
-)
 
 
 def motion_model(X: State, v_left: float, v_right: float, dt: float, wheel_base: float) -> State:
     """X_t = f(X, u): eqs. (5)-(6) with the calibrated speeds k_l v_l, k_r v_r and base k_b W."""
-    x, y, theta, k_r, k_l, k_b = X
-    pose = integrate_odometry(x, y, theta, k_l * v_left, k_r * v_right, dt, k_b * wheel_base)
-    return [float(pose[0]), float(pose[1]), float(pose[2]), k_r, k_l, k_b]
+    return motion_step(X, v_left, v_right, dt, wheel_base)[0]
 
 
 def jacob_f(
@@ -138,11 +127,21 @@ def jacob_f(
          pose block is [[1, 0, a], [0, 1, b], [0, 0, 1]] as eq. (5) gives),
          G: d(x, y, theta)_t / d(true wheel speeds k_l v_l, k_r v_r), 3 x 2).
     """
-    _, _, theta, k_r, k_l, k_b = X
+    _, F_top, G = motion_step(X, v_left, v_right, dt, wheel_base)
+    return F_top, G
+
+
+def motion_step(
+    X: State, v_left: float, v_right: float, dt: float, wheel_base: float
+) -> tuple[State, Rows, Rows]:
+    """`motion_model` and `jacob_f` in one pass (they share the increments and the midpoint
+    heading's sine and cosine): (X_t, F_top, G)."""
+    x, y, theta, k_r, k_l, k_b = X
     W = k_b * wheel_base
     inc_T, inc_R = odometry_increments(k_l * v_left, k_r * v_right, dt, W)
     dT, dR = float(inc_T), float(inc_R)
-    xT, yT, xR, yR = odometry_partials(theta, dT, dR)
+    xT, yT, xR, yR = odometry_partials(theta, dT, dR)  # xT, yT: the midpoint heading's cos, sin
+    X_t = [x + dT * xT, y + dT * yT, float(wrap_angle(theta + dR)), k_r, k_l, k_b]  # eq. (5)
     # chain rule through dT = (k_l v_l + k_r v_r) dt / 2 and dR = (k_r v_r - k_l v_l) dt / (k_b W)
     T_r, R_r = 0.5 * v_right * dt, v_right * dt / W  # d dT / d k_r, d dR / d k_r
     T_l, R_l = 0.5 * v_left * dt, -v_left * dt / W  # d dT / d k_l, d dR / d k_l
@@ -158,7 +157,7 @@ def jacob_f(
         [yT * T_v - yR * R_v, yT * T_v + yR * R_v],
         [-R_v, R_v],
     ]
-    return F_top, G
+    return X_t, F_top, G
 
 
 def observation_model(X: State) -> list[float]:
@@ -191,18 +190,12 @@ class PoseFilter:
         self.config = config or FilterConfig()
         self.wheel_base = float(wheel_base)
         self._X: State = [0.0, 0.0, 0.0, 1.0, 1.0, 1.0]
-        self._P = np.zeros((6, 6))
-        if self.config.estimate_calibration:
-            self._P[3:, 3:] = np.eye(3) * self.config.calibration_prior_sigma**2
+        k2 = self.config.calibration_prior_sigma**2 if self.config.estimate_calibration else 0.0
+        # P as nested Python lists: for 6 states numpy's per-call overhead dominates
+        self._P: Rows = [[k2 if i == j >= 3 else 0.0 for j in range(6)] for i in range(6)]
         self._offset = [0.0, 0.0, 0.0]  # output_state - state
         self._age_s = 0.0  # time since the last reset
-        # deferred propagation: composed pose rows of F, accumulated pose noise (upper
-        # triangle), accumulated calibration walk variance
-        self._Phi: Rows = []
-        self._Q: list[float] = []
-        self._walk = 0.0
-        self._pending = False
-        self._clear_pending()
+        self._propagation = DeferredPropagation()
         self.reset(x, y, theta, covariance)
 
     # -- state ----------------------------------------------------------------------------------
@@ -221,7 +214,15 @@ class PoseFilter:
     def covariance(self) -> FloatArray:
         """Covariance of (x, y, theta), shape (3, 3) (a copy)."""
         self._flush()
-        return self._P[:3, :3].copy()
+        P = self._P
+        return np.array([P[0][:3], P[1][:3], P[2][:3]])
+
+    @property
+    def covariance_rows(self) -> tuple[list[float], list[float], list[float]]:
+        """`covariance` as three rows of floats (no array; do not modify them)."""
+        self._flush()
+        P0, P1, P2 = self._P[0], self._P[1], self._P[2]
+        return P0[:3], P1[:3], P2[:3]
 
     @property
     def full_state(self) -> FloatArray:
@@ -232,7 +233,7 @@ class PoseFilter:
     def full_covariance(self) -> FloatArray:
         """Covariance of `full_state`, shape (6, 6) (a copy)."""
         self._flush()
-        return self._P.copy()
+        return np.array(self._P)
 
     @property
     def output_state(self) -> FloatArray:
@@ -251,7 +252,7 @@ class PoseFilter:
         """The estimated odometry factors."""
         self._flush()
         k_r, k_l, k_b = self._X[3:]
-        return OdometryCalibration(k_r, k_l, k_b, self._P[3:, 3:].copy())
+        return OdometryCalibration(k_r, k_l, k_b, np.array([r[3:] for r in self._P[3:]]))
 
     def reset(self, x: float, y: float, theta: float, covariance: npt.ArrayLike) -> None:
         """Restart from a pose; keeps the calibration learnt so far (and its covariance)."""
@@ -262,9 +263,10 @@ class PoseFilter:
             raise ValueError(f"PoseFilter.reset: non-finite pose {(x, y, theta)}")
         self._flush()
         self._X[:3] = [float(x), float(y), float(wrap_angle(theta))]
-        self._P[:3, :] = 0.0
-        self._P[:, :3] = 0.0
-        self._P[:3, :3] = 0.5 * (cov + cov.T)
+        sym = (0.5 * (cov + cov.T)).tolist()
+        self._P = [sym[i] + [0.0] * 3 for i in range(3)] + [
+            [0.0, 0.0, 0.0, *row[3:]] for row in self._P[3:]
+        ]
         self._offset = [0.0, 0.0, 0.0]
         self._age_s = 0.0
 
@@ -278,70 +280,27 @@ class PoseFilter:
             return
         cfg = self.config
         X = self._X
-        F_top, G = jacob_f(X, v_left, v_right, dt, self.wheel_base)
-        self._X = motion_model(X, v_left, v_right, dt, self.wheel_base)
+        self._X, F_top, G = motion_step(X, v_left, v_right, dt, self.wheel_base)
         # M: variance of each wheel's true speed, from its travel's noise over the step
         q2, s2 = cfg.wheel_noise_m_per_sqrt_s**2 * dt, cfg.wheel_slip_m_per_sqrt_m**2
         m_l = (q2 + s2 * abs(X[4] * v_left * dt)) / (dt * dt)
         m_r = (q2 + s2 * abs(X[3] * v_right * dt)) / (dt * dt)
 
-        # Phi <- F Phi (pose rows; F's pose block is [[1, 0, a], [0, 1, b], [0, 0, 1]])
-        a, b = F_top[0][2], F_top[1][2]
-        p0, p1, p2 = self._Phi
-        p0 = [u + a * w for u, w in zip(p0, p2, strict=True)]
-        p1 = [u + b * w for u, w in zip(p1, p2, strict=True)]
-        p2 = p2[:]
-        for row, f in ((p0, F_top[0]), (p1, F_top[1]), (p2, F_top[2])):
-            row[3] += f[3]
-            row[4] += f[4]
-            row[5] += f[5]
-        self._Phi = [p0, p1, p2]
-        # Q <- A Q A^T + G M G^T (A: the pose block of F)
-        q00, q01, q02, q11, q12, q22 = self._Q
-        t00, t01, t02 = q00 + a * q02, q01 + a * q12, q02 + a * q22
-        t11, t12 = q11 + b * q12, q12 + b * q22
-        gl, gr = (G[0][0], G[1][0], G[2][0]), (G[0][1], G[1][1], G[2][1])
-        self._Q = [
-            t00 + a * t02 + m_l * gl[0] * gl[0] + m_r * gr[0] * gr[0],
-            t01 + b * t02 + m_l * gl[0] * gl[1] + m_r * gr[0] * gr[1],
-            t02 + m_l * gl[0] * gl[2] + m_r * gr[0] * gr[2],
-            t11 + b * t12 + m_l * gl[1] * gl[1] + m_r * gr[1] * gr[1],
-            t12 + m_l * gl[1] * gl[2] + m_r * gr[1] * gr[2],
-            q22 + m_l * gl[2] * gl[2] + m_r * gr[2] * gr[2],
-        ]
-        if cfg.estimate_calibration:
-            self._walk += cfg.calibration_walk_per_sqrt_s**2 * dt
-        self._pending = True
+        walk = cfg.calibration_walk_per_sqrt_s**2 * dt if cfg.estimate_calibration else 0.0
+        self._propagation.add_step(F_top, G, m_l, m_r, walk)
 
         self._age_s += dt
         if cfg.output_time_constant_s > 0:
             decay = math.exp(-dt / cfg.output_time_constant_s)
-            self._offset = [o * decay for o in self._offset]
+            o0, o1, o2 = self._offset
+            self._offset = [o0 * decay, o1 * decay, o2 * decay]
         else:
             self._offset = [0.0, 0.0, 0.0]
 
-    def _clear_pending(self) -> None:
-        self._Phi = [
-            [1.0, 0.0, 0.0, 0.0, 0.0, 0.0],
-            [0.0, 1.0, 0.0, 0.0, 0.0, 0.0],
-            [0.0, 0.0, 1.0, 0.0, 0.0, 0.0],
-        ]
-        self._Q = [0.0] * 6
-        self._walk = 0.0
-        self._pending = False
-
     def _flush(self) -> None:
-        """Apply the deferred covariance propagation: P = F P F^T + Q, F = [[Phi], [0 I]]."""
-        if not self._pending:
-            return
-        q00, q01, q02, q11, q12, q22 = self._Q
-        w = self._walk
-        F = np.array([*self._Phi, *_CALIBRATION_ROWS])
-        P = F @ self._P @ F.T
-        P[:3, :3] += np.array([[q00, q01, q02], [q01, q11, q12], [q02, q12, q22]])
-        P[_CALIBRATION_DIAGONAL] += w
-        self._P = P
-        self._clear_pending()
+        """Apply the deferred covariance propagation (see `DeferredPropagation`)."""
+        if self._propagation.pending:
+            self._P = self._propagation.apply(self._P)
 
     # -- update ---------------------------------------------------------------------------------
     def _innovation(self, fix: PoseFix) -> tuple[list[float], list[float] | None]:
@@ -349,7 +308,7 @@ class PoseFilter:
         self._flush()
         x, y, th = observation_model(self._X)
         innovation = [fix.x - x, fix.y - y, float(wrap_angle(fix.theta - th))]
-        (p00, p01, p02), (_, p11, p12), (_, _, p22) = self._P[:3, :3].tolist()
+        (p00, p01, p02, *_), (_, p11, p12, *_), (_, _, p22, *_) = self._P[:3]
         (r00, r01, r02), (_, r11, r12), (_, _, r22) = np.asarray(fix.covariance).tolist()
         S_inv = inverse_3x3_sym([p00 + r00, p01 + r01, p02 + r02, p11 + r11, p12 + r12, p22 + r22])
         return innovation, S_inv
@@ -379,31 +338,29 @@ class PoseFilter:
             return nis
         # Plain floats: for a 6-state filter numpy's per-call overhead dominates.
         i00, i01, i02, i11, i12, i22 = S_inv
-        P = self._P.tolist()
-        K = [  # P H^T S^-1 = P[:, :3] S^-1, 6 x 3
-            (
-                a * i00 + b * i01 + c * i02,
-                a * i01 + b * i11 + c * i12,
-                a * i02 + b * i12 + c * i22,
-            )
-            for a, b, c in (row[:3] for row in P)
-        ]
-        y0, y1, y2 = y
-        dX = [k0 * y0 + k1 * y1 + k2 * y2 for k0, k1, k2 in K]
+        P = self._P
         P0, P1, P2 = P[0], P[1], P[2]  # H P = P[:3, :]
-        A = [
-            [p - (k0 * u + k1 * v + k2 * w) for p, u, v, w in zip(row, P0, P1, P2, strict=True)]
-            for row, (k0, k1, k2) in zip(P, K, strict=True)
-        ]
-        self._P = np.array(
-            [[0.5 * (A[i][j] + A[j][i]) for j in range(_N_STATE)] for i in range(_N_STATE)]
-        )
+        y0, y1, y2 = y
+        dX, U = [], []  # U[i]: row i of P - K H P from the diagonal on (it is symmetric)
+        for i, row in enumerate(P):
+            a, b, c = row[0], row[1], row[2]
+            k0 = a * i00 + b * i01 + c * i02  # the row of K = P H^T S^-1 = P[:, :3] S^-1
+            k1 = a * i01 + b * i11 + c * i12
+            k2 = a * i02 + b * i12 + c * i22
+            dX.append(k0 * y0 + k1 * y1 + k2 * y2)
+            U.append(
+                [
+                    p - (k0 * u + k1 * v + k2 * w)
+                    for p, u, v, w in zip(row[i:], P0[i:], P1[i:], P2[i:], strict=True)
+                ]
+            )
+        self._P = [[U[j][i - j] for j in range(i)] + U[i] for i in range(6)]
 
         old = self._X
         X = [u + d for u, d in zip(old, dX, strict=True)]
         X[2] = float(wrap_angle(X[2]))
         lo, hi = self.config.calibration_bounds
-        X[3:] = [min(max(k, lo), hi) for k in X[3:]]
+        X[3], X[4], X[5] = min(max(X[3], lo), hi), min(max(X[4], lo), hi), min(max(X[5], lo), hi)
         self._X = X
 
         jump = [old[0] - X[0], old[1] - X[1], float(wrap_angle(old[2] - X[2]))]

@@ -22,6 +22,7 @@ with the derivatives in roll and pitch by forward differences of `floor_points`.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 import numpy.typing as npt
@@ -38,7 +39,7 @@ def floor_points(
     m: list[Point],
     A: list[Mat2],
     z: list[float],
-    T_body_camera: list[list[float]],
+    T_body_camera: Sequence[Sequence[float]],
 ) -> tuple[list[Point], list[Mat2]] | None:
     """Body-frame points q_i on each landmark's height plane and their G_i = d q_i / d pixel.
 
@@ -116,39 +117,43 @@ def solve_planar(
 ) -> tuple[tuple[float, float, float], list[float], float] | None:
     """Gauss-Newton for (x, y, theta) minimising sum |G_i^-1 (q_i - Rz^T (P_i - t))|^2 / sigma^2.
 
+    With W_i = G_i^-1 / sigma, r_i = q_i - Rz^T (P_i - t) and (u_i, v_i) = Rz^T (P_i - t), the
+    Jacobian of W_i r_i is W_i [Rz^T | (-v_i, u_i)], so J^T J and J^T e need only the
+    information matrices O_i = W_i^T W_i: the (x, y) block is Rz (sum O_i) Rz^T (sum O_i
+    once), the rest comes from O_i r_i and O_i (-v_i, u_i) in the body frame.
+
     Returns:
         ((x, y, theta), covariance as (c00 c01 c02 c11 c12 c22), residual RMS in pixels),
         or None when singular or not converged.
     """
-    W: list[Mat2] = []
+    O: list[tuple[float, float, float]] = []  # W^T W as (o00, o01, o11)
     for g00, g01, g10, g11 in G:
         det = (g00 * g11 - g01 * g10) * sigma_px
         if det == 0.0:
             return None
-        W.append((g11 / det, -g01 / det, -g10 / det, g00 / det))
+        w00, w01, w10, w11 = g11 / det, -g01 / det, -g10 / det, g00 / det
+        O.append((w00 * w00 + w10 * w10, w00 * w01 + w10 * w11, w01 * w01 + w11 * w11))
+    S00, S01, S11 = (sum(o[k] for o in O) for k in range(3))
     x, y, th = start
     for _ in range(max_iterations):
         c, s = math.cos(th), math.sin(th)
-        h00 = h01 = h02 = h11 = h12 = h22 = g0 = g1 = g2 = ee = 0.0
-        for (qx, qy), (X, Y), (w00, w01, w10, w11) in zip(q, P, W, strict=True):
+        m0 = m1 = k0 = k1 = h22 = g2 = ee = 0.0
+        for (qx, qy), (X, Y), (o00, o01, o11) in zip(q, P, O, strict=True):
             dX, dY = X - x, Y - y
             u, v = c * dX + s * dY, -s * dX + c * dY  # Rz^T (P - t)
             rx, ry = qx - u, qy - v
-            # d(residual)/d(x, y, theta) = -d(u, v)/d(...) = (c, -s), (s, c), (-v, u)
-            e0, e1 = w00 * rx + w01 * ry, w10 * rx + w11 * ry
-            ee += e0 * e0 + e1 * e1
-            j00, j10 = w00 * c - w01 * s, w10 * c - w11 * s
-            j01, j11 = w00 * s + w01 * c, w10 * s + w11 * c
-            j02, j12 = -w00 * v + w01 * u, -w10 * v + w11 * u
-            h00 += j00 * j00 + j10 * j10
-            h01 += j00 * j01 + j10 * j11
-            h02 += j00 * j02 + j10 * j12
-            h11 += j01 * j01 + j11 * j11
-            h12 += j01 * j02 + j11 * j12
-            h22 += j02 * j02 + j12 * j12
-            g0 += j00 * e0 + j10 * e1
-            g1 += j01 * e0 + j11 * e1
-            g2 += j02 * e0 + j12 * e1
+            a0, a1 = o00 * rx + o01 * ry, o01 * rx + o11 * ry  # O r
+            b0, b1 = o01 * u - o00 * v, o11 * u - o01 * v  # O (-v, u)
+            ee += rx * a0 + ry * a1
+            m0, m1, k0, k1 = m0 + a0, m1 + a1, k0 + b0, k1 + b1
+            h22 += u * b1 - v * b0
+            g2 += u * a1 - v * a0
+        cc, cs, ss = c * c, c * s, s * s  # rotate the body-frame sums by Rz
+        h00 = cc * S00 - 2.0 * cs * S01 + ss * S11
+        h01 = cs * (S00 - S11) + (cc - ss) * S01
+        h11 = ss * S00 + 2.0 * cs * S01 + cc * S11
+        h02, h12 = c * k0 - s * k1, s * k0 + c * k1
+        g0, g1 = c * m0 - s * m1, s * m0 + c * m1
         cov = inverse_3x3_sym([h00, h01, h02, h11, h12, h22])
         if cov is None:
             return None

@@ -8,13 +8,13 @@ faint are dropped. A spot's position is the intensity-weighted centroid of the b
 pixel values on a small patch around the component, which is unbiased for a symmetric
 point-spread function.
 
-`detect_spots_in_windows` is the tracking fast path: it only looks inside given search windows
-(array slices, no full-frame operation).
+The tracking fast path, which only looks inside search windows, is `spot_windows.py`.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import cv2
@@ -23,6 +23,8 @@ import numpy.typing as npt
 
 FloatArray = npt.NDArray[np.float64]
 ImageU8 = npt.NDArray[np.uint8]
+SpotRow = tuple[float, float, float, float]
+"""One spot as (col, row, intensity, area), the fields of `Spots`."""
 
 
 @dataclass(frozen=True)
@@ -92,7 +94,7 @@ class Spots:
         return cls(np.zeros((0, 2)), np.zeros(0), np.zeros(0))
 
     @classmethod
-    def from_lists(cls, rows: list[tuple[float, float, float, float]]) -> Spots:
+    def from_lists(cls, rows: list[SpotRow]) -> Spots:
         """Build from (col, row, intensity, area) tuples."""
         if not rows:
             return cls.empty()
@@ -123,13 +125,13 @@ def threshold_for(background: float, noise: float, config: DetectionConfig) -> f
     )
 
 
-def _spots_in_region(
+def spots_in_region(
     region: ImageU8,
     origin: tuple[int, int],
     background: float,
     threshold: float,
     config: DetectionConfig,
-    out: list[tuple[float, float, float, float]],
+    out: list[SpotRow],
     *,
     cut_sides: tuple[bool, bool, bool, bool] = (False, False, False, False),
 ) -> None:
@@ -168,35 +170,41 @@ def _spots_in_region(
         keep &= ~((y0s + h == rh) & cut_sides[3])
     for i in np.flatnonzero(keep):
         box = (int(x0s[i]), int(y0s[i]), int(w[i]), int(h[i]))
-        _centroid(region, box, origin, background, float(area[i]), config, out)
+        append_centroid(region, box, origin, background, float(area[i]), config, out)
 
 
-def _centroid(
+def append_centroid(
     region: ImageU8,
     box: tuple[int, int, int, int],
     origin: tuple[int, int],
     background: float,
     area: float,
     config: DetectionConfig,
-    out: list[tuple[float, float, float, float]],
+    out: list[SpotRow],
     peak: float | None = None,
 ) -> None:
     """Intensity-weighted centroid of the background-free pixels on the component's box
     (left, top, width, height) grown by `centroid_margin_px`; appended to `out` unless the
     spot is too faint (its brightest pixel, `peak` when known, less the background)."""
-    rh, rw = region.shape
     m = config.centroid_margin_px
     x0, y0, w, h = box
-    c0, r0 = max(x0 - m, 0), max(y0 - m, 0)
-    c1, r1 = min(x0 + w + m, rw), min(y0 + h + m, rh)
-    patch = region[r0:r1, c0:c1].astype(np.float32)
+    c0, r0 = (x0 - m if x0 > m else 0), (y0 - m if y0 > m else 0)
+    patch = region[r0 : y0 + h + m, c0 : x0 + w + m]  # (the slice stops at the region's end)
     if peak is None:
         peak = float(patch.max())
-    if peak - np.float32(background) < config.min_peak_contrast_counts:
+    integral = float(background).is_integer()
+    if (
+        peak - (background if integral else np.float32(background))
+        < config.min_peak_contrast_counts
+    ):
         return
-    patch -= np.float32(background)
-    np.maximum(patch, 0.0, out=patch)
-    mom = cv2.moments(patch)  # sums in double: m00 = sum w, m10 = sum w col, m01 = sum w row
+    if integral:  # max(I - bg, 0) exactly, in one call (saturating uint8)
+        weights = cv2.subtract(patch, background)  # type: ignore[call-overload]
+    else:
+        weights = patch.astype(np.float32)
+        weights -= np.float32(background)
+        np.maximum(weights, 0.0, out=weights)
+    mom = cv2.moments(weights)  # sums in double: m00 = sum w, m10 = sum w col, m01 = sum w row
     total = mom["m00"]
     col, row = c0 + mom["m10"] / total, r0 + mom["m01"] / total
     out.append((col + origin[0], row + origin[1], total, area))
@@ -221,7 +229,7 @@ def bright_boxes(image: ImageU8, threshold: float, margin_px: int) -> FloatArray
         by `margin_px` on each side.
     """
     row_max = image.max(axis=1)  # numpy's reductions beat cv2.reduce here by 10-50x
-    boxes: list[tuple[float, float, float, float]] = []
+    boxes: list[SpotRow] = []
     for r0, r1 in _runs(row_max > threshold):
         col_max = image[r0:r1].max(axis=0)
         for c0, c1 in _runs(col_max > threshold):
@@ -236,10 +244,9 @@ def bright_boxes(image: ImageU8, threshold: float, margin_px: int) -> FloatArray
     return np.asarray(boxes, dtype=np.float64).reshape(-1, 4)
 
 
-def _brightest(rows: list[tuple[float, float, float, float]], limit: int) -> Spots:
-    if len(rows) > limit:
-        rows = sorted(rows, key=lambda r: -r[2])[:limit]
-    return Spots.from_lists(rows)
+def brightest(rows: list[SpotRow], limit: int) -> list[SpotRow]:
+    """At most `limit` spots, the brightest (by intensity) when there are more."""
+    return sorted(rows, key=lambda r: -r[2])[:limit] if len(rows) > limit else rows
 
 
 def detect_spots(
@@ -259,125 +266,42 @@ def detect_spots(
     Raises:
         ValueError: when the image is not a 2-D uint8 array.
     """
-    _check_image(image)
+    check_image(image)
     bg, noise = estimate_background(image, config) if background is None else background
     thr = threshold_for(bg, noise, config)
     boxes = bright_boxes(image, thr, config.centroid_margin_px)
     H, W = image.shape
-    rows: list[tuple[float, float, float, float]] = []
+    rows: list[SpotRow] = []
     for c0, r0, c1, r1 in window_boxes(boxes[:, :2], boxes[:, 2:], W, H):
-        _spots_in_region(image[r0:r1, c0:c1], (c0, r0), bg, thr, config, rows)
-    return _brightest(rows, config.max_spots)
-
-
-def detect_spots_in_windows(
-    image: ImageU8,
-    centers: npt.ArrayLike,
-    half_sizes: npt.ArrayLike,
-    config: DetectionConfig,
-    *,
-    background: tuple[float, float] | None = None,
-) -> Spots:
-    """Detect spots only inside search windows (the tracking fast path, Sec. IV-A.1).
-
-    Overlapping windows are merged into their bounding box so that a spot is found once.
-
-    Args:
-        image: 8-bit grayscale frame, shape (H, W).
-        centers: window centres (col, row), pixels, shape (M, 2).
-        half_sizes: half widths and heights of the windows, pixels, shape (M, 2).
-        config: detector tuning.
-        background: (level, noise) counts; None estimates them from the frame (a strided
-            subsample, not a full-frame pass); pass the last known values to save that.
-
-    Returns:
-        The spots inside the windows.
-    """
-    _check_image(image)
-    c = np.asarray(centers, dtype=np.float64).reshape(-1, 2)
-    hs = np.asarray(half_sizes, dtype=np.float64).reshape(-1, 2)
-    if len(c) != len(hs):
-        raise ValueError(f"detect_spots_in_windows: {len(c)} centers but {len(hs)} half sizes")
-    if len(c) == 0:
-        return Spots.empty()
-    bg, noise = estimate_background(image, config) if background is None else background
-    thr = threshold_for(bg, noise, config)
-    H, W = image.shape
-    boxes = window_boxes(c, hs, W, H)
-    rows: list[tuple[float, float, float, float]] = []
-    for c0, r0, c1, r1 in boxes:
-        region = image[r0:r1, c0:c1]
-        _, peak, _, loc = cv2.minMaxLoc(region)
-        if peak <= thr:
-            continue
-        cut = (c0 > 0, r0 > 0, c1 < W, r1 < H)
-        peak_loc = (int(loc[0]), int(loc[1]))
-        if not _single_spot(region, peak_loc, peak, (c0, r0), bg, thr, config, rows, cut):
-            _spots_in_region(region, (c0, r0), bg, thr, config, rows, cut_sides=cut)
-    return _brightest(rows, config.max_spots)
-
-
-_FAST_RADIUS_PX = 4
-
-
-def _single_spot(
-    region: ImageU8,
-    peak_loc: tuple[int, int],
-    peak: float,
-    origin: tuple[int, int],
-    background: float,
-    threshold: float,
-    config: DetectionConfig,
-    out: list[tuple[float, float, float, float]],
-    cut_sides: tuple[bool, bool, bool, bool],
-) -> bool:
-    """The usual tracking case without labelling: one compact spot around the peak.
-
-    Returns False (the caller labels the region) unless every above-threshold pixel of the
-    region lies well inside a small patch around the peak, i.e. the region holds exactly one
-    small blob; its shape is then checked like `_spots_in_region` does.
-    """
-    rh, rw = region.shape
-    r = _FAST_RADIUS_PX
-    x, y = peak_loc
-    c0, r0, c1, r1 = max(x - r, 0), max(y - r, 0), min(x + r + 1, rw), min(y + r + 1, rh)
-    _, binary = cv2.threshold(region, threshold, 1, cv2.THRESH_BINARY)
-    above = binary[r0:r1, c0:c1]
-    area = cv2.countNonZero(above)
-    if cv2.countNonZero(binary) != area:
-        return False  # more above the threshold than the patch holds: label it
-    # The blob must not touch the patch's edge unless that edge is the image's border.
-    bx, by, w, h = cv2.boundingRect(above)
-    touches = (
-        (bx == 0 and (c0 > 0 or cut_sides[0]))
-        or (by == 0 and (r0 > 0 or cut_sides[1]))
-        or (bx + w == c1 - c0 and (c1 < rw or cut_sides[2]))
-        or (by + h == r1 - r0 and (r1 < rh or cut_sides[3]))
-    )
-    if touches:
-        return False
-    if (
-        config.min_area_px <= area <= config.max_area_px
-        and area / (w * h) >= config.min_fill_ratio
-        and max(w, h) / min(w, h) <= config.max_elongation
-    ):
-        box = (c0 + bx, r0 + by, w, h)
-        _centroid(region, box, origin, background, float(area), config, out, peak)
-    return True  # one blob (kept, or rejected by the filters)
+        spots_in_region(image[r0:r1, c0:c1], (c0, r0), bg, thr, config, rows)
+    return Spots.from_lists(brightest(rows, config.max_spots))
 
 
 def window_boxes(
-    centers: FloatArray, half_sizes: FloatArray, width: int, height: int
+    centers: FloatArray | Sequence[Sequence[float]],
+    half_sizes: FloatArray | Sequence[Sequence[float]],
+    width: int,
+    height: int,
 ) -> list[tuple[int, int, int, int]]:
     """Integer boxes (c0, r0, c1, r1), end-exclusive, clipped to the image, overlaps merged.
 
     Args:
-        centers: shape (M, 2); half_sizes: shape (M, 2), pixels.
+        centers: shape (M, 2); half_sizes: shape (M, 2), pixels (arrays or nested lists).
     """
+    if isinstance(centers, np.ndarray):
+        centers = centers.tolist()
+    if isinstance(half_sizes, np.ndarray):
+        half_sizes = half_sizes.tolist()
     boxes: list[list[int]] = []
-    for (cu, cv), (hu, hv) in zip(centers.tolist(), half_sizes.tolist(), strict=True):
-        a, b = max(math.floor(cu - hu), 0), max(math.floor(cv - hv), 0)
-        c, d = min(math.ceil(cu + hu) + 1, width), min(math.ceil(cv + hv) + 1, height)
+    for (cu, cv), (hu, hv) in zip(centers, half_sizes, strict=True):
+        a, b, c, d = (
+            math.floor(cu - hu),
+            math.floor(cv - hv),
+            math.ceil(cu + hu) + 1,
+            math.ceil(cv + hv) + 1,
+        )
+        a, b = (a if a > 0 else 0), (b if b > 0 else 0)  # (cheaper than max/min calls)
+        c, d = (c if c < width else width), (d if d < height else height)
         if c > a and d > b:
             boxes.append([a, b, c, d])
     merged = True
@@ -396,7 +320,8 @@ def window_boxes(
     return [(b[0], b[1], b[2], b[3]) for b in boxes]
 
 
-def _check_image(image: ImageU8) -> None:
+def check_image(image: ImageU8) -> None:
+    """Raise ValueError unless `image` is a 2-D uint8 array."""
     if not isinstance(image, np.ndarray) or image.ndim != 2 or image.dtype != np.uint8:
         shape = getattr(image, "shape", None)
         dtype = getattr(image, "dtype", None)
@@ -405,10 +330,14 @@ def _check_image(image: ImageU8) -> None:
 
 __all__ = [
     "DetectionConfig",
+    "SpotRow",
     "Spots",
+    "append_centroid",
+    "brightest",
+    "check_image",
     "detect_spots",
-    "detect_spots_in_windows",
     "estimate_background",
+    "spots_in_region",
     "threshold_for",
     "window_boxes",
 ]

@@ -12,6 +12,7 @@ minimises the largest displacement, for any number of landmarks.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import overload
 
 import numpy as np
 import numpy.typing as npt
@@ -49,6 +50,16 @@ class TrackingConfig:
             raise ValueError("TrackingConfig: sigma_gate > 0, odometry_speed_fraction in [0, 1]")
 
 
+@overload
+def motion_bound_px(
+    radial_px: float,
+    *,
+    max_speed_m_s: float,
+    max_angular_speed_rad_s: float,
+    dt_s: float,
+    scale_px_per_m: float,
+) -> float: ...
+@overload
 def motion_bound_px(
     radial_px: FloatArray,
     *,
@@ -56,24 +67,33 @@ def motion_bound_px(
     max_angular_speed_rad_s: float,
     dt_s: float,
     scale_px_per_m: float,
-) -> FloatArray:
+) -> FloatArray: ...
+def motion_bound_px(
+    radial_px: float | FloatArray,
+    *,
+    max_speed_m_s: float,
+    max_angular_speed_rad_s: float,
+    dt_s: float,
+    scale_px_per_m: float,
+) -> float | FloatArray:
     """Largest image displacement of a spot over `dt_s` (the paper's window size).
 
     A translation by v dt moves every ceiling spot by v dt * scale pixels; a turn by w dt
     moves a spot at radial distance r from the image centre by about w dt r.
 
     Args:
-        radial_px: distance of each spot from the image centre, pixels, shape (M,).
+        radial_px: distance of each spot from the image centre, pixels, shape (M,) (or
+            one float).
         max_speed_m_s: the robot's maximum speed.
         max_angular_speed_rad_s: its maximum turn rate.
         dt_s: time since the spot's position was last known, seconds.
         scale_px_per_m: focal length / distance of the ceiling above the camera.
 
     Returns:
-        shape (M,), pixels.
+        shape (M,) (a float for a float), pixels.
     """
     dt = max(dt_s, 0.0)
-    r = np.asarray(radial_px, dtype=np.float64)
+    r = radial_px if isinstance(radial_px, float) else np.asarray(radial_px, dtype=np.float64)
     return max_speed_m_s * dt * scale_px_per_m + max_angular_speed_rad_s * dt * r
 
 
@@ -107,7 +127,9 @@ def window_half_sizes(
     return np.repeat(half[:, None], 2, axis=1)
 
 
-def bottleneck_assignment(cost: FloatArray, gate: FloatArray | float) -> list[tuple[int, int]]:
+def bottleneck_assignment(
+    cost: FloatArray | list[list[float]], gate: FloatArray | list[float] | float
+) -> list[tuple[int, int]]:
     """Match rows (landmarks) to columns (spots) one-to-one, minimising the largest cost.
 
     Among all matchings with the most pairs within their gates, it picks one whose largest
@@ -116,28 +138,30 @@ def bottleneck_assignment(cost: FloatArray, gate: FloatArray | float) -> list[tu
     column (Sec. IV-A.1, Fig. 8b).
 
     Args:
-        cost: displacement of spot j from landmark i's prediction, shape (M, N).
+        cost: displacement of spot j from landmark i's prediction, shape (M, N) (an array
+            or nested lists).
         gate: largest allowed cost per row, shape (M,) or a scalar.
 
     Returns:
         (row, column) pairs, sorted by row.
     """
-    c = np.asarray(cost, dtype=np.float64)
-    if c.size == 0:
+    rows = cost.tolist() if isinstance(cost, np.ndarray) else cost
+    if not rows or not rows[0]:
         return []
     if isinstance(gate, int | float):
-        gates = [float(gate)] * c.shape[0]
+        gates = [float(gate)] * len(rows)
+    elif isinstance(gate, list):
+        gates = gate
     else:
-        gates = np.broadcast_to(np.asarray(gate, dtype=np.float64), (c.shape[0],)).tolist()
+        gates = np.broadcast_to(np.asarray(gate, dtype=np.float64), (len(rows),)).tolist()
     # The usual tracking case, in plain Python: every landmark sees at most one spot within
     # its gate and no spot is wanted by two landmarks.
-    within = [
-        [j for j, v in enumerate(row) if v <= g] for row, g in zip(c.tolist(), gates, strict=True)
-    ]
+    within = [[j for j, v in enumerate(row) if v <= g] for row, g in zip(rows, gates, strict=True)]
     if all(len(w) <= 1 for w in within):
         taken = [w[0] for w in within if w]
         if len(set(taken)) == len(taken):
             return [(i, w[0]) for i, w in enumerate(within) if w]
+    c = np.asarray(rows, dtype=np.float64)
     allowed = c <= np.asarray(gates)[:, None]
     best = _matching_size(allowed)
     levels = np.unique(c[allowed])

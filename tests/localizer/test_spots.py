@@ -7,13 +7,8 @@ import pytest
 
 from localizer.camera import CameraModel, T_body_camera_upward, predict_pixels
 from localizer.geometry import T_world_body_from_pose
-from localizer.spots import (
-    DetectionConfig,
-    detect_spots,
-    detect_spots_in_windows,
-    estimate_background,
-    window_boxes,
-)
+from localizer.spot_windows import detect_spots_in_windows
+from localizer.spots import DetectionConfig, detect_spots, estimate_background, window_boxes
 from sim.render import ExtendedSource, RenderConfig, disc_outline, render_frame
 
 CAM = CameraModel(
@@ -22,7 +17,13 @@ CAM = CameraModel(
 LANDMARKS = np.array([[0.6, 0.0, 2.5], [0.0, 0.6, 2.5], [-0.6, -0.3, 2.4]])
 
 
-def _frame(pose=(0.1, 0.05, 0.3), *, extended=(), seed=1, sources=LANDMARKS):
+def _frame(
+    pose: tuple[float, float, float] = (0.1, 0.05, 0.3),
+    *,
+    extended: tuple[ExtendedSource, ...] = (),
+    seed: int = 1,
+    sources: np.ndarray = LANDMARKS,
+) -> tuple[np.ndarray, np.ndarray]:
     T = T_world_body_from_pose(*pose)
     img = render_frame(
         CAM, T, sources, np.ones(len(sources)), rng=np.random.default_rng(seed), extended=extended
@@ -33,7 +34,8 @@ def _frame(pose=(0.1, 0.05, 0.3), *, extended=(), seed=1, sources=LANDMARKS):
 
 def _match(found: np.ndarray, truth: np.ndarray) -> np.ndarray:
     d = np.hypot(found[:, None, 0] - truth[None, :, 0], found[:, None, 1] - truth[None, :, 1])
-    return d.min(axis=0)
+    out: np.ndarray = d.min(axis=0)
+    return out
 
 
 def test_centroids_are_sub_pixel_accurate() -> None:
@@ -47,7 +49,7 @@ def test_centroids_are_sub_pixel_accurate() -> None:
 
 def test_centroid_bias_over_sub_pixel_offsets_is_small() -> None:
     rng = np.random.default_rng(3)
-    errors = []
+    errors: list[float] = []
     for _ in range(20):
         pose = (rng.uniform(-0.2, 0.2), rng.uniform(-0.2, 0.2), rng.uniform(-np.pi, np.pi))
         img, truth = _frame(pose, seed=int(rng.integers(1000)))
@@ -153,7 +155,7 @@ def test_window_boxes_merge_and_clip() -> None:
 
 def test_bad_image_is_rejected() -> None:
     with pytest.raises(ValueError, match="uint8"):
-        detect_spots(np.zeros((4, 4), dtype=np.float32), DetectionConfig())  # type: ignore[arg-type]
+        detect_spots(np.zeros((4, 4), dtype=np.float32), DetectionConfig())
     with pytest.raises(ValueError, match="threshold_counts"):
         DetectionConfig(threshold_counts=300)
 

@@ -1,0 +1,73 @@
+"""One tracking step: windows around the predictions, assignment, solve, fuse."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from localizer.config import LocalizerConfig
+from localizer.events import FrameObserved, SpotsObserved
+from localizer.geometry import T_world_body_from_pose
+from localizer.landmark_map import LandmarkMap
+from localizer.landmark_tracker import LandmarkTracker
+from localizer.pose_filter import PoseFilter
+from localizer.robot import RobotGeometry
+from sim.render import render_frame
+from tests.localizer.cameras import make_camera
+
+CAM = make_camera("radial-tangential", "offset-yaw90")
+MAP = LandmarkMap(
+    np.array([7, 8, 9]), np.array([[0.0, 0.0, 2.5], [1.2, 0.0, 2.6], [0.6, 1.0, 2.4]])
+)
+TRUE_POSE = (0.55, 0.3, 0.4)
+ROBOT = RobotGeometry(0.36, 1.0)
+
+
+def _setup(
+    pose: tuple[float, float, float], sigma_m: float = 0.01
+) -> tuple[LandmarkTracker, PoseFilter, FrameObserved]:
+    img = render_frame(
+        CAM, T_world_body_from_pose(*TRUE_POSE), MAP.positions, np.ones(3),
+        rng=np.random.default_rng(3),
+    )  # fmt: skip
+    cov = np.diag([sigma_m**2, sigma_m**2, 0.01**2])
+    filt = PoseFilter(*pose, cov, wheel_base=ROBOT.wheel_base)
+    return LandmarkTracker(CAM, ROBOT, LocalizerConfig(), MAP), filt, FrameObserved(0, img)
+
+
+def test_a_step_finds_every_landmark_and_fuses_the_fix() -> None:
+    tracker, filt, frame = _setup((0.56, 0.29, 0.41))
+    result = tracker.step(filt, frame, dt_frame_s=1 / 30, fresh_odometry=True, candidates=None)
+    assert result.used == (7, 8, 9) and not result.unexplained
+    # 1 cm and 0.01 rad off before: the fix (a few mm, mrad) pulls the estimate to the truth
+    np.testing.assert_allclose(filt.pose[:2], TRUE_POSE[:2], atol=2e-3)
+    assert abs(filt.pose[2] - TRUE_POSE[2]) < 0.004
+
+
+def test_candidates_restrict_the_search_to_the_lit_landmarks() -> None:
+    tracker, filt, frame = _setup((0.56, 0.29, 0.41))
+    lit = np.array([0, 2], dtype=np.int64)
+    result = tracker.step(filt, frame, dt_frame_s=1 / 30, fresh_odometry=True, candidates=lit)
+    assert result.used == (7, 9)
+
+
+def test_a_fix_that_disagrees_with_a_confident_pose_is_not_fused() -> None:
+    tracker, filt, frame = _setup((0.59, 0.3, 0.4), sigma_m=0.001)  # 4 cm off, 1 mm sure
+    before = filt.pose
+    result = tracker.step(filt, frame, dt_frame_s=1 / 30, fresh_odometry=True, candidates=None)
+    assert result.used == () and result.unexplained  # spots seen, none explained
+    assert filt.pose == before
+
+
+def test_no_spot_in_the_windows_is_not_a_rejection() -> None:
+    tracker, filt, frame = _setup((0.0, -0.5, 1.2))  # far off: the windows hold nothing
+    result = tracker.step(filt, frame, dt_frame_s=1 / 30, fresh_odometry=True, candidates=None)
+    assert result == ((), False)
+
+
+def test_given_spots_are_used_as_they_are() -> None:
+    tracker, filt, frame = _setup((0.56, 0.29, 0.41))
+    spots = tracker.full_spots(frame)
+    assert tracker.background is not None
+    given = SpotsObserved(0, spots.pixels, spots.intensities, spots.areas)
+    result = tracker.step(filt, given, dt_frame_s=1 / 30, fresh_odometry=True, candidates=None)
+    assert result.used == (7, 8, 9)
