@@ -7,7 +7,9 @@ and discovery are coroutines on the server's loop, awaited here with `services.c
 
 Every pose update of every robot reaches the adapter through a subscription to the pose bus
 (drained whenever the viewer reads the robots): it keeps each robot's recent estimates (the
-wizard takes the one for its frame, `pose_at`) and feeds the doubt tracker (`web.doubt`).
+wizard takes the one for its frame, `pose_at`) and feeds the doubt tracker (`web.doubt`) with
+the LEDs as they were at each frame's time: it listens to every LED state the gateway
+publishes (`web.led_timeline`).
 """
 
 from __future__ import annotations
@@ -21,12 +23,13 @@ from typing import Any
 import numpy as np
 
 from localizer.camera import CameraModel, sensor_from_camera
-from localizer.events import PoseEstimate
+from localizer.events import LedsChanged, PoseEstimate
 from localizer.spots import DetectionConfig, detect_spots
 from rf_gateway.errors import LandmarkUnreachableError, RfGatewayError
 from server.errors import UnavailableError
 from web.candidates import doubted_candidates, new_radio_candidates
 from web.doubt import DoubtConfig, DoubtTracker
+from web.led_timeline import LedTimeline
 from web.services import (
     CameraView,
     Candidate,
@@ -69,12 +72,27 @@ class SiteAdapter:
         self._history: dict[str, deque[Any]] = {}
         self._pose_history = pose_history
         services.map.add_listener(self._on_map_changed)
+        self._leds = LedTimeline()
+        self._led_lock = threading.Lock()  # the gateway's listener runs on the server's loop
+        self._gateway: Any = getattr(services, "gateway", None)
+        if self._gateway is not None:
+            self._gateway.add_led_listener(self._on_leds)
+            if self._gateway.leds is not None:
+                self._on_leds(self._gateway.leds)
         self._poses = services.subscribe_poses(maxsize=4096)
 
     def close(self) -> None:
-        """Stop listening to map changes and pose updates."""
+        """Stop listening to map changes, LED states and pose updates."""
         self.services.map.remove_listener(self._on_map_changed)
+        if self._gateway is not None:
+            self._gateway.remove_led_listener(self._on_leds)
         self._poses.close()
+
+    def _on_leds(self, event: LedsChanged) -> None:
+        """Every LED state the gateway publishes (on the server's loop)."""
+        landmarks = frozenset(self._gateway.landmarks) if event.all_lit else ()
+        with self._led_lock:
+            self._leds.add(event, landmarks)
 
     def _on_map_changed(self, _landmarks: list[Any]) -> None:
         with self._lock:
@@ -98,8 +116,8 @@ class SiteAdapter:
             updates = self._poses.drain()
             if not updates:
                 return
-            lit = frozenset(self.services.lit())  # the LEDs now (not via an override)
             cameras = {r.name: r.camera for r in self.services.robots.runners()}
+            quiet_s = self._doubt.config.led_quiet_s
             for upd in updates:
                 q = self._history.get(upd.robot)
                 if q is None:
@@ -107,10 +125,13 @@ class SiteAdapter:
                 q.append(upd)
                 pose = _estimate(upd)
                 if pose is None:
+                    self._doubt.unlocalized(upd.robot)
                     continue
                 camera = cameras.get(upd.robot)
-                if camera is not None:
-                    self._doubt.observe(upd.robot, camera, pose, lit)
+                with self._led_lock:
+                    leds = self._leds.at(upd.t_ns, quiet_s=quiet_s)  # at the frame's time
+                if camera is not None and leds is not None:
+                    self._doubt.observe(upd.robot, camera, pose, leds.lit, unsure=leds.unsure)
 
     def _battery_of(self, landmark_id: int) -> Any:
         now = time.monotonic()
