@@ -28,7 +28,7 @@ from localizer.spots import DetectionConfig, detect_spots
 from rf_gateway.errors import LandmarkUnreachableError, RfGatewayError
 from server.errors import UnavailableError
 from web.candidates import doubted_candidates, new_radio_candidates
-from web.doubt import DoubtConfig, DoubtTracker
+from web.doubt import Doubt, DoubtConfig, DoubtTracker
 from web.led_timeline import LedTimeline
 from web.services import (
     CameraView,
@@ -297,6 +297,12 @@ class SiteAdapter:
         if rec is None:
             raise ValueError("nothing to undo")
         return f"undid {rec.action} of landmark {rec.landmark_id} by {rec.actor}"
+
+    def doubt(self, landmark_id: int) -> Doubt:
+        """A landmark's chances and uses so far (`web.doubt.DoubtTracker.record`)."""
+        self._drain()
+        with self._pose_lock:
+            return self._doubt.record(landmark_id)
 
     def to_identify(self, *, discover: bool = False) -> list[Candidate]:
         """Doubted unlocked landmarks, then (with `discover`) the radios a node discovery
