@@ -47,7 +47,9 @@ class DoubtConfig:
     """When a landmark counts as doubted.
 
     Attributes:
-        window: chances remembered per landmark (frames).
+        window: chances remembered per landmark (frames); as long as `min_chances`, a
+            landmark that stops being used (its LED died) is doubted after that many
+            chances, whatever its record before.
         min_chances: chances needed before judging a landmark.
         max_used_fraction: doubted when used in at most this share of its chances.
         min_others: a frame counts only when the robot used at least this many other
@@ -65,7 +67,7 @@ class DoubtConfig:
             (its frames are highly correlated; this bounds the cost).
     """
 
-    window: int = 120
+    window: int = 60
     min_chances: int = 60
     max_used_fraction: float = 0.1
     min_others: int = 2
