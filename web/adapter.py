@@ -74,11 +74,8 @@ class SiteAdapter:
         services.map.add_listener(self._on_map_changed)
         self._leds = LedTimeline()
         self._led_lock = threading.Lock()  # the gateway's listener runs on the server's loop
-        self._gateway: Any = getattr(services, "gateway", None)
-        if self._gateway is not None:
-            self._gateway.add_led_listener(self._on_leds)
-            if self._gateway.leds is not None:
-                self._on_leds(self._gateway.leds)
+        self._gateway: Any = None
+        self._listen_to_leds()
         self._poses = services.subscribe_poses(maxsize=4096)
 
     def close(self) -> None:
@@ -87,6 +84,14 @@ class SiteAdapter:
         if self._gateway is not None:
             self._gateway.remove_led_listener(self._on_leds)
         self._poses.close()
+
+    def _listen_to_leds(self) -> None:
+        """Subscribe to the gateway's LED states once there is a gateway."""
+        if self._gateway is None and getattr(self.services, "gateway", None) is not None:
+            self._gateway = self.services.gateway
+            self._gateway.add_led_listener(self._on_leds)
+            if self._gateway.leds is not None:
+                self._on_leds(self._gateway.leds)
 
     def _on_leds(self, event: LedsChanged) -> None:
         """Every LED state the gateway publishes (on the server's loop)."""
@@ -112,6 +117,7 @@ class SiteAdapter:
     def _drain(self) -> None:
         """Take the pose updates published since the last call: history and doubt."""
         self._map()  # the doubt tracker needs the current map
+        self._listen_to_leds()
         with self._pose_lock:
             updates = self._poses.drain()
             if not updates:

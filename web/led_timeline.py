@@ -56,12 +56,12 @@ class LedTimeline:
 
     def add(self, event: LedsChanged, landmarks: Iterable[int]) -> None:
         """One published state; `landmarks`: every landmark the radio controls (what
-        `all_lit` means). States must come in time order (an older one is taken as of the
-        newest's time)."""
-        lit = frozenset(int(i) for i in landmarks) if event.all_lit else frozenset(event.lit)
+        `all_lit` means). A state older than the newest is stale and ignored (the gateway
+        stamps its states in order; a snapshot read while a newer one arrived is not)."""
         t_ns = event.t_ns
         if self._states and t_ns < self._states[-1].t_ns:
-            t_ns = self._states[-1].t_ns
+            return
+        lit = frozenset(int(i) for i in landmarks) if event.all_lit else frozenset(event.lit)
         self._states.append(_State(t_ns, lit, frozenset(event.changing)))
         horizon = t_ns - round(self.keep_s * 1e9)
         while len(self._states) >= 2 and self._states[1].t_ns <= horizon:

@@ -187,3 +187,25 @@ def test_an_led_switched_around_the_frame_is_no_chance() -> None:
     assert t.record(others[0]).chances == 30  # the others still count
     t.observe("r1", CAM, estimate(others), GRID, unsure={others[0]})
     assert t.record(bad).chances == 1 and t.record(others[0]).chances == 30
+
+
+def test_with_the_defaults_a_landmark_that_stops_being_used_is_doubted_after_54_misses() -> None:
+    cfg = DoubtConfig()
+    assert (cfg.window, cfg.min_chances, cfg.max_used_fraction) == (60, 60, 0.1)
+    view = in_view()
+    bad = view[0]
+    t = DoubtTracker(cfg)
+    t.set_map(GRID)
+    t0 = 50_000_000_000
+    frames = iter(range(10_000))
+
+    def frame(used: list[int]) -> None:
+        t.observe("r1", CAM, estimate_at(t0 + next(frames) * 100_000_000, used), GRID)
+
+    for _ in range(20 + 200):  # settling (2 s), then a long record of uses
+        frame(view)
+    assert t.record(bad).chances == 60 and t.record(bad).used == 60
+    for k in range(54):  # its LED died: 54 misses leave 6 uses (10 %) in the last 60
+        assert bad not in t.doubted(), k
+        frame([i for i in view if i != bad])
+    assert t.doubted()[bad].reason == "expected in view 60 times, used 6"

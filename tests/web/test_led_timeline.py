@@ -48,8 +48,10 @@ def test_old_states_are_dropped_but_the_one_in_force_is_kept() -> None:
     assert tl.at(0, quiet_s=0.5) is None  # dropped
     assert tl.at(4 * S, quiet_s=0.5) == LedsAt(frozenset({1}), frozenset())
     assert tl.at(10 * S, quiet_s=0.5) == LedsAt(frozenset({1, 2}), frozenset({2}))
-    # a late (out of order) state is taken as of the newest
+    # a stale (older) state is ignored; one as old as the newest is taken
     tl.add(LedsChanged(9 * S, frozenset({4})), ALL)
-    assert tl.at(10 * S, quiet_s=0.0) == LedsAt(frozenset({4}), frozenset())
+    assert tl.at(11 * S, quiet_s=0.0) == LedsAt(frozenset({1, 2}), frozenset())
+    tl.add(LedsChanged(10 * S, frozenset({3})), ALL)
+    assert tl.at(11 * S, quiet_s=0.0) == LedsAt(frozenset({3}), frozenset())
     with pytest.raises(ValueError, match="keep_s"):
         LedTimeline(keep_s=0.0)
