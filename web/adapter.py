@@ -7,7 +7,9 @@ and discovery are coroutines on the server's loop, awaited here with `services.c
 
 Every pose update of every robot reaches the adapter through a subscription to the pose bus
 (drained whenever the viewer reads the robots): it keeps each robot's recent estimates (the
-wizard takes the one for its frame, `pose_at`) and feeds the doubt tracker (`web.doubt`).
+wizard takes the one for its frame, `pose_at`) and feeds the doubt tracker (`web.doubt`) with
+the LEDs as they were at each frame's time: it listens to every LED state the gateway
+publishes (`web.led_timeline`).
 """
 
 from __future__ import annotations
@@ -21,12 +23,13 @@ from typing import Any
 import numpy as np
 
 from localizer.camera import CameraModel, sensor_from_camera
-from localizer.events import PoseEstimate
+from localizer.events import LedsChanged, PoseEstimate
 from localizer.spots import DetectionConfig, detect_spots
 from rf_gateway.errors import LandmarkUnreachableError, RfGatewayError
 from server.errors import UnavailableError
 from web.candidates import doubted_candidates, new_radio_candidates
-from web.doubt import DoubtConfig, DoubtTracker
+from web.doubt import Doubt, DoubtConfig, DoubtTracker
+from web.led_timeline import LedTimeline
 from web.services import (
     CameraView,
     Candidate,
@@ -69,12 +72,32 @@ class SiteAdapter:
         self._history: dict[str, deque[Any]] = {}
         self._pose_history = pose_history
         services.map.add_listener(self._on_map_changed)
+        self._leds = LedTimeline()
+        self._led_lock = threading.Lock()  # the gateway's listener runs on the server's loop
+        self._gateway: Any = None
+        self._listen_to_leds()
         self._poses = services.subscribe_poses(maxsize=4096)
 
     def close(self) -> None:
-        """Stop listening to map changes and pose updates."""
+        """Stop listening to map changes, LED states and pose updates."""
         self.services.map.remove_listener(self._on_map_changed)
+        if self._gateway is not None:
+            self._gateway.remove_led_listener(self._on_leds)
         self._poses.close()
+
+    def _listen_to_leds(self) -> None:
+        """Subscribe to the gateway's LED states once there is a gateway."""
+        if self._gateway is None and getattr(self.services, "gateway", None) is not None:
+            self._gateway = self.services.gateway
+            self._gateway.add_led_listener(self._on_leds)
+            if self._gateway.leds is not None:
+                self._on_leds(self._gateway.leds)
+
+    def _on_leds(self, event: LedsChanged) -> None:
+        """Every LED state the gateway publishes (on the server's loop)."""
+        landmarks = frozenset(self._gateway.landmarks) if event.all_lit else ()
+        with self._led_lock:
+            self._leds.add(event, landmarks)
 
     def _on_map_changed(self, _landmarks: list[Any]) -> None:
         with self._lock:
@@ -94,12 +117,13 @@ class SiteAdapter:
     def _drain(self) -> None:
         """Take the pose updates published since the last call: history and doubt."""
         self._map()  # the doubt tracker needs the current map
+        self._listen_to_leds()
         with self._pose_lock:
             updates = self._poses.drain()
             if not updates:
                 return
-            lit = frozenset(self.services.lit())  # the LEDs now (not via an override)
             cameras = {r.name: r.camera for r in self.services.robots.runners()}
+            quiet_s = self._doubt.config.led_quiet_s
             for upd in updates:
                 q = self._history.get(upd.robot)
                 if q is None:
@@ -107,10 +131,13 @@ class SiteAdapter:
                 q.append(upd)
                 pose = _estimate(upd)
                 if pose is None:
+                    self._doubt.unlocalized(upd.robot)
                     continue
                 camera = cameras.get(upd.robot)
-                if camera is not None:
-                    self._doubt.observe(upd.robot, camera, pose, lit)
+                with self._led_lock:
+                    leds = self._leds.at(upd.t_ns, quiet_s=quiet_s)  # at the frame's time
+                if camera is not None and leds is not None:
+                    self._doubt.observe(upd.robot, camera, pose, leds.lit, unsure=leds.unsure)
 
     def _battery_of(self, landmark_id: int) -> Any:
         now = time.monotonic()
@@ -276,6 +303,12 @@ class SiteAdapter:
         if rec is None:
             raise ValueError("nothing to undo")
         return f"undid {rec.action} of landmark {rec.landmark_id} by {rec.actor}"
+
+    def doubt(self, landmark_id: int) -> Doubt:
+        """A landmark's chances and uses so far (`web.doubt.DoubtTracker.record`)."""
+        self._drain()
+        with self._pose_lock:
+            return self._doubt.record(landmark_id)
 
     def to_identify(self, *, discover: bool = False) -> list[Candidate]:
         """Doubted unlocked landmarks, then (with `discover`) the radios a node discovery

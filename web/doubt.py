@@ -6,8 +6,14 @@ should have used it rarely did. A chance is one pose update (at most one per rob
 
 - is localized from landmarks (mode "landmark") with a small position error
   (1-sigma <= `max_sigma_m`) and used at least `min_others` other landmarks in that frame,
-- and, by its pose, its camera model and the map, has the landmark's LED in view: the
-  LED is lit, and it projects into the image at least `margin_px` inside the border.
+- has *settled*: its fixes have lasted `settle_s` since it last identified or was lost (its
+  first fixes use the landmarks it identified, before it hands off to the others in view),
+- and, by its pose, its camera model and the map, has the landmark's LED where the
+  localizer finds it: within `max_off_axis_rad` of the optical axis (farther off, an LED is
+  too dim to detect: its emission and the lens's vignetting fall with that angle) and at
+  least `margin_px` inside the image border; and the LED was lit at the frame's time, not
+  being switched nor switched within `led_quiet_s` before (`web.led_timeline`: robots
+  identify by darkening one LED for a moment).
 
 It is doubted once it had at least `min_chances` chances and was used in at most
 `max_used_fraction` of its last `window` ones. The localizer matches spots to the map with a
@@ -15,7 +21,8 @@ gate, so a landmark whose spot is far from where the map puts it (moved, or surv
 a dead or covered LED, or a wrong radio address all end up here. Moving a landmark in the map
 forgets its history.
 
-Pure: numpy in, sets out; the caller feeds pose updates (`DoubtTracker.observe`).
+Pure: numpy in, sets out; the caller feeds pose updates with the LEDs at their frames
+(`DoubtTracker.observe`, `DoubtTracker.unlocalized`).
 """
 
 from __future__ import annotations
@@ -28,9 +35,9 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from localizer.camera import CameraModel, predict_pixels
+from localizer.camera import CameraModel, T_camera_world, pixels_from_points_camera
 from localizer.events import PoseEstimate
-from localizer.geometry import T_world_body_from_pose
+from localizer.geometry import T_world_body_from_pose, transform_points
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -40,24 +47,35 @@ class DoubtConfig:
     """When a landmark counts as doubted.
 
     Attributes:
-        window: chances remembered per landmark (frames).
+        window: chances remembered per landmark (frames); as long as `min_chances`, a
+            landmark that stops being used (its LED died) is doubted after that many
+            chances, whatever its record before.
         min_chances: chances needed before judging a landmark.
         max_used_fraction: doubted when used in at most this share of its chances.
         min_others: a frame counts only when the robot used at least this many other
             landmarks in it (it was localized and seeing).
         max_sigma_m: ... and its 1-sigma position error was at most this, metres.
         margin_px: the LED must project at least this far inside the image border, pixels.
+        max_off_axis_rad: ... and be at most this far from the camera's optical axis,
+            radians (beyond about 45 degrees the simulated LEDs are too dim to detect).
+        settle_s: a robot's frames count once it has had fixes this long since it last
+            identified or was lost, seconds.
+        led_quiet_s: a landmark whose LED was switched within this before the frame (or
+            is being switched) has no chance in it, seconds (for the caller's LED timeline).
         moved_m: a map position change larger than this forgets the landmark's history, m.
         min_interval_s: a robot's updates closer together than this are skipped, seconds
             (its frames are highly correlated; this bounds the cost).
     """
 
-    window: int = 120
+    window: int = 60
     min_chances: int = 60
     max_used_fraction: float = 0.1
     min_others: int = 2
     max_sigma_m: float = 0.05
     margin_px: float = 25.0
+    max_off_axis_rad: float = math.radians(40.0)
+    settle_s: float = 2.0
+    led_quiet_s: float = 0.5
     moved_m: float = 0.001
     min_interval_s: float = 0.1
 
@@ -81,20 +99,24 @@ def expected_in_view(
     positions: FloatArray,
     *,
     margin_px: float,
+    max_off_axis_rad: float = math.pi / 2,
 ) -> npt.NDArray[np.bool_]:
     """Which landmark positions (N, 3) project into the image, `margin_px` inside its border,
-    for a body pose (x, y, theta); shape (N,)."""
+    at most `max_off_axis_rad` from the optical axis, for a body pose (x, y, theta); shape
+    (N,)."""
     p = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
     if len(p) == 0:
         return np.zeros(0, dtype=bool)
-    px, ok = predict_pixels(camera, T_world_body_from_pose(*pose), p)
+    p_camera = transform_points(T_camera_world(camera, T_world_body_from_pose(*pose)), p)
+    px, ok = pixels_from_points_camera(camera, p_camera)
+    near_axis = p_camera[:, 2] >= math.cos(max_off_axis_rad) * np.linalg.norm(p_camera, axis=1)
     inside = (
         (px[:, 0] >= margin_px - 0.5)
         & (px[:, 0] <= camera.width - 0.5 - margin_px)
         & (px[:, 1] >= margin_px - 0.5)
         & (px[:, 1] <= camera.height - 0.5 - margin_px)
     )
-    return np.asarray(ok & inside, dtype=bool)
+    return np.asarray(ok & inside & near_axis, dtype=bool)
 
 
 class DoubtTracker:
@@ -105,6 +127,7 @@ class DoubtTracker:
         self._history: dict[int, deque[bool]] = {}
         self._where: dict[int, FloatArray] = {}
         self._last_t_ns: dict[str, int] = {}
+        self._fix_since: dict[str, int] = {}  # first fix since it last had no pose
 
     def set_map(self, positions: Mapping[int, npt.ArrayLike]) -> None:
         """The map's landmark positions (id -> (3,)); moved or removed landmarks are forgotten."""
@@ -116,11 +139,25 @@ class DoubtTracker:
         self._where = new
 
     def observe(
-        self, robot: str, camera: CameraModel, pose: PoseEstimate, lit: Iterable[int]
+        self,
+        robot: str,
+        camera: CameraModel,
+        pose: PoseEstimate,
+        lit: Iterable[int],
+        *,
+        unsure: Iterable[int] = (),
     ) -> None:
-        """One robot's pose update (its camera and the LEDs lit at that frame)."""
+        """One robot's pose update: its camera, the LEDs lit at that frame and those whose
+        state at the frame is not to be relied on (being switched, or switched within
+        `led_quiet_s` before)."""
         cfg = self.config
+        if pose.mode in ("identifying", "lost"):
+            self.unlocalized(robot)
+            return
         if pose.mode != "landmark" or not self._where:
+            return
+        since = self._fix_since.setdefault(robot, pose.t_ns)
+        if pose.t_ns - since < cfg.settle_s * 1e9:
             return
         last = self._last_t_ns.get(robot)
         if last is not None and 0 <= pose.t_ns - last < cfg.min_interval_s * 1e9:
@@ -130,11 +167,19 @@ class DoubtTracker:
         if math.sqrt(max(0.0, float(cov[0, 0] + cov[1, 1]))) > cfg.max_sigma_m:
             return
         used = set(pose.landmark_ids)
-        ids = [lid for lid in sorted(set(lit)) if lid in self._where]
+        if len(used) < cfg.min_others:
+            return
+        ids = [lid for lid in sorted(set(lit) - set(unsure)) if lid in self._where]
         if not ids:
             return
         pts = np.array([self._where[i] for i in ids])
-        seen = expected_in_view(camera, (pose.x, pose.y, pose.theta), pts, margin_px=cfg.margin_px)
+        seen = expected_in_view(
+            camera,
+            (pose.x, pose.y, pose.theta),
+            pts,
+            margin_px=cfg.margin_px,
+            max_off_axis_rad=cfg.max_off_axis_rad,
+        )
         for lid, visible in zip(ids, seen, strict=True):
             if not visible or len(used - {lid}) < cfg.min_others:
                 continue
@@ -142,6 +187,10 @@ class DoubtTracker:
             if hist is None:
                 hist = self._history[lid] = deque(maxlen=cfg.window)
             hist.append(lid in used)
+
+    def unlocalized(self, robot: str) -> None:
+        """The robot has no pose (identifying, lost): it settles again after its next fix."""
+        self._fix_since.pop(robot, None)
 
     def record(self, landmark_id: int) -> Doubt:
         """A landmark's chances and uses so far (within the window)."""

@@ -6,6 +6,7 @@ from __future__ import annotations
 import threading
 import time
 from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -28,15 +29,15 @@ class LiveSite:
     viewer_key: str
 
 
-@pytest.fixture(scope="session")
-def live_site(tmp_path_factory: pytest.TempPathFactory) -> Iterator[LiveSite]:
+@contextmanager
+def running_site(data: Path, *, seed: int = 5) -> Iterator[tuple[Any, int]]:
+    """The API app with the `demo` virtual site, served on a free port: (app, port)."""
     import uvicorn
 
     from server.main import create_app
     from server.settings import Settings
 
-    data = tmp_path_factory.mktemp("irloc-data")
-    settings = Settings(data_dir=data, port=0, viewer_port=0, scenario="demo", seed=5)
+    settings = Settings(data_dir=data, port=0, viewer_port=0, scenario="demo", seed=seed)
     app = create_app(settings)
     config = uvicorn.Config(app, host="127.0.0.1", port=0, log_level="warning", lifespan="on")
     server = uvicorn.Server(config)
@@ -47,13 +48,21 @@ def live_site(tmp_path_factory: pytest.TempPathFactory) -> Iterator[LiveSite]:
         if time.monotonic() > deadline or not thread.is_alive():
             raise RuntimeError("the irloc app did not start")
         time.sleep(0.05)
-    port = server.servers[0].sockets[0].getsockname()[1]
-    services = app.state.services
-    keys = {
-        role: services.keys.create(role, f"test-{role}")[0]
-        for role in ("admin", "operator", "viewer")
-    }
     try:
+        yield app, server.servers[0].sockets[0].getsockname()[1]
+    finally:
+        server.should_exit = True
+        thread.join(timeout=30)
+
+
+@pytest.fixture(scope="session")
+def live_site(tmp_path_factory: pytest.TempPathFactory) -> Iterator[LiveSite]:
+    with running_site(tmp_path_factory.mktemp("irloc-data")) as (app, port):
+        services = app.state.services
+        keys = {
+            role: services.keys.create(role, f"test-{role}")[0]
+            for role in ("admin", "operator", "viewer")
+        }
         yield LiveSite(
             f"http://127.0.0.1:{port}",
             app,
@@ -62,9 +71,6 @@ def live_site(tmp_path_factory: pytest.TempPathFactory) -> Iterator[LiveSite]:
             keys["operator"],
             keys["viewer"],
         )
-    finally:
-        server.should_exit = True
-        thread.join(timeout=30)
 
 
 def nearest_landmarks(services: Any, robot: str, n: int) -> list[int]:

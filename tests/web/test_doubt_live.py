@@ -1,0 +1,44 @@
+"""Doubted landmarks on a fresh virtual demo site with a correct map (survey error 4 mm):
+three robots patrol from the start (identifying with darken probes, first fixes, hand-offs,
+landmarks entering and leaving the edge of their views), and no landmark is ever doubted."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import pytest
+
+from tests.web.conftest import running_site
+from web.adapter import SiteAdapter
+from web.doubt import DoubtConfig
+
+pytestmark = pytest.mark.slow
+
+
+def test_no_landmark_is_doubted_on_a_correct_map_from_the_start(tmp_path: Path) -> None:
+    with running_site(tmp_path, seed=5) as (app, _port):
+        services = app.state.services
+        site = SiteAdapter(services)
+        try:
+            start = time.monotonic()
+            doubted: dict[int, tuple[float, str]] = {}
+            samples = 0
+            while time.monotonic() - start < 46.0:
+                time.sleep(0.5)
+                samples += 1
+                when = round(time.monotonic() - start, 1)
+                for c in site.to_identify():
+                    doubted.setdefault(c.landmark_id, (when, c.reason))
+                for lm in site.landmarks():
+                    if lm.doubted:
+                        doubted.setdefault(lm.id, (when, "doubted in landmarks()"))
+            assert doubted == {}
+            assert samples >= 85
+            # the rule was exercised: the landmarks were judged, and used in their chances
+            records = [site.doubt(lm.id) for lm in services.map.list()]
+            judged = [d for d in records if d.chances >= DoubtConfig().min_chances]
+            assert len(judged) >= 15, records
+            assert sum(d.used for d in judged) >= 0.99 * sum(d.chances for d in judged)
+        finally:
+            site.close()
