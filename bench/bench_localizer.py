@@ -290,6 +290,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--frames", type=int, default=300, help="frames per timing run")
     parser.add_argument("--recording", type=Path, default=None, help="reuse a recording")
     parser.add_argument(
+        "--scenario",
+        default="paper_testbed",
+        help="the test bed: a built-in scenario or a YAML file of the same route (e.g. with "
+        "another survey error); default paper_testbed",
+    )
+    parser.add_argument(
         "--compare-with", type=Path, default=None, help="another checkout to time alternately"
     )
     parser.add_argument("--rounds", type=int, default=5, help="rounds of --compare-with")
@@ -301,7 +307,7 @@ def main(argv: list[str] | None = None) -> int:
     with tempfile.TemporaryDirectory() as tmp:
         rec = args.recording or Path(tmp) / "paper_testbed"
         if args.recording is None:
-            sim_args = ["paper_testbed", str(rec), "--quiet", "--force"]
+            sim_args = [args.scenario, str(rec), "--quiet", "--force"]
             sim_args += ["--duration", str(args.duration)]
             if simulate_main(sim_args) != 0:
                 return 1
@@ -309,7 +315,7 @@ def main(argv: list[str] | None = None) -> int:
         with poses.open("w") as f:
             replay(rec, f)
         acc = accuracy(rec, poses)
-        rotation, shift, mount_yaw = map_frame("paper_testbed")
+        rotation, shift, mount_yaw = map_frame(args.scenario)
         in_map = accuracy(rec, poses, frame=(rotation, shift))
         print(f"Sec. V on the simulated test bed ({int(acc['stops'])} parked stops)")
         print(f"  {'':<26}{'irloc':>10}{'paper':>10}{'target':>10}{'map frame':>11}")
