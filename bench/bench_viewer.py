@@ -5,10 +5,14 @@ The clients are plain WebSocket clients speaking viser's protocol (they send one
 message, then read everything), run in a separate process so that only the viewer's own
 work (scene updates, viser serialisation and sending) is counted in this process. They
 connect to viser directly on 127.0.0.1: the API proxy's relay (one more copy per message,
-in the server process) is not included. Browsers are not used: software WebGL would cost
-~1.7 cores and measure Chromium, not the viewer.
+in the server process) is not included.
 
-    .venv/bin/python bench/bench_viewer.py [--seconds 10]
+    .venv/bin/python bench/bench_viewer.py [--seconds 10] [--browsers]
+
+`--browsers` adds rows with real browsers: pages of Debian's headless Chromium
+(/usr/bin/chromium, driven by Playwright, software WebGL) in another process. They check that
+a browser costs the viewer what a plain client does; on a 2-core machine Chromium takes most
+of both cores, so the scene rate may drop while they run.
 """
 
 from __future__ import annotations
@@ -28,6 +32,8 @@ from localizer.events import PoseEstimate
 from sim.cameras import wide_angle_camera
 from web.services import CameraView, Candidate, EventLine, FramePose, LandmarkState, RobotState
 from web.viewer import Viewer
+
+CHROMIUM = "/usr/bin/chromium"
 
 
 class SyntheticSite:
@@ -112,22 +118,40 @@ async def _clients(port: int, n: int, seconds: float) -> list[int]:
     return counts
 
 
-def measure(viewer: Viewer, n_clients: int, seconds: float) -> dict[str, float]:
+def _browsers(port: int, n: int, seconds: float) -> list[int]:
+    """`n` pages of headless Chromium on the viewer for `seconds`; bytes are not counted."""
+    from playwright.sync_api import sync_playwright
+
+    args = ["--headless=new", "--no-sandbox", "--disable-gpu", "--no-first-run"]
+    with sync_playwright() as pw:
+        browser = pw.chromium.launch(executable_path=CHROMIUM, headless=True, args=args)
+        pages = [browser.new_page(viewport={"width": 1280, "height": 800}) for _ in range(n)]
+        for page in pages:
+            page.goto(f"http://127.0.0.1:{port}/")
+        time.sleep(seconds)
+        browser.close()
+    return [0] * n
+
+
+def measure(
+    viewer: Viewer, n_clients: int, seconds: float, *, browsers: bool = False
+) -> dict[str, float]:
     proc = None
     if n_clients:
+        kind = "--browser" if browsers else "--client"
         proc = subprocess.Popen(
-            [sys.executable, __file__, "--client", str(viewer.port), str(n_clients),
-             str(seconds + 2)],
+            [sys.executable, __file__, kind, str(viewer.port), str(n_clients),
+             str(seconds + (20 if browsers else 2))],
             stdout=subprocess.PIPE, text=True,
         )  # fmt: skip
-        time.sleep(2.0)  # connect and receive the initial scene before measuring
+        time.sleep(15.0 if browsers else 2.0)  # connect, load, receive the initial scene
     ticks0, t0, c0 = viewer.ticks, time.monotonic(), time.process_time()
     time.sleep(seconds)
     cpu, wall = time.process_time() - c0, time.monotonic() - t0
     rate = (viewer.ticks - ticks0) / wall
     out = {"clients": n_clients, "cpu_percent_of_one_core": 100 * cpu / wall, "updates_hz": rate}
     if proc is not None:
-        stdout, _ = proc.communicate(timeout=60)
+        stdout, _ = proc.communicate(timeout=120)
         counts = json.loads(stdout.strip().splitlines()[-1])
         out["kB_per_s_per_client"] = sum(counts) / len(counts) / (seconds + 2) / 1000
     return out
@@ -135,13 +159,19 @@ def measure(viewer: Viewer, n_clients: int, seconds: float) -> dict[str, float]:
 
 def main(argv: list[str] | None = None) -> int:
     args = sys.argv[1:] if argv is None else argv
-    if args and args[0] == "--client":
+    if args and args[0] in ("--client", "--browser"):
         port, n, seconds = int(args[1]), int(args[2]), float(args[3])
-        print(json.dumps(asyncio.run(_clients(port, n, seconds))))
+        if args[0] == "--browser":
+            print(json.dumps(_browsers(port, n, seconds)))
+        else:
+            print(json.dumps(asyncio.run(_clients(port, n, seconds))))
         return 0
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--seconds", type=float, default=10.0)
+    p.add_argument("--browsers", action="store_true", help="also 1 and 5 Chromium pages")
     ns = p.parse_args(args)
+    if ns.browsers and not os.path.exists(CHROMIUM):
+        p.error(f"--browsers needs Debian's chromium at {CHROMIUM} (apt-get install chromium)")
     viewer = Viewer(SyntheticSite())
     viewer.start()
     try:
@@ -157,6 +187,12 @@ def main(argv: list[str] | None = None) -> int:
             print(
                 f"  {n} clients: {r['cpu_percent_of_one_core']:5.1f} % of one core, "
                 f"scene updates {r['updates_hz']:.1f} Hz{extra}"
+            )
+        for n in (1, 5) if ns.browsers else ():
+            r = measure(viewer, n, ns.seconds, browsers=True)
+            print(
+                f"  {n} Chromium page(s): {r['cpu_percent_of_one_core']:5.1f} % of one core, "
+                f"scene updates {r['updates_hz']:.1f} Hz (load {os.getloadavg()[0]:.1f})"
             )
     finally:
         viewer.stop()
