@@ -8,6 +8,8 @@ from one thread at up to `rate_hz`, and builds each browser's GUI for its role.
 
 from __future__ import annotations
 
+import contextlib
+import io
 import logging
 import secrets
 import threading
@@ -140,7 +142,7 @@ class Viewer:
             self._adapter = SiteAdapter(self.services)
             self.site = self._adapter
         self.wizard = IdentificationWizard(self.site)
-        self.server = viser.ViserServer(self.host, self._port, label="irloc", verbose=False)
+        self.server = _start_viser(self.host, self._port)
         try:
             check_viser(self.server)
         except ViserCompatError as exc:  # every browser will be read-only
@@ -262,3 +264,14 @@ class Viewer:
                     with self._lock:
                         self._panels.pop(cid, None)
         self.ticks += 1
+
+
+def _start_viser(host: str, port: int) -> viser.ViserServer:
+    """Start viser without its banner: viser 1.1 prints its own URL to stdout even with
+    `verbose=False`, and that URL is the loopback port behind the proxy, not the one users
+    should open (the server prints `/viewer/?token=...`); the banner goes to the debug log."""
+    banner = io.StringIO()
+    with contextlib.redirect_stdout(banner):
+        server = viser.ViserServer(host, port, label="irloc", verbose=False)
+    log.debug("viser started on %s:%d: %s", host, port, banner.getvalue().strip())
+    return server
