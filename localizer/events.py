@@ -7,6 +7,7 @@ count of nanoseconds on the owner's clock (the recording's clock in a replay).
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from typing import Literal
 
@@ -67,6 +68,10 @@ class LedsChanged:
     lit: frozenset[int] = field(default_factory=frozenset)
     all_lit: bool = False
     changing: frozenset[int] = field(default_factory=frozenset)
+
+    def lit_among(self, landmarks: Iterable[int]) -> frozenset[int]:
+        """The lit landmarks, `all_lit` expanded to `landmarks` (every landmark controlled)."""
+        return frozenset(int(i) for i in landmarks) if self.all_lit else self.lit
 
 
 @dataclass(frozen=True)

@@ -213,7 +213,7 @@ class SiteServices:
         gw = self.gateway
         if gw is None or gw.leds is None:
             return frozenset()
-        return frozenset(gw.landmarks) if gw.leds.all_lit else gw.leds.lit
+        return gw.leds.lit_among(gw.landmarks)
 
     async def discover(self) -> list[DiscoveredRadio]:
         """Radios that answer and are not in the map (kept in `discovered`)."""

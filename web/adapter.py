@@ -95,7 +95,7 @@ class SiteAdapter:
 
     def _on_leds(self, event: LedsChanged) -> None:
         """Every LED state the gateway publishes (on the server's loop)."""
-        landmarks = frozenset(self._gateway.landmarks) if event.all_lit else ()
+        landmarks = self._gateway.landmarks  # what all_lit means
         with self._led_lock:
             self._leds.add(event, landmarks)
 

@@ -61,8 +61,7 @@ class LedTimeline:
         t_ns = event.t_ns
         if self._states and t_ns < self._states[-1].t_ns:
             return
-        lit = frozenset(int(i) for i in landmarks) if event.all_lit else frozenset(event.lit)
-        self._states.append(_State(t_ns, lit, frozenset(event.changing)))
+        self._states.append(_State(t_ns, event.lit_among(landmarks), frozenset(event.changing)))
         horizon = t_ns - round(self.keep_s * 1e9)
         while len(self._states) >= 2 and self._states[1].t_ns <= horizon:
             self._states.popleft()

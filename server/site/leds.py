@@ -137,7 +137,7 @@ class LedCoordinator:
         state = self.gateway.leds
         if state is None or state.changing:
             return None
-        return set(self.gateway.landmarks) if state.all_lit else set(state.lit)
+        return set(state.lit_among(self.gateway.landmarks))
 
     async def _apply(self, robot: str, req: LedRequest) -> bool:
         """Apply one request; True when every LED is now meant to be lit."""
