@@ -118,8 +118,8 @@ async def _clients(port: int, n: int, seconds: float) -> list[int]:
     return counts
 
 
-def _browsers(port: int, n: int, seconds: float) -> list[int]:
-    """`n` pages of headless Chromium on the viewer for `seconds`; bytes are not counted."""
+def _browsers(port: int, n: int, seconds: float) -> None:
+    """`n` pages of headless Chromium on the viewer for `seconds` (bytes are not counted)."""
     from playwright.sync_api import sync_playwright
 
     args = ["--headless=new", "--no-sandbox", "--disable-gpu", "--no-first-run"]
@@ -130,7 +130,6 @@ def _browsers(port: int, n: int, seconds: float) -> list[int]:
             page.goto(f"http://127.0.0.1:{port}/")
         time.sleep(seconds)
         browser.close()
-    return [0] * n
 
 
 def measure(
@@ -152,8 +151,9 @@ def measure(
     out = {"clients": n_clients, "cpu_percent_of_one_core": 100 * cpu / wall, "updates_hz": rate}
     if proc is not None:
         stdout, _ = proc.communicate(timeout=120)
-        counts = json.loads(stdout.strip().splitlines()[-1])
-        out["kB_per_s_per_client"] = sum(counts) / len(counts) / (seconds + 2) / 1000
+        if not browsers:
+            counts = json.loads(stdout.strip().splitlines()[-1])
+            out["kB_per_s_per_client"] = sum(counts) / len(counts) / (seconds + 2) / 1000
     return out
 
 
@@ -162,7 +162,7 @@ def main(argv: list[str] | None = None) -> int:
     if args and args[0] in ("--client", "--browser"):
         port, n, seconds = int(args[1]), int(args[2]), float(args[3])
         if args[0] == "--browser":
-            print(json.dumps(_browsers(port, n, seconds)))
+            _browsers(port, n, seconds)
         else:
             print(json.dumps(asyncio.run(_clients(port, n, seconds))))
         return 0
