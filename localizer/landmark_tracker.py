@@ -33,8 +33,9 @@ from localizer.handoff import (
     visible_radius_m,
 )
 from localizer.landmark_map import LandmarkMap
-from localizer.pose import solve_pose
+from localizer.pose import PoseFix, solve_pose
 from localizer.pose_filter import PoseFilter
+from localizer.relocalization import relocalize
 from localizer.robot import RobotGeometry
 from localizer.spot_windows import spot_rows_in_windows
 from localizer.spots import Spots, detect_spots, estimate_background
@@ -123,8 +124,16 @@ class LandmarkTracker:
         candidates: npt.NDArray[np.int64] | None,
         spots: Spots | None = None,
         reacquire: bool = False,
+        since_sample_s: float = 0.0,
     ) -> TrackResult:
         """Find the lit landmarks near their predictions, solve and fuse.
+
+        The prediction extrapolates the last odometry sample's speeds to the frame's time;
+        the wheels may have changed speed since (a turn in place starting right after
+        driving). When no fix fits that prediction, a second hypothesis is tried: the pose
+        uncertainty widened by a change of each wheel's speed of `speed_change_sigma` x the
+        maximum speed over `since_sample_s` (windows and gates widen with it, most at the
+        image edge where a rotation moves spots most).
 
         Args:
             filt: the pose filter, at the frame's time; a fix is fused into it.
@@ -136,7 +145,28 @@ class LandmarkTracker:
             spots: the frame's spots when already detected (full frame).
             reacquire: require a map-consistent hypothesis (also forced by a large
                 position uncertainty).
+            since_sample_s: time from the last odometry sample to the frame, seconds.
         """
+        result = self._attempt(filt, e, dt_frame_s, fresh_odometry, candidates, spots, reacquire)
+        if result.used or not result.expected or since_sample_s <= 0 or reacquire:
+            return result
+        tc = self.config.tracking
+        sv = tc.speed_change_sigma * self.robot.max_speed * since_sample_s
+        filt.inflate(0.5 * sv * sv, 2.0 * (sv / self.robot.wheel_base) ** 2)
+        retry = self._attempt(filt, e, dt_frame_s, fresh_odometry, candidates, spots, reacquire)
+        return retry if retry.used else result
+
+    def _attempt(
+        self,
+        filt: PoseFilter,
+        e: Frame,
+        dt_frame_s: float,
+        fresh_odometry: bool,
+        candidates: npt.NDArray[np.int64] | None,
+        spots: Spots | None,
+        reacquire: bool,
+    ) -> TrackResult:
+        """One prediction, search, assignment and fusion (see `step`)."""
         pose, cov = filt.pose, filt.covariance_rows
         sigma_xy = position_sigma_m(cov)
         pred = predict_landmarks(
@@ -188,6 +218,43 @@ class LandmarkTracker:
             pairs = [(rows[k], s) for k, s in bottleneck_assignment(d, gates)]
         used = self._fuse(filt, pairs, spot_px, pose) if len(pairs) >= 2 else ()
         return TrackResult(used, unexplained=not used and len(pred) >= 2, expected=expected)
+
+    def relocalize(
+        self,
+        filt: PoseFilter,
+        spots: Spots,
+        candidates: npt.NDArray[np.int64] | None,
+    ) -> PoseFix | None:
+        """Re-localization without LEDs (`relocalization.relocalize`) around the filter's
+        pose and covariance: the fix of the one unambiguous hypothesis, or None."""
+        rows = np.arange(len(self.map.positions)) if candidates is None else candidates
+        if len(rows) < 2 or len(spots) < 2:
+            return None
+        pose = filt.pose
+        cov = filt.covariance + np.diag([1e-4, 1e-4, 1e-4])
+        # only the landmarks that could be in view of a pose within the prior
+        reach = self._reach + 3.0 * position_sigma_m(cov)
+        P = self.map.positions[rows]
+        rows = rows[np.hypot(P[:, 0] - pose[0], P[:, 1] - pose[1]) <= reach]
+        if len(rows) < 2:
+            return None
+        rc = self.config.relocalization
+        found = relocalize(self.camera, self.map.positions[rows], spots.pixels, pose, cov, rc)
+        if not found.accepted or found.pose is None:
+            return None
+        pairs = [(int(rows[r]), s) for r, s in found.pairs]
+        fc = self.config.fusion
+        fix = solve_pose(
+            self.camera,
+            spots.pixels[[s for _, s in pairs]],
+            self.map.positions[[r for r, _ in pairs]],
+            initial=found.pose,
+            pixel_sigma_px=fc.pixel_sigma_px,
+            landmark_ids=tuple(self._ids[r] for r, _ in pairs),
+        )
+        if fix is None or fix.residual_rms_px > 2.0 * fc.max_residual_px:
+            return None
+        return fix
 
     def _reacquire(
         self,

@@ -60,7 +60,7 @@ class FilterConfig:
             third landmark after a first fix from two) are not smoothed into a slow drift.
     """
 
-    wheel_noise_m_per_sqrt_s: float = 0.0003
+    wheel_noise_m_per_sqrt_s: float = 0.003
     wheel_slip_m_per_sqrt_m: float = 0.002
     calibration_walk_per_sqrt_s: float = 1e-5
     calibration_prior_sigma: float = 0.03
@@ -196,6 +196,7 @@ class PoseFilter:
         self._offset = [0.0, 0.0, 0.0]  # output_state - state
         self._age_s = 0.0  # time since the last reset
         self._propagation = DeferredPropagation()
+        self.noise_scale = 1.0  # odometry noise over the configured one (adapted online)
         self.reset(x, y, theta, covariance)
 
     # -- state ----------------------------------------------------------------------------------
@@ -270,6 +271,28 @@ class PoseFilter:
         self._offset = [0.0, 0.0, 0.0]
         self._age_s = 0.0
 
+    def copy(self) -> PoseFilter:
+        """An independent copy (state, covariance, output offset): a frame's tentative
+        filter, extrapolated past the last odometry sample and kept only if a fix is fused."""
+        self._flush()
+        twin = object.__new__(PoseFilter)
+        twin.config, twin.wheel_base = self.config, self.wheel_base
+        twin._X = list(self._X)
+        twin._P = [list(r) for r in self._P]
+        twin._offset = list(self._offset)
+        twin._age_s = self._age_s
+        twin._propagation = DeferredPropagation()
+        twin.noise_scale = self.noise_scale
+        return twin
+
+    def inflate(self, var_xy_m2: float, var_theta_rad2: float) -> None:
+        """Add independent variance to the pose: an unmodelled motion (e.g. the wheel speeds
+        may have changed since the last odometry sample)."""
+        self._flush()
+        self._P[0][0] += var_xy_m2
+        self._P[1][1] += var_xy_m2
+        self._P[2][2] += var_theta_rad2
+
     # -- predict --------------------------------------------------------------------------------
     def predict(self, v_left: float, v_right: float, dt: float) -> None:
         """Dead-reckon over `dt` seconds with the measured wheel speeds (m/s); any rate.
@@ -282,7 +305,8 @@ class PoseFilter:
         X = self._X
         self._X, F_top, G = motion_step(X, v_left, v_right, dt, self.wheel_base)
         # M: variance of each wheel's true speed, from its travel's noise over the step
-        q2, s2 = cfg.wheel_noise_m_per_sqrt_s**2 * dt, cfg.wheel_slip_m_per_sqrt_m**2
+        k2 = self.noise_scale * self.noise_scale
+        q2, s2 = k2 * cfg.wheel_noise_m_per_sqrt_s**2 * dt, k2 * cfg.wheel_slip_m_per_sqrt_m**2
         m_l = (q2 + s2 * abs(X[4] * v_left * dt)) / (dt * dt)
         m_r = (q2 + s2 * abs(X[3] * v_right * dt)) / (dt * dt)
 
