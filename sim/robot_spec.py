@@ -86,7 +86,7 @@ def route_from_node(n: Node, max_speed: float, start_theta: float) -> Route:
             steps.append(
                 Kidnap(
                     x, y, math.radians(deg),
-                    k.number("carry_s", 2.0, low=0.0, high=60.0),
+                    k.number("carry_s", 2.0, low=0.1, high=60.0),
                     k.number("lift_m", 0.3, low=0.0, high=1.5),
                 )
             )  # fmt: skip
