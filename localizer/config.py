@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 
 from localizer.handoff import HandoffConfig
 from localizer.identification import IdentificationConfig
+from localizer.noise_model import PixelNoiseConfig
 from localizer.pose_filter import FilterConfig
 from localizer.relocalization import RelocalizationConfig
 from localizer.spots import DetectionConfig
@@ -21,7 +22,15 @@ class FusionConfig:
         pixel_sigma_px: standard deviation of a spot's position per axis, pixels: centroid
             noise plus what the calibration leaves (solver weight and fix covariance; too
             small a value makes honest fixes fail the innovation gate).
-        max_residual_px: a fix whose reprojection RMS exceeds this is inconsistent, pixels.
+        max_residual_px: a first fix (from identification) whose reprojection RMS exceeds
+            this is inconsistent, pixels.
+        robust_loss: the tracking fix's robust loss ("huber", "cauchy" or None: least
+            squares), with 3+ landmarks.
+        robust_scale: its threshold, in pixel sigmas (`LocalizerConfig.noise`).
+        outlier_sigma: a landmark whose residual exceeds this many of its pixel sigmas is
+            left out of the fix (the others are solved again).
+        max_chi2_per_dof: a tracking fix whose chi-square per degree of freedom (2n - 3)
+            exceeds this is inconsistent.
         nis_gate: a fix whose normalised innovation squared (3 dof) exceeds this is rejected
             (16.3 is the 99.9 % point of chi-square with 3 dof).
         tilt_from_landmarks: with 3+ landmarks also estimate the body tilt (taken only when
@@ -50,6 +59,10 @@ class FusionConfig:
 
     pixel_sigma_px: float = 1.0
     max_residual_px: float = 2.0
+    robust_loss: str | None = "huber"
+    robust_scale: float = 2.0
+    outlier_sigma: float = 4.0
+    max_chi2_per_dof: float = 9.0
     nis_gate: float = 16.3
     tilt_from_landmarks: bool = True
     tilt_sigma_rad: float = 0.02
@@ -75,3 +88,4 @@ class LocalizerConfig:
     fusion: FusionConfig = field(default_factory=FusionConfig)
     filter: FilterConfig = field(default_factory=FilterConfig)
     relocalization: RelocalizationConfig = field(default_factory=RelocalizationConfig)
+    noise: PixelNoiseConfig = field(default_factory=PixelNoiseConfig)

@@ -33,6 +33,7 @@ from localizer.handoff import (
     visible_radius_m,
 )
 from localizer.landmark_map import LandmarkMap
+from localizer.noise_model import PixelNoiseModel
 from localizer.pose import PoseFix, solve_pose
 from localizer.pose_filter import PoseFilter
 from localizer.relocalization import relocalize
@@ -106,6 +107,10 @@ class LandmarkTracker:
         ceiling_m = float(np.median(heights)) if len(heights) else 2.2
         self.scale_px_per_m = scale_px_per_m(max(self.camera.fu, self.camera.fv), ceiling_m)
         self._reach = visible_radius_m(self.camera, float(np.max(heights, initial=ceiling_m)))
+        old: PixelNoiseModel | None = getattr(self, "noise", None)
+        self.noise = PixelNoiseModel(self.camera, self.config.noise, self.scale_px_per_m)
+        if old is not None:
+            self.noise.factor = old.factor  # what the residuals taught so far
 
     def full_spots(self, e: Frame) -> Spots:
         """The spots of the whole frame (remembering its background for the windows)."""
@@ -185,9 +190,10 @@ class LandmarkTracker:
         dt_free = dt_frame_s * (tc.odometry_speed_fraction if fresh_odometry else 1.0)
         px = pred.pixel_list
         cu, cv = self.camera.cu, self.camera.cv
+        noise = self.noise.sigma_px
         gates = [  # window half sizes and assignment gates, pixels
             tc.min_half_size_px
-            + tc.sigma_gate * sigma
+            + tc.sigma_gate * math.hypot(sigma, noise(u, v))
             + motion_bound_px(
                 math.hypot(u - cu, v - cv),
                 max_speed_m_s=self.robot.max_speed,
@@ -244,15 +250,14 @@ class LandmarkTracker:
             return None
         pairs = [(int(rows[r]), s) for r, s in found.pairs]
         fc = self.config.fusion
-        fix = solve_pose(
-            self.camera,
-            spots.pixels[[s for _, s in pairs]],
-            self.map.positions[[r for r, _ in pairs]],
-            initial=found.pose,
-            pixel_sigma_px=fc.pixel_sigma_px,
-            landmark_ids=tuple(self._ids[r] for r, _ in pairs),
-        )
-        if fix is None or fix.residual_rms_px > 2.0 * fc.max_residual_px:
+        px = spots.pixels[[s for _, s in pairs]].tolist()
+        sig = [self.noise.sigma_px(u, v) for u, v in px]
+        fix = self._solve([r for r, _ in pairs], px, sig, found.pose, robust=True)
+        if fix is None or fix.n_landmarks < 2:
+            return None
+        res = fix.residuals_px or (fix.residual_rms_px,) * len(sig)
+        inliers = sum(1 for r, si in zip(res, sig, strict=True) if r <= fc.outlier_sigma * si)
+        if inliers < max(2, 0.8 * len(sig)):
             return None
         return fix
 
@@ -289,23 +294,67 @@ class LandmarkTracker:
         spot_px: list[list[float]],
         pose: tuple[float, float, float],
     ) -> tuple[int, ...]:
-        """Solve the pose from matched (map row, spot) pairs; fuse it when consistent."""
+        """Solve the pose from matched (map row, spot) pairs; fuse it when consistent.
+
+        Robust: with 3+ landmarks the solve uses `FusionConfig.robust_loss`; a landmark whose
+        residual then exceeds `outlier_sigma` of its own pixel sigma is left out and the rest
+        solved again (one bad pair costs that pair, never the fix). The fix is then gated by
+        its chi-square per degree of freedom and by its NIS against the filter.
+        """
         fc = self.config.fusion
         rows = [r for r, _ in pairs]
         px = [spot_px[s] for _, s in pairs]
-        ids = tuple(self._ids[r] for r in rows)
-        fix = solve_pose(
-            self.camera,
-            px,
-            self.map.positions[rows],
-            initial=pose,
-            estimate_tilt=fc.tilt_from_landmarks and len(pairs) >= 3,
-            tilt_sigma_rad=fc.tilt_sigma_rad,
-            pixel_sigma_px=fc.pixel_sigma_px,
-            landmark_ids=ids,
-        )
-        if fix is None or fix.residual_rms_px > fc.max_residual_px:
+        sig = [self.noise.sigma_px(u, v) for u, v in px]
+        fix = self._solve(rows, px, sig, pose, robust=len(rows) >= 3)
+        if fix is None:
+            return ()
+        res = fix.residuals_px
+        if res:
+            keep = [i for i, (r, si) in enumerate(zip(res, sig, strict=True))
+                    if r <= fc.outlier_sigma * si]  # fmt: skip
+            if len(keep) < len(rows):
+                if len(keep) < 2:
+                    return ()
+                rows, px, sig = (
+                    [rows[i] for i in keep],
+                    [px[i] for i in keep],
+                    [sig[i] for i in keep],
+                )
+                fix = self._solve(rows, px, sig, (fix.x, fix.y, fix.theta), robust=False)
+                if fix is None:
+                    return ()
+                res = fix.residuals_px
+        n = len(rows)
+        if res:
+            chi2 = sum((r / si) ** 2 for r, si in zip(res, sig, strict=True))
+        else:  # (a tilted fit: its RMS against the mean sigma)
+            chi2 = n * (fix.residual_rms_px / (sum(sig) / n)) ** 2
+        if chi2 / max(2 * n - 3, 1) > fc.max_chi2_per_dof:
             return ()
         if not filt.update_fix(fix, max_nis=fc.nis_gate) <= fc.nis_gate:
             return ()
-        return ids
+        self.noise.observe(chi2, n)
+        return fix.landmark_ids
+
+    def _solve(
+        self,
+        rows: list[int],
+        px: list[list[float]],
+        sig: list[float],
+        initial: tuple[float, float, float],
+        *,
+        robust: bool,
+    ) -> PoseFix | None:
+        fc = self.config.fusion
+        return solve_pose(
+            self.camera,
+            px,
+            self.map.positions[rows],
+            initial=initial,
+            estimate_tilt=fc.tilt_from_landmarks and len(rows) >= 3,
+            tilt_sigma_rad=fc.tilt_sigma_rad,
+            pixel_sigma_px=sig,
+            landmark_ids=tuple(self._ids[r] for r in rows),
+            loss=fc.robust_loss if robust else None,
+            loss_scale=fc.robust_scale,
+        )

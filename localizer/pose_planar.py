@@ -107,36 +107,76 @@ def procrustes_2d(
     return Px - (c * qx - s * qy), Py - (s * qx + c * qy), theta
 
 
+def huber_weight(e: float, k: float) -> float:
+    """IRLS weight of a whitened residual norm `e` under Huber's loss with threshold `k`
+    (sigmas): 1 inside, k / e beyond (the loss grows linearly there, not quadratically)."""
+    return 1.0 if e <= k else k / e
+
+
+def cauchy_weight(e: float, k: float) -> float:
+    """IRLS weight under the Cauchy (Lorentzian) loss with scale `k`: 1 / (1 + (e / k)^2)
+    (a far outlier's influence goes to zero)."""
+    return 1.0 / (1.0 + (e / k) ** 2)
+
+
+ROBUST_WEIGHTS = {"huber": huber_weight, "cauchy": cauchy_weight}
+
+
 def solve_planar(
     q: list[Point],
     G: list[Mat2],
     P: list[Point],
     start: tuple[float, float, float],
-    sigma_px: float,
+    sigma_px: float | Sequence[float],
     max_iterations: int,
-) -> tuple[tuple[float, float, float], list[float], float] | None:
-    """Gauss-Newton for (x, y, theta) minimising sum |G_i^-1 (q_i - Rz^T (P_i - t))|^2 / sigma^2.
+    *,
+    loss: str | None = None,
+    loss_scale: float = 2.0,
+) -> tuple[tuple[float, float, float], list[float], float, list[float]] | None:
+    """Gauss-Newton for (x, y, theta) minimising sum rho(|G_i^-1 (q_i - Rz^T (P_i - t))| / sigma_i).
 
-    With W_i = G_i^-1 / sigma, r_i = q_i - Rz^T (P_i - t) and (u_i, v_i) = Rz^T (P_i - t), the
-    Jacobian of W_i r_i is W_i [Rz^T | (-v_i, u_i)], so J^T J and J^T e need only the
-    information matrices O_i = W_i^T W_i: the (x, y) block is Rz (sum O_i) Rz^T (sum O_i
-    once), the rest comes from O_i r_i and O_i (-v_i, u_i) in the body frame.
+    With W_i = G_i^-1 / sigma_i, r_i = q_i - Rz^T (P_i - t) and (u_i, v_i) = Rz^T (P_i - t),
+    the Jacobian of W_i r_i is W_i [Rz^T | (-v_i, u_i)], so J^T J and J^T e need only the
+    information matrices O_i = W_i^T W_i: the (x, y) block is Rz (sum O_i) Rz^T, the rest
+    comes from O_i r_i and O_i (-v_i, u_i) in the body frame. rho is the square (plain least
+    squares) or, with `loss`, Huber's or Cauchy's loss by iteratively reweighted least
+    squares: each iteration weighs O_i by `huber_weight` / `cauchy_weight` of landmark i's
+    whitened residual, so one bad spot pulls the pose by a bounded amount instead of
+    quadratically.
+
+    Args:
+        sigma_px: pixel standard deviation, one for all or one per landmark.
+        loss: None, "huber" or "cauchy".
+        loss_scale: the loss's threshold / scale, in sigmas.
 
     Returns:
-        ((x, y, theta), covariance as (c00 c01 c02 c11 c12 c22), residual RMS in pixels),
-        or None when singular or not converged.
+        ((x, y, theta), covariance as (c00 c01 c02 c11 c12 c22), residual RMS in pixels,
+        each landmark's reprojection error in pixels), or None when singular or not
+        converged. The covariance is that of the weighted problem.
     """
-    O: list[tuple[float, float, float]] = []  # W^T W as (o00, o01, o11)
-    for g00, g01, g10, g11 in G:
-        det = (g00 * g11 - g01 * g10) * sigma_px
+    n = len(q)
+    sig = [float(sigma_px)] * n if isinstance(sigma_px, int | float) else list(sigma_px)
+    weight = ROBUST_WEIGHTS[loss] if loss is not None else None
+    O0: list[tuple[float, float, float]] = []  # W^T W as (o00, o01, o11)
+    for (g00, g01, g10, g11), si in zip(G, sig, strict=True):
+        det = (g00 * g11 - g01 * g10) * si
         if det == 0.0:
             return None
         w00, w01, w10, w11 = g11 / det, -g01 / det, -g10 / det, g00 / det
-        O.append((w00 * w00 + w10 * w10, w00 * w01 + w10 * w11, w01 * w01 + w11 * w11))
-    S00, S01, S11 = (sum(o[k] for o in O) for k in range(3))
+        O0.append((w00 * w00 + w10 * w10, w00 * w01 + w10 * w11, w01 * w01 + w11 * w11))
+    O = O0
     x, y, th = start
-    for _ in range(max_iterations):
+    e2 = [0.0] * n
+    for it in range(max_iterations + (5 if weight else 0)):
         c, s = math.cos(th), math.sin(th)
+        if weight is not None:  # reweigh from the current residuals
+            for i, ((qx, qy), (X, Y), (o00, o01, o11)) in enumerate(zip(q, P, O0, strict=True)):
+                dX, dY = X - x, Y - y
+                rx, ry = qx - (c * dX + s * dY), qy - (-s * dX + c * dY)
+                e2[i] = o00 * rx * rx + 2.0 * o01 * rx * ry + o11 * ry * ry
+            ws = [weight(math.sqrt(v), loss_scale) for v in e2]
+            O = [(w * a, w * b, w * d) for w, (a, b, d) in zip(ws, O0, strict=True)]
+        S00, S01, S11 = (sum(o[k] for o in O) for k in range(3))
         m0 = m1 = k0 = k1 = h22 = g2 = ee = 0.0
         for (qx, qy), (X, Y), (o00, o01, o11) in zip(q, P, O, strict=True):
             dX, dY = X - x, Y - y
@@ -164,13 +204,18 @@ def solve_planar(
         x, y, th = x + d0, y + d1, th + d2
         # the step's length in standard deviations squared: d^T H d = -d^T g
         step2 = -(d0 * g0 + d1 * g1 + d2 * g2)
-        if step2 < 1e-6:
+        if step2 < 1e-6 and (weight is None or it >= 2):
             break
     else:
         return None
-    # residual after the last step, to first order: |e + J d|^2 = |e|^2 - d^T H d
-    rms = sigma_px * math.sqrt(max(ee - step2, 0.0) / len(q))
-    return (x, y, th), cov, rms
+    c, s = math.cos(th), math.sin(th)
+    res = []
+    for (qx, qy), (X, Y), (o00, o01, o11), si in zip(q, P, O0, sig, strict=True):
+        dX, dY = X - x, Y - y
+        rx, ry = qx - (c * dX + s * dY), qy - (-s * dX + c * dY)
+        res.append(si * math.sqrt(max(o00 * rx * rx + 2.0 * o01 * rx * ry + o11 * ry * ry, 0.0)))
+    rms = math.sqrt(sum(r * r for r in res) / n)
+    return (x, y, th), cov, rms, res
 
 
 def rotation_world_body(theta: float, roll: float = 0.0, pitch: float = 0.0) -> FloatArray:
