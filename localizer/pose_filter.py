@@ -58,6 +58,11 @@ class FilterConfig:
         output_settle_s: for this long after `reset` (a first fix, a relocalisation) the
             output takes corrections at once: the refinements of a fresh estimate (e.g. a
             third landmark after a first fix from two) are not smoothed into a slow drift.
+        adapt_noise: adapt the odometry noise (`noise_scale`, a factor on both noise
+            terms) from the fused fixes' NIS: a running estimate of NIS / 3 (1 when the
+            filter's predicted covariance is right); the configured values are the prior.
+        adapt_gain: weight of one fix in that running estimate.
+        noise_scale_bounds: the factor stays within these.
     """
 
     wheel_noise_m_per_sqrt_s: float = 0.003
@@ -69,6 +74,9 @@ class FilterConfig:
     output_time_constant_s: float = 0.2
     output_snap_m: float = 0.5
     output_settle_s: float = 1.0
+    adapt_noise: bool = True
+    adapt_gain: float = 0.005
+    noise_scale_bounds: tuple[float, float] = (0.7, 4.0)
 
     def __post_init__(self) -> None:
         for name in (
@@ -387,6 +395,10 @@ class PoseFilter:
         X[3], X[4], X[5] = min(max(X[3], lo), hi), min(max(X[4], lo), hi), min(max(X[5], lo), hi)
         self._X = X
 
+        if self.config.adapt_noise:
+            lo_s, hi_s = self.config.noise_scale_bounds
+            k2 = self.noise_scale**2 * (1.0 + self.config.adapt_gain * (min(nis, 30.0) / 3 - 1))
+            self.noise_scale = min(max(math.sqrt(max(k2, 0.0)), lo_s), hi_s)
         jump = [old[0] - X[0], old[1] - X[1], float(wrap_angle(old[2] - X[2]))]
         settling = self._age_s < self.config.output_settle_s
         if settling or math.hypot(jump[0], jump[1]) > self.config.output_snap_m:

@@ -141,3 +141,23 @@ def test_relocalization_of_a_kidnapped_robot_on_an_irregular_ceiling() -> None:
     assert math.hypot(found.pose[0] - truth[0], found.pose[1] - truth[1]) < 0.03
     assert abs(found.pose[2] - truth[2]) < 0.02
     assert found.score - found.second >= RelocalizationConfig().margin
+
+
+def test_odometry_noise_grows_when_fixes_keep_surprising_the_filter() -> None:
+    from localizer.pose import PoseFix
+
+    filt = PoseFilter(0.0, 0.0, 0.0, np.diag([1e-4, 1e-4, 1e-4]), wheel_base=0.36)
+    rng = np.random.default_rng(0)
+    R = np.diag([1e-6, 1e-6, 1e-6])
+    for _ in range(600):  # the robot drifts 5 mm per frame sideways, which odometry misses
+        filt.predict(0.3, 0.3, 1 / 30)
+        x, y, th = filt.pose
+        fix = PoseFix(x + rng.normal(0, 0.005), y + rng.normal(0, 0.005), th, R)
+        filt.update_fix(fix)
+    assert filt.noise_scale > 2.0  # NIS / 3 >> 1: the odometry is noisier than configured
+    assert filt.noise_scale <= filt.config.noise_scale_bounds[1]
+    calm = PoseFilter(0.0, 0.0, 0.0, np.diag([1e-4] * 3), wheel_base=0.36)
+    for _ in range(300):
+        calm.predict(0.3, 0.3, 1 / 30)
+        calm.update_fix(PoseFix(*calm.pose, R))
+    assert calm.noise_scale == pytest.approx(calm.config.noise_scale_bounds[0])
