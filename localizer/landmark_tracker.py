@@ -324,6 +324,18 @@ class LandmarkTracker:
                 if fix is None:
                     return ()
                 res = fix.residuals_px
+        # A spot at the image edge paired with a landmark the fixed pose puts outside the
+        # image (a neighbour of the one that made it, during a fast turn): leave it out.
+        edge = self._off_image(rows, px, (fix.x, fix.y, fix.theta))
+        if edge:
+            keep = [i for i in range(len(rows)) if i not in edge]
+            if len(keep) < 2:
+                return ()
+            rows, px, sig = [rows[i] for i in keep], [px[i] for i in keep], [sig[i] for i in keep]
+            fix = self._solve(rows, px, sig, (fix.x, fix.y, fix.theta), robust=False)
+            if fix is None:
+                return ()
+            res = fix.residuals_px
         n = len(rows)
         if res:
             chi2 = sum((r / si) ** 2 for r, si in zip(res, sig, strict=True))
@@ -335,6 +347,33 @@ class LandmarkTracker:
             return ()
         self.noise.observe(chi2, n)
         return fix.landmark_ids
+
+    def _off_image(
+        self, rows: list[int], px: list[list[float]], pose: tuple[float, float, float]
+    ) -> set[int]:
+        """Indices of the pairs near the image border whose landmark projects outside the
+        image (or away from its spot) at `pose`."""
+        m = self.config.tracking.edge_check_px
+        W, H = self.camera.width, self.camera.height
+        near = [
+            i for i, (u, v) in enumerate(px) if u < m or v < m or u > W - 1 - m or v > H - 1 - m
+        ]
+        if not near:
+            return set()
+        zero = ([0.0] * 3, [0.0] * 3, [0.0] * 3)
+        cand = np.array([rows[i] for i in near], dtype=np.int64)
+        pred = predict_landmarks(self.camera, pose, zero, self.map.positions, candidates=cand,
+                                 scale_px_per_m=self.scale_px_per_m, reach_m=1e9)  # fmt: skip
+        at = dict(zip(pred.row_list, pred.pixel_list, strict=True))
+        out = set()
+        for i in near:
+            p = at.get(rows[i])
+            u, v = px[i]
+            if p is None or math.hypot(p[0] - u, p[1] - v) > self.config.fusion.outlier_sigma * (
+                self.noise.sigma_px(u, v)
+            ):
+                out.add(i)
+        return out
 
     def _solve(
         self,

@@ -92,10 +92,9 @@ class OdometryTrack:
             # at the old speeds.
             x0, y0, th0 = self._at_sample
             if self._marks:
-                marks = set(self._marks)
-                kept = [h for h in history if h[0] not in marks or h[0] <= t0]
-                history.clear()
-                history.extend(kept)
+                # the marks are the newest entries: replace them
+                while len(history) > 1 and history[-1][0] > t0:
+                    history.pop()
                 for tm in self._marks:
                     if t0 < tm <= t_ns:
                         p = integrate_arc(x0, y0, th0, vl, vr, (tm - t0) * _NS, self.wheel_base)

@@ -140,9 +140,11 @@ def solve_planar(
     information matrices O_i = W_i^T W_i: the (x, y) block is Rz (sum O_i) Rz^T, the rest
     comes from O_i r_i and O_i (-v_i, u_i) in the body frame. rho is the square (plain least
     squares) or, with `loss`, Huber's or Cauchy's loss by iteratively reweighted least
-    squares: each iteration weighs O_i by `huber_weight` / `cauchy_weight` of landmark i's
-    whitened residual, so one bad spot pulls the pose by a bounded amount instead of
-    quadratically.
+    squares: each round weighs O_i by `huber_weight` / `cauchy_weight` of landmark i's
+    whitened residual and solves again, until the weights settle, so one bad spot pulls the
+    pose by a bounded amount instead of quadratically. The least-squares fit is the first
+    round; when every residual is within `loss_scale` it is already the answer (the usual
+    frame pays nothing for the robust loss).
 
     Args:
         sigma_px: pixel standard deviation, one for all or one per landmark.
@@ -156,7 +158,6 @@ def solve_planar(
     """
     n = len(q)
     sig = [float(sigma_px)] * n if isinstance(sigma_px, int | float) else list(sigma_px)
-    weight = ROBUST_WEIGHTS[loss] if loss is not None else None
     O0: list[tuple[float, float, float]] = []  # W^T W as (o00, o01, o11)
     for (g00, g01, g10, g11), si in zip(G, sig, strict=True):
         det = (g00 * g11 - g01 * g10) * si
@@ -164,27 +165,67 @@ def solve_planar(
             return None
         w00, w01, w10, w11 = g11 / det, -g01 / det, -g10 / det, g00 / det
         O0.append((w00 * w00 + w10 * w10, w00 * w01 + w10 * w11, w01 * w01 + w11 * w11))
-    O = O0
+    fit = _gauss_newton(q, P, O0, start, max_iterations)
+    if fit is None:
+        return None
+    pose, cov = fit
+    e = _whitened_norms(q, P, O0, pose)
+    if loss is not None and max(e) > loss_scale:
+        # Reweigh until the weights settle (plain least squares is the first iterate).
+        weight = ROBUST_WEIGHTS[loss]
+        ws = [1.0] * n
+        for _ in range(max_iterations):
+            new = [weight(v, loss_scale) for v in e]
+            O = [(w * a, w * b, w * d) for w, (a, b, d) in zip(new, O0, strict=True)]
+            fit = _gauss_newton(q, P, O, pose, max_iterations)
+            if fit is None:
+                return None
+            pose, cov = fit
+            e = _whitened_norms(q, P, O0, pose)
+            if max(abs(u - v) for u, v in zip(new, ws, strict=True)) < 1e-3:
+                break
+            ws = new
+    res = [si * v for si, v in zip(sig, e, strict=True)]
+    rms = math.sqrt(sum(r * r for r in res) / n)
+    return pose, cov, rms, res
+
+
+def _whitened_norms(
+    q: list[Point],
+    P: list[Point],
+    O: list[tuple[float, float, float]],
+    pose: tuple[float, float, float],
+) -> list[float]:
+    """|W_i r_i| per landmark at `pose`: the reprojection error in sigmas."""
+    x, y, th = pose
+    c, s = math.cos(th), math.sin(th)
+    out = []
+    for (qx, qy), (X, Y), (o00, o01, o11) in zip(q, P, O, strict=True):
+        dX, dY = X - x, Y - y
+        rx, ry = qx - (c * dX + s * dY), qy - (-s * dX + c * dY)
+        out.append(math.sqrt(max(o00 * rx * rx + 2.0 * o01 * rx * ry + o11 * ry * ry, 0.0)))
+    return out
+
+
+def _gauss_newton(
+    q: list[Point],
+    P: list[Point],
+    O: list[tuple[float, float, float]],
+    start: tuple[float, float, float],
+    max_iterations: int,
+) -> tuple[tuple[float, float, float], list[float]] | None:
+    """Gauss-Newton on the whitened problem with information matrices O: (pose, H^-1)."""
+    S00, S01, S11 = (sum(o[k] for o in O) for k in range(3))
     x, y, th = start
-    e2 = [0.0] * n
-    for it in range(max_iterations + (5 if weight else 0)):
+    for _ in range(max_iterations):
         c, s = math.cos(th), math.sin(th)
-        if weight is not None:  # reweigh from the current residuals
-            for i, ((qx, qy), (X, Y), (o00, o01, o11)) in enumerate(zip(q, P, O0, strict=True)):
-                dX, dY = X - x, Y - y
-                rx, ry = qx - (c * dX + s * dY), qy - (-s * dX + c * dY)
-                e2[i] = o00 * rx * rx + 2.0 * o01 * rx * ry + o11 * ry * ry
-            ws = [weight(math.sqrt(v), loss_scale) for v in e2]
-            O = [(w * a, w * b, w * d) for w, (a, b, d) in zip(ws, O0, strict=True)]
-        S00, S01, S11 = (sum(o[k] for o in O) for k in range(3))
-        m0 = m1 = k0 = k1 = h22 = g2 = ee = 0.0
+        m0 = m1 = k0 = k1 = h22 = g2 = 0.0
         for (qx, qy), (X, Y), (o00, o01, o11) in zip(q, P, O, strict=True):
             dX, dY = X - x, Y - y
             u, v = c * dX + s * dY, -s * dX + c * dY  # Rz^T (P - t)
             rx, ry = qx - u, qy - v
             a0, a1 = o00 * rx + o01 * ry, o01 * rx + o11 * ry  # O r
             b0, b1 = o01 * u - o00 * v, o11 * u - o01 * v  # O (-v, u)
-            ee += rx * a0 + ry * a1
             m0, m1, k0, k1 = m0 + a0, m1 + a1, k0 + b0, k1 + b1
             h22 += u * b1 - v * b0
             g2 += u * a1 - v * a0
@@ -203,19 +244,9 @@ def solve_planar(
         d2 = -(i02 * g0 + i12 * g1 + i22 * g2)
         x, y, th = x + d0, y + d1, th + d2
         # the step's length in standard deviations squared: d^T H d = -d^T g
-        step2 = -(d0 * g0 + d1 * g1 + d2 * g2)
-        if step2 < 1e-6 and (weight is None or it >= 2):
-            break
-    else:
-        return None
-    c, s = math.cos(th), math.sin(th)
-    res = []
-    for (qx, qy), (X, Y), (o00, o01, o11), si in zip(q, P, O0, sig, strict=True):
-        dX, dY = X - x, Y - y
-        rx, ry = qx - (c * dX + s * dY), qy - (-s * dX + c * dY)
-        res.append(si * math.sqrt(max(o00 * rx * rx + 2.0 * o01 * rx * ry + o11 * ry * ry, 0.0)))
-    rms = math.sqrt(sum(r * r for r in res) / n)
-    return (x, y, th), cov, rms, res
+        if -(d0 * g0 + d1 * g1 + d2 * g2) < 1e-6:
+            return (x, y, th), cov
+    return None
 
 
 def rotation_world_body(theta: float, roll: float = 0.0, pitch: float = 0.0) -> FloatArray:

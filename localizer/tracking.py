@@ -39,6 +39,8 @@ class TrackingConfig:
             two odometry samples, as a fraction of the maximum speed (a turn in place right
             after driving switches them within one sample): the prediction's second
             hypothesis when the extrapolated one finds no fix.
+        edge_check_px: a matched spot this close to the image border is checked after the
+            fix: its landmark must project inside the image, near it, at the fixed pose.
     """
 
     min_half_size_px: float = 6.0
@@ -47,6 +49,7 @@ class TrackingConfig:
     max_angular_speed_rad_s: float | None = None
     odometry_speed_fraction: float = 0.25
     speed_change_sigma: float = 0.5
+    edge_check_px: float = 40.0
 
     def __post_init__(self) -> None:
         if not 0 < self.min_half_size_px <= self.max_half_size_px:
