@@ -24,7 +24,6 @@ from localizer.config import LocalizerConfig
 from localizer.events import (
     FrameObserved,
     LedRequest,
-    LedsChanged,
     NoPose,
     OdometryMeasured,
     PoseEstimate,
@@ -35,6 +34,7 @@ from localizer.localizer import Localizer
 from localizer.robot import RobotGeometry
 from sim.cameras import wide_angle_camera
 from sim.render import render_frame
+from tests.localizer.drive import leds_after
 
 FloatArray = npt.NDArray[np.float64]
 Pose = tuple[float, float, float]
@@ -284,11 +284,8 @@ def run_case(case: Case) -> CaseRun:
         t_ns = round(t * 1e9)
         outs: list[object] = []
         if pending is not None and case.leds_controllable:
-            lit = set(ids) - set(pending.dark) if pending.all_lit else set(pending.lit)
-            all_lit = lit == set(ids)
-            outs += loc.handle(
-                LedsChanged(t_ns, frozenset() if all_lit else frozenset(lit), all_lit)
-            )
+            lit, changed = leds_after(pending, ids, t_ns)
+            outs += loc.handle(changed)
             pending = None
         if kind == 0:
             now = case.path.at(t)

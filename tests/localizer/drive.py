@@ -83,6 +83,13 @@ def wheel_speeds(
     return v - w * wheel_base / 2, v + w * wheel_base / 2
 
 
+def leds_after(request: LedRequest, ids: Sequence[int], t_ns: int) -> tuple[set[int], LedsChanged]:
+    """The lit set after the owner applied `request`, and the `LedsChanged` that says so."""
+    lit = set(ids) - set(request.dark) if request.all_lit else set(request.lit)
+    all_lit = lit == set(ids)
+    return lit, LedsChanged(t_ns, frozenset() if all_lit else frozenset(lit), all_lit)
+
+
 def drive(
     loc: Localizer,
     camera: CameraModel,
@@ -124,11 +131,8 @@ def drive(
         t = t_ns * 1e-9
         outs: list[object] = []
         if pending is not None:
-            lit = set(ids) - set(pending.dark) if pending.all_lit else set(pending.lit)
-            all_lit = lit == set(ids)
-            outs += loc.handle(
-                LedsChanged(t_ns, frozenset() if all_lit else frozenset(lit), all_lit)
-            )
+            lit, changed = leds_after(pending, ids, t_ns)
+            outs += loc.handle(changed)
             pending = None
         if kind == 0:
             vl, vr = wheel_speeds(trajectory, t, wheel_base, 1.0 / odom_rate_hz)
@@ -196,9 +200,7 @@ def drive_fleet(
         if queue and t_ns >= next_apply:
             name = next(iter(queue))
             req = queue.pop(name)
-            lit = set(ids) - set(req.dark) if req.all_lit else set(req.lit)
-            all_lit = lit == set(ids)
-            event = LedsChanged(t_ns, frozenset() if all_lit else frozenset(lit), all_lit)
+            lit, event = leds_after(req, ids, t_ns)
             next_apply = t_ns + int(dwell_s * 1e9)
             for rname, r in robots.items():
                 _queue_requests(r.loc.handle(event), r, queue, rname)
