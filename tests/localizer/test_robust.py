@@ -161,3 +161,21 @@ def test_odometry_noise_grows_when_fixes_keep_surprising_the_filter() -> None:
         calm.predict(0.3, 0.3, 1 / 30)
         calm.update_fix(PoseFix(*calm.pose, R))
     assert calm.noise_scale == pytest.approx(calm.config.noise_scale_bounds[0])
+
+
+def test_an_edge_spot_paired_with_a_landmark_outside_the_image_is_flagged() -> None:
+    cam = fisheye_camera(T_body_camera_upward(height=0.3))
+    grid = grid_positions(12, 8, 0.4, 2.5)
+    lmap = LandmarkMap(np.arange(1, len(grid) + 1), grid)
+    tracker = LandmarkTracker(cam, RobotGeometry(0.36, 1.5), LocalizerConfig(), lmap)
+    pose = (2.0, 1.4, 0.0)
+    px, ok = predict_pixels(cam, T_world_body_from_pose(*pose), grid)
+    inside = [int(i) for i in np.nonzero(ok)[0]]
+    outside = next(int(i) for i in np.nonzero(~ok)[0])  # a landmark out of view
+    border = [3.0, cam.cv]  # a spot 3 px from the left edge
+    rows = [inside[0], inside[1], outside]
+    spots = [px[inside[0]].tolist(), px[inside[1]].tolist(), border]
+    assert tracker._off_image(rows[:2], spots[:2], pose) == set()
+    assert tracker._off_image(rows, spots, pose) == {2}
+    # a landmark in view but far from the border spot it was paired with
+    assert tracker._off_image([inside[0], inside[1]], [spots[0], border], pose) == {1}
