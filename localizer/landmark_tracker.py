@@ -159,7 +159,10 @@ class LandmarkTracker:
         sv = tc.speed_change_sigma * self.robot.max_speed * since_sample_s
         filt.inflate(0.5 * sv * sv, 2.0 * (sv / self.robot.wheel_base) ** 2)
         retry = self._attempt(filt, e, dt_frame_s, fresh_odometry, candidates, spots, reacquire)
-        return retry if retry.used else result
+        if not retry.used:
+            return result
+        filt.snap_output()  # the correction is motion, not noise: no output lag
+        return retry
 
     def _attempt(
         self,

@@ -301,6 +301,12 @@ class PoseFilter:
         self._P[1][1] += var_xy_m2
         self._P[2][2] += var_theta_rad2
 
+    def snap_output(self) -> None:
+        """Let the output take the estimate at once (no smoothing of the last correction):
+        for a correction of motion the prediction did not know of (a turn begun after the
+        last odometry sample), which smoothing would only turn into a lag."""
+        self._offset = [0.0, 0.0, 0.0]
+
     # -- predict --------------------------------------------------------------------------------
     def predict(self, v_left: float, v_right: float, dt: float) -> None:
         """Dead-reckon over `dt` seconds with the measured wheel speeds (m/s); any rate.
