@@ -355,7 +355,8 @@ class LandmarkTracker:
         self, rows: list[int], px: list[list[float]], pose: tuple[float, float, float]
     ) -> set[int]:
         """Indices of the pairs near the image border whose landmark projects outside the
-        image (or away from its spot) at `pose`."""
+        image, within `border_px` of its edge (a cut spot's centroid is biased, and a small
+        pose error puts it outside), or away from its spot, at `pose`."""
         m = self.config.tracking.edge_check_px
         W, H = self.camera.width, self.camera.height
         near = [
@@ -369,11 +370,15 @@ class LandmarkTracker:
                                  scale_px_per_m=self.scale_px_per_m, reach_m=1e9)  # fmt: skip
         at = dict(zip(pred.row_list, pred.pixel_list, strict=True))
         out = set()
+        b = self.config.tracking.border_px
         for i in near:
             p = at.get(rows[i])
             u, v = px[i]
-            if p is None or math.hypot(p[0] - u, p[1] - v) > self.config.fusion.outlier_sigma * (
-                self.noise.sigma_px(u, v)
+            if (
+                p is None
+                or not (b <= p[0] <= W - 1 - b and b <= p[1] <= H - 1 - b)
+                or math.hypot(p[0] - u, p[1] - v)
+                > self.config.fusion.outlier_sigma * (self.noise.sigma_px(u, v))
             ):
                 out.add(i)
         return out

@@ -41,6 +41,7 @@ class TrackingConfig:
             hypothesis when the extrapolated one finds no fix.
         edge_check_px: a matched spot this close to the image border is checked after the
             fix: its landmark must project inside the image, near it, at the fixed pose.
+        border_px: and at least this far inside the image, pixels.
     """
 
     min_half_size_px: float = 6.0
@@ -50,6 +51,7 @@ class TrackingConfig:
     odometry_speed_fraction: float = 0.25
     speed_change_sigma: float = 0.5
     edge_check_px: float = 40.0
+    border_px: float = 3.0
 
     def __post_init__(self) -> None:
         if not 0 < self.min_half_size_px <= self.max_half_size_px:
