@@ -30,14 +30,15 @@ import numpy as np
 
 from localizer.events import PoseEstimate
 from sim.cameras import wide_angle_camera
-from web.services import CameraView, Candidate, EventLine, FramePose, LandmarkState, RobotState
+from web.services import CameraView, Candidate, EventLine, LandmarkState, RobotState
 from web.viewer import Viewer
 
 CHROMIUM = "/usr/bin/chromium"
 
 
 class SyntheticSite:
-    """A read-only `ViewerSite`: a 6x5 landmark grid 1.2 m apart, 3 robots on circles."""
+    """A read-only `ViewerSite` for viewer-role clients (no actions, no wizard): a 6x5
+    landmark grid 1.2 m apart, 3 robots on circles."""
 
     def __init__(self) -> None:
         self.camera = wide_angle_camera("fisheye")
@@ -78,12 +79,6 @@ class SyntheticSite:
 
     def to_identify(self, *, discover: bool = False) -> list[Candidate]:
         return []
-
-    def pose_at(self, robot: str, t_ns: int) -> FramePose | None:
-        return None
-
-    def hold_leds(self, held: bool) -> None:
-        pass
 
 
 async def _clients(port: int, n: int, seconds: float) -> list[int]:
