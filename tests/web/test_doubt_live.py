@@ -9,9 +9,9 @@ from pathlib import Path
 
 import pytest
 
+from commissioning.doubt import DoubtConfig
 from tests.web.conftest import running_site
 from web.adapter import SiteAdapter
-from commissioning.doubt import DoubtConfig
 
 pytestmark = pytest.mark.slow
 
