@@ -28,6 +28,7 @@ from functools import partial
 from typing import TypeVar
 
 from localizer.events import LedsChanged
+from pubsub.bus import Bus, Subscription
 from rf_gateway.battery import BatteryHistory, BatteryReading, read_all
 from rf_gateway.config import GatewayConfig, GatewayStats
 from rf_gateway.errors import (
@@ -45,7 +46,6 @@ from rf_gateway.events import (
     TransportStateChanged,
 )
 from rf_gateway.scheduler import Priority, PrioritySlots
-from rf_gateway.subscription import Hub, Subscription
 from rf_gateway.transport import (
     DiscoveredRadio,
     Transport,
@@ -93,9 +93,9 @@ class Gateway:
         self._failures: dict[int, int] = {}
         self._unreachable: set[int] = set()
         self._sweep_lock = asyncio.Lock()
-        self._leds_hub: Hub[LedsChanged] = Hub(self.config.subscriber_queue)
+        self._leds_hub: Bus[LedsChanged] = Bus(self.config.subscriber_queue)
         self._led_listeners: list[Callable[[LedsChanged], None]] = []
-        self._events_hub: Hub[GatewayEvent] = Hub(self.config.subscriber_queue)
+        self._events_hub: Bus[GatewayEvent] = Bus(self.config.subscriber_queue)
         self._last_leds: LedsChanged | None = None
         self._battery_task: asyncio.Task[None] | None = None
         self._start_task: asyncio.Task[None] | None = None
@@ -179,7 +179,7 @@ class Gateway:
     # -- subscriptions ---------------------------------------------------------------------
     def subscribe(self) -> Subscription[LedsChanged]:
         """LED state events for one consumer; the current state (if any) comes first."""
-        return self._leds_hub.subscribe(self._last_leds)
+        return self._leds_hub.subscribe(initial=self._last_leds)
 
     def add_led_listener(self, listener: Callable[[LedsChanged], None]) -> None:
         """Call `listener` with every LED state synchronously, as it is published (before

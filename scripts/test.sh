@@ -19,7 +19,7 @@ fi
 echo "checking the layering (import-linter contracts in pyproject.toml)..."
 PYTHONPATH="$PWD" .venv/bin/lint-imports
 echo "type-checking every package (mypy strict)..."
-.venv/bin/mypy localizer sim recording rf_gateway calibration commissioning server web irloc
+.venv/bin/mypy pubsub localizer sim recording rf_gateway calibration commissioning server web irloc
 set +e
 .venv/bin/python -m pytest "$@"
 status=$?

@@ -20,7 +20,7 @@ import logging
 import statistics
 import threading
 from collections.abc import Callable, Coroutine, Sequence
-from typing import Any, TypeVar
+from typing import Any
 
 import numpy as np
 
@@ -49,8 +49,8 @@ from commissioning.wizard import (
 )
 from localizer.events import FrameObserved, LedRequest, LedsChanged
 from localizer.spots import DetectionConfig, detect_spots
+from pubsub.bus import Subscription
 from rf_gateway.errors import RfGatewayError
-from server.bus import Subscription
 from server.crud import MapRepository
 from server.errors import ConflictError, UnavailableError
 from server.facades import LedsAndRadio, Robots
@@ -58,8 +58,6 @@ from server.models import LandmarkCreate, LandmarkPublic, LandmarkUpdate
 from server.poses import PoseUpdate
 
 log = logging.getLogger(__name__)
-T = TypeVar("T")
-Submit = Callable[[Coroutine[Any, Any, T]], concurrent.futures.Future[T]]
 WIZARD = "wizard"
 """The LED coordinator's name for the wizard's requests."""
 

@@ -22,11 +22,11 @@ from typing import Any
 import numpy as np
 
 from localizer.events import Event, LedsChanged, Mode
+from pubsub.bus import Bus, Subscription
 from rf_gateway.battery import BatteryConfig, BatteryReading, days_left
 from rf_gateway.errors import RadioTimeout
 from rf_gateway.gateway import Gateway
 from rf_gateway.transport import DiscoveredRadio, normalize_address
-from server.bus import Bus, Subscription
 from server.crud import EventLog, MapRepository, RobotStore
 from server.errors import NotFoundError, UnavailableError
 from server.models import RobotCreate, RobotPublic

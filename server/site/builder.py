@@ -20,6 +20,7 @@ from localizer.camera import camera_from_sensor, sensor_from_camera
 from localizer.events import Event, LedRequest, Mode
 from localizer.landmark_map import LandmarkMap
 from localizer.robot import RobotGeometry
+from pubsub.bus import Bus, Subscription
 from rf_gateway.battery import BatteryConfig, BatteryReading
 from rf_gateway.config import GatewayConfig
 from rf_gateway.errors import RfGatewayError
@@ -30,7 +31,6 @@ from rf_gateway.events import (
     TransportStateChanged,
 )
 from rf_gateway.gateway import Gateway
-from server.bus import Bus, Subscription
 from server.crud import MapRepository, RobotStore
 from server.crud.landmarks import parse_map_json
 from server.events import EventHub
