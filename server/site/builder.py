@@ -21,7 +21,7 @@ from localizer.events import Event, LedRequest, Mode
 from localizer.landmark_map import LandmarkMap
 from localizer.robot import RobotGeometry
 from pubsub.bus import Bus, Subscription
-from rf_gateway.battery import BatteryConfig, BatteryReading
+from rf_gateway.battery import BatteryConfig
 from rf_gateway.config import GatewayConfig
 from rf_gateway.errors import RfGatewayError
 from rf_gateway.events import (
@@ -72,7 +72,6 @@ class LedHost(Protocol):
     """What the live site needs of the LED facade (`server.facades.LedsAndRadio`)."""
 
     def attach(self, gateway: Gateway | None, coordinator: LedCoordinator | None) -> None: ...
-    async def read_battery(self, landmark_id: int) -> BatteryReading: ...
 
 
 class LiveSiteRunner:
@@ -233,7 +232,8 @@ class LiveSiteRunner:
         except ValueError as exc:
             log.error("no radio: %s", exc)
             return
-        config = GatewayConfig(battery=BatteryConfig(interval_s=None))
+        # the gateway's own schedule reads every landmark's supply; the LED facade stores it
+        config = GatewayConfig(battery=BatteryConfig(interval_s=self.settings.battery_interval_s))
         self.gateway = Gateway(transport, self.map.addresses(), config, clock_ns=self.clock_ns)
         await self.gateway.start()
         self.leds = LedCoordinator(self.gateway, self.robots.runners, self._on_led_error)
@@ -241,8 +241,6 @@ class LiveSiteRunner:
         self.led_facade.attach(self.gateway, self.leds)
         loop = asyncio.get_running_loop()
         self._tasks = [loop.create_task(self._gateway_events())]
-        if self.settings.battery_interval_s is not None:
-            self._tasks.append(loop.create_task(self._battery_loop()))
 
     # -- running ---------------------------------------------------------------------------
     def _request_leds(self, robot: str, req: LedRequest) -> None:
@@ -283,17 +281,6 @@ class LiveSiteRunner:
                 )
             elif isinstance(ev, TransportStateChanged):
                 emit("radio_state", f"radio link {ev.state}", data={"state": ev.state})
-
-    async def _battery_loop(self) -> None:
-        interval = self.settings.battery_interval_s
-        assert interval is not None
-        while True:
-            for lm in self.map.list():
-                if lm.radio is None:
-                    continue
-                with contextlib.suppress(RfGatewayError, KeyError):
-                    await self.led_facade.read_battery(lm.id)
-            await asyncio.sleep(interval)
 
     def on_map_changed(self, landmarks: list[LandmarkPublic]) -> None:
         """Give the new map to every localizer and the new addresses to the gateway."""
