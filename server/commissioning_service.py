@@ -69,6 +69,8 @@ class Commissioning:
         map, robots, leds: the site's facades.
         submit: runs a coroutine on the server's loop from any thread (`SiteServices.submit`).
         doubt, wizard, detection: tuning.
+        batch_s: pose updates are taken in batches at most this often, seconds (one worker
+            thread hop a batch, not one a pose).
     """
 
     def __init__(
@@ -81,9 +83,11 @@ class Commissioning:
         doubt: DoubtConfig | None = None,
         wizard: WizardConfig | None = None,
         detection: DetectionConfig | None = None,
+        batch_s: float = 0.05,
     ) -> None:
         self.map, self.robots, self.leds, self._submit = map, robots, leds, submit
         self.detection = detection or DetectionConfig()
+        self.batch_s = batch_s
         self._doubt = DoubtTracker(doubt)
         self._wizard = IdentificationWizard(wizard)
         self._lock = threading.RLock()
@@ -123,6 +127,7 @@ class Commissioning:
                 except Exception:  # keep commissioning alive; the site may be restarting
                     self.failures += 1
                     log.exception("commissioning: pose batch failed")
+            await asyncio.sleep(self.batch_s)
 
     # -- inputs -------------------------------------------------------------------------------
     def _on_map(self, landmarks: list[LandmarkPublic]) -> None:

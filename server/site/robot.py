@@ -74,7 +74,7 @@ class RobotRunner:
         publish: Callable[[PoseUpdate], None],
         request_leds: Callable[[str, LedRequest], None],
         source: str = "sim",
-        recent_frames: int = 8,
+        recent_frames: int = 12,
     ) -> None:
         self.name = name
         self.camera = camera
