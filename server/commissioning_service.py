@@ -25,6 +25,13 @@ from typing import Any
 import numpy as np
 
 from commissioning.candidates import doubted_candidates, new_radio_candidates
+from commissioning.coverage import (
+    Coverage,
+    CoverageConfig,
+    SpacingFlag,
+    coverage_grid,
+    spacing_flags,
+)
 from commissioning.doubt import Doubt, DoubtConfig, DoubtTracker
 from commissioning.types import Candidate, MapLandmark
 from commissioning.wizard import (
@@ -233,6 +240,25 @@ class Commissioning:
         known = {lm.radio for lm in lms if lm.radio}
         found = [(a, n) for a, n in radios if a not in known]
         return out + new_radio_candidates(found, {lm.id for lm in lms})
+
+    # -- coverage -------------------------------------------------------------------------------
+    def coverage(self, robot: str, *, step_m: float = 0.25) -> Coverage:
+        """Landmarks in view and expected error over the floor, for `robot`'s camera and the
+        current map (`commissioning.coverage`); ValueError for a grid too fine, NotFoundError
+        for an unknown robot."""
+        camera = self.robots.get(robot).camera
+        lms = self.map.list()
+        if not lms:
+            raise ValueError("coverage: the map has no landmarks")
+        pos = np.array([[lm.x, lm.y, lm.z] for lm in lms])
+        return coverage_grid(camera, pos, CoverageConfig(step_m=step_m))
+
+    def spacing(self) -> list[SpacingFlag]:
+        """Landmark pairs spaced outside the recommended range for their ceiling height."""
+        lms = self.map.list()
+        ids = np.array([lm.id for lm in lms], dtype=np.int64)
+        pos = np.array([[lm.x, lm.y, lm.z] for lm in lms]).reshape(-1, 3)
+        return spacing_flags(ids, pos)
 
     # -- the wizard ---------------------------------------------------------------------------
     def status(self) -> WizardStatus:

@@ -42,7 +42,7 @@ class LandmarkState:
         percent: rough charge 0-100 (the server's `BatteryStatus.percent`), None when unknown.
         days_left: estimated days until the cut-off voltage, None when unknown.
         reachable: False once the radio stopped answering.
-        doubted: localized robots expected it in view but rarely used it (`web.doubt`).
+        doubted: localized robots expected it in view but rarely used it (`commissioning.doubt`).
     """
 
     id: int

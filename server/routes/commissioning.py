@@ -8,9 +8,10 @@ drive the same one. docs/commissioning.md, docs/api.md.
 
 from __future__ import annotations
 
+import math
 from typing import Annotated, Literal
 
-from fastapi import APIRouter
+from fastapi import APIRouter, Query
 from pydantic import BaseModel, Field
 
 from commissioning.types import Candidate
@@ -148,6 +149,58 @@ async def discover_candidates(services: ServicesDep, _: Operator) -> list[Candid
     radios = await services.leds.discover()
     found = [(r.address, r.node_id) for r in radios]
     return [_candidate(c) for c in services.commissioning.to_identify(found)]
+
+
+class CoveragePublic(BaseModel):
+    """Coverage of the floor for one robot's camera: row k of `counts` and `error_m` is at
+    `ys[k]`, column j at `xs[j]`."""
+
+    robot: str
+    xs: list[float] = Field(description="grid x coordinates, metres")
+    ys: list[float] = Field(description="grid y coordinates, metres")
+    counts: list[list[int]] = Field(description="landmarks in view, fewest over headings")
+    error_m: list[list[float | None]] = Field(
+        description="expected 1-sigma position error, metres (null: fewer than two in view)"
+    )
+
+
+class SpacingPublic(BaseModel):
+    a: int
+    b: int
+    distance_m: float = Field(description="horizontal, metres")
+    problem: str = Field(description='"too_close", or "too_far" (b is a\'s nearest neighbour)')
+    allowed_m: tuple[float, float] = Field(description="(min, max) for their height, metres")
+
+
+@router.get("/coverage")
+def get_coverage(
+    services: ServicesDep,
+    _: Viewer,
+    robot: Annotated[str, Query(min_length=1, max_length=64, pattern=r"^[A-Za-z0-9_.-]+$")],
+    step_m: Annotated[float, Query(ge=0.05, le=5.0, description="grid step, metres")] = 0.25,
+) -> CoveragePublic:
+    """Landmarks in view and expected error over the floor for the robot's camera."""
+    cov = services.commissioning.coverage(robot, step_m=step_m)
+    err = [[None if not math.isfinite(v) else float(v) for v in row] for row in cov.error_m]
+    return CoveragePublic(
+        robot=robot, xs=cov.xs.tolist(), ys=cov.ys.tolist(), counts=cov.counts.tolist(),
+        error_m=err,
+    )  # fmt: skip
+
+
+@router.get("/spacing")
+def get_spacing(services: ServicesDep, _: Viewer) -> list[SpacingPublic]:
+    """Landmark pairs spaced outside the recommended 30-150 cm (for a 2.5 m ceiling)."""
+    return [
+        SpacingPublic(
+            a=f.a,
+            b=f.b,
+            distance_m=f.distance_m,
+            problem=f.problem,
+            allowed_m=f.allowed_m,
+        )
+        for f in services.commissioning.spacing()
+    ]
 
 
 @router.get("/wizard")

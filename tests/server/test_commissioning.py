@@ -37,6 +37,24 @@ def test_reads_need_a_key_and_actions_the_admin_role(api: Api) -> None:
     assert r.status_code == 403
 
 
+def test_coverage_and_spacing_of_the_live_map(live: Api) -> None:
+    c, h = live.client, live.h("viewer")
+    r = c.get("/api/v1/commissioning/coverage", params={"robot": "r1", "step_m": 0.5}, headers=h)
+    assert r.status_code == 200, r.text
+    cov = r.json()
+    assert len(cov["counts"]) == len(cov["ys"]) and len(cov["counts"][0]) == len(cov["xs"])
+    assert np.diff(cov["xs"]) == pytest.approx(0.5)
+    assert max(max(row) for row in cov["counts"]) >= 4  # the demo grid: several in view
+    errs = [e for row in cov["error_m"] for e in row if e is not None]
+    assert errs and 0.0 < float(np.median(errs)) < 0.05
+    r = c.get("/api/v1/commissioning/coverage", params={"robot": "nobody"}, headers=h)
+    assert r.status_code == 404
+    r = c.get("/api/v1/commissioning/coverage", params={"robot": "r1", "step_m": 0.01}, headers=h)
+    assert r.status_code == 422
+    flags = c.get("/api/v1/commissioning/spacing", headers=h).json()
+    assert all(f["problem"] in ("too_close", "too_far") for f in flags)
+
+
 def test_bad_input_is_named(api: Api) -> None:
     c, h = api.client, api.h("admin")
     r = c.post(W + "/start", json={"robot": "r1"}, headers=h)
