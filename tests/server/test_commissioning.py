@@ -138,3 +138,35 @@ def test_identification_on_the_live_site_keeps_the_other_robots_tracking(live: A
     saved = live.services.map.get(lid)
     assert np.hypot(saved.x - truth[0], saved.y - truth[1]) < 0.05
     sub.close()
+
+
+@pytest.mark.slow
+def test_a_radio_deleted_from_the_map_is_found_measured_and_saved_back(live: Api) -> None:
+    """Discovery offers the radio (not in the map any more); the wizard lights it alone
+    (every landmark stays lit) and the robot's frames place it; confirmed, it is a landmark
+    again, with its address, where the simulator has it."""
+    c, h = live.client, live.h("admin")
+    sim = live.services.sim
+    assert sim is not None
+    used = live.services.robots.latest("r1")
+    assert used is not None and used.landmark_ids
+    lid = _nearest(live, "r1", list(used.landmark_ids))
+    address = live.services.map.get(lid).radio
+    assert address is not None
+    truth = next(lm.p_true for lm in sim.world.landmarks.values() if lm.id == lid)
+    assert c.delete(f"/api/v1/landmarks/{lid}", headers=h).status_code == 204
+    r = c.post("/api/v1/commissioning/candidates/discover", headers=live.h("operator"))
+    assert r.status_code == 200, r.text
+    new = [x for x in r.json() if x["radio"] == address]
+    assert len(new) == 1 and "new radio" in new[0]["reason"], r.json()
+    r = c.post(W + "/start", json={"robot": "r1", "radios": [address]}, headers=h)
+    assert r.status_code == 200, r.text
+    st = _wait(c, h, lambda s: s["can_confirm"] or s["needs_accept_far"], 40)
+    assert st["can_confirm"], st  # inside the mapped area: plausible
+    m = st["measurement"]
+    np.testing.assert_allclose([m["x"], m["y"]], truth[:2], atol=0.05)
+    r = c.post(W + "/confirm", json={}, headers=h)
+    assert r.status_code == 200 and r.json()["phase"] == "done", r.text
+    saved = live.services.map.get(new[0]["landmark_id"])
+    assert saved.radio == address
+    assert np.hypot(saved.x - truth[0], saved.y - truth[1]) < 0.05
