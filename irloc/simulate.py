@@ -1,4 +1,5 @@
-"""`irloc simulate SCENARIO OUTDIR`: write a recording of a simulated scenario."""
+"""`irloc simulate SCENARIO OUTDIR`: write a recording of a simulated scenario (the entry
+point composes the simulator, `sim.offline`, with the recording writer, `recording.writer`)."""
 
 from __future__ import annotations
 
@@ -6,6 +7,7 @@ import argparse
 import sys
 from pathlib import Path
 
+from recording.writer import RecordingWriter
 from sim.cameras import LENSES
 from sim.offline import simulate_recording
 from sim.scenario import SCENARIOS, load_scenario
@@ -61,9 +63,14 @@ def main(argv: list[str]) -> int:
 
     try:
         summary = simulate_recording(
-            scenario, out, seed=args.seed, duration_s=duration, lens=args.lens,
-            robot=args.robot, progress=progress,
-        )  # fmt: skip
+            scenario,
+            lambda cam, geo, recs: RecordingWriter(out, cam, geo, recs),
+            seed=args.seed,
+            duration_s=duration,
+            lens=args.lens,
+            robot=args.robot,
+            progress=progress,
+        )
     except ValueError as exc:
         print(f"irloc simulate: {exc}", file=sys.stderr)
         return 2
