@@ -41,13 +41,13 @@ if str(ROOT) not in sys.path:
 import localizer.first_fix as first_fix_module  # noqa: E402
 import localizer.landmark_tracker as tracker_module  # noqa: E402
 import localizer.localizer as localizer_module  # noqa: E402
-from irloc.simulate import main as simulate_main  # noqa: E402
 from localizer.camera import CameraModel, predict_pixels  # noqa: E402
 from localizer.geometry import wrap_angle  # noqa: E402
 from localizer.pose import PoseFix  # noqa: E402
 from recording.reader import read_groundtruth  # noqa: E402
 from recording.replay_cli import main as replay_main  # noqa: E402
 from sim.build import build_robot, build_world, seed_generators  # noqa: E402
+from sim.cli import main as simulate_main  # noqa: E402
 from sim.scenario import load_scenario  # noqa: E402
 
 SCENARIOS = ("paper_testbed", "paper_floor", "dense_grid_fast", "hostile")

@@ -49,7 +49,6 @@ ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
-from irloc.simulate import main as simulate_main  # noqa: E402
 from localizer.events import FrameObserved, OdometryMeasured  # noqa: E402
 from localizer.geometry import T_world_body_from_pose, wrap_angle  # noqa: E402
 from localizer.landmark_map import LandmarkMap  # noqa: E402
@@ -60,6 +59,7 @@ from recording.reader import read_groundtruth, read_recording  # noqa: E402
 from recording.replay_cli import decode_threads, replay  # noqa: E402
 from sim.build import build_robot, build_world, seed_generators  # noqa: E402
 from sim.cameras import wide_angle_camera  # noqa: E402
+from sim.cli import main as simulate_main  # noqa: E402
 from sim.render import render_frame  # noqa: E402
 from sim.scenario import load_scenario  # noqa: E402
 

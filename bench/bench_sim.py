@@ -20,7 +20,6 @@ import time
 import numpy as np
 
 from localizer.geometry import T_world_body_from_pose
-from recording.writer import RecordingWriter
 from sim.cameras import LENSES, wide_angle_camera
 from sim.live import LiveSite
 from sim.offline import simulate_recording
@@ -71,9 +70,7 @@ def bench_offline(seconds: float) -> float:
     scenario = load_scenario("paper_testbed")
     with tempfile.TemporaryDirectory() as d:
         cpu0 = time.process_time()
-        simulate_recording(
-            scenario, lambda cam, geo, recs: RecordingWriter(d, cam, geo, recs), duration_s=seconds
-        )
+        simulate_recording(scenario, d, duration_s=seconds)
         return seconds / (time.process_time() - cpu0)
 
 

@@ -16,7 +16,7 @@ SUBCOMMANDS: dict[str, tuple[str, str, str]] = {
         "main",
         "run the server (API + viewer) on the simulated site or hardware",
     ),
-    "simulate": ("irloc.simulate", "main", "write a recording of a simulated scenario"),
+    "simulate": ("sim.cli", "main", "write a recording of a simulated scenario"),
     "replay": ("recording.replay_cli", "main", "localize a recording and write poses.csv"),
     "calibrate": ("calibration.cli", "main", "calibrate the lens from chessboard photos"),
     "keys": ("server.keys_cli", "main", "manage API keys"),

@@ -10,15 +10,14 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Protocol
+from pathlib import Path
 
 import numpy as np
-import numpy.typing as npt
 
-from localizer.camera import CameraModel, predict_pixels
+from localizer.camera import predict_pixels
 from localizer.events import LedsChanged, OdometryMeasured
 from localizer.geometry import T_world_body_from_pose
-from localizer.robot import RobotGeometry
+from recording.writer import RecordingWriter
 from sim.build import RobotRig, build_robot, build_world, seed_generators
 from sim.cameras import Lens
 from sim.live import render_view
@@ -95,24 +94,9 @@ def sweep_schedule(
     return events, t + round(config.settle_s * NS)
 
 
-class RecordingSink(Protocol):
-    """Where a simulated recording goes (`recording.writer.RecordingWriter` is one; sim
-    does not import recording: `irloc simulate` hands it in)."""
-
-    def add_frame(self, t_ns: int, image: npt.NDArray[np.uint8]) -> object: ...
-    def add_odometry(self, t_ns: int, v_left: float, v_right: float) -> None: ...
-    def add_leds(self, event: LedsChanged) -> None: ...
-    def add_groundtruth(self, t_ns: int, x: float, y: float, theta: float) -> None: ...
-    def close(self) -> None: ...
-
-
-OpenSink = Callable[[CameraModel, RobotGeometry, list[dict[str, object]]], RecordingSink]
-"""(nominal camera, robot geometry, landmark records) -> the sink to write to."""
-
-
 def simulate_recording(
     scenario: Scenario,
-    open_sink: OpenSink,
+    out_dir: Path | str,
     *,
     seed: int | None = None,
     duration_s: float | None = None,
@@ -125,7 +109,7 @@ def simulate_recording(
 
     Args:
         scenario: the site.
-        open_sink: opens the recording to write (e.g. a `RecordingWriter` on a folder).
+        out_dir: the recording folder (created).
         seed: overrides the scenario's seed.
         duration_s: recording length from the start of the sweep (default: the scenario's).
         lens: overrides every camera's lens.
@@ -150,8 +134,7 @@ def simulate_recording(
     leds, drive_ns = sweep_schedule(world, rig, sweep or SweepConfig(), 0)
     rig.robot.paused_until_ns = drive_ns
     frames = odometry = 0
-    w = open_sink(rig.camera_nominal, rig.geometry, world.landmark_records())
-    try:
+    with RecordingWriter(out_dir, rig.camera_nominal, rig.geometry, world.landmark_records()) as w:
         pending = list(leds)
         t_ns = 0
         while t_ns < end_ns:
@@ -169,13 +152,11 @@ def simulate_recording(
                     frames += 1
             if progress is not None:
                 progress(t_ns / NS)
-    finally:
-        w.close()
     return SimulationSummary(frames, odometry, len(leds) - len(pending), drive_ns)
 
 
 def _write_frame(
-    writer: RecordingSink,
+    writer: RecordingWriter,
     world: World,
     rig: RobotRig,
     item: FramePose,

@@ -1,5 +1,4 @@
-"""`irloc simulate SCENARIO OUTDIR`: write a recording of a simulated scenario (the entry
-point composes the simulator, `sim.offline`, with the recording writer, `recording.writer`)."""
+"""`irloc simulate SCENARIO OUTDIR`: write a recording of a simulated scenario."""
 
 from __future__ import annotations
 
@@ -7,7 +6,6 @@ import argparse
 import sys
 from pathlib import Path
 
-from recording.writer import RecordingWriter
 from sim.cameras import LENSES
 from sim.offline import simulate_recording
 from sim.scenario import SCENARIOS, load_scenario
@@ -63,14 +61,9 @@ def main(argv: list[str]) -> int:
 
     try:
         summary = simulate_recording(
-            scenario,
-            lambda cam, geo, recs: RecordingWriter(out, cam, geo, recs),
-            seed=args.seed,
-            duration_s=duration,
-            lens=args.lens,
-            robot=args.robot,
-            progress=progress,
-        )
+            scenario, out, seed=args.seed, duration_s=duration, lens=args.lens,
+            robot=args.robot, progress=progress,
+        )  # fmt: skip
     except ValueError as exc:
         print(f"irloc simulate: {exc}", file=sys.stderr)
         return 2
