@@ -16,6 +16,10 @@ if ! ls /usr/lib/postgresql/*/bin/initdb >/dev/null 2>&1 && [ "$(id -u)" = 0 ] &
   (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq postgresql >/dev/null) \
     || echo "warning: could not install postgresql; PostgreSQL tests will be skipped" >&2
 fi
+echo "checking the layering (import-linter contracts in pyproject.toml)..."
+PYTHONPATH="$PWD" .venv/bin/lint-imports
+echo "type-checking every package (mypy strict)..."
+.venv/bin/mypy pubsub localizer sim recording rf_gateway calibration commissioning server web irloc
 set +e
 .venv/bin/python -m pytest "$@"
 status=$?
