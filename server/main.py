@@ -28,6 +28,7 @@ from server.auth import Viewer, authenticate
 from server.errors import ConflictError, NotFoundError, UnavailableError
 from server.fanout import PoseFanout
 from server.metrics import make_registry, render
+from server.mqtt_bridge import start_mqtt_bridge
 from server.routes import admin, calibration, landmarks, map, remote, robots, streams
 from server.services import SiteServices
 from server.settings import Settings
@@ -109,9 +110,12 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         collector.fanout = fanout
         viewer = await asyncio.to_thread(_start_viewer, services, settings)
         app.state.viewer = viewer
+        app.state.mqtt_bridge = await start_mqtt_bridge(services)
         try:
             yield
         finally:
+            if app.state.mqtt_bridge is not None:
+                await app.state.mqtt_bridge.stop()
             if viewer is not None:
                 try:
                     # off the loop: the viewer may wait on coroutines it submits to it

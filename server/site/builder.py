@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import dataclasses
 import logging
 import queue
 import threading
@@ -141,8 +142,11 @@ class LiveSiteRunner:
         from sim.live import LiveSite
         from sim.scenario import load_scenario
 
+        scenario = load_scenario(self.settings.scenario)
+        if not self.settings.sim_robots:  # the same world; its robots run as agents
+            scenario = dataclasses.replace(scenario, robots=())
         return LiveSite(
-            load_scenario(self.settings.scenario),
+            scenario,
             seed=self.settings.seed,
             clock_ns=self.services.clock_ns,
         )

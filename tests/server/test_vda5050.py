@@ -27,7 +27,7 @@ def test_message_carries_the_pose_and_counts_headers_per_robot() -> None:
     assert msg["headerId"] == 0 and enc.encode(u)["headerId"] == 1
     assert enc.encode(PoseUpdate("r2", 5, "identifying"))["headerId"] == 0
     assert msg["timestamp"] == "2023-11-14T22:13:20.123Z"
-    assert (msg["version"], msg["manufacturer"], msg["serialNumber"]) == ("2.0.0", "irloc", "r1")
+    assert (msg["version"], msg["manufacturer"], msg["serialNumber"]) == ("2.1.0", "irloc", "r1")
     pos = msg["agvPosition"]
     assert (pos["x"], pos["y"], pos["theta"], pos["mapId"]) == (1.5, -2.0, math.pi / 2, "hall-1")
     assert pos["positionInitialized"] is True
