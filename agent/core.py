@@ -153,7 +153,7 @@ class AgentCore:
         with self._inbox_lock:
             inbox, self._inbox = self._inbox, []
         for msg in inbox:
-            self._take(msg, now_mono_ns)
+            self._take(msg, horizon)
         for event in self.source.step(horizon):
             self._push(event)
         out: list[Outgoing] = []
@@ -165,7 +165,7 @@ class AgentCore:
     def _push(self, event: Event) -> None:
         heapq.heappush(self._heap, (event.t_ns, next(self._count), event))
 
-    def _take(self, msg: MapMessage | LedStateMessage | CommandMessage, now_mono: int) -> None:
+    def _take(self, msg: MapMessage | LedStateMessage | CommandMessage, horizon: int) -> None:
         if isinstance(msg, MapMessage):
             self._set_map(msg)
         elif isinstance(msg, LedStateMessage):
@@ -181,7 +181,7 @@ class AgentCore:
             self.source.apply_leds(t, None if msg.all_lit else frozenset(msg.lit))
             self._push(msg.event(t))
         else:
-            self._push(RelocalizeRequested(max(now_mono, self._fed_t_ns), msg.near))
+            self._push(RelocalizeRequested(max(horizon, self._fed_t_ns), msg.near))
 
     def _set_map(self, msg: MapMessage) -> None:
         if msg.map_id == self.map_id:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from datetime import datetime
 from functools import cache
 from pathlib import Path
 from typing import Any
@@ -29,5 +30,12 @@ def _validator(topic: str) -> jsonschema.Draft202012Validator:
 
 
 def validate_vda(topic: str, message: dict[str, Any]) -> None:
-    """Raise jsonschema.ValidationError when `message` is not a valid `topic` message."""
+    """Raise jsonschema.ValidationError when `message` is not a valid `topic` message (and
+    ValueError for a `timestamp` that is not ISO 8601 UTC: jsonschema checks `date-time`
+    only with an optional package)."""
     _validator(topic).validate(message)
+    stamp = message.get("timestamp")
+    if stamp is not None and not (
+        stamp.endswith("Z") and datetime.fromisoformat(stamp.replace("Z", "+00:00"))
+    ):
+        raise ValueError(f"timestamp {stamp!r} is not ISO 8601 UTC")
