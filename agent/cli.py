@@ -14,6 +14,7 @@ from __future__ import annotations
 import argparse
 import asyncio
 import contextlib
+import dataclasses
 import logging
 import signal
 import sys
@@ -41,6 +42,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, help="the site's seed (as `irloc serve --seed`)")
     p.add_argument("--robot", help="which robot of the scenario (default: --name if it is one)")
     p.add_argument("--count", type=int, default=1, help="robots in this process (NAME-000...)")
+    p.add_argument("--camera-rate", type=float, help="the simulated camera's frames/s")
     p.add_argument("--pose-rate", type=float, default=10.0, help="pose messages/s (0: all)")
     p.add_argument("--visualization-rate", type=float, default=1.0, help="VDA 5050 msgs/s")
     p.add_argument("--hold", type=float, default=0.03, help="reorder hold for LED states, s")
@@ -63,6 +65,18 @@ def build_cores(args: argparse.Namespace) -> list[AgentCore]:
     if args.count < 1:
         raise ValueError(f"--count must be >= 1, got {args.count}")
     scenario = load_scenario(args.scenario)
+    if args.camera_rate is not None:
+        if not 1 <= args.camera_rate <= 120:
+            raise ValueError(f"--camera-rate must be in [1, 120] frames/s, got {args.camera_rate}")
+        scenario = dataclasses.replace(
+            scenario,
+            robots=tuple(
+                dataclasses.replace(
+                    r, camera=dataclasses.replace(r.camera, rate_hz=args.camera_rate)
+                )
+                for r in scenario.robots
+            ),
+        )
     robots = [r.name for r in scenario.robots]
     names = [args.name] if args.count == 1 else [f"{args.name}-{i:03d}" for i in range(args.count)]
     cores = []
@@ -110,6 +124,9 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     names = ", ".join(c.config.name for c in cores[:3]) + (" ..." if len(cores) > 3 else "")
     print(f"irloc agent: {names} on site {args.site!r} via {broker}", flush=True)
+    # the sensor thread localizes while the network loop publishes: hand the interpreter over
+    # more often than every 5 ms, so that a pose leaves soon after it is computed
+    sys.setswitchinterval(0.001)
     asyncio.run(_run(AgentRuntime(broker, args.site, cores)))
     return 0
 

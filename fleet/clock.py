@@ -82,9 +82,9 @@ class ClockEstimate:
     samples: int
 
     def within(self, tolerance_s: float) -> bool:
-        """True when the clocks agree to `tolerance_s` (the measured offset; its own error,
-        `error_ns`, is what remains after the correction)."""
-        return abs(self.offset_ns) <= tolerance_s * 1e9
+        """False when the clocks certainly disagree by more than `tolerance_s`: the offset
+        beyond it by more than its error bound (a congested exchange proves nothing)."""
+        return abs(self.offset_ns) - self.error_ns <= tolerance_s * 1e9
 
 
 class ClockFilter:

@@ -91,7 +91,7 @@ def visualization_message(
             "positionInitialized": position_initialized(mode),
         }
         if covariance is not None:
-            position["deviationRange"] = deviation_range_m(covariance)
+            position["deviationRange"] = float(f"{deviation_range_m(covariance):.4g}")
         msg["agvPosition"] = position
     return msg
 
