@@ -21,7 +21,7 @@ import cv2
 import numpy as np
 import yaml
 
-from calibration.cli import write_atomic
+from calibration.atomic import write_atomic
 from calibration.identify import identify_spots
 from calibration.mounting import FloatArray, MountingCalibration, mounting_from_observations
 from localizer.camera import sensor_from_camera

@@ -12,7 +12,7 @@ import sys
 # subcommand -> (module, function, one-line help)
 SUBCOMMANDS: dict[str, tuple[str, str, str]] = {
     "serve": (
-        "server.cli",
+        "irloc.serve",
         "main",
         "run the server (API + viewer) on the simulated site or hardware",
     ),

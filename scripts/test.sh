@@ -21,6 +21,10 @@ if ! command -v mosquitto >/dev/null 2>&1 && [ ! -x /usr/sbin/mosquitto ] && [ "
   (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq mosquitto >/dev/null) \
     || echo "warning: could not install mosquitto; fleet tests will be skipped" >&2
 fi
+echo "checking the layering (import-linter contracts in pyproject.toml)..."
+PYTHONPATH="$PWD" .venv/bin/lint-imports
+echo "type-checking every package (mypy strict)..."
+.venv/bin/mypy localizer sim recording rf_gateway calibration commissioning server web irloc fleet agent
 set +e
 .venv/bin/python -m pytest "$@"
 status=$?

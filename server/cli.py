@@ -8,12 +8,17 @@ from __future__ import annotations
 import argparse
 import ipaddress
 import sys
+from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from pydantic import ValidationError
 
 from server.logs import configure_logging
 from server.settings import Settings
+
+if TYPE_CHECKING:
+    from server.seams import ViewerApp
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -51,7 +56,11 @@ def is_loopback(host: str) -> bool:
         return False
 
 
-def main(argv: list[str] | None = None) -> int:
+def main(
+    argv: list[str] | None = None, make_viewer: Callable[[Settings], ViewerApp | None] | None = None
+) -> int:
+    """`irloc serve`; `make_viewer(settings)` builds the viewer to serve (irloc/serve.py
+    hands in `web.viewer.Viewer`; without it the API runs alone)."""
     args = _parser().parse_args(sys.argv[1:] if argv is None else argv)
     overrides = {
         k: v
@@ -84,18 +93,18 @@ def main(argv: list[str] | None = None) -> int:
     configure_logging(args.log_level, settings.log_format)
     import uvicorn
 
-    from server.crud.keys import KeyStore
-    from server.db import make_engine, migrate
+    from server.db import make_engine
     from server.main import create_app
+    from server.services import prepare_database
 
     engine = make_engine(settings.db_url)
-    migrate(engine)
-    first_key = KeyStore(engine).ensure_admin()
+    first_key = prepare_database(engine)
     engine.dispose()
+    viewer = make_viewer(settings) if make_viewer is not None else None
     base = f"http://{settings.host}:{settings.port}"
     print(f"irloc: data in {settings.data_dir}")
     print(f"irloc: API docs  {base}/docs")
-    if settings.viewer_enabled:
+    if viewer is not None:
         print(f"irloc: viewer    {base}/viewer/?token=<key>")
     if not is_loopback(settings.host):
         print(
@@ -108,7 +117,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"irloc: first admin API key (shown once, store it): {first_key}")
     sys.stdout.flush()
     config = uvicorn.Config(
-        create_app(settings),
+        create_app(settings, viewer),
         host=settings.host,
         port=settings.port,
         workers=1,

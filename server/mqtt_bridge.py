@@ -98,19 +98,13 @@ class MqttBridge:
     # -- lifecycle --------------------------------------------------------------------------------
     def start(self) -> None:
         self.services.map.add_listener(self._on_map)
-        gw = self.services.gateway
-        if gw is not None:
-            gw.add_led_listener(self._on_leds)
-            self._gateway_listening = True
-            if gw.leds is not None:
-                self._on_leds(gw.leds)
+        self._gateway_listening = self.services.leds.add_listener(self._on_leds)
         self._task = self._loop.create_task(self._run())
 
     async def stop(self) -> None:
         self.services.map.remove_listener(self._on_map)
-        gw = self.services.gateway
-        if gw is not None and self._gateway_listening:
-            gw.remove_led_listener(self._on_leds)
+        if self._gateway_listening:
+            self.services.leds.remove_listener(self._on_leds)
         client = self.client
         if client is not None:
             with contextlib.suppress(aiomqtt.MqttError):
@@ -359,10 +353,10 @@ class MqttBridge:
             self.services.events.emit("robot_localized", f"robot {robot} localized", robot=robot)
 
     def _on_led_request(self, robot: str, msg: LedRequestMessage) -> None:
-        leds = getattr(self.services.site, "leds", None)
-        if leds is None or self._agent(robot) is None:
+        coordinator = self.services.leds.coordinator
+        if coordinator is None or self._agent(robot) is None:
             return
-        leds.request(robot, msg.request())
+        coordinator.request(robot, msg.request())
 
 
 async def start_mqtt_bridge(services: SiteServices) -> MqttBridge | None:

@@ -17,7 +17,7 @@ import contextlib
 import logging
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
 from urllib.parse import urlencode
 
 import viser
@@ -26,8 +26,8 @@ from fastapi import APIRouter, Request, WebSocket, WebSocketDisconnect
 from fastapi.responses import HTMLResponse, RedirectResponse, Response
 from starlette.requests import HTTPConnection
 
-from web.roles import Session
-from web.viewer import TICKET_PARAM
+from server.seams import Authenticate
+from web.roles import TICKET_PARAM, Session
 
 log = logging.getLogger(__name__)
 COOKIE = "irloc_viewer_key"
@@ -63,9 +63,16 @@ def _with_bearer(conn: HTTPConnection, key: str) -> HTTPConnection:
     return HTTPConnection(scope)
 
 
-def session_of(
-    conn: HTTPConnection, authenticate: Callable[[HTTPConnection], Any]
-) -> Session | None:
+class TicketIssuer(Protocol):
+    """The running viewer as the proxy needs it (`web.viewer.Viewer`)."""
+
+    @property
+    def port(self) -> int: ...
+
+    def issue_ticket(self, session: Session) -> str: ...
+
+
+def session_of(conn: HTTPConnection, authenticate: Authenticate) -> Session | None:
     """The viewer session of a request, or None without a valid key."""
     key = key_of(conn)
     if key is None:
@@ -86,7 +93,7 @@ NO_KEY_PAGE = """<!doctype html><title>irloc viewer</title>
 
 
 def viewer_router(
-    get_viewer: Callable[[], Any], authenticate: Callable[[HTTPConnection], Any]
+    get_viewer: Callable[[], TicketIssuer | None], authenticate: Authenticate
 ) -> APIRouter:
     """Routes serving the viewer under `/viewer/`.
 

@@ -67,5 +67,5 @@ async def calibrate_lens_upload(
     }
     result = await asyncio.to_thread(calibrate_from_uploads, uploads, **options)
     if store:
-        services.store_robot_camera(name, result.sensor())
+        services.robots.store_camera(name, result.sensor())
     return {"robot": name, "stored": store, **result.to_dict()}

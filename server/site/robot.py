@@ -22,6 +22,7 @@ from localizer.events import (
     OdometryMeasured,
     PoseEstimate,
     RelocalizeRequested,
+    SpotsObserved,
 )
 from localizer.landmark_map import LandmarkMap
 from localizer.robot import RobotGeometry
@@ -57,6 +58,7 @@ class RobotRunner:
         publish: called with every `PoseUpdate` (pose bus).
         request_leds: called with (robot name, `LedRequest`) (the LED coordinator).
         source: "sim", "camera" or "remote".
+        recent_frames: frames (or spot sets) kept for `frame_at`.
     """
 
     def __init__(
@@ -69,6 +71,7 @@ class RobotRunner:
         publish: Callable[[PoseUpdate], None],
         request_leds: Callable[[str, LedRequest], None],
         source: str = "sim",
+        recent_frames: int = 8,
     ) -> None:
         self.name = name
         self.camera = camera
@@ -81,6 +84,7 @@ class RobotRunner:
         self.latest: PoseUpdate | None = None
         self.last_fix_t_ns: int | None = None
         self.last_frame: FrameObserved | None = None
+        self.recent: deque[FrameObserved | SpotsObserved] = deque(maxlen=recent_frames)
         self.frames = 0
         self.poses = 0
         self.errors = 0
@@ -111,6 +115,8 @@ class RobotRunner:
             if isinstance(event, FrameObserved):
                 self.frames += 1
                 self.last_frame = event
+            if isinstance(event, FrameObserved | SpotsObserved):
+                self.recent.append(event)
             self._record(event)
             try:
                 outputs = self.localizer.handle(event)
@@ -141,6 +147,13 @@ class RobotRunner:
             self._publish(PoseUpdate(self.name, out.t_ns, out.mode))
         elif isinstance(out, LedRequest):
             self._request_leds(self.name, out)
+
+    def frame_at(self, t_ns: int) -> FrameObserved | SpotsObserved | None:
+        """The frame (or spots) taken at `t_ns`, when it is among the last few."""
+        for event in reversed(self.recent):
+            if event.t_ns == t_ns:
+                return event
+        return None
 
     def relocalize(self, t_ns: int, near: tuple[float, float, float] | None = None) -> None:
         """The operator's request: forget the pose and identify again (near a pose)."""

@@ -9,8 +9,8 @@ of the measurement on the server's site clock, or empty to be stamped on receipt
 that does not share the site clock leaves it empty). `CS`: XOR of the bytes between `$` and
 `*`, two hex digits. Example: `$IRODO,,0.200,0.215*77`.
 
-`SerialWheelSource` reads such lines on a thread and feeds `OdometryMeasured` to the
-robot's runner. A bad line (checksum, fields, values, too long) is counted and skipped with
+`SerialWheelSource` (a `server.site.sources.FrameSource` of odometry only) reads such
+lines on a thread and feeds `OdometryMeasured` to the robot's localizer. A bad line (checksum, fields, values, too long) is counted and skipped with
 a warning; when the port cannot be opened or disappears, it retries every `retry_s`.
 """
 
@@ -24,7 +24,7 @@ from typing import Any
 
 from localizer.events import OdometryMeasured
 from server.site.line_framing import MAX_LINE_BYTES, frame_line, unframe_line
-from server.site.robot import RobotRunner
+from server.site.sources import SensorSink
 
 log = logging.getLogger(__name__)
 MAX_WHEEL_SPEED = 20.0
@@ -73,7 +73,7 @@ class SerialWheelSource:
     """Feed a robot's wheel speeds from a serial port on a thread.
 
     Args:
-        runner: the robot.
+        robot: the robot's name.
         port: device path or pyserial URL (a stable name such as /dev/serial/by-id/... is
             best: it comes back under the same name after a reconnect).
         baud: baud rate.
@@ -87,14 +87,16 @@ class SerialWheelSource:
 
     def __init__(
         self,
-        runner: RobotRunner,
+        robot: str,
         port: str,
         baud: int,
         clock_ns: Callable[[], int],
         *,
         retry_s: float = 1.0,
     ) -> None:
-        self.runner = runner
+        self.robot = robot
+        self.robots = (robot,)
+        self._sink: SensorSink | None = None
         self.port = port
         self.baud = baud
         self.clock_ns = clock_ns
@@ -104,9 +106,11 @@ class SerialWheelSource:
         self.connects = 0
         self.connected = False
         self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._run, name=f"wheels-{runner.name}", daemon=True)
+        self._thread = threading.Thread(target=self._run, name=f"wheels-{robot}", daemon=True)
 
-    def start(self) -> None:
+    def start(self, sink: SensorSink) -> None:
+        """Read the port on a thread, feeding `sink` (a `FrameSource`)."""
+        self._sink = sink
         self._thread.start()
 
     def stop(self) -> None:
@@ -121,14 +125,15 @@ class SerialWheelSource:
             self.bad_lines += 1
             log.warning(
                 "robot %s: wheel line skipped on %s: %s",
-                self.runner.name,
+                self.robot,
                 self.port,
                 exc,
-                extra={"robot": self.runner.name, "port": self.port},
+                extra={"robot": self.robot, "port": self.port},
             )
             return
         stamp = self.clock_ns() if t_ns is None else t_ns
-        self.runner.handle(OdometryMeasured(stamp, v_left, v_right))
+        if self._sink is not None:
+            self._sink(self.robot, OdometryMeasured(stamp, v_left, v_right))
         self.lines += 1
 
     def _run(self) -> None:
@@ -140,11 +145,11 @@ class SerialWheelSource:
                 if not warned:
                     log.warning(
                         "robot %s: wheel port %s unavailable (%s); retrying every %.1f s",
-                        self.runner.name,
+                        self.robot,
                         self.port,
                         exc,
                         self.retry_s,
-                        extra={"robot": self.runner.name, "port": self.port},
+                        extra={"robot": self.robot, "port": self.port},
                     )
                     warned = True
                 self._stop.wait(self.retry_s)
@@ -152,16 +157,16 @@ class SerialWheelSource:
             warned = False
             self.connects += 1
             self.connected = True
-            log.info("robot %s: wheel speeds from %s", self.runner.name, self.port)
+            log.info("robot %s: wheel speeds from %s", self.robot, self.port)
             try:
                 self._read(port)
             except Exception as exc:  # the device went away (EIO, unplugged)
                 log.warning(
                     "robot %s: wheel port %s lost (%s); reconnecting",
-                    self.runner.name,
+                    self.robot,
                     self.port,
                     exc,
-                    extra={"robot": self.runner.name, "port": self.port},
+                    extra={"robot": self.robot, "port": self.port},
                 )
             finally:
                 self.connected = False

@@ -117,14 +117,17 @@ def test_agents_localize_on_the_sites_leds_and_appear_as_robots(fleet: Fleet) ->
     for name in ("a1", "a2"):
         assert got[name]["source"] == "agent" and got[name]["connected"] is True
     # they identified by asking the site's gateway for LED switches
-    leds = fleet.api.services.site.leds
+    leds = fleet.api.services.leds.coordinator
     assert leds.requests >= 2 and leds.applied >= 2
     # a2's clock runs 0.2 s ahead: measured (server minus agent), reported, warned about
     wait_until(lambda: robots(fleet)["a2"]["clock_offset_s"] is not None, 10.0, "a2 clock")
     a2 = robots(fleet)["a2"]
-    assert a2["clock_offset_s"] == pytest.approx(-SKEW_S, abs=0.005)
+    # the measured offset is the skew to within the exchange's own error bound
+    assert abs(a2["clock_offset_s"] + SKEW_S) <= a2["clock_error_s"] + 1e-4  # type: ignore[operator]
+    assert a2["clock_error_s"] < 0.05  # type: ignore[operator]
     assert a2["clock_ok"] is False and robots(fleet)["a1"]["clock_ok"] is True
-    assert abs(robots(fleet)["a1"]["clock_offset_s"]) < 0.005
+    a1 = robots(fleet)["a1"]  # same machine: the true offset is 0, within the error bound
+    assert abs(a1["clock_offset_s"]) <= a1["clock_error_s"] + 1e-4  # type: ignore[operator]
     kinds = [(e.kind, e.robot) for e in fleet.api.services.events.recent(100)]
     assert ("clock_offset", "a2") in kinds and ("robot_connected", "a1") in kinds
     # poses on the REST API, the WebSocket stream, and right against the simulated truth
@@ -190,8 +193,8 @@ def test_a_broker_restart_heals_by_itself(fleet: Fleet) -> None:
     fleet.watch = Recorder(fleet.broker.port)
     lmap = MapMessage.model_validate_json(fleet.watch.wait_for(TOPICS.map).payload)
     assert len(lmap.landmarks) == len(services.map.list())
-    wait_until(lambda: not services.site.leds.waiting, 5.0, "LED queue drained")
-    wait_until(lambda: services.gateway.leds.all_lit, 5.0, "every LED lit again")
+    wait_until(lambda: not services.leds.coordinator.waiting, 5.0, "LED queue drained")
+    wait_until(lambda: services.leds.gateway.leds.all_lit, 5.0, "every LED lit again")
     wait_until(
         lambda: LedStateMessage.model_validate_json(fleet.watch.on(TOPICS.leds)[-1].payload).all_lit
         if fleet.watch.on(TOPICS.leds) else False,

@@ -11,7 +11,7 @@ import pytest
 
 from tests.web.conftest import running_site
 from web.adapter import SiteAdapter
-from web.doubt import DoubtConfig
+from commissioning.doubt import DoubtConfig
 
 pytestmark = pytest.mark.slow
 

@@ -9,13 +9,8 @@ import pytest
 from localizer.camera import T_body_camera_upward, predict_pixels
 from localizer.geometry import T_world_body_from_pose
 from sim.cameras import wide_angle_camera
-from web.geometry import (
-    camera_footprint,
-    ellipse_axes,
-    ellipse_points,
-    landmark_from_spot,
-    ray_plane_point,
-)
+from commissioning.geometry import landmark_from_spot
+from web.geometry import camera_footprint, ellipse_axes, ellipse_points, ray_plane_point
 
 
 def test_ellipse_axes_of_a_rotated_covariance() -> None:
