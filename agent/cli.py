@@ -26,6 +26,7 @@ from agent.sim_source import SimRobotSource
 from agent.timebase import TimeBase
 from fleet.broker import parse_broker_url
 from fleet.topics import check_name
+from sim.scenario import Scenario
 
 log = logging.getLogger(__name__)
 
@@ -43,6 +44,10 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--robot", help="which robot of the scenario (default: --name if it is one)")
     p.add_argument("--count", type=int, default=1, help="robots in this process (NAME-000...)")
     p.add_argument("--camera-rate", type=float, help="the simulated camera's frames/s")
+    p.add_argument("--odometry-rate", type=float, help="the simulated wheel samples/s")
+    p.add_argument(
+        "--start-known", action="store_true", help="the robot starts on its dock: a prior pose"
+    )
     p.add_argument("--pose-rate", type=float, default=10.0, help="pose messages/s (0: all)")
     p.add_argument("--visualization-rate", type=float, default=1.0, help="VDA 5050 msgs/s")
     p.add_argument("--hold", type=float, default=0.03, help="reorder hold for LED states, s")
@@ -56,6 +61,22 @@ def _parser() -> argparse.ArgumentParser:
     return p
 
 
+def with_rates(scenario: Scenario, camera_hz: float | None, odometry_hz: float | None) -> Scenario:
+    """The scenario with its robots' camera and odometry rates changed (the same world)."""
+    if camera_hz is not None and not 1 <= camera_hz <= 120:
+        raise ValueError(f"--camera-rate must be in [1, 120] frames/s, got {camera_hz}")
+    if odometry_hz is not None and not 10 <= odometry_hz <= 1000:
+        raise ValueError(f"--odometry-rate must be in [10, 1000] samples/s, got {odometry_hz}")
+    robots = []
+    for r in scenario.robots:
+        if camera_hz is not None:
+            r = dataclasses.replace(r, camera=dataclasses.replace(r.camera, rate_hz=camera_hz))
+        if odometry_hz is not None:
+            r = dataclasses.replace(r, odometry_rate_hz=odometry_hz)
+        robots.append(r)
+    return dataclasses.replace(scenario, robots=tuple(robots))
+
+
 def build_cores(args: argparse.Namespace) -> list[AgentCore]:
     """One `AgentCore` per robot of this process; ValueError names a bad argument."""
     from sim.scenario import load_scenario
@@ -65,18 +86,7 @@ def build_cores(args: argparse.Namespace) -> list[AgentCore]:
     if args.count < 1:
         raise ValueError(f"--count must be >= 1, got {args.count}")
     scenario = load_scenario(args.scenario)
-    if args.camera_rate is not None:
-        if not 1 <= args.camera_rate <= 120:
-            raise ValueError(f"--camera-rate must be in [1, 120] frames/s, got {args.camera_rate}")
-        scenario = dataclasses.replace(
-            scenario,
-            robots=tuple(
-                dataclasses.replace(
-                    r, camera=dataclasses.replace(r.camera, rate_hz=args.camera_rate)
-                )
-                for r in scenario.robots
-            ),
-        )
+    scenario = with_rates(scenario, args.camera_rate, args.odometry_rate)
     robots = [r.name for r in scenario.robots]
     names = [args.name] if args.count == 1 else [f"{args.name}-{i:03d}" for i in range(args.count)]
     cores = []
@@ -91,6 +101,7 @@ def build_cores(args: argparse.Namespace) -> list[AgentCore]:
             reorder_hold_s=args.hold,
             pose_rate_hz=args.pose_rate,
             visualization_rate_hz=args.visualization_rate,
+            start_known=args.start_known,
         )
         truth = None
         if args.truth_csv is not None:

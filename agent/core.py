@@ -64,6 +64,8 @@ class SensorSource(Protocol):
     def step(self, t_ns: int) -> list[Event]: ...
     def apply_leds(self, t_ns: int, lit: frozenset[int] | None) -> None: ...
     def true_pose_at(self, t_ns: int) -> tuple[float, float, float] | None: ...
+    @property
+    def start_pose(self) -> tuple[float, float, float] | None: ...
 
 
 @dataclass(frozen=True)
@@ -79,6 +81,9 @@ class AgentConfig:
         pose_rate_hz: irloc pose messages per second at most (a mode change always goes at
             once); 0: one per frame.
         visualization_rate_hz: VDA 5050 visualization messages per second at most.
+        start_known: the robot knows where it starts (a dock): the localizer is given the
+            source's `start_pose` as a prior, and the map confirms it without LED probes
+            when the landmarks in view agree.
     """
 
     name: str
@@ -87,6 +92,7 @@ class AgentConfig:
     reorder_hold_s: float = 0.03
     pose_rate_hz: float = 10.0
     visualization_rate_hz: float = 1.0
+    start_known: bool = False
 
 
 @dataclass(frozen=True)
@@ -189,6 +195,9 @@ class AgentCore:
         lmap = LandmarkMap.from_records(msg.records(), source=f"map {msg.map_id}")
         if self.localizer is None:
             self.localizer = Localizer(self.source.camera, lmap, self.source.geometry)
+            start = self.source.start_pose
+            if self.config.start_known and start is not None:
+                self.localizer.set_initial_pose(*start, self._fed_t_ns)
         else:
             self.localizer.set_map(lmap)
         self.map_id = msg.map_id

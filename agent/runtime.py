@@ -39,8 +39,10 @@ log = logging.getLogger(__name__)
 TICK_S = 0.01
 RECONNECT_S = (0.2, 2.0)
 """First and longest wait between connection attempts, seconds."""
-KEEPALIVE_S = 5
+KEEPALIVE_S = 10
 STATUS_INTERVAL_S = 5.0
+MAX_INFLIGHT = 20
+"""Batches of one robot handed to its connection and not yet written."""
 
 
 @dataclass
@@ -54,6 +56,7 @@ class _Link:
     dropped: int = 0
     sent: int = 0
     sent_bytes: int = 0
+    inflight: int = 0
     pending_clock: dict[int, int] = field(default_factory=dict)
     clock_n: int = 0
 
@@ -124,27 +127,42 @@ class AgentRuntime:
                 self._thread_stop.wait(delay)
 
     async def _sender(self) -> None:
+        """Hand each batch to its robot's connection without waiting for the one before
+        (paho queues them in order; awaiting each publish would let one robot's socket
+        delay every robot of the process). A robot with `MAX_INFLIGHT` batches unsent (its
+        link stalled) drops the new ones: a late pose is worthless."""
+        pending: set[asyncio.Task[None]] = set()
         while True:
             link, outs = await self._out.get()
-            name = link.core.config.name
-            for o in outs:
-                client = link.client
-                if client is None:
-                    link.dropped += 1
-                    continue
-                if o.kind == "pose":
-                    topic, qos = self.topics.pose(name), QOS_POSE
-                elif o.kind == "led_request":
-                    topic, qos = self.topics.led_request(name), QOS_STATE
-                else:
-                    topic = vda_topic(link.core.config.manufacturer, name, "visualization")
-                    qos = QOS_POSE
-                try:
-                    await client.publish(topic, o.payload, qos=qos)
-                    link.sent += 1
-                    link.sent_bytes += len(o.payload) + len(topic)
-                except aiomqtt.MqttError:
-                    link.dropped += 1
+            client = link.client
+            if client is None or link.inflight >= MAX_INFLIGHT:
+                link.dropped += len(outs)
+                continue
+            task = asyncio.create_task(self._publish(link, client, outs))
+            pending.add(task)
+            task.add_done_callback(pending.discard)
+
+    async def _publish(self, link: _Link, client: aiomqtt.Client, outs: list[Outgoing]) -> None:
+        name = link.core.config.name
+        calls = []
+        for o in outs:
+            if o.kind == "pose":
+                topic, qos = self.topics.pose(name), QOS_POSE
+            elif o.kind == "led_request":
+                topic, qos = self.topics.led_request(name), QOS_STATE
+            else:
+                topic = vda_topic(link.core.config.manufacturer, name, "visualization")
+                qos = QOS_POSE
+            calls.append(client.publish(topic, o.payload, qos=qos))
+            link.sent_bytes += len(o.payload) + len(topic)
+        link.inflight += 1
+        try:
+            results = await asyncio.gather(*calls, return_exceptions=True)
+        finally:
+            link.inflight -= 1
+        failed = sum(isinstance(r, BaseException) for r in results)
+        link.sent += len(results) - failed
+        link.dropped += failed
 
     # -- one robot's connection ----------------------------------------------------------------
     def _connection(self, link: _Link, state: ConnectionState) -> bytes:

@@ -80,6 +80,11 @@ class SimRobotSource:
     def geometry(self) -> RobotGeometry:
         return self.rig.geometry
 
+    @property
+    def start_pose(self) -> tuple[float, float, float]:
+        """Where the robot starts (x, y, theta; metres, radians): its dock."""
+        return self.rig.spec.start
+
     def true_pose_at(self, t_ns: int) -> tuple[float, float, float] | None:
         """The true planar pose when the frame stamped `t_ns` was taken (recent frames)."""
         return self.truth.get(t_ns)

@@ -1,12 +1,16 @@
 """Fleet benchmark: N robot agents (`irloc agent`) -> Mosquitto -> the site server
 (`irloc serve --mqtt`) -> a WebSocket client of `/api/v1/poses/ws` (loopback, bounded time).
 
-For each robot count (default 10, 50, 100): the agents run in separate processes
-(`--per-process` robots each), all in the light mode (spot-level simulation, no rendering:
-a hundred rendering agents do not fit on one machine; the server sees the same messages
-either way), the simulated cameras at `--camera-rate` frames/s (default 10, the agent's
-default pose rate, so every frame gives one pose message), on the demo site's world with the
-server's virtual robots off. Once every robot is localized, over `--seconds`:
+For each robot count (default 10, 50, 100) the agents run in separate processes
+(`--per-process` robots each) on the demo site's world with the server's virtual robots off.
+Up to `--real` robots (default 10) are real agents in the light mode (spot-level simulation:
+no rendering, the same localizer), their cameras at `--camera-rate` frames/s (default 10,
+the agent's default pose rate: every frame gives one pose message), odometry at
+`--odometry-rate`, started on their docks (`--start-known`); their own CPU is reported per
+robot. Larger counts are replay agents: the agent's own runtime and MQTT connection
+(connection and will, status, clock exchanges, poses at 10/s, visualization at 1/s) with
+poses along a circle instead of a localizer, so that a hundred fit on this machine; the
+server cannot tell them apart. Once every robot is localized, over `--seconds`:
 - latency from an agent's pose (`computed_wall_ns`, stamped when the agent's localizer
   returned it) to the WebSocket client receiving it: p50 / p99 / max;
 - the server's CPU (its process: utime + stime) above its idle level, per robot, in % of
@@ -43,6 +47,10 @@ import paho.mqtt.client as mqtt
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from agent.core import AgentConfig, AgentCore, Outgoing  # noqa: E402
+from agent.timebase import TimeBase  # noqa: E402
+from fleet.payloads import MapMessage  # noqa: E402
+from localizer.events import PoseEstimate  # noqa: E402
 from tests.fleet.mosquitto import Mosquitto, free_port  # noqa: E402
 
 ENV = {**os.environ, "PYTHONPATH": str(ROOT)}
@@ -64,7 +72,7 @@ class ByteCounter:
         self.broadcast = 0
         self.to_broker_ms: list[tuple[float, str, float]] = []
         self._lock = threading.Lock()
-        self.client = mqtt.Client(mqtt.CallbackAPIVersion.VERSION2)
+        self.client = mqtt.Client(mqtt.CallbackAPIVersion.VERSION2)  # type: ignore[attr-defined]
         self.client.on_message = self._on
         self.client.on_connect = lambda c, *a: c.subscribe(
             [("irloc/v1/default/#", 1), ("uagv/v2/irloc/+/+", 1)]
@@ -175,39 +183,98 @@ def robots(port: int, key: str) -> list[dict[str, Any]]:
     return list(json.loads(urllib.request.urlopen(req, timeout=10).read()))
 
 
+class ReplayCore(AgentCore):
+    """A stand-in agent for the large counts: a real agent's messages, the poses along a
+    circle (radius 2 m, 0.3 m/s), no localizer."""
+
+    def tick(self, now_mono_ns: int) -> list[Outgoing]:
+        with self._inbox_lock:
+            inbox, self._inbox = self._inbox, []
+        for msg in inbox:
+            if isinstance(msg, MapMessage):
+                self.map_id = msg.map_id
+        if (now_mono_ns - self._last_pose_mono) * self.config.pose_rate_hz < 0.8e9:
+            return []
+        self.frames += 1
+        self.mode = "landmark"
+        a = 0.15 * now_mono_ns * 1e-9 + hash(self.config.name) % 628 / 100
+        cov = np.diag([2e-5, 2e-5, 1e-5])
+        est = PoseEstimate(now_mono_ns, 5 + 2 * np.cos(a), 3 + 2 * np.sin(a), a % 3.1, cov,
+                           "landmark", (101, 102))  # fmt: skip
+        return self._pose_out(est, now_mono_ns)
+
+
+def replay_worker(url: str, name: str, count: int) -> int:
+    """A process of `count` replay agents (run by the benchmark itself)."""
+    import asyncio
+
+    from agent.runtime import AgentRuntime
+    from agent.sim_source import SimRobotSource
+    from fleet.broker import parse_broker_url
+    from sim.scenario import load_scenario
+
+    source = SimRobotSource(load_scenario("demo"), "r1", light=True)
+    cores: list[AgentCore] = [
+        ReplayCore(AgentConfig(f"{name}-{i:03d}", source="sim-light"), source, TimeBase())
+        for i in range(count)
+    ]
+    stop = asyncio.Event()
+
+    async def run() -> None:
+        asyncio.get_running_loop().add_signal_handler(signal.SIGTERM, stop.set)
+        await AgentRuntime(parse_broker_url(url), "default", cores).run(stop)
+
+    asyncio.run(run())
+    return 0
+
+
+def _agents(
+    n: int, name: str, count: int, args: argparse.Namespace, broker: Mosquitto
+) -> subprocess.Popen[bytes]:
+    """One process of `count` agents: real (light) ones up to `--real` robots, else replay."""
+    if n > args.real:
+        cmd = [sys.executable, str(Path(__file__).resolve()), "--replay-worker", broker.url,
+               name, str(count)]  # fmt: skip
+    else:
+        cmd = [sys.executable, "-m", "irloc", "agent", "--mqtt", broker.url, "--name", name,
+               "--count", str(count), "--sim", "--light", "--camera-rate", str(args.camera_rate),
+               "--odometry-rate", str(args.odometry_rate), "--start-known", "--log-level",
+               "warning"]  # fmt: skip
+        if count == 1:
+            cmd += ["--robot", "r1"]
+    return subprocess.Popen(cmd, env=ENV, cwd=ROOT, stdout=subprocess.DEVNULL)
+
+
+def _pct(a: np.ndarray, q: float) -> float:
+    return float(np.percentile(a, q)) if len(a) else float("nan")
+
+
 def run_round(
     n: int, args: argparse.Namespace, broker: Mosquitto, server: subprocess.Popen[str],
     port: int, key: str, counter: ByteCounter, idle_core: float,
-) -> dict[str, float]:  # fmt: skip
+) -> dict[str, Any]:  # fmt: skip
     prefix = f"n{n}"
     procs = []
-    left = n
-    k = 0
-    while left > 0:
-        count = min(args.per_process, left)
-        cmd = [sys.executable, "-m", "irloc", "agent", "--mqtt", broker.url, "--name",
-               f"{prefix}p{k}", "--count", str(count), "--sim", "--light", "--camera-rate",
-               str(args.camera_rate), "--log-level", "warning"]  # fmt: skip
-        if count == 1:
-            cmd += ["--robot", "r1"]
-        procs.append(subprocess.Popen(cmd, env=ENV, cwd=ROOT, stdout=subprocess.DEVNULL))
-        left -= count
-        k += 1
+    for k, start in enumerate(range(0, n, args.per_process)):
+        count = min(args.per_process, n - start)
+        procs.append(_agents(n, f"{prefix}p{k}", count, args, broker))
     try:
         deadline = time.monotonic() + args.warmup_s
         ready = 0
         while time.monotonic() < deadline:
             mine = [r for r in robots(port, key) if r["name"].startswith(prefix)]
-            ready = sum(r["mode"] == "landmark" and r["connected"] for r in mine)
+            ready = sum(r["mode"] == "landmark" and bool(r["connected"]) for r in mine)
             if ready == n:
                 break
             time.sleep(0.5)
         lat = Latencies(f"ws://127.0.0.1:{port}/api/v1/poses/ws?token={key}")
         time.sleep(1.0)
         up0, down0, b0 = counter.snapshot()
+        a0 = sum(cpu_s(p.pid) for p in procs)
         c0, t0 = cpu_s(server.pid), time.monotonic()
         time.sleep(args.seconds)
         c1, t1 = cpu_s(server.pid), time.monotonic()
+        a1 = sum(cpu_s(p.pid) for p in procs)
         up1, down1, b1 = counter.snapshot()
         lat.close()
     finally:
@@ -228,15 +295,17 @@ def run_round(
     core = (c1 - c0) / dt
     return {
         "robots": n,
+        "kind": "replay" if n > args.real else "light",
         "localized": ready,
         "poses_s": len(ms) / dt,
-        "p50": float(np.percentile(ms, 50)) if len(ms) else float("nan"),
-        "p99": float(np.percentile(ms, 99)) if len(ms) else float("nan"),
+        "p50": _pct(ms, 50),
+        "p99": _pct(ms, 99),
         "max": float(ms.max()) if len(ms) else float("nan"),
-        "hop_p50": float(np.percentile(hop, 50)) if len(hop) else float("nan"),
-        "hop_p99": float(np.percentile(hop, 99)) if len(hop) else float("nan"),
+        "hop_p50": _pct(hop, 50),
+        "hop_p99": _pct(hop, 99),
         "core_pct": 100 * core,
         "per_robot_pct": 100 * (core - idle_core) / n,
+        "agent_pct": 100 * (a1 - a0) / dt / n,
         "up_Bps": mine_up / dt / n,
         "down_Bps": mine_down / dt / n + (b1 - b0) / dt,
     }
@@ -248,8 +317,14 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--seconds", type=float, default=8.0)
     p.add_argument("--per-process", type=int, default=25)
     p.add_argument("--camera-rate", type=float, default=10.0)
+    p.add_argument("--odometry-rate", type=float, default=20.0)
     p.add_argument("--warmup-s", type=float, default=60.0)
+    p.add_argument("--real", type=int, default=10, help="real agents up to this many robots")
+    p.add_argument("--replay-worker", nargs=3, metavar=("URL", "NAME", "COUNT"), help="internal")
     args = p.parse_args(argv)
+    if args.replay_worker:
+        url, name, count = args.replay_worker
+        return replay_worker(url, name, int(count))
     raw, png, rate = frame_sizes(args.camera_rate)
     rows = []
     with Mosquitto() as broker, tempfile.TemporaryDirectory() as tmp:
@@ -274,15 +349,16 @@ def main(argv: list[str] | None = None) -> int:
             server.send_signal(signal.SIGTERM)
             server.wait(20)
     print()
-    print("| robots | localized | poses/s at client | latency p50 / p99 / max (ms) | to broker "
-          "subscriber p50 / p99 (ms) | server CPU (% core) | per robot (% core) | B/s per robot "
-          "from / to agent |")  # fmt: skip
-    print("|---|---|---|---|---|---|---|---|")
+    print("| robots (agents) | localized | poses/s at client | latency p50 / p99 / max (ms) | to "
+          "broker subscriber p50 / p99 (ms) | server CPU (% core) | server per robot (% core) | "
+          "agent CPU per robot (% core) | B/s per robot from / to agent |")  # fmt: skip
+    print("|---|---|---|---|---|---|---|---|---|")
     for r in rows:
         print(
-            f"| {r['robots']} | {r['localized']} | {r['poses_s']:.0f} | {r['p50']:.1f} / "
+            f"| {r['robots']} ({r['kind']}) | {r['localized']} | {r['poses_s']:.0f} | "
+            f"{r['p50']:.1f} / "
             f"{r['p99']:.1f} / {r['max']:.1f} | {r['hop_p50']:.1f} / {r['hop_p99']:.1f} | "
-            f"{r['core_pct']:.1f} | {r['per_robot_pct']:.2f} | "
+            f"{r['core_pct']:.1f} | {r['per_robot_pct']:.2f} | {r['agent_pct']:.1f} | "
             f"{r['up_Bps']:.0f} / {r['down_Bps']:.0f} |"
         )
     if len(rows) >= 2:

@@ -53,7 +53,9 @@ if TYPE_CHECKING:
 
 log = logging.getLogger(__name__)
 RECONNECT_S = (0.2, 2.0)
-KEEPALIVE_S = 5
+KEEPALIVE_S = 10
+MAX_PENDING = 1000
+"""Messages handed to the connection and not yet written before the bridge waits."""
 
 
 class MqttBridge:
@@ -152,9 +154,17 @@ class MqttBridge:
         self._send(self.topics.command(robot), msg.encode(), QOS_STATE)
 
     async def _sender(self, client: aiomqtt.Client) -> None:
+        """Hand each message to the connection in order without waiting for the one before
+        (paho queues them; awaiting each would hold every clock reply behind one write)."""
+        pending: set[asyncio.Task[None]] = set()
         while True:
             topic, payload, qos, retain = await self._out.get()
-            await client.publish(topic, payload, qos=qos, retain=retain)
+            task = asyncio.create_task(client.publish(topic, payload, qos=qos, retain=retain))
+            pending.add(task)
+            task.add_done_callback(pending.discard)
+            task.add_done_callback(_count_failure)
+            if len(pending) > MAX_PENDING:
+                await asyncio.wait(pending, return_when=asyncio.FIRST_COMPLETED)
 
     # -- the connection -------------------------------------------------------------------------
     async def _run(self) -> None:
@@ -357,6 +367,12 @@ class MqttBridge:
         if coordinator is None or self._agent(robot) is None:
             return
         coordinator.request(robot, msg.request())
+
+
+def _count_failure(task: asyncio.Task[None]) -> None:
+    """A publish that failed: the connection is going (the receive loop ends the session)."""
+    if not task.cancelled() and task.exception() is not None:
+        log.debug("publish failed: %s", task.exception())
 
 
 async def start_mqtt_bridge(services: SiteServices) -> MqttBridge | None:
