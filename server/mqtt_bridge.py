@@ -13,11 +13,13 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import functools
 import hashlib
 import json
 import logging
 import time
-from typing import TYPE_CHECKING
+from concurrent.futures import ThreadPoolExecutor
+from typing import TYPE_CHECKING, Any
 
 import aiomqtt
 
@@ -96,6 +98,7 @@ class MqttBridge:
         self._status: dict[str, AgentStatus] = {}
         self._online: set[str] = set()
         self._gateway_listening = False
+        self._events = ThreadPoolExecutor(max_workers=1, thread_name_prefix="mqtt-events")
 
     # -- lifecycle --------------------------------------------------------------------------------
     def start(self) -> None:
@@ -117,6 +120,7 @@ class MqttBridge:
             self._task.cancel()
             with contextlib.suppress(asyncio.CancelledError, Exception):
                 await self._task
+        await asyncio.to_thread(self._events.shutdown, wait=True)
 
     # -- clocks ---------------------------------------------------------------------------------
     def _wall_minus_site(self) -> int:
@@ -267,6 +271,14 @@ class MqttBridge:
         elif leaf == "led_request":
             self._on_led_request(robot, decode(LedRequestMessage, topic, payload))
 
+    def _emit(
+        self, kind: str, message: str, *, robot: str, data: dict[str, Any] | None = None
+    ) -> None:
+        """A site event, written off the loop (each is a database commit: a hundred agents
+        arriving at once must not stall the pose stream)."""
+        emit = functools.partial(self.services.events.emit, robot=robot, data=data)
+        self._loop.run_in_executor(self._events, emit, kind, message)
+
     # -- agents ---------------------------------------------------------------------------------
     def _agent(self, robot: str) -> AgentRunner | None:
         try:
@@ -280,7 +292,7 @@ class MqttBridge:
             state = json.loads(payload).get("connectionState")
         except (json.JSONDecodeError, AttributeError):
             raise PayloadError(f"connection of {robot}: not a JSON object") from None
-        emit = self.services.events.emit
+        emit = self._emit
         runner = self._agent(robot)
         if state == "ONLINE":
             self._online.add(robot)
@@ -331,7 +343,7 @@ class MqttBridge:
             return
         runner.connected = True
         runner.update_status(status)
-        self.services.events.emit(
+        self._emit(
             "robot_connected",
             f"agent {robot} connected ({status.source})",
             robot=robot,
@@ -346,7 +358,7 @@ class MqttBridge:
         ok = est.within(self.clock.tolerance_s)
         runner.clock_within_tolerance = ok
         if not ok and was_ok is not False:
-            self.services.events.emit(
+            self._emit(
                 "clock_offset",
                 f"agent {runner.name}: clock off by {est.offset_ns / 1e6:+.1f} ms "
                 f"(+- {est.error_ns / 1e6:.1f} ms), more than identification tolerates "
@@ -358,9 +370,9 @@ class MqttBridge:
 
     def _on_mode_change(self, robot: str, old: Mode, new: Mode) -> None:
         if new == "lost":
-            self.services.events.emit("robot_lost", f"robot {robot} is lost", robot=robot)
+            self._emit("robot_lost", f"robot {robot} is lost", robot=robot)
         elif new == "landmark" and old in ("lost", "identifying"):
-            self.services.events.emit("robot_localized", f"robot {robot} localized", robot=robot)
+            self._emit("robot_localized", f"robot {robot} localized", robot=robot)
 
     def _on_led_request(self, robot: str, msg: LedRequestMessage) -> None:
         coordinator = self.services.leds.coordinator
