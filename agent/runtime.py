@@ -32,14 +32,12 @@ from fleet.payloads import (
     PayloadError,
     decode,
 )
+from fleet.session import run_session, until_first_ends
 from fleet.topics import QOS_CLOCK, QOS_POSE, QOS_STATE, SiteTopics, vda_topic
 from fleet.vda5050 import ConnectionState, HeaderIds, connection_message
 
 log = logging.getLogger(__name__)
 TICK_S = 0.01
-RECONNECT_S = (0.2, 2.0)
-"""First and longest wait between connection attempts, seconds."""
-KEEPALIVE_S = 10
 STATUS_INTERVAL_S = 5.0
 MAX_INFLIGHT = 20
 """Batches of one robot handed to its connection and not yet written."""
@@ -185,47 +183,39 @@ class AgentRuntime:
     async def _session(self, link: _Link, stop: asyncio.Event) -> None:
         cfg = link.core.config
         conn_topic = vda_topic(cfg.manufacturer, cfg.name, "connection")
-        wait = RECONNECT_S[0]
-        while not stop.is_set():
-            will = aiomqtt.Will(
-                conn_topic, self._connection(link, "CONNECTIONBROKEN"), qos=1, retain=True
-            )
+
+        def will() -> aiomqtt.Will:
+            broken = self._connection(link, "CONNECTIONBROKEN")
+            return aiomqtt.Will(conn_topic, broken, qos=1, retain=True)
+
+        async def serve(client: aiomqtt.Client) -> bool:
             try:
-                async with aiomqtt.Client(
-                    self.broker.host,
-                    self.broker.port,
-                    identifier=f"irloc-agent-{self.topics.site}-{cfg.name}",
-                    will=will,
-                    keepalive=KEEPALIVE_S,
-                    timeout=5.0,
-                ) as client:
-                    await self._online(link, client, conn_topic)
-                    wait = RECONNECT_S[0]
-                    tasks = [
-                        asyncio.create_task(self._receive(link, client)),
-                        asyncio.create_task(self._clock_loop(link, client)),
-                        asyncio.create_task(self._status_loop(link, client)),
-                    ]
-                    stopper = asyncio.create_task(stop.wait())
-                    await asyncio.wait([*tasks, stopper], return_when=asyncio.FIRST_COMPLETED)
-                    link.client = None
-                    for t in [*tasks, stopper]:
-                        t.cancel()
-                    for t in tasks:
-                        with contextlib.suppress(asyncio.CancelledError, aiomqtt.MqttError):
-                            await t
-                    if stop.is_set():
-                        await client.publish(
-                            conn_topic, self._connection(link, "OFFLINE"), qos=1, retain=True
-                        )
-                        return
-            except aiomqtt.MqttError as exc:
-                if link.client is not None or link.connects == 0:
-                    log.warning("%s: broker %s: %s; retrying", cfg.name, self.broker, exc)
+                await self._online(link, client, conn_topic)
+                await until_first_ends(
+                    self._receive(link, client),
+                    self._clock_loop(link, client),
+                    self._status_loop(link, client),
+                    stop.wait(),
+                )
                 link.client = None
-            with contextlib.suppress(TimeoutError):
-                await asyncio.wait_for(stop.wait(), wait)
-            wait = min(wait * 2, RECONNECT_S[1])
+                if stop.is_set():
+                    offline = self._connection(link, "OFFLINE")
+                    await client.publish(conn_topic, offline, qos=1, retain=True)
+                    return True
+            except aiomqtt.MqttError:
+                pass
+            link.client = None
+            return False
+
+        await run_session(
+            self.broker,
+            identifier=f"irloc-agent-{self.topics.site}-{cfg.name}",
+            will=will,
+            serve=serve,
+            stop=stop,
+            name=cfg.name,
+        )
+        link.client = None
 
     async def _online(self, link: _Link, client: aiomqtt.Client, conn_topic: str) -> None:
         name = link.core.config.name

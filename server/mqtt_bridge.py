@@ -39,6 +39,7 @@ from fleet.payloads import (
     ServerState,
     decode,
 )
+from fleet.session import run_session, until_first_ends
 from fleet.topics import (
     QOS_CLOCK,
     QOS_STATE,
@@ -54,8 +55,6 @@ if TYPE_CHECKING:
     from server.services import SiteServices
 
 log = logging.getLogger(__name__)
-RECONNECT_S = (0.2, 2.0)
-KEEPALIVE_S = 10
 MAX_PENDING = 1000
 """Messages handed to the connection and not yet written before the bridge waits."""
 
@@ -172,42 +171,25 @@ class MqttBridge:
 
     # -- the connection -------------------------------------------------------------------------
     async def _run(self) -> None:
-        wait = RECONNECT_S[0]
-        while True:
-            will = aiomqtt.Will(
-                self.topics.server, ServerState(state="OFFLINE").encode(), qos=1, retain=True
-            )
+        offline = ServerState(state="OFFLINE").encode()
+
+        async def serve(client: aiomqtt.Client) -> bool:
             try:
-                async with aiomqtt.Client(
-                    self.broker.host,
-                    self.broker.port,
-                    identifier=f"irloc-server-{self.topics.site}",
-                    will=will,
-                    keepalive=KEEPALIVE_S,
-                    timeout=5.0,
-                ) as client:
-                    await self._online_now(client)
-                    wait = RECONNECT_S[0]
-                    tasks = [
-                        asyncio.create_task(self._receive(client)),
-                        asyncio.create_task(self._sender(client)),
-                    ]
-                    try:
-                        await asyncio.wait(tasks, return_when=asyncio.FIRST_COMPLETED)
-                    finally:
-                        self.client = None
-                        for t in tasks:
-                            t.cancel()
-                        for t in tasks:
-                            with contextlib.suppress(asyncio.CancelledError, aiomqtt.MqttError):
-                                await t
-                    log.warning("broker %s: connection lost; reconnecting", self.broker)
-            except aiomqtt.MqttError as exc:
-                if self.connects == 0 or wait == RECONNECT_S[0]:
-                    log.warning("broker %s: %s; retrying", self.broker, exc)
+                await self._online_now(client)
+                await until_first_ends(self._receive(client), self._sender(client))
+            except aiomqtt.MqttError:
+                pass
             self.client = None
-            await asyncio.sleep(wait)
-            wait = min(wait * 2, RECONNECT_S[1])
+            return False
+
+        await run_session(
+            self.broker,
+            identifier=f"irloc-server-{self.topics.site}",
+            will=lambda: aiomqtt.Will(self.topics.server, offline, qos=1, retain=True),
+            serve=serve,
+            stop=asyncio.Event(),  # runs until the bridge's task is cancelled
+            name="site server",
+        )
 
     async def _online_now(self, client: aiomqtt.Client) -> None:
         t = self.topics
