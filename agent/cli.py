@@ -3,10 +3,14 @@ server, on the site's map and LED states received over MQTT, and publishes its p
 JSON and VDA 5050).
 
     irloc agent --mqtt mqtt://HOST:PORT --name NAME --sim [--light]
+    irloc agent --mqtt mqtt://HOST:PORT --name NAME --camera DEV --wheels PORT \
+        --sensor cam0/sensor.yaml --wheel-base M
 
 `--sim`: one robot of the site's scenario simulated on the agent (rendered frames; `--light`:
 spot-level simulation, no rendering, for many agents on one machine). `--count N` runs N
-robots in this process (NAME-000 ...), cycling through the scenario's robots.
+robots in this process (NAME-000 ...), cycling through the scenario's robots. `--camera` and
+`--wheels`: the robot's own camera (OpenCV device, video file or image sequence) and wheel
+speeds (`$IRODO` lines on a serial port), with its calibrated `sensor.yaml`.
 """
 
 from __future__ import annotations
@@ -21,11 +25,13 @@ import sys
 from pathlib import Path
 
 from agent.core import AgentConfig, AgentCore
+from agent.hardware import HardwareSource
 from agent.runtime import AgentRuntime
 from agent.sim_source import SimRobotSource
 from agent.timebase import TimeBase
 from fleet.broker import parse_broker_url
 from fleet.topics import check_name
+from localizer.robot import RobotGeometry
 from sim.scenario import Scenario
 
 log = logging.getLogger(__name__)
@@ -38,6 +44,12 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--site", default="default", help="site name in the topics (default default)")
     p.add_argument("--manufacturer", default="irloc", help="VDA 5050 manufacturer")
     p.add_argument("--sim", action="store_true", help="simulate a robot of the site's scenario")
+    p.add_argument("--camera", help="camera index, video file or image sequence (real robot)")
+    p.add_argument("--wheels", help="serial port of the $IRODO wheel-speed lines (real robot)")
+    p.add_argument("--wheels-baud", type=int, default=115200, help="its baud rate")
+    p.add_argument("--sensor", type=Path, help="the camera's calibrated cam0/sensor.yaml")
+    p.add_argument("--wheel-base", type=float, help="metres between the wheels (real robot)")
+    p.add_argument("--max-speed", type=float, default=1.0, help="m/s (real robot)")
     p.add_argument("--light", action="store_true", help="spot-level simulation (no rendering)")
     p.add_argument("--scenario", default="demo", help="the site's scenario (default demo)")
     p.add_argument("--seed", type=int, help="the site's seed (as `irloc serve --seed`)")
@@ -77,12 +89,48 @@ def with_rates(scenario: Scenario, camera_hz: float | None, odometry_hz: float |
     return dataclasses.replace(scenario, robots=tuple(robots))
 
 
+def hardware_core(args: argparse.Namespace) -> AgentCore:
+    """The agent of a real robot: `--camera` and/or `--wheels`, `--sensor`, `--wheel-base`."""
+    import yaml
+
+    from agent.hardware import HardwareSource
+    from localizer.camera import camera_from_sensor
+
+    if args.camera is None and args.wheels is None:
+        raise ValueError("give --sim, or a real robot's --camera DEV and --wheels PORT")
+    if args.sensor is None or args.wheel_base is None:
+        raise ValueError("a real robot needs --sensor cam0/sensor.yaml and --wheel-base M")
+    if not 0 < args.wheel_base <= 10 or not 0 < args.max_speed <= 20:
+        raise ValueError("--wheel-base must be in (0, 10] m and --max-speed in (0, 20] m/s")
+    try:
+        sensor = yaml.safe_load(args.sensor.read_text(encoding="utf-8"))
+    except (OSError, yaml.YAMLError) as exc:
+        raise ValueError(f"--sensor {args.sensor}: {exc}") from None
+    camera = camera_from_sensor(sensor, source=str(args.sensor))
+    source = HardwareSource(
+        camera,
+        RobotGeometry(args.wheel_base, args.max_speed),
+        device=args.camera,
+        wheels=args.wheels,
+        baud=args.wheels_baud,
+    )
+    config = AgentConfig(
+        name=check_name("--name", args.name),
+        manufacturer=check_name("--manufacturer", args.manufacturer),
+        source="camera",
+        reorder_hold_s=args.hold,
+        pose_rate_hz=args.pose_rate,
+        visualization_rate_hz=args.visualization_rate,
+    )
+    return AgentCore(config, source, TimeBase(round(args.clock_skew * 1e9)))
+
+
 def build_cores(args: argparse.Namespace) -> list[AgentCore]:
     """One `AgentCore` per robot of this process; ValueError names a bad argument."""
     from sim.scenario import load_scenario
 
     if not args.sim:
-        raise ValueError("--sim is required: this agent simulates its robot (docs/fleet.md)")
+        return [hardware_core(args)]
     if args.count < 1:
         raise ValueError(f"--count must be >= 1, got {args.count}")
     scenario = load_scenario(args.scenario)
@@ -113,6 +161,19 @@ def build_cores(args: argparse.Namespace) -> list[AgentCore]:
 
 
 async def _run(runtime: AgentRuntime) -> None:
+    sources = [
+        link.core.source for link in runtime.links if isinstance(link.core.source, HardwareSource)
+    ]
+    for s in sources:
+        s.start()
+    try:
+        await _until_signal(runtime)
+    finally:
+        for s in sources:
+            s.stop()
+
+
+async def _until_signal(runtime: AgentRuntime) -> None:
     stop = asyncio.Event()
     loop = asyncio.get_running_loop()
     for sig in (signal.SIGINT, signal.SIGTERM):
