@@ -653,7 +653,7 @@ class IdentificationWizard:
                 f"{head}: at ({x:.3f}, {y:.3f}, {z:.3f}) m, {m.samples} frames agree within "
                 f"{100 * m.spread_m:.1f} cm; {m.plausibility.note}"
             )
-            return text + (". FAR from the map" if m.plausibility.far else "")
+            return text
         if t.samples:
             return f"{head}: measuring ({len(t.samples)} frames, not yet agreeing)"
         if (t_ns - t.started_ns) * 1e-9 < self.config.no_spot_s:

@@ -1,7 +1,7 @@
 """`irloc serve`: the server with the viewer handed in (the one place that wires both).
 
 `server.cli.main` parses the options and runs the API; this module adds the viewer
-(`web.viewer.Viewer`), since the server itself never imports `web`.
+(`web.viewer.SiteViewer`), since the server itself never imports `web`.
 """
 
 from __future__ import annotations
@@ -15,9 +15,9 @@ def make_viewer(settings: Settings) -> ViewerApp | None:
     """The viewer for `settings` (None when `viewer_enabled` is off), on a loopback port."""
     if not settings.viewer_enabled:
         return None
-    from web.viewer import Viewer
+    from web.viewer import SiteViewer
 
-    return Viewer(host="127.0.0.1", port=settings.viewer_port)
+    return SiteViewer(host="127.0.0.1", port=settings.viewer_port)
 
 
 def main(argv: list[str] | None = None) -> int:

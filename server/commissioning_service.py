@@ -20,7 +20,7 @@ import logging
 import statistics
 import threading
 from collections.abc import Callable, Coroutine, Sequence
-from typing import Any, TypeVar
+from typing import Any
 
 import numpy as np
 
@@ -49,8 +49,8 @@ from commissioning.wizard import (
 )
 from localizer.events import FrameObserved, LedRequest, LedsChanged
 from localizer.spots import DetectionConfig, detect_spots
+from pubsub.bus import Subscription
 from rf_gateway.errors import RfGatewayError
-from server.bus import Subscription
 from server.crud import MapRepository
 from server.errors import ConflictError, UnavailableError
 from server.facades import LedsAndRadio, Robots
@@ -58,8 +58,6 @@ from server.models import LandmarkCreate, LandmarkPublic, LandmarkUpdate
 from server.poses import PoseUpdate
 
 log = logging.getLogger(__name__)
-T = TypeVar("T")
-Submit = Callable[[Coroutine[Any, Any, T]], concurrent.futures.Future[T]]
 WIZARD = "wizard"
 """The LED coordinator's name for the wizard's requests."""
 
@@ -71,6 +69,8 @@ class Commissioning:
         map, robots, leds: the site's facades.
         submit: runs a coroutine on the server's loop from any thread (`SiteServices.submit`).
         doubt, wizard, detection: tuning.
+        batch_s: pose updates are taken in batches at most this often, seconds (one worker
+            thread hop a batch, not one a pose).
     """
 
     def __init__(
@@ -83,9 +83,11 @@ class Commissioning:
         doubt: DoubtConfig | None = None,
         wizard: WizardConfig | None = None,
         detection: DetectionConfig | None = None,
+        batch_s: float = 0.05,
     ) -> None:
         self.map, self.robots, self.leds, self._submit = map, robots, leds, submit
         self.detection = detection or DetectionConfig()
+        self.batch_s = batch_s
         self._doubt = DoubtTracker(doubt)
         self._wizard = IdentificationWizard(wizard)
         self._lock = threading.RLock()
@@ -125,6 +127,7 @@ class Commissioning:
                 except Exception:  # keep commissioning alive; the site may be restarting
                     self.failures += 1
                     log.exception("commissioning: pose batch failed")
+            await asyncio.sleep(self.batch_s)
 
     # -- inputs -------------------------------------------------------------------------------
     def _on_map(self, landmarks: list[LandmarkPublic]) -> None:

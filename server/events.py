@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 from datetime import datetime
 from typing import Any
 
-from server.bus import Bus
+from pubsub.bus import Bus
 from server.crud.log import EventLog
 
 EVENT_KINDS = (

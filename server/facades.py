@@ -22,11 +22,11 @@ from typing import Any
 import numpy as np
 
 from localizer.events import Event, LedsChanged, Mode
+from pubsub.bus import Bus, Subscription
 from rf_gateway.battery import BatteryConfig, BatteryReading, days_left
 from rf_gateway.errors import RadioTimeout
 from rf_gateway.gateway import Gateway
 from rf_gateway.transport import DiscoveredRadio, normalize_address
-from server.bus import Bus, Subscription
 from server.crud import EventLog, MapRepository, RobotStore
 from server.errors import NotFoundError, UnavailableError
 from server.models import RobotCreate, RobotPublic
@@ -163,8 +163,16 @@ class LedsAndRadio:
         self.discovered: list[DiscoveredRadio] = []
 
     def attach(self, gateway: Gateway | None, coordinator: LedCoordinator | None) -> None:
-        """Called by the live site once its radio runs (`attach(None, None)` at stop)."""
+        """Called by the live site once its radio runs (`attach(None, None)` at stop):
+        every supply reading of the gateway (its schedule, or `read_battery`) is stored."""
+        if self.gateway is not None:
+            self.gateway.remove_battery_listener(self._store_reading)
         self.gateway, self.coordinator = gateway, coordinator
+        if gateway is not None:
+            gateway.add_battery_listener(self._store_reading)
+
+    def _store_reading(self, reading: BatteryReading) -> None:
+        self.log.add_battery(reading.landmark_id, reading.supply_mv)
 
     def _gw(self) -> Gateway:
         if self.gateway is None:
@@ -200,12 +208,6 @@ class LedsAndRadio:
     async def blink(self, landmark_id: int) -> LedsChanged:
         self.map.get(landmark_id)
         return await self._gw().blink(landmark_id)
-
-    def hold(self, held: bool) -> None:
-        """Hold the site's LEDs for a caller that switches them itself: the robots' own LED
-        requests wait until released (thread-safe; nothing to hold without a live site)."""
-        if self.coordinator is not None:
-            self.coordinator.hold(held)
 
     def lit(self) -> frozenset[int]:
         """IDs of the landmarks whose LED is confirmed lit now."""
@@ -251,11 +253,9 @@ class LedsAndRadio:
                     raise
 
     async def read_battery(self, landmark_id: int) -> BatteryReading:
-        """Read one landmark's supply now and store it."""
+        """Read one landmark's supply now (stored, as every reading is)."""
         self.map.get(landmark_id)
-        reading = await self._gw().battery(landmark_id)
-        self.log.add_battery(landmark_id, reading.supply_mv)
-        return reading
+        return await self._gw().battery(landmark_id)
 
     def battery(self, landmark_id: int) -> BatteryStatus:
         """Latest reading, percent, days left and history from the database."""

@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING, Any, TypeVar
 
 from sqlalchemy import Engine
 
-from server.bus import Bus
+from pubsub.bus import Bus
 from server.commissioning_service import Commissioning
 from server.crud import EventLog, KeyStore, MapRepository, RobotStore
 from server.crud.landmarks import parse_map_json

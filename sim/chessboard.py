@@ -33,6 +33,7 @@ class BoardSpec(Protocol):
     def object_points(self) -> npt.NDArray[np.float64]: ...
     def charuco_board(self) -> cv2.aruco.CharucoBoard: ...
 
+
 FloatArray = npt.NDArray[np.float64]
 ImageU8 = npt.NDArray[np.uint8]
 

@@ -17,7 +17,7 @@ import contextlib
 import logging
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Protocol
+from typing import Protocol
 from urllib.parse import urlencode
 
 import viser
@@ -25,6 +25,7 @@ import websockets
 from fastapi import APIRouter, Request, WebSocket, WebSocketDisconnect
 from fastapi.responses import HTMLResponse, RedirectResponse, Response
 from starlette.requests import HTTPConnection
+from websockets.asyncio.client import ClientConnection
 
 from server.seams import Authenticate
 from web.roles import TICKET_PARAM, Session
@@ -64,7 +65,7 @@ def _with_bearer(conn: HTTPConnection, key: str) -> HTTPConnection:
 
 
 class TicketIssuer(Protocol):
-    """The running viewer as the proxy needs it (`web.viewer.Viewer`)."""
+    """The running viewer as the proxy needs it (`web.viewer.SiteViewer`)."""
 
     @property
     def port(self) -> int: ...
@@ -98,7 +99,7 @@ def viewer_router(
     """Routes serving the viewer under `/viewer/`.
 
     Args:
-        get_viewer: returns the running `web.viewer.Viewer` (None when disabled).
+        get_viewer: returns the running `web.viewer.SiteViewer` (None when disabled).
         authenticate: `server.auth.authenticate`: a connection -> principal with `role` and
             `actor`, or None for a missing or invalid key.
     """
@@ -158,7 +159,7 @@ def viewer_router(
     return router
 
 
-async def relay(ws: WebSocket, upstream: Any) -> None:
+async def relay(ws: WebSocket, upstream: ClientConnection) -> None:
     """Copy messages both ways until either side closes; then close the other."""
 
     async def down() -> None:

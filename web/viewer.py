@@ -1,4 +1,4 @@
-"""`Viewer`: the viser app of a site, run inside the server process on its services.
+"""`SiteViewer`: the viser app of a site, run inside the server process on its services.
 
 It starts a viser server on a loopback port (viser has no login of its own: browsers reach
 it through `web.proxy.viewer_router`, which checks the API key and hands the viewer a
@@ -39,7 +39,7 @@ if TYPE_CHECKING:
     from server.services import SiteServices
 
 log = logging.getLogger(__name__)
-__all__ = ["TICKET_PARAM", "Viewer", "ViewerConfig"]
+__all__ = ["TICKET_PARAM", "SiteViewer", "ViewerConfig"]
 
 
 @dataclass(frozen=True)
@@ -64,7 +64,7 @@ class ViewerConfig:
 
 
 class _ClientPanels:
-    def __init__(self, viewer: Viewer, client: viser.ClientHandle, session: Session) -> None:
+    def __init__(self, viewer: SiteViewer, client: viser.ClientHandle, session: Session) -> None:
         site = viewer.site
 
         def notify(title: str, body: str) -> None:
@@ -89,7 +89,7 @@ class _ClientPanels:
             self.coverage = CoveragePanel(client, site, notify)
 
 
-class Viewer:
+class SiteViewer:
     """The site's 3D viewer.
 
     A `server.seams.ViewerApp`: `irloc serve` builds it and hands it to `create_app`, which

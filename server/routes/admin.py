@@ -68,4 +68,5 @@ async def radio_state(services: ServicesDep, _: Viewer) -> RadioState:
 @router.post("/radio/discover")
 async def discover(services: ServicesDep, _: Operator) -> list[Discovered]:
     """Radios that answer node discovery and are not in the map."""
-    return [Discovered(address=r.address, node_id=r.node_id) for r in await services.leds.discover()]
+    radios = await services.leds.discover()
+    return [Discovered(address=r.address, node_id=r.node_id) for r in radios]

@@ -182,9 +182,7 @@ async def remote_robot(ws: WebSocket, name: str) -> None:
         )
 
 
-async def _serve(
-    ws: WebSocket, clock_ns: Clock, runner: RobotRunner, source: RemoteSource
-) -> None:
+async def _serve(ws: WebSocket, clock_ns: Clock, runner: RobotRunner, source: RemoteSource) -> None:
     while True:
         msg = await ws.receive()
         if msg["type"] == "websocket.disconnect":

@@ -21,7 +21,8 @@ from localizer.camera import camera_from_sensor, sensor_from_camera
 from localizer.events import Event, LedRequest, Mode
 from localizer.landmark_map import LandmarkMap
 from localizer.robot import RobotGeometry
-from rf_gateway.battery import BatteryConfig, BatteryReading
+from pubsub.bus import Bus, Subscription
+from rf_gateway.battery import BatteryConfig
 from rf_gateway.config import GatewayConfig
 from rf_gateway.errors import RfGatewayError
 from rf_gateway.events import (
@@ -31,7 +32,6 @@ from rf_gateway.events import (
     TransportStateChanged,
 )
 from rf_gateway.gateway import Gateway
-from server.bus import Bus, Subscription
 from server.crud import MapRepository, RobotStore
 from server.crud.landmarks import parse_map_json
 from server.events import EventHub
@@ -73,7 +73,6 @@ class LedHost(Protocol):
     """What the live site needs of the LED facade (`server.facades.LedsAndRadio`)."""
 
     def attach(self, gateway: Gateway | None, coordinator: LedCoordinator | None) -> None: ...
-    async def read_battery(self, landmark_id: int) -> BatteryReading: ...
 
 
 class LiveSiteRunner:
@@ -235,7 +234,8 @@ class LiveSiteRunner:
         except ValueError as exc:
             log.error("no radio: %s", exc)
             return
-        config = GatewayConfig(battery=BatteryConfig(interval_s=None))
+        # the gateway's own schedule reads every landmark's supply; the LED facade stores it
+        config = GatewayConfig(battery=BatteryConfig(interval_s=self.settings.battery_interval_s))
         self.gateway = Gateway(transport, self.map.addresses(), config, clock_ns=self.clock_ns)
         await self.gateway.start()
         self.leds = LedCoordinator(self.gateway, self.robots.runners, self._on_led_error)
@@ -243,8 +243,6 @@ class LiveSiteRunner:
         self.led_facade.attach(self.gateway, self.leds)
         loop = asyncio.get_running_loop()
         self._tasks = [loop.create_task(self._gateway_events())]
-        if self.settings.battery_interval_s is not None:
-            self._tasks.append(loop.create_task(self._battery_loop()))
 
     # -- running ---------------------------------------------------------------------------
     def _request_leds(self, robot: str, req: LedRequest) -> None:
@@ -285,17 +283,6 @@ class LiveSiteRunner:
                 )
             elif isinstance(ev, TransportStateChanged):
                 emit("radio_state", f"radio link {ev.state}", data={"state": ev.state})
-
-    async def _battery_loop(self) -> None:
-        interval = self.settings.battery_interval_s
-        assert interval is not None
-        while True:
-            for lm in self.map.list():
-                if lm.radio is None:
-                    continue
-                with contextlib.suppress(RfGatewayError, KeyError):
-                    await self.led_facade.read_battery(lm.id)
-            await asyncio.sleep(interval)
 
     def on_map_changed(self, landmarks: list[LandmarkPublic]) -> None:
         """Give the new map to every localizer and the new addresses to the gateway."""

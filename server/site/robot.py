@@ -20,12 +20,15 @@ from localizer.events import (
     Mode,
     NoPose,
     OdometryMeasured,
+    Output,
     PoseEstimate,
     RelocalizeRequested,
     SpotsObserved,
 )
 from localizer.landmark_map import LandmarkMap
+from localizer.localizer import Localizer
 from localizer.robot import RobotGeometry
+from recording.writer import RecordingWriter
 from server.poses import PoseUpdate
 
 log = logging.getLogger(__name__)
@@ -34,16 +37,16 @@ log = logging.getLogger(__name__)
 class LocalizerLike(Protocol):
     """What the runner needs of `localizer.Localizer`."""
 
-    def handle(self, event: Any) -> list[Any]: ...
+    def handle(self, event: Event) -> list[Output]: ...
     def set_map(self, landmark_map: LandmarkMap) -> None: ...
     @property
     def mode(self) -> Mode: ...
 
 
-def make_localizer(camera: CameraModel, landmark_map: LandmarkMap, robot: RobotGeometry) -> Any:
-    """The project's localizer (imported here so the server starts without it in tests)."""
-    from localizer.localizer import Localizer
-
+def make_localizer(
+    camera: CameraModel, landmark_map: LandmarkMap, robot: RobotGeometry
+) -> LocalizerLike:
+    """The project's localizer for one robot."""
     return Localizer(camera, landmark_map, robot)
 
 
@@ -71,7 +74,7 @@ class RobotRunner:
         publish: Callable[[PoseUpdate], None],
         request_leds: Callable[[str, LedRequest], None],
         source: str = "sim",
-        recent_frames: int = 8,
+        recent_frames: int = 12,
     ) -> None:
         self.name = name
         self.camera = camera
@@ -88,7 +91,7 @@ class RobotRunner:
         self.frames = 0
         self.poses = 0
         self.errors = 0
-        self.recorder: Any = None
+        self.recorder: RecordingWriter | None = None
         self.on_mode_change: Callable[[str, Mode, Mode], None] | None = None
         self._mode: Mode = localizer.mode
         self._pending: deque[Event] = deque()
@@ -135,7 +138,7 @@ class RobotRunner:
         if old != self._mode and self.on_mode_change is not None:
             self.on_mode_change(self.name, old, self._mode)
 
-    def _route(self, out: Any) -> None:
+    def _route(self, out: Output) -> None:
         if isinstance(out, PoseEstimate):
             upd = PoseUpdate.from_estimate(self.name, out)
             self.latest = upd
@@ -166,8 +169,6 @@ class RobotRunner:
     # -- recording ---------------------------------------------------------------------------
     def start_recording(self, root: Path, landmark_records: list[dict[str, Any]]) -> None:
         """Record this robot's frames, odometry and LED changes to a recording folder."""
-        from recording.writer import RecordingWriter
-
         with self._lock:
             if self.recorder is not None:
                 raise ValueError(f"robot {self.name!r} is already recording")

@@ -10,8 +10,9 @@ that does not share the site clock leaves it empty). `CS`: XOR of the bytes betw
 `*`, two hex digits. Example: `$IRODO,,0.200,0.215*77`.
 
 `SerialWheelSource` (a `server.site.sources.FrameSource` of odometry only) reads such
-lines on a thread and feeds `OdometryMeasured` to the robot's localizer. A bad line (checksum, fields, values, too long) is counted and skipped with
-a warning; when the port cannot be opened or disappears, it retries every `retry_s`.
+lines on a thread and feeds `OdometryMeasured` to the robot's localizer. A bad line
+(checksum, fields, values, too long) is counted and skipped with a warning; when the port
+cannot be opened or disappears, it retries every `retry_s`.
 """
 
 from __future__ import annotations

@@ -135,7 +135,7 @@ def test_a_far_measurement_is_flagged_and_needs_accept_far() -> None:
     st = wiz.status()
     assert st.measurement is not None and st.measurement.plausibility.far
     assert st.measurement.plausibility.distance_m == pytest.approx(4.72, abs=0.02)
-    assert not st.can_confirm and st.needs_accept_far and "FAR" in st.prompt
+    assert not st.can_confirm and st.needs_accept_far and "far; confirm only if" in st.prompt
     with pytest.raises(ValueError, match="far from the map"):
         wiz.handle(Confirm(site.t_ns))
     assert site.saved == []

@@ -7,17 +7,12 @@ from __future__ import annotations
 
 import threading
 import time
+from collections.abc import Sequence
 from dataclasses import replace
 from typing import Any
 
 import numpy as np
 
-from localizer.camera import CameraModel, predict_pixels
-from collections.abc import Sequence
-
-from localizer.events import PoseEstimate
-from localizer.geometry import T_world_body_from_pose
-from sim.cameras import wide_angle_camera
 from commissioning.candidates import new_radio_candidates
 from commissioning.types import MapLandmark
 from commissioning.wizard import (
@@ -31,6 +26,10 @@ from commissioning.wizard import (
     WizardEvent,
     WizardStatus,
 )
+from localizer.camera import CameraModel, predict_pixels
+from localizer.events import PoseEstimate
+from localizer.geometry import T_world_body_from_pose
+from sim.cameras import wide_angle_camera
 from web.services import CameraView, Candidate, EventLine, LandmarkState, RobotState
 
 

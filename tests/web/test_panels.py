@@ -3,6 +3,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from commissioning.types import MapLandmark
+from commissioning.wizard import Confirm, IdentificationWizard, Skip, Start
+from sim.cameras import wide_angle_camera
 from tests.web.memsite import grid_site
 from web.panels.commission import nearest_landmark
 from web.panels.monitor import (
@@ -21,9 +24,6 @@ from web.panels.wizard import (
     targets_text,
 )
 from web.services import CameraView, Candidate, LandmarkState
-from commissioning.types import MapLandmark
-from commissioning.wizard import Confirm, IdentificationWizard, Skip, Start
-from sim.cameras import wide_angle_camera
 
 
 def test_robots_table_shows_mode_error_and_fix_age() -> None:
