@@ -18,7 +18,7 @@ from typing import Any
 import cv2
 import numpy as np
 
-from fleet.serial_lines import MAX_LINE_BYTES, parse_wheel_line
+from fleet.serial_lines import LineBuffer, parse_wheel_line
 from localizer.camera import CameraModel
 from localizer.events import Event, FrameObserved, OdometryMeasured
 from localizer.robot import RobotGeometry
@@ -155,16 +155,10 @@ class HardwareSource:
                 self._stop.wait(self.retry_s)
                 continue
             try:
-                buf = b""
+                lines = LineBuffer()
                 while not self._stop.is_set():
-                    buf += port.read(max(1, port.in_waiting))
-                    *lines, buf = buf.split(b"\n")
-                    for raw in lines:
-                        if raw.strip():
-                            self.handle_line(raw)
-                    if len(buf) > MAX_LINE_BYTES:
-                        self.handle_line(buf[:MAX_LINE_BYTES])  # no line end: counted as bad
-                        buf = b""
+                    for raw in lines.feed(port.read(max(1, port.in_waiting))):
+                        self.handle_line(raw)
             except Exception as exc:  # the adapter went away (EIO, unplugged)
                 log.warning("wheel port %s lost (%s); reconnecting", self.wheels, exc)
             finally:

@@ -83,3 +83,21 @@ def parse_wheel_line(line: str) -> tuple[int | None, float, float]:
                 f"[-{MAX_WHEEL_SPEED}, {MAX_WHEEL_SPEED}]"
             )
     return t_ns, v[0], v[1]
+
+
+class LineBuffer:
+    """Bytes as they come from a serial port -> complete lines (without the LF, blank ones
+    dropped). Input longer than `MAX_LINE_BYTES` without a line end comes out as one
+    overlong line, for the reader to count as bad."""
+
+    def __init__(self) -> None:
+        self._buf = b""
+
+    def feed(self, chunk: bytes) -> list[bytes]:
+        self._buf += chunk
+        *lines, self._buf = self._buf.split(b"\n")
+        out = [raw for raw in lines if raw.strip()]
+        if len(self._buf) > MAX_LINE_BYTES:
+            out.append(self._buf[:MAX_LINE_BYTES])
+            self._buf = b""
+        return out

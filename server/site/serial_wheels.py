@@ -22,7 +22,7 @@ import threading
 from collections.abc import Callable
 from typing import Any
 
-from fleet.serial_lines import MAX_LINE_BYTES, MAX_WHEEL_SPEED, parse_wheel_line, wheel_line
+from fleet.serial_lines import MAX_WHEEL_SPEED, LineBuffer, parse_wheel_line, wheel_line
 from localizer.events import OdometryMeasured
 from server.site.sources import SensorSink
 
@@ -144,16 +144,7 @@ class SerialWheelSource:
             self._stop.wait(self.retry_s)
 
     def _read(self, port: Any) -> None:
-        buf = b""
+        lines = LineBuffer()  # an overlong piece without a line end is counted as bad
         while not self._stop.is_set():
-            chunk = port.read(max(1, port.in_waiting))
-            if not chunk:
-                continue
-            buf += chunk
-            *lines, buf = buf.split(b"\n")
-            for raw in lines:
-                if raw.strip():
-                    self.handle_line(raw)
-            if len(buf) > MAX_LINE_BYTES:
-                self.handle_line(buf[:MAX_LINE_BYTES])  # counted as bad: no line end
-                buf = b""
+            for raw in lines.feed(port.read(max(1, port.in_waiting))):
+                self.handle_line(raw)
