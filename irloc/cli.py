@@ -16,6 +16,7 @@ SUBCOMMANDS: dict[str, tuple[str, str, str]] = {
         "main",
         "run the server (API + viewer) on the simulated site or hardware",
     ),
+    "agent": ("agent.cli", "main", "the on-robot localizer talking MQTT to the site"),
     "simulate": ("sim.cli", "main", "write a recording of a simulated scenario"),
     "replay": ("recording.replay_cli", "main", "localize a recording and write poses.csv"),
     "calibrate": ("calibration.cli", "main", "calibrate the lens from chessboard photos"),

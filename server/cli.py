@@ -34,6 +34,10 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--scenario", help="virtual site scenario name or file (default demo)")
     p.add_argument("--seed", type=int, help="virtual site seed")
     p.add_argument("--no-viewer", action="store_true", help="do not start the viewer")
+    p.add_argument("--mqtt", help="the site's MQTT broker, mqtt://HOST[:PORT]: robot agents")
+    p.add_argument(
+        "--no-sim-robots", action="store_true", help="the virtual site's robots are not run here"
+    )
     p.add_argument("--log-level", default="info", choices=["debug", "info", "warning", "error"])
     p.add_argument(
         "--log-format",
@@ -70,11 +74,14 @@ def main(
             "scenario": args.scenario,
             "seed": args.seed,
             "log_format": args.log_format,
+            "mqtt_url": args.mqtt,
         }.items()
         if v is not None
     }
     if args.no_viewer:
         overrides["viewer_enabled"] = False
+    if args.no_sim_robots:
+        overrides["sim_robots"] = False
     try:
         settings = Settings(**overrides)
     except (ValidationError, ValueError) as exc:
@@ -104,6 +111,8 @@ def main(
             f"irloc: the API listens on {settings.host}, beyond this machine: every endpoint "
             "and the viewer need an API key; viser itself stays on 127.0.0.1"
         )
+    if settings.mqtt_url:
+        print(f"irloc: fleet     {settings.mqtt_url} (site {settings.mqtt_site!r})")
     if first_key is not None:
         print(f"irloc: first admin API key (shown once, store it): {first_key}")
     sys.stdout.flush()

@@ -24,9 +24,17 @@ EVENT_KINDS = (
     "led_request_failed",
     "robot_connected",
     "robot_disconnected",
+    "clock_offset",
 )
 WARNING_EVENTS = frozenset(
-    {"low_battery", "landmark_unreachable", "robot_lost", "led_request_failed", "radio_state"}
+    {
+        "low_battery",
+        "landmark_unreachable",
+        "robot_lost",
+        "led_request_failed",
+        "radio_state",
+        "clock_offset",
+    }
 )
 """Kinds logged as warnings (the others as info)."""
 log = logging.getLogger(__name__)

@@ -28,6 +28,7 @@ from server.auth import Viewer, authenticate
 from server.errors import ConflictError, NotFoundError, UnavailableError
 from server.fanout import PoseFanout
 from server.metrics import make_registry, render
+from server.mqtt_bridge import start_mqtt_bridge
 from server.routes import (
     admin,
     calibration,
@@ -121,9 +122,12 @@ def create_app(settings: Settings | None = None, viewer: ViewerApp | None = None
         if viewer is not None:
             await asyncio.to_thread(viewer.start, services)
         app.state.viewer = viewer
+        app.state.mqtt_bridge = await start_mqtt_bridge(services)
         try:
             yield
         finally:
+            if app.state.mqtt_bridge is not None:
+                await app.state.mqtt_bridge.stop()
             if viewer is not None:
                 try:
                     # off the loop: the viewer may wait on coroutines it submits to it

@@ -7,6 +7,7 @@ from pydantic import BaseModel, Field
 
 from localizer.camera import camera_from_sensor
 from localizer.events import Mode, OdometryMeasured
+from server.agent_runner import AgentRunner, agent_fields
 from server.auth import Admin, Operator, Viewer
 from server.deps import RobotName, ServicesDep
 from server.models import RobotCreate, RobotPublic
@@ -24,6 +25,10 @@ class RobotStatus(BaseModel):
     errors: int
     last_fix_t_ns: int | None
     recording: bool
+    connected: bool | None = None
+    clock_offset_s: float | None = None
+    clock_error_s: float | None = None
+    clock_ok: bool | None = None
 
 
 class WheelSpeeds(BaseModel):
@@ -42,7 +47,9 @@ class RecordingStatus(BaseModel):
 
 def _status(services: ServicesDep, name: str) -> RobotStatus:
     r = services.robots.get(name)
+    agent = agent_fields(r) if isinstance(r, AgentRunner) else {}
     return RobotStatus(
+        **agent,
         name=r.name,
         source=r.source,
         mode=r.mode,

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import dataclasses
 import logging
 from collections.abc import Callable, Iterable
 from typing import Protocol
@@ -195,9 +196,10 @@ class LiveSiteRunner:
     def _build_sim(self) -> LiveSite:
         from sim.scenario import load_scenario
 
-        return LiveSite(
-            load_scenario(self.settings.scenario), seed=self.settings.seed, clock_ns=self.clock_ns
-        )
+        scenario = load_scenario(self.settings.scenario)
+        if not self.settings.sim_robots:  # the same world; its robots run as agents
+            scenario = dataclasses.replace(scenario, robots=())
+        return LiveSite(scenario, seed=self.settings.seed, clock_ns=self.clock_ns)
 
     def _sim_names(self) -> list[str]:
         return list(self.sim.robot_names) if self.sim is not None else []

@@ -18,50 +18,16 @@ cannot be opened or disappears, it retries every `retry_s`.
 from __future__ import annotations
 
 import logging
-import math
 import threading
 from collections.abc import Callable
 from typing import Any
 
+from fleet.serial_lines import MAX_WHEEL_SPEED, LineBuffer, parse_wheel_line, wheel_line
 from localizer.events import OdometryMeasured
-from server.site.line_framing import MAX_LINE_BYTES, frame_line, unframe_line
 from server.site.sources import SensorSink
 
 log = logging.getLogger(__name__)
-MAX_WHEEL_SPEED = 20.0
-"""m/s; faster is not a wheel speed (the same bound as `POST /robots/{name}/odometry`)."""
-
-
-def wheel_line(v_left: float, v_right: float, t_ns: int | None = None) -> str:
-    """The line for one wheel-speed sample (what the robot sends), with checksum and CR LF."""
-    t = "" if t_ns is None else str(t_ns)
-    return frame_line(f"IRODO,{t},{v_left:.4f},{v_right:.4f}")
-
-
-def parse_wheel_line(line: str) -> tuple[int | None, float, float]:
-    """(t_ns or None, v_left, v_right) of one line.
-
-    Raises:
-        ValueError: a malformed line, a wrong checksum or an absurd value, naming it.
-    """
-    parts = unframe_line(line, "wheel line")
-    if len(parts) != 4 or parts[0] != "IRODO":
-        raise ValueError(f"wheel line {line!r}: expected 4 fields starting with IRODO")
-    _, t_text, vl_text, vr_text = parts
-    try:
-        t_ns = None if t_text == "" else int(t_text)
-        v = (float(vl_text), float(vr_text))
-    except ValueError:
-        raise ValueError(f"wheel line {line!r}: t_ns must be an integer, speeds numbers") from None
-    if t_ns is not None and t_ns < 0:
-        raise ValueError(f"wheel line {line!r}: t_ns = {t_ns} is negative")
-    for name, value in zip(("v_left", "v_right"), v, strict=True):
-        if not math.isfinite(value) or abs(value) > MAX_WHEEL_SPEED:
-            raise ValueError(
-                f"wheel line {line!r}: {name} = {value} m/s is outside "
-                f"[-{MAX_WHEEL_SPEED}, {MAX_WHEEL_SPEED}]"
-            )
-    return t_ns, v[0], v[1]
+__all__ = ["MAX_WHEEL_SPEED", "SerialWheelSource", "parse_wheel_line", "wheel_line"]
 
 
 def _open_serial(port: str, baud: int) -> Any:
@@ -178,16 +144,7 @@ class SerialWheelSource:
             self._stop.wait(self.retry_s)
 
     def _read(self, port: Any) -> None:
-        buf = b""
+        lines = LineBuffer()  # an overlong piece without a line end is counted as bad
         while not self._stop.is_set():
-            chunk = port.read(max(1, port.in_waiting))
-            if not chunk:
-                continue
-            buf += chunk
-            *lines, buf = buf.split(b"\n")
-            for raw in lines:
-                if raw.strip():
-                    self.handle_line(raw)
-            if len(buf) > MAX_LINE_BYTES:
-                self.handle_line(buf[:MAX_LINE_BYTES])  # counted as bad: no line end
-                buf = b""
+            for raw in lines.feed(port.read(max(1, port.in_waiting))):
+                self.handle_line(raw)
