@@ -35,7 +35,7 @@ from scipy.sparse.linalg import splu
 
 from localizer.camera import CameraModel, pixels_from_points_camera
 from localizer.geometry import transform_points
-from survey.initial import initial_guess
+from survey.initial import ceiling_point, initial_guess
 from survey.observations import LabelledObservations
 from survey.odometry_chain import between, relative_motions, segment_lengths, wheel_intervals
 from survey.result import LandmarkEstimate, SurveyResult
@@ -69,6 +69,11 @@ class BundleConfig:
         window_iterations: the same for each window's solve.
         outlier_track_px: a spot track whose median reprojection error exceeds this is set
             aside (misnamed, or its landmark moved), pixels.
+        min_votes: blink votes a track's name needs to be used at once; tracks with fewer
+            (or none) are named when the solution agrees (`name_radius_m`).
+        name_radius_m: a track whose spots meet the ceiling this close to a landmark's
+            estimate may take its name.
+        name_exclusion_m: ... if no other landmark is this close (unnamed tracks).
         independent_view_m: views of a landmark closer than this (robot travel) count as one
             for its covariance.
         flag_rms_px: a landmark whose residual RMS exceeds this is flagged (moved during the
@@ -89,13 +94,16 @@ class BundleConfig:
     rough_sigma_m: float = 0.3
     wheel_scale_sigma: float = 0.01
     self_calibrate: bool = True
-    focal_sigma_rel: float = 0.005
+    focal_sigma_rel: float = 0.002
     principal_sigma_px: float = 2.0
     mount_yaw_sigma_rad: float = math.radians(1.0)
     max_iterations: int = 30
     window_s: float = 30.0
     window_iterations: int = 8
     outlier_track_px: float = 6.0
+    min_votes: int = 2
+    name_radius_m: float = 0.05
+    name_exclusion_m: float = 0.25
     independent_view_m: float = 0.25
     flag_rms_px: float = 2.0
     flag_moved_m: float = 0.5
@@ -255,27 +263,111 @@ def solve_survey(
     t0, t1 = int(t_obs.min()), int(t_obs.max())
     step = max(int(cfg.window_s / _NS), 1)
     ends = [*range(t0 + step, t1, step), t1]
-    keep = np.ones(len(obs), dtype=bool)
+    # names in use: tracks the blinks named clearly; the others wait for geometry to agree
+    # (an anchor's every named track at once: the anchors hold the map's frame, and a wrong
+    # one is set aside as soon as the solution settles)
+    anchor_named = np.isin(obs.landmark_id, list(anchors)) & (obs.name_votes >= 1)
+    labels = np.where((obs.name_votes >= cfg.min_votes) | anchor_named, obs.landmark_id, -1)
     rejected: set[int] = set()
     fit: _Fit | None = None
     for i, t_end in enumerate(ends):
         last = i == len(ends) - 1
         budget = cfg.max_iterations if last else cfg.window_iterations
-        for _ in range(2):
-            rows = np.flatnonzero(keep & (t_obs <= t_end))
-            fit = _adjust(problem, cfg, anchors, rows, zc, fit, budget)
+        for _ in range(3):
+            rows = np.flatnonzero((labels >= 0) & (t_obs <= t_end))
+            fit = _adjust(problem, cfg, anchors, rows, labels, zc, fit, budget)
             if debug is not None:
                 debug(t_end, fit)
-            settled = float(np.median(fit.err)) <= 2.0 * cfg.pixel_sigma_px
-            bad = _outlier_tracks(fit, cfg.outlier_track_px) - rejected if settled else set()
-            if not bad:
-                break
+            if float(np.median(fit.err)) > 2.0 * cfg.pixel_sigma_px:
+                break  # not settled yet: judge no track against it
+            bad = _outlier_tracks(fit, cfg.outlier_track_px) - rejected
             rejected |= bad
-            keep &= ~np.isin(obs.track, np.fromiter(bad, dtype=np.int64))
+            if bad:
+                labels[np.isin(obs.track, np.fromiter(bad, dtype=np.int64))] = -1
+            named = _name_by_geometry(problem, cfg, fit, labels, t_obs <= t_end, rejected, zc)
+            if not bad and not named:
+                break
         if progress is not None:
             progress(i + 1, len(ends))
     assert fit is not None
-    return _result(problem, cfg, anchors, fit, rejected)
+    return _result(problem, cfg, anchors, fit, labels, rejected)
+
+
+def _name_by_geometry(
+    problem: SurveyProblem,
+    cfg: BundleConfig,
+    fit: _Fit,
+    labels: IntArray,
+    in_window: npt.NDArray[np.bool_],
+    rejected: set[int],
+    zc: float,
+) -> int:
+    """Give names to the tracks not in use yet where the solution agrees (in place).
+
+    Each such track's spots at the keyframes are put on the ceiling from the solved poses.
+    A track whose blink named it is taken if its point lies within `name_radius_m` of that
+    landmark's estimate (or, for a landmark with no estimate yet, if its other tentative
+    tracks agree with it); a track no blink named is given the nearest landmark's name if
+    that one is within `name_radius_m` and every other landmark farther than
+    `name_exclusion_m`. Returns how many tracks were named.
+    """
+    obs = problem.observations
+    key_index = {int(t): k for k, t in enumerate(fit.key_t.tolist())}
+    frame_key = np.array(
+        [key_index.get(int(t), -1) for t in problem.frame_t_ns[obs.frame].tolist()]
+    )
+    todo = np.flatnonzero(
+        (labels < 0) & in_window & (frame_key >= 0) & ~np.isin(obs.track, list(rejected))
+    )
+    if len(todo) == 0:
+        return 0
+    poses = fit.poses()
+    estimates = {**fit.landmarks(), **{int(k): np.asarray(v) for k, v in problem.anchors.items()}}
+    ids = np.array(sorted(estimates))
+    pos = np.array([estimates[i] for i in ids]).reshape(-1, 3)
+    cam = problem.camera
+    points: dict[int, FloatArray] = {}
+    order = np.argsort(obs.track[todo], kind="stable")
+    tracks, starts = np.unique(obs.track[todo][order], return_index=True)
+    for tr, rows in zip(tracks.tolist(), np.split(todo[order], starts[1:]), strict=True):
+        lid = int(obs.landmark_id[rows[0]])
+        z = float(estimates[lid][2]) if lid in estimates else zc
+        qs = [ceiling_point(cam, poses[frame_key[r]], obs.pixels[r], z) for r in rows.tolist()]
+        found = np.array([q for q in qs if q is not None]).reshape(-1, 3)
+        if len(found):
+            points[int(tr)] = np.median(found, axis=0)
+    named = 0
+    tentative: dict[int, list[int]] = {}
+    for tr, q in points.items():
+        rows = np.flatnonzero(obs.track == tr)
+        lid = int(obs.landmark_id[rows[0]])
+        d = np.hypot(pos[:, 0] - q[0], pos[:, 1] - q[1]) if len(pos) else np.zeros(0)
+        if lid >= 0 and lid in estimates:
+            if float(np.hypot(*(estimates[lid][:2] - q[:2]))) <= cfg.name_radius_m:
+                labels[rows] = lid
+                named += 1
+        elif lid >= 0:
+            tentative.setdefault(lid, []).append(tr)
+        elif len(d):
+            best = int(np.argmin(d))
+            others = np.delete(d, best)
+            if d[best] <= cfg.name_radius_m and (
+                len(others) == 0 or others.min() > cfg.name_exclusion_m
+            ):
+                labels[rows] = int(ids[best])
+                named += 1
+    for lid, trs in tentative.items():
+        pts = np.array([points[t] for t in trs])
+        centre = np.median(pts, axis=0)
+        agree = [
+            t
+            for t, q in zip(trs, pts, strict=True)
+            if np.hypot(*(q[:2] - centre[:2])) <= cfg.name_radius_m
+        ]
+        if len(agree) > len(trs) / 2:
+            labels[np.isin(obs.track, agree)] = lid
+            named += len(agree)
+    return named
 
 
 def _outlier_tracks(fit: _Fit, limit_px: float) -> set[int]:
@@ -297,6 +389,7 @@ def _adjust(
     cfg: BundleConfig,
     anchors: dict[int, FloatArray],
     rows: IntArray,
+    labels: IntArray,
     zc: float,
     previous: _Fit | None,
     budget: int,
@@ -311,7 +404,7 @@ def _adjust(
     key_of_frame = {int(f): k for k, f in enumerate(keys.tolist())}
     rows = rows[np.array([int(f) in key_of_frame for f in obs.frame[rows].tolist()], dtype=bool)]
     o_key = np.array([key_of_frame[int(f)] for f in obs.frame[rows].tolist()], dtype=np.int64)
-    o_id = obs.landmark_id[rows]
+    o_id = labels[rows]
     o_px = obs.pixels[rows]
     key_t = problem.frame_t_ns[keys]
     wheels = wheel_intervals(problem.odom_t_ns, problem.odom_v, key_t)
@@ -496,6 +589,7 @@ def _result(
     cfg: BundleConfig,
     anchors: dict[int, FloatArray],
     fit: _Fit,
+    labels: IntArray,
     rejected: set[int],
 ) -> SurveyResult:
     lay = fit.lay
@@ -529,7 +623,7 @@ def _result(
                 f"residuals {rms_px:.1f} px RMS: moved during the drive, or two landmarks "
                 "answer to one address"
             )
-        all_rows = obs.landmark_id == lid
+        all_rows = (obs.landmark_id == lid) | (labels == lid)
         set_aside = int(
             np.sum(all_rows & np.isin(obs.track, np.fromiter(rejected, dtype=np.int64)))
         )

@@ -5,7 +5,9 @@ them by the LED blinks (`survey.observations`).
 
 from __future__ import annotations
 
+import os
 from collections.abc import Callable, Iterable
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -65,6 +67,19 @@ def _yaml(path: Path) -> Any:
         raise ValueError(f"{path}: cannot read it ({exc})") from None
 
 
+def _threads() -> int:
+    cores = os.sched_getaffinity(0) if hasattr(os, "sched_getaffinity") else None
+    return max(1, len(cores) if cores else (os.cpu_count() or 1))
+
+
+def _spots_of(path: Path, config: DetectionConfig) -> FloatArray | None:
+    """The spots of one frame file, or None when it cannot be read."""
+    image = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
+    if image is None:
+        return None
+    return detect_spots(np.asarray(image, dtype=np.uint8), config).pixels
+
+
 def read_survey_drive(
     root: Path,
     *,
@@ -93,17 +108,21 @@ def read_survey_drive(
     times: list[int] = []
     spots: list[FloatArray] = []
     unreadable = 0
-    last_t = None
-    for i, entry in enumerate(frames):
-        if progress is not None and i % 200 == 0:
-            progress(i, len(frames))
-        image = cv2.imread(str(entry.path), cv2.IMREAD_GRAYSCALE)
-        if image is None or (last_t is not None and entry.t_ns <= last_t):
-            unreadable += image is None
-            continue
-        times.append(entry.t_ns)
-        spots.append(detect_spots(np.asarray(image, dtype=np.uint8), cfg).pixels)
-        last_t = entry.t_ns
+    last_t: int | None = None
+    with ThreadPoolExecutor(max_workers=_threads()) as pool:  # OpenCV releases the GIL
+        for i, (entry, found) in enumerate(
+            zip(frames, pool.map(lambda e: _spots_of(e.path, cfg), frames), strict=True)
+        ):
+            if progress is not None and i % 200 == 0:
+                progress(i, len(frames))
+            if found is None:
+                unreadable += 1
+                continue
+            if last_t is not None and entry.t_ns <= last_t:
+                continue
+            times.append(entry.t_ns)
+            spots.append(found)
+            last_t = entry.t_ns
     if progress is not None:
         progress(len(frames), len(frames))
     return SurveyDrive(

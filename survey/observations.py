@@ -62,9 +62,13 @@ class TrackingConfig:
 class LabelledObservations:
     """Spots named by landmark, over the frames of a drive.
 
+    Every spot of every track is kept, named or not: the estimator confirms names by geometry
+    and names more tracks by where they sit (`survey.bundle`).
+
     Attributes:
         frame: index into the frame list, shape (M,).
-        landmark_id: shape (M,).
+        landmark_id: the name the blinks gave the spot's track, -1 for none, shape (M,).
+        name_votes: blink votes for that name, shape (M,) (0 for unnamed tracks).
         pixels: measured spot centres (col, row), shape (M, 2).
         track: the spot track each observation belongs to, shape (M,).
         conflicts: landmark id -> how many of its tracks disagreed with the others in one
@@ -77,6 +81,7 @@ class LabelledObservations:
     landmark_id: IntArray
     pixels: FloatArray
     track: IntArray
+    name_votes: IntArray
     conflicts: dict[int, int] = field(default_factory=dict)
     votes: dict[int, int] = field(default_factory=dict)
     tracks: int = 0
@@ -86,8 +91,8 @@ class LabelledObservations:
         return len(self.frame)
 
     def seen_ids(self) -> set[int]:
-        """Landmarks with at least one observation."""
-        return {int(i) for i in np.unique(self.landmark_id)}
+        """Landmarks named by at least one blink."""
+        return {int(i) for i in np.unique(self.landmark_id) if i >= 0}
 
 
 @dataclass
@@ -264,6 +269,7 @@ def _vote_single_lit(t: _Track, f: int, states: list[LedsChanged | None]) -> Non
 def _observations(tracks: list[_Track], cfg: TrackingConfig) -> LabelledObservations:
     frames: list[int] = []
     lids: list[int] = []
+    n_votes: list[int] = []
     pixels: list[tuple[float, float]] = []
     track_ix: list[int] = []
     votes: Counter[int] = Counter()
@@ -271,21 +277,21 @@ def _observations(tracks: list[_Track], cfg: TrackingConfig) -> LabelledObservat
     seen_at: dict[tuple[int, int], int] = {}
     conflicts: Counter[int] = Counter()
     for k, t in enumerate(tracks):
-        if not t.votes:
-            continue
-        (lid, n), total = t.votes.most_common(1)[0], sum(t.votes.values())
-        if n < cfg.min_agreement * total:
-            continue
-        named += 1
-        votes[lid] += n
+        lid, n = -1, 0
+        if t.votes:
+            (best, top), total = t.votes.most_common(1)[0], sum(t.votes.values())
+            if top >= cfg.min_agreement * total:
+                lid, n = best, top
+                named += 1
+                votes[lid] += top
         for f, px in zip(t.frames, t.pixels, strict=True):
-            other = seen_at.get((f, lid))
-            if other is not None and other != k:
-                conflicts[lid] += 1
-                continue
-            seen_at[(f, lid)] = k
+            if lid >= 0:
+                other = seen_at.setdefault((f, lid), k)
+                if other != k:
+                    conflicts[lid] += 1
             frames.append(f)
             lids.append(lid)
+            n_votes.append(n)
             pixels.append(px)
             track_ix.append(k)
     order = np.argsort(np.asarray(frames, dtype=np.int64), kind="stable")
@@ -294,6 +300,7 @@ def _observations(tracks: list[_Track], cfg: TrackingConfig) -> LabelledObservat
         np.asarray(lids, dtype=np.int64)[order],
         np.asarray(pixels, dtype=np.float64).reshape(-1, 2)[order],
         np.asarray(track_ix, dtype=np.int64)[order],
+        np.asarray(n_votes, dtype=np.int64)[order],
         dict(conflicts),
         dict(votes),
         len(tracks),
