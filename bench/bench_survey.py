@@ -43,8 +43,8 @@ NS = 1_000_000_000
 def farthest_pair(drive: SpotDrive) -> list[int]:
     """The two landmarks farthest apart (staff survey the two corners of the site)."""
     ids = sorted(drive.landmarks_true)
-    p = np.array([drive.map_records[i]["x"] for i in range(len(ids))])  # type: ignore[index]
-    q = np.array([drive.map_records[i]["y"] for i in range(len(ids))])  # type: ignore[index]
+    p = np.array([drive.map_records[i]["x"] for i in range(len(ids))])
+    q = np.array([drive.map_records[i]["y"] for i in range(len(ids))])
     d = np.hypot(p[:, None] - p[None, :], q[:, None] - q[None, :])
     i, j = np.unravel_index(int(np.argmax(d)), d.shape)
     return [int(drive.map_records[int(i)]["id"]), int(drive.map_records[int(j)]["id"])]  # type: ignore[call-overload]
@@ -152,7 +152,8 @@ def main(argv: list[str] | None = None) -> int:
     anchors = farthest_pair(drive)
     landmarks = rough_map(drive, anchors, rng)
     print(
-        "\n| drive min | surveyed | x-y p95 mm | x-y max mm | z p95 mm | z max mm | within 2 sigma | solve s |"
+        "\n| drive min | surveyed | x-y p95 mm | x-y max mm | z p95 mm | z max mm "
+        "| within 2 sigma | solve s |"
     )
     print("|---|---|---|---|---|---|---|---|")
     minutes = [m for m in (2.0, 4.0, 8.0, 15.0) if m < args.minutes] + [args.minutes]
@@ -167,8 +168,9 @@ def main(argv: list[str] | None = None) -> int:
             continue
         s = score(result, drive.landmarks_true)
         print(
-            f"| {m:.0f} | {s['n']}/{len(ids) - 2} | {1000 * s['xy_p95']:.1f} | {1000 * s['xy_max']:.1f} "
-            f"| {1000 * s['z_p95']:.1f} | {1000 * s['z_max']:.1f} | {100 * s['within_2sigma']:.0f} % "
+            f"| {m:.0f} | {s['n']}/{len(ids) - 2} | {1000 * s['xy_p95']:.1f} "
+            f"| {1000 * s['xy_max']:.1f} | {1000 * s['z_p95']:.1f} | {1000 * s['z_max']:.1f} "
+            f"| {100 * s['within_2sigma']:.0f} % "
             f"| {time.perf_counter() - t1:.0f} |"
         )
     w = wizard(drive, anchors, rng)

@@ -147,7 +147,8 @@ def simulate_survey_spots(
     ids = np.array(sorted(world.landmarks))
     p_true = np.array([world.landmarks[i].p_true for i in ids])
     end_ns = round(duration_s * 1e9)
-    leds = [LedsChanged(0, all_lit=True), *led_program(0)]
+    program = list(led_program(0))
+    leds = program if program and program[0].t_ns <= 0 else [LedsChanged(0, all_lit=True), *program]
     times = [c.t_ns for c in leds]
     frame_t: list[int] = []
     spots: list[npt.NDArray[np.float64]] = []

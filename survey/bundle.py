@@ -15,8 +15,9 @@ mounting yaw). Residuals, each divided by its standard deviation:
 The anchors (two or more landmarks held at their surveyed positions) fix the map's frame.
 `survey.sparse_lm` minimises the sum with a Huber loss (a spot that is not what its name
 says costs linearly, not quadratically): Levenberg-Marquardt on the sparse normal equations,
-the Jacobian by finite differences over groups of unknowns that share no residual. Each landmark's covariance is its block of the inverse
-information matrix, the poses and wheels eliminated by a Schur complement, scaled by the
+the Jacobian by finite differences over groups of unknowns that share no residual. Each
+landmark's covariance is its block of the inverse information matrix, the poses and wheels
+eliminated by a Schur complement, scaled by the
 residuals' own variance and by how many of its views were really independent (neighbouring
 frames see a landmark through the same calibration error and carry one view's worth of
 information, not many).
@@ -24,6 +25,7 @@ information, not many).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -45,6 +47,9 @@ FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
 _NS = 1e-9
 _OUT_OF_VIEW = 100.0
+N_CAMERA = 6
+"""The camera correction: focal scales - 1 (fu, fv), principal point (du, dv) px, mounting
+yaw rad, and the change of the first distortion coefficient (k1)."""
 
 
 @dataclass(frozen=True)
@@ -63,9 +68,11 @@ class BundleConfig:
         rough_sigma_m: standard deviation of a rough position from map.json, per axis.
         wheel_scale_sigma: prior standard deviation of each wheel calibration factor.
         self_calibrate: estimate the camera correction too.
-        focal_sigma_rel, principal_sigma_px, mount_yaw_sigma_rad: its priors.
+        focal_sigma_rel, principal_sigma_px, mount_yaw_sigma_rad: its priors;
+        distortion_sigma_rel: the first distortion coefficient's, relative to itself.
         max_iterations: Gauss-Newton steps of the final solve, at most.
-        window_s: the drive is solved in windows growing by this much, seconds.
+        window_s: the drive is solved in windows from its start: this long, then twice as
+            long, and so on, seconds.
         window_iterations: the same for each window's solve.
         outlier_track_px: a spot track whose median reprojection error exceeds this is set
             aside (misnamed, or its landmark moved), pixels.
@@ -97,6 +104,7 @@ class BundleConfig:
     focal_sigma_rel: float = 0.002
     principal_sigma_px: float = 2.0
     mount_yaw_sigma_rad: float = math.radians(1.0)
+    distortion_sigma_rel: float = 0.1
     max_iterations: int = 30
     window_s: float = 30.0
     window_iterations: int = 8
@@ -171,7 +179,7 @@ class _Layout:
         self.lm0 = 3 * n_keys
         self.wheel0 = self.lm0 + 3 * len(free_ids)
         self.cam0 = self.wheel0 + 3
-        self.n = self.cam0 + (4 if self_calibrate else 0)
+        self.n = self.cam0 + (N_CAMERA if self_calibrate else 0)
         self.self_calibrate = self_calibrate
 
     def groups(self) -> IntArray:
@@ -191,14 +199,14 @@ class _Layout:
         """Finite-difference steps: 1e-6 m and rad, 1e-6 for scales, 1e-4 px."""
         h = np.full(self.n, 1e-6)
         if self.self_calibrate:
-            h[self.cam0 + 1 : self.cam0 + 3] = 1e-4
+            h[self.cam0 + 2 : self.cam0 + 4] = 1e-4
         return h
 
     def split(self, x: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
         poses = x[: self.lm0].reshape(-1, 3)
         lms = x[self.lm0 : self.wheel0].reshape(-1, 3)
         wheels = x[self.wheel0 : self.cam0]
-        cam = x[self.cam0 : self.n] if self.self_calibrate else np.zeros(4)
+        cam = x[self.cam0 : self.n] if self.self_calibrate else np.zeros(N_CAMERA)
         return poses, lms, wheels, cam
 
 
@@ -239,8 +247,9 @@ def solve_survey(
 ) -> SurveyResult:
     """Estimate every landmark's position (and the drive) from a survey drive.
 
-    The drive is solved in growing windows (`window_s`), each started from the last one's
-    solution and the wheels beyond it, then as a whole; after each window the spot tracks
+    The drive is solved in windows from its start that double in length (`window_s`, then
+    twice that, ...), each started from the last one's solution and the wheels beyond it,
+    then as a whole; after each window the spot tracks
     that its solution cannot explain (`outlier_track_px`: a track named by a blink that was
     in fact another landmark's, or a landmark that moved) are set aside.
 
@@ -261,8 +270,12 @@ def solve_survey(
     obs = problem.observations
     t_obs = problem.frame_t_ns[obs.frame]
     t0, t1 = int(t_obs.min()), int(t_obs.max())
-    step = max(int(cfg.window_s / _NS), 1)
-    ends = [*range(t0 + step, t1, step), t1]
+    ends: list[int] = []
+    span = cfg.window_s / _NS
+    while t0 + span < t1:  # windows doubling in length: a long drive costs a few solves
+        ends.append(int(t0 + span))
+        span *= 2.0
+    ends.append(t1)
     # names in use: tracks the blinks named clearly; the others wait for geometry to agree
     # (an anchor's every named track at once: the anchors hold the map's frame, and a wrong
     # one is set aside as soon as the solution settles)
@@ -445,14 +458,27 @@ def _adjust(
     centre = np.array([cam.cu, cam.cv])
     T_cb = cam.T_camera_body
     t_bc = cam.T_body_camera[:3, 3]
+    k1 = float(cam.distortion[0])
     cam_sig = np.array(
         [
-            cfg.focal_sigma_rel,
+            cfg.focal_sigma_rel, cfg.focal_sigma_rel, cfg.principal_sigma_px,
             cfg.principal_sigma_px,
-            cfg.principal_sigma_px,
-            cfg.mount_yaw_sigma_rad,
+            cfg.mount_yaw_sigma_rad, max(cfg.distortion_sigma_rel * abs(k1), 1e-4),
         ]
-    )
+    )  # fmt: skip
+    lens_cache: dict[float, CameraModel] = {0.0: cam}
+
+    def lens(dk1: float) -> CameraModel:
+        """The camera with its first distortion coefficient changed by dk1 (cached)."""
+        if dk1 not in lens_cache:
+            if len(lens_cache) > 8:
+                lens_cache.clear()
+                lens_cache[0.0] = cam
+            d = np.array(cam.distortion, dtype=np.float64)
+            d[0] += dk1
+            lens_cache[dk1] = dataclasses.replace(cam, distortion=d)
+        return lens_cache[dk1]
+
     sigma_px = cfg.pixel_sigma_px
 
     def project(x: FloatArray) -> tuple[FloatArray, npt.NDArray[np.bool_]]:
@@ -462,14 +488,14 @@ def _adjust(
         co, si = np.cos(pk[:, 2]), np.sin(pk[:, 2])
         dx, dy = pw[:, 0] - pk[:, 0], pw[:, 1] - pk[:, 1]
         bx, by = co * dx + si * dy, -si * dx + co * dy
-        # the camera turned by c[3] about its own centre t on the body: p -> Rz(-yaw)(p - t) + t
-        c3, s3 = math.cos(c[3]), math.sin(c[3])
+        # the camera turned by c[4] about its own centre t on the body: p -> Rz(-yaw)(p - t) + t
+        c3, s3 = math.cos(c[4]), math.sin(c[4])
         ux, uy = bx - t_bc[0], by - t_bc[1]
         p_body = np.stack(
             [c3 * ux + s3 * uy + t_bc[0], -s3 * ux + c3 * uy + t_bc[1], pw[:, 2]], axis=1
         )
-        px, valid = pixels_from_points_camera(cam, transform_points(T_cb, p_body))
-        px = centre + (1.0 + c[0]) * (px - centre) + c[1:3]
+        px, valid = pixels_from_points_camera(lens(float(c[5])), transform_points(T_cb, p_body))
+        px = centre + (1.0 + c[0:2]) * (px - centre) + c[2:4]
         return px, valid
 
     def residuals(x: FloatArray) -> FloatArray:
@@ -519,7 +545,7 @@ def _sparsity(
             rows.append(obs_rows[free, a])
             cols.append(lay.lm0 + 3 * o_free[free] + j)
         if lay.self_calibrate:
-            for j in range(4):
+            for j in range(N_CAMERA):
                 rows.append(obs_rows[:, a])
                 cols.append(np.full(M, lay.cam0 + j))
     n_seg = lay.n_keys - 1
@@ -544,10 +570,10 @@ def _sparsity(
         cols.append(np.array([lay.wheel0 + j]))
     r0 += 3
     if lay.self_calibrate:
-        for j in range(4):
+        for j in range(N_CAMERA):
             rows.append(np.array([r0 + j]))
             cols.append(np.array([lay.cam0 + j]))
-        r0 += 4
+        r0 += N_CAMERA
     R = np.concatenate(rows)
     C = np.concatenate(cols)
     S = sp.coo_matrix((np.ones(len(R)), (R, C)), shape=(r0, lay.n)).tocsr()
@@ -651,6 +677,6 @@ def _result(
     notes = (f"{len(rejected)} spot track(s) set aside as not explained by the solution",)
     return SurveyResult(
         out, unseen, fit.key_t, poses, (float(w[0]), float(w[1]), float(w[2])),
-        (float(c[0]), float(c[1]), float(c[2]), float(c[3])), rms, math.sqrt(scale2),
+        tuple(float(v) for v in c), rms, math.sqrt(scale2),  # type: ignore[arg-type]
         fit.nfev, fit.converged, notes,
     )  # fmt: skip

@@ -60,11 +60,12 @@ def table(result: SurveyResult) -> str:
             f"{e.rms_px:>6.2f}  {'; '.join(e.flags)}"
         )
     wl, wr, wb = result.wheel_calibration
-    df, du, dv, yaw = result.camera_correction
+    dfu, dfv, du, dv, yaw, dk1 = result.camera_correction
     lines.append(
         f"reprojection {result.rms_px:.2f} px RMS; wheels x{wl:.4f} / x{wr:.4f}, base "
-        f"x{wb:.4f}; camera focal {100 * df:+.2f} %, centre {du:+.2f} / {dv:+.2f} px, "
-        f"yaw {yaw * 57.29578:+.3f} deg"
+        f"x{wb:.4f}; camera focal {100 * dfu:+.2f} / {100 * dfv:+.2f} %, "
+        f"centre {du:+.2f} / {dv:+.2f} px, "
+        f"yaw {yaw * 57.29578:+.3f} deg, k1 {dk1:+.5f}"
     )
     return "\n".join(lines)
 

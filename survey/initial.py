@@ -134,7 +134,9 @@ def initial_guess(
             camera, deltas, obs_key, obs_id, obs_px, anchors, rough, ceiling_z_m,
             pixel_sigma_px=pixel_sigma_px, min_views=min_views, max_spread_m=max_spread_m,
             max_jump_m=max_jump_m, max_turn_rad=max_turn_rad, max_fix_rms_px=max_fix_rms_px,
-            prefix_poses=dead_reckoning((float(start[0]), float(start[1]), float(start[2])), deltas),
+            prefix_poses=dead_reckoning(
+                (float(start[0]), float(start[1]), float(start[2])), deltas
+            ),
         )  # fmt: skip
     first = int(np.flatnonzero(np.isfinite(poses[:, 0]))[0])
     back = invert_deltas(deltas)

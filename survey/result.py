@@ -72,7 +72,8 @@ class SurveyResult:
         trajectory_t_ns: keyframe times, shape (K,); trajectory: body poses there
             (x, y, theta), shape (K, 3).
         wheel_calibration: (left scale, right scale, wheel-base scale), 1 = nominal.
-        camera_correction: (focal scale - 1, cu offset px, cv offset px, mounting yaw rad).
+        camera_correction: (fu scale - 1, fv scale - 1, cu offset px, cv offset px, mounting
+            yaw rad, change of the first distortion coefficient k1).
         rms_px: reprojection RMS over all observations, pixels.
         sigma_scale: factor the covariances were scaled by (residuals and correlation).
         iterations: solver function evaluations; converged: the solver's own verdict.
@@ -83,7 +84,7 @@ class SurveyResult:
     trajectory_t_ns: npt.NDArray[np.int64]
     trajectory: FloatArray
     wheel_calibration: tuple[float, float, float]
-    camera_correction: tuple[float, float, float, float]
+    camera_correction: tuple[float, float, float, float, float, float]
     rms_px: float
     sigma_scale: float
     iterations: int
