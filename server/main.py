@@ -38,6 +38,7 @@ from server.routes import (
     remote,
     robots,
     streams,
+    survey,
 )
 from server.seams import ViewerApp
 from server.services import SiteServices
@@ -145,7 +146,17 @@ def create_app(settings: Settings | None = None, viewer: ViewerApp | None = None
     )
     _install_error_handlers(app)
     api = APIRouter(prefix=API_PREFIX)
-    for module in (landmarks, map, robots, calibration, remote, admin, streams, commissioning):
+    for module in (
+        landmarks,
+        map,
+        robots,
+        calibration,
+        remote,
+        admin,
+        streams,
+        commissioning,
+        survey,
+    ):
         api.include_router(module.router)
     api.add_api_route(
         "/metrics",
