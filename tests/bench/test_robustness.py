@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from bench.robustness import MATRIX_FILES, _row, load_matrix, site_truth
+from bench.robustness import MATRIX_FILES, _row, comparison, load_matrix, site_truth
 from bench.robustness_score import FrameResult, score
 from localizer.camera import predict_pixels
 from recording.reader import read_groundtruth
@@ -137,3 +137,12 @@ def test_every_matrix_run_loads_and_covers_each_level() -> None:
         robot = next(x for x in sc.robots if x.name == (r.robot or sc.robots[0].name))
         assert robot.wheel_radius_error != (0.0, 0.0)  # odometry bias everywhere
     assert np.isfinite([r.duration_s for r in runs]).all()
+
+
+def test_the_comparison_shows_now_and_before() -> None:
+    row = {"name": "a", "p95_m": 0.012, "heading_mean_rad": math.radians(0.04), "frames": 10,
+           "modes": {"landmark": 9, "lost": 1}, "misidentified": 0, "recover_s": [2.5]}  # fmt: skip
+    was = dict(row, p95_m=0.5, modes={"lost": 10}, misidentified=3, recover_s=[None])
+    table = comparison([row, dict(row, name="new")], [was])
+    assert "| a | 1.2 (50.0) | 0.040 (0.040) | 90 (0) | 10 (100) | 0 (3) | 2.5 (never) |" in table
+    assert "| new | 1.2 | 0.040 | 90 | 10 | 0 | 2.5 |" in table
