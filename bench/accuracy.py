@@ -46,8 +46,8 @@ from localizer.geometry import wrap_angle  # noqa: E402
 from localizer.pose import PoseFix  # noqa: E402
 from recording.reader import read_groundtruth  # noqa: E402
 from recording.replay_cli import main as replay_main  # noqa: E402
-from sim.build import build_robot, build_world, seed_generators  # noqa: E402
 from sim.cli import main as simulate_main  # noqa: E402
+from sim.offline import recording_site  # noqa: E402
 from sim.scenario import load_scenario  # noqa: E402
 
 SCENARIOS = ("paper_testbed", "paper_floor", "dense_grid_fast", "hostile")
@@ -124,11 +124,7 @@ class SiteTruth:
 
 def site_truth(name: str, seed: int | None) -> SiteTruth:
     """Rebuild the truth of `irloc simulate NAME` (first robot) the way sim.offline does."""
-    sc = load_scenario(name)
-    sc = dataclasses.replace(sc, robots=sc.robots[:1])
-    gens = seed_generators(sc.seed if seed is None else seed, 4)
-    world = build_world(sc, gens[0])
-    rig = build_robot(sc.robots[0], sc, gens[3], index=0)
+    _, world, rig, _ = recording_site(load_scenario(name), seed=seed)
     ids = sorted(world.landmarks)
     P = np.array([world.landmarks[i].p_true for i in ids], dtype=np.float64)
     G = np.array([g.p_world for g in world.glints], dtype=np.float64).reshape(-1, 3)
