@@ -353,7 +353,8 @@ def mounting_from_observations(
         if unknown:
             raise ValueError(f"detection #{k} (t_ns {t_ns}): unknown landmark ids {unknown}")
         p_world = np.array([landmark_map.position(i) for i in ids_list]).reshape(-1, 3)
-        pose = camera_pose_from_landmarks(camera, px, p_world)
+        near = poses[-1][:3, 3] if poses else None
+        pose = camera_pose_from_landmarks(camera, px, p_world, near_world_m=near)
         if pose is None or pose.residual_rms_px > cfg.max_frame_rms_px:
             dropped += 1
             continue
