@@ -312,3 +312,51 @@ def sec_v_table(result: SecV, stats: dict[str, float] | None = None) -> str:
             f"first fix after {stats['first_fix_s']:.2f} s",
         ]
     return "\n".join(lines)
+
+
+def odometry_stops(
+    t_ns: IntArray, v: FloatArray, min_s: float = MIN_STOP_S, still_m_s: float = 1e-4
+) -> list[tuple[int, int]]:
+    """(start, end) times (ns) where both wheel speeds stay below `still_m_s` for `min_s` or
+    longer: where a recording without ground truth is parked."""
+    still = np.all(np.abs(v) < still_m_s, axis=1) if len(v) else np.zeros(0, dtype=bool)
+    out: list[tuple[int, int]] = []
+    i = 0
+    while i < len(still):
+        if still[i]:
+            j = i
+            while j + 1 < len(still) and still[j + 1]:
+                j += 1
+            if (t_ns[j] - t_ns[i]) * 1e-9 >= min_s:
+                out.append((int(t_ns[i]), int(t_ns[j])))
+            i = j + 1
+        else:
+            i += 1
+    return out
+
+
+def jitter_while_parked(
+    track: PoseTrack, windows: Sequence[tuple[int, int]], settle_s: float = SETTLE_S
+) -> list[tuple[int, int, float, float]]:
+    """Per parked window (t0, t1 ns) with 5 or more poses from `settle_s` after t0: (t0, t1,
+    largest deviation of one position from the window's mean (m), the same of the heading
+    (rad))."""
+    has = track.has_pose
+    t, est = track.t_ns[has], track.pose[has]
+    out = []
+    for t0, t1 in windows:
+        sel = (t >= t0 + int(settle_s * 1e9)) & (t <= t1)
+        if np.count_nonzero(sel) < 5:
+            continue
+        e = est[sel]
+        mean = e[:, :2].mean(axis=0)
+        dth = np.unwrap(e[:, 2])
+        out.append(
+            (
+                int(t0),
+                int(t1),
+                float(np.max(np.hypot(*(e[:, :2] - mean).T))),
+                float(np.max(np.abs(dth - dth.mean()))),
+            )
+        )
+    return out
