@@ -77,15 +77,15 @@ def collect(root: Path, truth: Path | None = None, *, use_truth: bool = True) ->
         RecordingError: a malformed recording or ground-truth file.
     """
     rec = read_recording(root)
+    if truth is None and use_truth and (Path(root) / GROUNDTRUTH_FILE).is_file():
+        truth = Path(root) / GROUNDTRUTH_FILE
+    gt = read_groundtruth_file(truth) if (truth is not None and use_truth) else None
     estimates: list[PoseEstimate | NoPose] = []
     cpu: list[float] = []
     for done in localize(rec):
         estimates.append(done.estimate)
         cpu.append(done.cpu_s)
     track = track_from_estimates(estimates)
-    if truth is None and use_truth and (Path(root) / GROUNDTRUTH_FILE).is_file():
-        truth = Path(root) / GROUNDTRUTH_FILE
-    gt = read_groundtruth_file(truth) if (truth is not None and use_truth) else None
     result = stats = None
     if gt is not None:
         sweep_end = next((e.t_ns for e in rec.leds if e.all_lit), 0)

@@ -109,15 +109,15 @@ def floor_figure(
 
 
 def _arrow_scale(err: FloatArray, points: FloatArray) -> float:
-    """A round magnification that makes the largest error arrow ~1/8 of the plot's extent."""
+    """A round magnification (1, 2 or 5 times a power of ten) that draws the median error
+    arrow about 1/8 of the plot's extent long."""
     extent = float(np.ptp(points, axis=0).max()) if len(points) > 1 else 1.0
-    largest = float(np.max(np.hypot(err[:, 0], err[:, 1]))) if len(err) else 0.0
-    if largest <= 0:
+    typical = float(np.median(np.hypot(err[:, 0], err[:, 1]))) if len(err) else 0.0
+    if typical <= 0:
         return 1.0
-    raw = max(extent, 0.5) / 8 / largest
-    return float(
-        10 ** np.floor(np.log10(raw)) * (5 if raw / 10 ** np.floor(np.log10(raw)) >= 5 else 1)
-    )
+    raw = max(extent, 0.5) / 8 / typical
+    decade = 10 ** np.floor(np.log10(raw))
+    return float(decade * max(m for m in (1, 2, 5) if m * decade <= raw))
 
 
 def heading_figure(stops: Sequence[StopScore]) -> Figure:

@@ -123,7 +123,9 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog=PROG, description=__doc__.splitlines()[0])
     parser.add_argument("recording", type=Path, help="the recording folder")
     parser.add_argument("--out", type=Path, required=True, help="poses.csv to write")
-    parser.add_argument("--quiet", action="store_true", help="no progress bar or warnings")
+    parser.add_argument(
+        "--quiet", action="store_true", help="no progress bar, warnings or table (only errors)"
+    )
     parser.add_argument(
         "--truth",
         type=Path,
@@ -133,7 +135,7 @@ def main(argv: list[str] | None = None) -> int:
     )
     parser.add_argument("--no-truth", action="store_true", help="do not score, even if present")
     args = parser.parse_args(argv)
-    truth = args.truth
+    truth = None if args.no_truth else args.truth
     if truth is None and not args.no_truth and (args.recording / GROUNDTRUTH_FILE).is_file():
         truth = args.recording / GROUNDTRUTH_FILE
     show = not args.quiet and sys.stderr.isatty()
@@ -161,7 +163,9 @@ def main(argv: list[str] | None = None) -> int:
                 estimates=estimates,
             )
         tmp.replace(args.out)
-        table = None if truth is None else truth_summary(args.recording, truth, estimates)
+        table = None
+        if truth is not None and not args.quiet:
+            table = truth_summary(args.recording, truth, estimates)
     except RecordingError as exc:
         tmp.unlink(missing_ok=True)
         print(f"{PROG}: {exc}", file=sys.stderr)
