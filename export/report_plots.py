@@ -96,6 +96,10 @@ def floor_figure(
             width=0.004,
         )
         ax_err.scatter(true[:, 0], true[:, 1], marker="*", s=40, c="k", zorder=4)
+        tips = np.vstack([true + err * scale, true, landmarks[:, :2]])
+        pad = 0.08 * max(float(np.ptp(tips, axis=0).max()), 0.5)
+        ax_err.set_xlim(tips[:, 0].min() - pad, tips[:, 0].max() + pad)
+        ax_err.set_ylim(tips[:, 1].min() - pad, tips[:, 1].max() + pad)
         ax_err.set_title(f"error at each stop, magnified {scale:.0f}x")
     ax.set_title("estimated vs true positions at the parked stops (Fig. 9)")
     fig.legend(
