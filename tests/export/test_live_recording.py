@@ -14,7 +14,6 @@ import pytest
 from mcap.reader import make_reader
 
 from export.cli import main as export_main
-from export.report import collect, render_html
 from recording.reader import read_recording
 from recording.replay_cli import main as replay
 from recording.scoring import PoseTrack, read_poses
@@ -70,11 +69,3 @@ def test_live_recording_exports(
     assert counts["/irloc/mode"] >= 1
     assert counts["/landmarks"] == len(rec.leds)  # the start, then every LED change
     assert counts["/odom"] == int(np.sum(rec.odom_t_ns <= rec.frames[-1].t_ns))
-
-
-def test_live_recording_reports_without_truth(live_recording: Path, replayed: PoseTrack) -> None:
-    data = collect(live_recording)
-    assert data.truth is None and data.result is None
-    np.testing.assert_array_equal(data.track.t_ns, replayed.t_ns)
-    assert data.track.mode == replayed.mode
-    assert "No ground truth" in render_html(data)
