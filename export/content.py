@@ -12,7 +12,7 @@ odometry at the frame's time))`, which Nav2 takes from a positioning source (REP
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -210,21 +210,16 @@ def export_content(
     rec: Recording,
     *,
     detection: DetectionConfig | None = None,
-    on_frame: Callable[[FrameContent], None] | None = None,
 ) -> ExportContent:
     """The content of `rec` (frames localized lazily, while the writer iterates)."""
     odometry = integrate_wheel_odometry(rec)
     truth = read_groundtruth(rec.root) if (rec.root / GROUNDTRUTH_FILE).is_file() else None
-    return ExportContent(rec, odometry, truth, _frames(rec, odometry, detection, on_frame))
+    return ExportContent(
+        rec, odometry, truth, _frames(rec, odometry, detection or DetectionConfig())
+    )
 
 
-def _frames(
-    rec: Recording,
-    odometry: Odometry,
-    detection: DetectionConfig | None,
-    on_frame: Callable[[FrameContent], None] | None,
-) -> Iterator[FrameContent]:
-    cfg = detection or DetectionConfig()
+def _frames(rec: Recording, odometry: Odometry, cfg: DetectionConfig) -> Iterator[FrameContent]:
     lm = rec.landmark_map
     for done in localize(rec):
         est = done.estimate
@@ -245,7 +240,7 @@ def _frames(
                     for i, (u, v), good in zip(ids, px, ok, strict=True)
                     if good
                 }
-        item = FrameContent(
+        yield FrameContent(
             t_ns=done.entry.t_ns,
             png_path=None if done.image is None else done.entry.path,
             spots=np.asarray(spots, dtype=np.float64).reshape(-1, 2),
@@ -255,9 +250,6 @@ def _frames(
             map_odom=map_odom,
             cpu_s=done.cpu_s,
         )
-        if on_frame is not None:
-            on_frame(item)
-        yield item
 
 
 def covariance6(est: PoseEstimate) -> list[float]:

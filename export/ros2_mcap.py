@@ -53,6 +53,8 @@ from localizer.camera import CameraModel
 from localizer.events import LedsChanged, PoseEstimate
 
 ROS_DISTORTION = {"radial-tangential": "plumb_bob", "equidistant": "equidistant"}
+ROS_IMAGE_FORMAT = "mono8; png compressed"
+"""CompressedImage.format as image_transport's compressed plugin writes it for 8-bit PNGs."""
 _NEVER = QosTime(sec=0x7FFFFFFF, nsec=0xFFFFFFFF)  # rosbag2's "infinite" duration
 LATCHED = Qos(
     history=QosHistory.KEEP_LAST,
@@ -257,7 +259,7 @@ def _write(content: ExportContent, bag: _Bag) -> None:
                 ros.make(
                     "sensor_msgs/msg/CompressedImage",
                     header=ros.header(t, CAMERA),
-                    format="png",
+                    format=ROS_IMAGE_FORMAT,
                     data=data,
                 ),
                 t,
