@@ -12,8 +12,18 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = [
-    "localizer", "sim", "recording", "rf_gateway", "server", "web", "calibration", "export", "irloc"
-]  # fmt: skip
+    "localizer",
+    "sim",
+    "recording",
+    "rf_gateway",
+    "server",
+    "web",
+    "calibration",
+    "irloc",
+    "fleet",
+    "agent",
+    "export",
+]
 PYTHON_DIRS = [*PACKAGES, "bench", "tests"]
 
 
