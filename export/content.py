@@ -21,7 +21,12 @@ import numpy.typing as npt
 
 from localizer.camera import CameraModel, predict_pixels
 from localizer.events import LedsChanged, NoPose, PoseEstimate
-from localizer.geometry import T_world_body_from_pose, wrap_angle
+from localizer.geometry import (
+    T_world_body_from_pose,
+    invert_transform,
+    pose_from_T_world_body,
+    wrap_angle,
+)
 from localizer.odometry import integrate_odometry
 from localizer.spots import DetectionConfig, detect_spots
 from recording.layout import GROUNDTRUTH_FILE
@@ -111,15 +116,13 @@ def integrate_wheel_odometry(rec: Recording) -> Odometry:
 
 
 def compose(a: Pose2, b: Pose2) -> Pose2:
-    """Planar `a * b` (b expressed in a's frame)."""
-    c, s = math.cos(a[2]), math.sin(a[2])
-    return (a[0] + c * b[0] - s * b[1], a[1] + s * b[0] + c * b[1], float(wrap_angle(a[2] + b[2])))
+    """Planar `a * b` (b expressed in a's frame), through `localizer.geometry`'s transforms."""
+    return pose_from_T_world_body(T_world_body_from_pose(*a) @ T_world_body_from_pose(*b))
 
 
 def inverse(a: Pose2) -> Pose2:
     """Planar inverse."""
-    c, s = math.cos(a[2]), math.sin(a[2])
-    return (-c * a[0] - s * a[1], s * a[0] - c * a[1], float(wrap_angle(-a[2])))
+    return pose_from_T_world_body(invert_transform(T_world_body_from_pose(*a)))
 
 
 @dataclass(frozen=True)
