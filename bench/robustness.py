@@ -15,7 +15,8 @@ then scored against the simulator's truth (`bench/robustness_score.py`). It prin
 markdown table and writes the figures as JSON.
 
     .venv/bin/python bench/robustness.py [--only 'grid40*'] [--quick] [--jobs 2]
-        [--held-out | --no-held-out] [--json out.json] [--work DIR] [--fresh]
+        [--held-out | --no-held-out] [--json out.json] [--baseline before.json]
+        [--work DIR] [--fresh]
 """
 
 from __future__ import annotations
@@ -137,7 +138,8 @@ def _cache_key(run: Run, duration_s: float) -> str:
     h.update(run.scenario.read_bytes())
     h.update(repr((run.robot, run.lens, run.calibration, run.seed, duration_s)).encode())
     for f in sorted((ROOT / "sim").glob("*.py")):
-        h.update(f.read_bytes())
+        if f.name not in ("cli.py", "chessboard.py"):  # not used to simulate
+            h.update(f.read_bytes())
     return h.hexdigest()[:16]
 
 
@@ -265,6 +267,27 @@ def table(rows: list[dict[str, Any]]) -> str:
     return "\n".join(lines)
 
 
+def comparison(rows: list[dict[str, Any]], baseline: list[dict[str, Any]]) -> str:
+    """A markdown table of the headline figures against a baseline run's JSON: "now (was)"."""
+    before = {r["name"]: r for r in baseline}
+    head = ("run", "p95 cm", "hdg mean deg", "landmark %", "lost %", "misidentified", "recover s")
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+
+    def figures(r: dict[str, Any]) -> list[str]:
+        rec = " ".join("never" if v is None else f"{v:.1f}" for v in r["recover_s"]) or "-"
+        return [f"{100 * r['p95_m']:.1f}", f"{math.degrees(r['heading_mean_rad']):.3f}",
+                _pct(r, "landmark"), _pct(r, "lost"), str(r["misidentified"]), rec]  # fmt: skip
+
+    for r in rows:
+        was = before.get(r["name"])
+        now = figures(r)
+        cells = (
+            now if was is None else [f"{a} ({b})" for a, b in zip(now, figures(was), strict=True)]
+        )
+        lines.append("| " + " | ".join([r["name"], *cells]) + " |")
+    return "\n".join(lines)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--only", action="append", default=[], metavar="PATTERN",
@@ -274,6 +297,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--held-out", action=argparse.BooleanOptionalAction, default=True,
                         help="include the held-out runs (default yes)")  # fmt: skip
     parser.add_argument("--json", type=Path, default=None, help="write the figures here")
+    parser.add_argument(
+        "--baseline", type=Path, default=None, metavar="JSON",
+        help="also print the headline figures against this earlier --json (e.g. "
+        "bench/robustness/results/before.json)",
+    )  # fmt: skip
     parser.add_argument(
         "--work", type=Path, default=Path(tempfile.gettempdir()) / "irloc-robustness",
         help="recordings are cached here",
@@ -306,6 +334,9 @@ def main(argv: list[str] | None = None) -> int:
     for r in rows:
         for note in r["notes"]:
             print(f"- {r['name']}: {note}")
+    if args.baseline is not None:
+        print("\nNow (baseline):\n")
+        print(comparison(rows, json.loads(args.baseline.read_text())))
     print(f"\n{len(rows)} runs in {time.perf_counter() - t0:.0f} s (wall)")
     if args.json is not None:
         args.json.write_text(json.dumps(rows, indent=1, default=str))

@@ -31,8 +31,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import numpy.typing as npt
 
-from localizer.camera import CameraModel, predict_pixels
-from localizer.geometry import T_world_body_from_pose, wrap_angle
+from localizer.camera import CameraModel, T_camera_world, predict_pixels
+from localizer.geometry import T_world_body_from_pose, transform_points, wrap_angle
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -41,6 +41,9 @@ GROSS_HEADING_RAD = math.radians(5.0)
 RECOVERED_M = 0.10
 RECOVERED_RAD = math.radians(3.0)
 RECOVERED_HOLD_S = 1.0
+EDGE_MARGIN_PX = 25.0
+"""A landmark projected this far outside the image still counts as seen (a spot at the very
+edge, projected through a slightly different camera or pose, may land just outside)."""
 UNSCORED_MODES = ("lost", "identifying")
 """Poses the localizer itself does not stand by: counted as frames of their mode only."""
 
@@ -109,8 +112,8 @@ def wrong_ids(
     if not ids:
         return unknown
     p_map = np.array([truth.surveyed[i] for i in ids])
-    claimed, ok = predict_pixels(truth.camera_nominal, T_world_body_from_pose(*pose_est), p_map)
-    seen, valid = predict_pixels(truth.camera_true, truth.T_world_body(*pose_true), truth.sources)
+    claimed, ok = _pixels(truth.camera_nominal, T_world_body_from_pose(*pose_est), p_map)
+    seen, valid = _pixels(truth.camera_true, truth.T_world_body(*pose_true), truth.sources)
     seen[~valid] = np.inf
     out = unknown
     for lid, (u, v), inside in zip(ids, claimed, ok, strict=True):
@@ -123,6 +126,21 @@ def wrong_ids(
             what = "a glint" if truth.source_ids[j] < 0 else f"landmark {truth.source_ids[j]}"
             out.append(f"{lid} at ({u:.0f}, {v:.0f}) is {what} ({d[j]:.0f} px)")
     return out
+
+
+def _pixels(
+    cam: CameraModel, T_world_body: FloatArray, p: FloatArray
+) -> tuple[FloatArray, npt.NDArray[np.bool_]]:
+    """Pixels of world points (N, 2) and whether each is in the field of view and within
+    `EDGE_MARGIN_PX` of the image."""
+    px, _ = predict_pixels(cam, T_world_body, p)
+    pc = transform_points(T_camera_world(cam, T_world_body), p)
+    z, norm = pc[:, 2], np.linalg.norm(pc, axis=1)
+    m = EDGE_MARGIN_PX
+    ok = (z > 1e-9) & (z >= math.cos(cam.max_angle_rad) * norm)
+    ok &= (px[:, 0] >= -m) & (px[:, 0] <= cam.width - 1 + m)
+    ok &= (px[:, 1] >= -m) & (px[:, 1] <= cam.height - 1 + m)
+    return px, ok
 
 
 def score(
