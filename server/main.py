@@ -28,7 +28,7 @@ from server.auth import Viewer, authenticate
 from server.errors import ConflictError, NotFoundError, UnavailableError
 from server.fanout import PoseFanout
 from server.metrics import make_registry, render
-from server.routes import admin, calibration, landmarks, map, remote, robots, streams
+from server.routes import admin, calibration, history, landmarks, map, remote, robots, streams
 from server.services import SiteServices
 from server.settings import Settings
 
@@ -129,7 +129,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     )
     _install_error_handlers(app)
     api = APIRouter(prefix=API_PREFIX)
-    for module in (landmarks, map, robots, calibration, remote, admin, streams):
+    for module in (landmarks, map, history, robots, calibration, remote, admin, streams):
         api.include_router(module.router)
     api.add_api_route(
         "/metrics",

@@ -298,12 +298,6 @@ class SiteAdapter:
     def delete_landmark(self, landmark_id: int, *, actor: str) -> None:
         self.services.map.delete(landmark_id, actor=actor)
 
-    def undo_last(self, *, actor: str) -> str:
-        rec = self.services.map.undo_last(actor=actor)
-        if rec is None:
-            raise ValueError("nothing to undo")
-        return f"undid {rec.action} of landmark {rec.landmark_id} by {rec.actor}"
-
     def doubt(self, landmark_id: int) -> Doubt:
         """A landmark's chances and uses so far (`web.doubt.DoubtTracker.record`)."""
         self._drain()

@@ -205,10 +205,6 @@ class ViewerSite(Protocol):
 
     def delete_landmark(self, landmark_id: int, *, actor: str) -> None: ...
 
-    def undo_last(self, *, actor: str) -> str:
-        """Revert the last map change made by anyone; returns a description of it."""
-        ...
-
     def store_camera(self, robot: str, camera: CameraModel, *, actor: str) -> None:
         """Replace the robot's camera (lens and mounting) and restart its localizer."""
         ...

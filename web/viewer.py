@@ -25,6 +25,7 @@ from server.cli import is_loopback
 from web.panels.calibration import CalibrationPanel
 from web.panels.commission import CommissionPanel
 from web.panels.coverage import CoveragePanel
+from web.panels.history import HistoryPanel, map_repository_of
 from web.panels.monitor import MonitorPanel, UncertaintyHistory
 from web.panels.wizard import WizardPanel
 from web.roles import ANONYMOUS, Session
@@ -70,6 +71,7 @@ class _ClientPanels:
         self.monitor: MonitorPanel
         self.wizard: WizardPanel | None = None
         self.commission: CommissionPanel | None = None
+        self.history: HistoryPanel | None = None
         if session.can_commission:
             tabs = gui.add_tab_group()
             with tabs.add_tab("Monitor"):
@@ -78,6 +80,9 @@ class _ClientPanels:
             with tabs.add_tab("Commission"):
                 self.wizard = WizardPanel(gui, site, viewer.wizard, session, notify)
                 self.commission = CommissionPanel(client, site, session, notify)
+                repo = map_repository_of(viewer.services)
+                if repo is not None:
+                    self.history = HistoryPanel(gui, repo, session, notify)
                 self.calibration = CalibrationPanel(gui, site, session, notify)
         else:
             self.monitor = MonitorPanel(gui, site, session, viewer.history, notify)
@@ -259,6 +264,8 @@ class Viewer:
                     p.monitor.refresh(robots, lms, events)
                     if p.wizard is not None:
                         p.wizard.refresh()
+                    if p.history is not None:
+                        p.history.refresh()
                 except Exception:  # its browser went away mid-update
                     log.debug("viewer: dropping the panels of client %s", cid, exc_info=True)
                     with self._lock:

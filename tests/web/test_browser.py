@@ -105,7 +105,7 @@ def test_viewer_key_sees_but_cannot_edit(browser: Any, live_site: LiveSite) -> N
     try:
         page.get_by_text("signed in as viewer").wait_for(timeout=20_000)
         assert page.get_by_text("Commission", exact=True).count() == 0
-        for name in ("Relocalize", "Add landmark", "Start identification", "Undo last change"):
+        for name in ("Relocalize", "Add landmark", "Start identification", "Nothing to undo"):
             assert page.get_by_role("button", name=name).count() == 0, name
         assert page.evaluate(f"() => {LANDMARKS_IN_SCENE}") == len(live_site.services.map.list())
     finally:
