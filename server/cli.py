@@ -85,18 +85,18 @@ def main(argv: list[str] | None = None) -> int:
     migrate(engine)
     first_key = KeyStore(engine).ensure_admin()
     engine.dispose()
-    base = f"http://{settings.host}:{settings.port}"
-    print(f"irloc: data in {settings.data_dir}")
-    print(f"irloc: API docs  {base}/docs")
-    if settings.viewer_enabled:
-        print(f"irloc: viewer    {base}/viewer/?token=<key>")
+    from server.console import startup_lines
+
+    lines = startup_lines(
+        host=settings.host, port=settings.port, data_dir=settings.data_dir,
+        viewer_enabled=settings.viewer_enabled, first_key=first_key,
+    )  # fmt: skip
+    print("\n".join(lines))
     if not is_loopback(settings.host):
         print(
             f"irloc: the API listens on {settings.host}, beyond this machine: every endpoint "
             "and the viewer need an API key; viser itself stays on 127.0.0.1"
         )
-    if first_key is not None:
-        print(f"irloc: first admin API key (shown once, store it): {first_key}")
     sys.stdout.flush()
     config = uvicorn.Config(
         create_app(settings),

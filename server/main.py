@@ -16,7 +16,8 @@ from typing import Any
 from fastapi import APIRouter, FastAPI, Request
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse, Response
-from pydantic import BaseModel, ValidationError
+from fastapi_offline import FastAPIOffline
+from pydantic import ValidationError
 
 from rf_gateway.errors import (
     LandmarkUnreachableError,
@@ -27,6 +28,8 @@ from rf_gateway.errors import (
 from server.auth import Viewer, authenticate
 from server.errors import ConflictError, NotFoundError, UnavailableError
 from server.fanout import PoseFanout
+from server.health import Health, site_health
+from server.landing import landing_router
 from server.metrics import make_registry, render
 from server.routes import admin, calibration, history, landmarks, map, remote, robots, streams
 from server.services import SiteServices
@@ -34,13 +37,6 @@ from server.settings import Settings
 
 log = logging.getLogger(__name__)
 API_PREFIX = "/api/v1"
-
-
-class Health(BaseModel):
-    status: str
-    robots: int
-    landmarks: int
-    radio: str
 
 
 def _error_status(exc: Exception) -> tuple[int, str]:
@@ -121,7 +117,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
             await fanout.stop()
             await services.stop()
 
-    app = FastAPI(
+    app = FastAPIOffline(  # Swagger UI and ReDoc from the package: plant networks are offline
         title="irloc",
         version="0.1.0",
         summary="Indoor localization with IR ceiling landmarks: map, robots, radio",
@@ -149,19 +145,13 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         include_in_schema=False,
     )
     _include_viewer_router(app)
+    app.include_router(landing_router())
     return app
 
 
 async def _healthz(request: Request) -> Health:
     """Liveness (no key needed)."""
-    s: SiteServices = request.app.state.services
-    gw = s.gateway
-    return Health(
-        status="ok",
-        robots=len(s.robots.names()),
-        landmarks=len(s.map.list()),
-        radio="absent" if gw is None else str(gw.transport.state),
-    )
+    return site_health(request.app.state.services)
 
 
 async def _metrics(request: Request, _: Viewer) -> Response:
