@@ -31,7 +31,17 @@ from server.fanout import PoseFanout
 from server.health import Health, site_health
 from server.landing import landing_router
 from server.metrics import make_registry, render
-from server.routes import admin, calibration, history, landmarks, map, remote, robots, streams
+from server.routes import (
+    admin,
+    calibration,
+    floorplan,
+    history,
+    landmarks,
+    map,
+    remote,
+    robots,
+    streams,
+)
 from server.services import SiteServices
 from server.settings import Settings
 
@@ -125,7 +135,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     )
     _install_error_handlers(app)
     api = APIRouter(prefix=API_PREFIX)
-    for module in (landmarks, map, history, robots, calibration, remote, admin, streams):
+    for module in (landmarks, map, history, floorplan, robots, calibration, remote, admin, streams):
         api.include_router(module.router)
     api.add_api_route(
         "/metrics",

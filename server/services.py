@@ -31,6 +31,7 @@ from server.crud import EventLog, KeyStore, MapRepository, RobotStore
 from server.db import make_engine, migrate
 from server.errors import NotFoundError, UnavailableError
 from server.events import EventHub
+from server.floorplan import FloorPlanStore
 from server.models import LandmarkPublic, RobotCreate, RobotPublic
 from server.poses import PoseUpdate
 from server.settings import Settings
@@ -110,6 +111,7 @@ class SiteServices:
         self.engine = engine or make_engine(settings.db_url)
         migrate(self.engine)
         self.map = MapRepository(self.engine)
+        self.floorplan = FloorPlanStore(settings.data_dir)
         self.keys = KeyStore(self.engine)
         self.robot_store = RobotStore(self.engine)
         self.log = EventLog(self.engine)

@@ -248,8 +248,7 @@ class MapHistory:
             step = self._step(s, rec, direction)
             if expect is not None and rec.id != expect:
                 raise ConflictError(
-                    f"your next {direction} is now {step.description}: nothing changed, "
-                    "look again"
+                    f"your next {direction} is now {step.description}: nothing changed, look again"
                 )
             if step.needs_confirmation and not confirm:
                 raise ConfirmationRequiredError(step)
