@@ -34,22 +34,31 @@ class TopView:
 
     Attributes:
         fov_deg: vertical field of view, degrees (narrow: near-orthographic).
-        aspect: the width/height of the 3D view the site must fit in (the GUI panel takes
-            part of a 16:10 window).
+        screen_aspect: width/height of the browser window (16:10 is common).
+        panel_share: share of the window's width the GUI panel covers at the right; the
+            site is fitted into the rest and centred there.
         margin: share of the site's extent left free around it.
         near_m: near clipping distance, metres (far from the camera: depth precision).
     """
 
     fov_deg: float = 6.0
-    aspect: float = 1.25
-    margin: float = 0.08
+    screen_aspect: float = 1.6
+    panel_share: float = 0.25
+    margin: float = 0.06
     near_m: float = 1.0
 
     def distance(self, bounds: Bounds) -> float:
-        """Height above the floor at which the site fills the view, metres."""
+        """Height above the floor at which the site fills the free part of the view, m."""
         x0, x1, y0, y1 = bounds
-        half = max((y1 - y0) / 2.0, (x1 - x0) / (2.0 * self.aspect)) * (1.0 + self.margin)
+        free_aspect = self.screen_aspect * (1.0 - self.panel_share)
+        half = max((y1 - y0) / 2.0, (x1 - x0) / (2.0 * free_aspect)) * (1.0 + self.margin)
         return max(half, 1.0) / math.tan(math.radians(self.fov_deg) / 2.0)
+
+    def panel_shift_m(self, distance: float) -> float:
+        """How far east of the site's centre to look so that the site is centred in the
+        part of the window the panel leaves free, metres."""
+        visible_w = 2.0 * distance * math.tan(math.radians(self.fov_deg) / 2.0)
+        return 0.5 * self.panel_share * visible_w * self.screen_aspect
 
 
 OBLIQUE_FOV_DEG = 60.0
@@ -65,7 +74,7 @@ def _set_up(camera: object, up: tuple[float, float, float]) -> None:
 def apply_top_view(
     camera: CameraLike, bounds: Bounds, view: TopView | None = None
 ) -> tuple[float, float, float]:
-    """Look straight down on the site's centre from far above; returns the look-at point.
+    """Look straight down on the site from far above; returns the look-at point.
 
     The camera sits a hair south of the vertical so that north (+y) is up on the screen.
     """
@@ -73,6 +82,7 @@ def apply_top_view(
     x0, x1, y0, y1 = bounds
     cx, cy = (x0 + x1) / 2.0, (y0 + y1) / 2.0
     d = v.distance(bounds)
+    cx += v.panel_shift_m(d)
     camera.fov = math.radians(v.fov_deg)
     camera.near, camera.far = v.near_m, 4.0 * d
     camera.position = (cx, cy - 1e-3 * d, d)  # position first: viser's setter moves look_at

@@ -22,11 +22,13 @@ import numpy as np
 import viser
 
 from server.cli import is_loopback
+from web.floorplan_view import FloorPlanLayer, FloorPlanPanel, floorplan_store_of
 from web.panels.calibration import CalibrationPanel
 from web.panels.commission import CommissionPanel
 from web.panels.coverage import CoveragePanel
 from web.panels.history import HistoryPanel, map_repository_of
 from web.panels.monitor import MonitorPanel, UncertaintyHistory
+from web.panels.view import ViewPanel
 from web.panels.wizard import WizardPanel
 from web.roles import ANONYMOUS, Session
 from web.scene import SiteScene
@@ -68,6 +70,9 @@ class _ClientPanels:
 
         gui = client.gui
         gui.add_markdown(f"**irloc** - signed in as *{session.role}*")
+        assert viewer.scene is not None  # started
+        bounds, ceiling_z = viewer.scene.bounds, viewer.scene.ceiling_z
+        self.view = ViewPanel(client, bounds, ceiling_z, [r.name for r in site.robots()])
         self.monitor: MonitorPanel
         self.wizard: WizardPanel | None = None
         self.commission: CommissionPanel | None = None
@@ -84,6 +89,9 @@ class _ClientPanels:
                 if repo is not None:
                     self.history = HistoryPanel(gui, repo, session, notify)
                 self.calibration = CalibrationPanel(gui, site, session, notify)
+                store = floorplan_store_of(viewer.services)
+                if store is not None:
+                    self.floorplan = FloorPlanPanel(gui, store, bounds, notify)
         else:
             self.monitor = MonitorPanel(gui, site, session, viewer.history, notify)
             self.coverage = CoveragePanel(client, site, notify)
@@ -123,6 +131,7 @@ class Viewer:
         self._adapter: Any = None
         self.server: viser.ViserServer | None = None
         self.scene: SiteScene | None = None
+        self.floorplan: FloorPlanLayer | None = None
         self.history = UncertaintyHistory()
         self.wizard: IdentificationWizard
         self._tickets: dict[str, tuple[float, Session]] = {}
@@ -160,6 +169,8 @@ class Viewer:
         hi = pos.max(axis=0) + m if len(pos) else np.array([5.0, 5.0])
         self.scene.set_site((lo[0], hi[0], lo[1], hi[1]), self.site.ceiling_height())
         self.scene.update_landmarks(lms, self.site.lit())
+        store = floorplan_store_of(self.services)
+        self.floorplan = None if store is None else FloorPlanLayer(self.server.scene, store)
         self.server.on_client_connect(self._on_connect)
         self.server.on_client_disconnect(self._on_disconnect)
         self._stop.clear()
@@ -254,6 +265,15 @@ class Viewer:
                 self.scene.update_robots(robots)
                 if landmarks_due and lms is not None:
                     self.scene.update_landmarks(lms, self.site.lit())
+        if landmarks_due and self.floorplan is not None:
+            self.floorplan.refresh()
+        with self._lock:
+            following = [p.view for p in self._panels.values()]
+        for view in following:
+            try:
+                view.follow(robots, time.monotonic())
+            except Exception:  # its browser went away mid-update
+                log.debug("viewer: follow failed", exc_info=True)
         if panels_due and lms is not None:
             self.history.add(robots)
             events = self.site.events(self.config.event_limit)

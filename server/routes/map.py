@@ -37,7 +37,8 @@ def export_map(
     openapi_extra={
         "requestBody": {
             "content": {
-                "application/json": {"schema": MapDocument.model_json_schema()},
+                # a reference, not the model's own schema: its `$defs` breaks ReDoc
+                "application/json": {"schema": {"$ref": "#/components/schemas/MapDocument"}},
                 "text/csv": {"schema": {"type": "string"}},
             },
             "required": True,
