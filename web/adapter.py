@@ -30,6 +30,7 @@ from server.errors import UnavailableError
 from web.candidates import doubted_candidates, new_radio_candidates
 from web.doubt import Doubt, DoubtConfig, DoubtTracker
 from web.led_timeline import LedTimeline
+from web.panels.monitor import local_time_text
 from web.services import (
     CameraView,
     Candidate,
@@ -190,7 +191,7 @@ class SiteAdapter:
 
     def events(self, limit: int) -> list[EventLine]:
         return [
-            EventLine(e.t.strftime("%Y-%m-%d %H:%M:%S"), e.kind, e.message)
+            EventLine(local_time_text(e.t), e.kind, e.message)
             for e in self.services.events.recent(limit)
         ]
 

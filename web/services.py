@@ -105,7 +105,9 @@ class EventLine:
     """A line of the event list (low battery, landmark unreachable, robot lost, map changed).
 
     Attributes:
-        when: UTC time, ISO 8601 text; kind: the event kind; message: for people.
+        when: local time with its zone, e.g. "2026-12-01 21:04:05 CET"
+            (`web.panels.monitor.local_time_text`); kind: the event kind; message: for
+            people.
     """
 
     when: str

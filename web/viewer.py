@@ -282,6 +282,7 @@ class Viewer:
             for cid, p in panels:
                 try:
                     p.monitor.refresh(robots, lms, events)
+                    p.coverage.refresh(lms)
                     if p.wizard is not None:
                         p.wizard.refresh()
                     if p.history is not None:
