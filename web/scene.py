@@ -217,7 +217,7 @@ class SiteScene:
             [[bx0, by0], [bx1, by0], [bx1, by1], [bx0, by1], [bx0, by0]], dtype=np.float64
         )
         ring = np.column_stack([corners, np.full(5, ceiling_z)])
-        scene.add_line_segments("/ceiling", polyline_segments(ring), CEILING_COLOR, thickness=2.0)
+        scene.add_line_segments("/ceiling", polyline_segments(ring), CEILING_COLOR, thickness=0.03)
         from web.camera_views import apply_top_view  # the default: near-orthographic top
 
         apply_top_view(self.server.initial_camera, self.bounds)

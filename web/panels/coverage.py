@@ -29,7 +29,7 @@ class CoveragePanel:
         names = [r.name for r in site.robots()] or ["-"]
         with gui.add_folder("Coverage", expand_by_default=False):
             self.gui_by = gui.add_dropdown("Colour floor by", CHOICES)
-            self.gui_robot = gui.add_dropdown("Camera of robot", names)
+            self.gui_robot = gui.add_dropdown("Robot (its camera)", names)
             self.gui_step = gui.add_number("Grid step (m)", 0.25, min=0.05, max=2.0, step=0.05)
             self.gui_text = gui.add_markdown("")
         self.gui_by.on_update(self._on_choice)

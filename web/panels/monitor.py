@@ -159,7 +159,7 @@ class MonitorPanel:
                 scales={"x": {"time": False}, "y": {"auto": False, "range": (0.0, 1.0)}},
                 axes=(
                     {"label": "seconds before now", "size": 36},
-                    {"label": "1-sigma position error (cm)", "size": 52},
+                    {"label": "error (cm)", "size": 52},
                 ),
                 legend={"show": False},  # one series: the axis titles say what it is
                 padding=(14, 12, 0, 0),  # room for the top tick's label
