@@ -222,6 +222,9 @@ def test_top_view_renders_the_floor_plan_under_the_map(browser: Any, live_site: 
         # the plan's walls are drawn: thousands of pixels of their colour, where there were
         # (nearly) none (a blue "identifying" robot comes close to it)
         assert after > 3000 and after > 20 * before, (before, after)
+        page.get_by_text("Legend", exact=True).click()  # every colour explained
+        page.get_by_text("doubted: robots expected it but did not see it").wait_for()
+        save_shot(page, "viewer-legend.png")
     finally:
         page.close()
 

@@ -149,12 +149,6 @@ def test_events_are_in_local_time_with_a_zone_and_runs_are_folded() -> None:
     ]
 
 
-def test_the_plot_top_leaves_headroom_on_a_round_number() -> None:
-    from web.panels.monitor import plot_top
-
-    assert [plot_top(v) for v in (0.09, 0.15, 0.9, 4.0, 12.0)] == [0.2, 0.2, 2.0, 5.0, 20.0]
-
-
 def test_coverage_uses_the_chosen_robot_and_follows_map_changes() -> None:
     from web.panels.coverage import CoveragePanel
 

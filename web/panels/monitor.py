@@ -99,17 +99,6 @@ def events_text(events: Sequence[EventLine]) -> str:
     return "\n".join(lines)
 
 
-def plot_top(peak: float) -> float:
-    """The y axis's top for a plot whose largest value is `peak`: the next 1-2-5 step at
-    least 20 % above it (so the top tick and the curve both stay inside)."""
-    target = max(peak, 1e-3) * 1.2
-    step = 10.0 ** math.floor(math.log10(target))
-    for m in (1.0, 2.0, 5.0, 10.0):
-        if m * step >= target:
-            return m * step
-    return 10.0 * step
-
-
 class UncertaintyHistory:
     """Per robot: (site time s, 1-sigma position error cm), bounded."""
 
@@ -156,7 +145,7 @@ class MonitorPanel:
                 data=(np.zeros(0), np.zeros(0)),
                 series=({"label": "time"}, {"label": "error", "stroke": "#2a7", "width": 2}),
                 title=self._plot_title(),
-                scales={"x": {"time": False}, "y": {"auto": False, "range": (0.0, 1.0)}},
+                scales={"x": {"time": False}},
                 axes=(
                     {"label": "seconds before now", "size": 36},
                     {"label": "error (cm)", "size": 52},
@@ -165,7 +154,6 @@ class MonitorPanel:
                 padding=(14, 12, 0, 0),  # room for the top tick's label
                 aspect=1.5,
             )
-        self._y_top = 1.0
         with gui.add_folder("Landmark batteries", expand_by_default=False):
             self.gui_batteries = gui.add_markdown("")
         with gui.add_folder("Events", expand_by_default=False):
@@ -201,13 +189,6 @@ class MonitorPanel:
             self.gui_robot.options = names
         t, e = self.history.series(self.gui_robot.value)
         if len(t):
-            top = plot_top(float(np.nanmax(e)))
-            if top != self._y_top:  # a fixed range with headroom: no clipped top tick
-                self._y_top = top
-                self.gui_plot.scales = {
-                    "x": {"time": False},
-                    "y": {"auto": False, "range": (0.0, top)},
-                }
             title = self._plot_title()
             if self.gui_plot.title != title:
                 self.gui_plot.title = title
