@@ -16,10 +16,9 @@ class Health(BaseModel):
 
 def site_health(s: SiteServices) -> Health:
     """Robots and landmarks known, and the radio link's state ("absent" without a radio)."""
-    gw = s.gateway
     return Health(
         status="ok",
         robots=len(s.robots.names()),
         landmarks=len(s.map.list()),
-        radio="absent" if gw is None else str(gw.transport.state),
+        radio=s.leds.radio_state,
     )

@@ -4,7 +4,7 @@ to the lens's usable angle and to the building.
 A fisheye's image border reaches far beyond where an LED is still detected (its emission
 and the lens's vignetting fall off with the angle from the optical axis), and beyond the
 walls. The outline drawn is the image border, each border ray pulled in to at most
-`max_off_axis_rad` from the optical axis (the same bound `web.doubt` judges by), met with
+`max_off_axis_rad` from the optical axis (the same bound `commissioning.doubt` judges by), met with
 the ceiling plane, then clipped to the site's rectangle.
 
 Pure numpy; world frame z up (REP-103), metres, radians.

@@ -24,6 +24,7 @@ import numpy as np
 import numpy.typing as npt
 import viser
 
+from commissioning.coverage import Coverage, SpacingFlag
 from web.colors import (
     LIT_COLOR,
     RGB,
@@ -32,7 +33,6 @@ from web.colors import (
     landmark_color,
     mode_color,
 )
-from web.coverage import Coverage, SpacingFlag
 from web.footprint import Bounds, footprint_in_site, usable_footprint_body
 from web.geometry import ellipse_points
 from web.services import LandmarkState, RobotState
@@ -61,7 +61,7 @@ class SceneConfig:
         rays_every: redraw the rays every this many pose updates while the landmarks used
             stay the same (3: 10 Hz at 30 Hz); at once when they change.
         footprint_max_off_axis_rad: the camera footprint drawn reaches at most this far
-            from the optical axis, radians (the usable angle: `web.doubt.DoubtConfig`'s
+            from the optical axis, radians (the usable angle: `commissioning.doubt.DoubtConfig`'s
             `max_off_axis_rad`; a fisheye's image border reaches far beyond it).
     """
 

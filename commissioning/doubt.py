@@ -1,19 +1,18 @@
 """Doubted landmarks: the ones localized robots expected to see but did not use.
 
 A landmark is *doubted* when, over its last `DoubtConfig.window` chances, the robots that
-should have used it rarely did. A chance is one pose update (at most one per robot every
+should have used it rarely did. A chance is one pose estimate (at most one per robot every
 `min_interval_s`) of a robot that
 
 - is localized from landmarks (mode "landmark") with a small position error
   (1-sigma <= `max_sigma_m`) and used at least `min_others` other landmarks in that frame,
 - has *settled*: its fixes have lasted `settle_s` since it last identified or was lost (its
   first fixes use the landmarks it identified, before it hands off to the others in view),
-- and, by its pose, its camera model and the map, has the landmark's LED where the
-  localizer finds it: within `max_off_axis_rad` of the optical axis (farther off, an LED is
-  too dim to detect: its emission and the lens's vignetting fall with that angle) and at
-  least `margin_px` inside the image border; and the LED was lit at the frame's time, not
-  being switched nor switched within `led_quiet_s` before (`web.led_timeline`: robots
-  identify by darkening one LED for a moment).
+- and whose localizer expected the landmark in view and lit at that frame
+  (`PoseEstimate.expected_ids`: predicted inside the image, LED surely lit, not being
+  switched), within `max_off_axis_rad` of the optical axis (farther off, an LED is too dim
+  to detect: its emission and the lens's vignetting fall with that angle) and at least
+  `margin_px` inside the image border.
 
 It is doubted once it had at least `min_chances` chances and was used in at most
 `max_used_fraction` of its last `window` ones. The localizer matches spots to the map with a
@@ -21,15 +20,15 @@ gate, so a landmark whose spot is far from where the map puts it (moved, or surv
 a dead or covered LED, or a wrong radio address all end up here. Moving a landmark in the map
 forgets its history.
 
-Pure: numpy in, sets out; the caller feeds pose updates with the LEDs at their frames
-(`DoubtTracker.observe`, `DoubtTracker.unlocalized`).
+Pure: numpy in, sets out; the caller feeds the localizer's estimates
+(`DoubtTracker.observe`, `DoubtTracker.unlocalized`). docs/commissioning.md.
 """
 
 from __future__ import annotations
 
 import math
 from collections import deque
-from collections.abc import Iterable, Mapping
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -60,8 +59,6 @@ class DoubtConfig:
             radians (beyond about 45 degrees the simulated LEDs are too dim to detect).
         settle_s: a robot's frames count once it has had fixes this long since it last
             identified or was lost, seconds.
-        led_quiet_s: a landmark whose LED was switched within this before the frame (or
-            is being switched) has no chance in it, seconds (for the caller's LED timeline).
         moved_m: a map position change larger than this forgets the landmark's history, m.
         min_interval_s: a robot's updates closer together than this are skipped, seconds
             (its frames are highly correlated; this bounds the cost).
@@ -75,7 +72,6 @@ class DoubtConfig:
     margin_px: float = 25.0
     max_off_axis_rad: float = math.radians(40.0)
     settle_s: float = 2.0
-    led_quiet_s: float = 0.5
     moved_m: float = 0.001
     min_interval_s: float = 0.1
 
@@ -138,18 +134,9 @@ class DoubtTracker:
                 del self._history[lid]
         self._where = new
 
-    def observe(
-        self,
-        robot: str,
-        camera: CameraModel,
-        pose: PoseEstimate,
-        lit: Iterable[int],
-        *,
-        unsure: Iterable[int] = (),
-    ) -> None:
-        """One robot's pose update: its camera, the LEDs lit at that frame and those whose
-        state at the frame is not to be relied on (being switched, or switched within
-        `led_quiet_s` before)."""
+    def observe(self, robot: str, camera: CameraModel, pose: PoseEstimate) -> None:
+        """One robot's estimate for a frame (with the landmarks its localizer expected in
+        view and lit, `pose.expected_ids`) and its camera."""
         cfg = self.config
         if pose.mode in ("identifying", "lost"):
             self.unlocalized(robot)
@@ -169,7 +156,7 @@ class DoubtTracker:
         used = set(pose.landmark_ids)
         if len(used) < cfg.min_others:
             return
-        ids = [lid for lid in sorted(set(lit) - set(unsure)) if lid in self._where]
+        ids = [lid for lid in sorted(set(pose.expected_ids)) if lid in self._where]
         if not ids:
             return
         pts = np.array([self._where[i] for i in ids])

@@ -1,12 +1,14 @@
 from __future__ import annotations
 
+import dataclasses
 import math
+from collections.abc import Iterable
 
 import numpy as np
 
+from commissioning.doubt import DoubtConfig, DoubtTracker, expected_in_view
 from localizer.events import PoseEstimate
 from sim.cameras import wide_angle_camera
-from web.doubt import DoubtConfig, DoubtTracker, expected_in_view
 
 CAM = wide_angle_camera("pinhole")
 GRID = {10 + 4 * j + i: (float(i), float(j), 2.5) for j in range(3) for i in range(4)}
@@ -39,6 +41,12 @@ def estimate_at(
     return PoseEstimate(t_ns, *POSE, cov, mode, tuple(used))  # type: ignore[arg-type]
 
 
+def expecting(pose: PoseEstimate, lit: Iterable[int], unsure: Iterable[int] = ()) -> PoseEstimate:
+    """The estimate as the localizer gives it: the landmarks it expected lit (all of `lit`
+    but those being switched, `unsure`; the tracker keeps those in its field of view)."""
+    return dataclasses.replace(pose, expected_ids=tuple(sorted(set(lit) - set(unsure))))
+
+
 def tracker() -> DoubtTracker:
     t = DoubtTracker(CFG)
     t.set_map(GRID)
@@ -61,7 +69,7 @@ def test_a_landmark_in_view_but_never_used_is_doubted_after_enough_chances() -> 
     t = tracker()
     for k in range(CFG.min_chances):
         assert bad not in t.doubted(), k
-        t.observe("r1", CAM, estimate([i for i in view if i != bad]), GRID)
+        t.observe("r1", CAM, expecting(estimate([i for i in view if i != bad]), GRID))
     assert list(t.doubted()) == [bad]
     d = t.doubted()[bad]
     assert (d.chances, d.used) == (CFG.min_chances, 0)
@@ -76,13 +84,13 @@ def test_the_used_share_decides_within_the_window() -> None:
     # used in 2 of 20 chances (10 %): doubted; a third use (15 %) clears it
     for k in range(20):
         used = view if k in (3, 9) else [i for i in view if i != bad]
-        t.observe("r1", CAM, estimate(used), GRID)
+        t.observe("r1", CAM, expecting(estimate(used), GRID))
     assert bad in t.doubted()
-    t.observe("r1", CAM, estimate(view), GRID)
+    t.observe("r1", CAM, expecting(estimate(view), GRID))
     assert bad not in t.doubted()
     # the window forgets: 40 more misses make it doubted again
     for _ in range(40):
-        t.observe("r1", CAM, estimate([i for i in view if i != bad]), GRID)
+        t.observe("r1", CAM, expecting(estimate([i for i in view if i != bad]), GRID))
     assert t.record(bad).chances == 40 and t.record(bad).used == 0
     assert bad in t.doubted()
 
@@ -92,14 +100,16 @@ def test_frames_that_are_no_chance_do_not_count() -> None:
     bad, others = view[0], view[1:]
     t = tracker()
     for _ in range(30):
-        t.observe("r1", CAM, estimate(others, mode="dead_reckoning"), GRID)  # not localized
-        t.observe("r1", CAM, estimate(others, sigma_m=0.2), GRID)  # too uncertain
-        t.observe("r1", CAM, estimate(others[:1]), GRID)  # used one other only
-        t.observe("r1", CAM, estimate(others), set(GRID) - {bad})  # its LED was dark
+        t.observe(
+            "r1", CAM, expecting(estimate(others, mode="dead_reckoning"), GRID)
+        )  # not localized
+        t.observe("r1", CAM, expecting(estimate(others, sigma_m=0.2), GRID))  # too uncertain
+        t.observe("r1", CAM, expecting(estimate(others[:1]), GRID))  # used one other only
+        t.observe("r1", CAM, expecting(estimate(others), set(GRID) - {bad}))  # its LED was dark
     assert t.record(bad).chances == 0 and t.doubted() == {}
     t.set_map({**GRID, 99: (9.0, 9.0, 2.5)})
     for _ in range(30):
-        t.observe("r1", CAM, estimate(others), {*GRID, 99})
+        t.observe("r1", CAM, expecting(estimate(others), {*GRID, 99}))
     assert t.record(99).chances == 0  # lit, but out of view
 
 
@@ -108,7 +118,7 @@ def test_moving_a_landmark_in_the_map_forgets_its_history() -> None:
     bad = view[0]
     t = tracker()
     for _ in range(25):
-        t.observe("r1", CAM, estimate([i for i in view if i != bad]), GRID)
+        t.observe("r1", CAM, expecting(estimate([i for i in view if i != bad]), GRID))
     assert bad in t.doubted()
     t.set_map(GRID)  # unchanged: kept
     assert bad in t.doubted()
@@ -127,8 +137,8 @@ def test_a_robots_updates_count_at_most_every_min_interval() -> None:
     t = tracker()
     for k in range(30):  # 30 frames at 25 Hz: every third is 0.1 s or more after the last
         pose = PoseEstimate(k * 40_000_000, *POSE, np.eye(3) * 1e-6, "landmark", tuple(view))
-        t.observe("r1", CAM, pose, GRID)
-        t.observe("r2", CAM, pose, GRID)  # another robot counts on its own
+        t.observe("r1", CAM, expecting(pose, GRID))
+        t.observe("r2", CAM, expecting(pose, GRID))  # another robot counts on its own
     assert t.record(view[0]).chances == 2 * 10
 
 
@@ -156,11 +166,15 @@ def test_a_robot_counts_only_once_settled_after_its_first_fix() -> None:
     others = [i for i in view if i != bad]
     t0 = 10_000_000_000
     for k in range(20):  # 2 s of fixes, 0.1 s apart: the first second is no chance
-        t.observe("r1", CAM, estimate_at(t0 + k * 100_000_000, others), GRID)
+        t.observe("r1", CAM, expecting(estimate_at(t0 + k * 100_000_000, others), GRID))
     assert t.record(bad).chances == 10
     # dead reckoning in between keeps the robot settled
-    t.observe("r1", CAM, estimate_at(t0 + 20 * 100_000_000, others, mode="dead_reckoning"), GRID)
-    t.observe("r1", CAM, estimate_at(t0 + 21 * 100_000_000, others), GRID)
+    t.observe(
+        "r1",
+        CAM,
+        expecting(estimate_at(t0 + 20 * 100_000_000, others, mode="dead_reckoning"), GRID),
+    )
+    t.observe("r1", CAM, expecting(estimate_at(t0 + 21 * 100_000_000, others), GRID))
     assert t.record(bad).chances == 11
     # lost, identifying again (or a frame without a pose): it settles again
     for k, lost in enumerate(("lost", "identifying", None)):
@@ -168,12 +182,14 @@ def test_a_robot_counts_only_once_settled_after_its_first_fix() -> None:
         if lost is None:
             t.unlocalized("r1")
         else:
-            t.observe("r1", CAM, estimate_at(start - 100_000_000, others, mode=lost), GRID)
+            t.observe(
+                "r1", CAM, expecting(estimate_at(start - 100_000_000, others, mode=lost), GRID)
+            )
         for j in range(15):
-            t.observe("r1", CAM, estimate_at(start + j * 100_000_000, others), GRID)
+            t.observe("r1", CAM, expecting(estimate_at(start + j * 100_000_000, others), GRID))
         assert t.record(bad).chances == 11 + 5 * (k + 1), lost
     # another robot settles on its own
-    t.observe("r2", CAM, estimate_at(t0 + 400 * 100_000_000, others), GRID)
+    t.observe("r2", CAM, expecting(estimate_at(t0 + 400 * 100_000_000, others), GRID))
     assert t.record(bad).chances == 26
 
 
@@ -182,10 +198,10 @@ def test_an_led_switched_around_the_frame_is_no_chance() -> None:
     bad, others = view[0], view[1:]
     t = tracker()
     for _ in range(30):
-        t.observe("r1", CAM, estimate(others), GRID, unsure={bad})  # darkened by a probe
+        t.observe("r1", CAM, expecting(estimate(others), GRID, {bad}))  # darkened by a probe
     assert t.record(bad).chances == 0 and t.doubted() == {}
     assert t.record(others[0]).chances == 30  # the others still count
-    t.observe("r1", CAM, estimate(others), GRID, unsure={others[0]})
+    t.observe("r1", CAM, expecting(estimate(others), GRID, {others[0]}))
     assert t.record(bad).chances == 1 and t.record(others[0]).chances == 30
 
 
@@ -200,7 +216,7 @@ def test_with_the_defaults_a_landmark_that_stops_being_used_is_doubted_after_54_
     frames = iter(range(10_000))
 
     def frame(used: list[int]) -> None:
-        t.observe("r1", CAM, estimate_at(t0 + next(frames) * 100_000_000, used), GRID)
+        t.observe("r1", CAM, expecting(estimate_at(t0 + next(frames) * 100_000_000, used), GRID))
 
     for _ in range(20 + 200):  # settling (2 s), then a long record of uses
         frame(view)

@@ -1,7 +1,7 @@
 """What the identification wizard offers: doubted landmarks and new radios from discovery.
 
-Pure functions over the map's IDs, the doubt records (`web.doubt`) and the discovery result
-(the same `POST /radio/discover` runs: radios that answer and are not in the map).
+Pure functions over the map's IDs, the doubt records (`commissioning.doubt`) and the
+discovery result (the same `POST /radio/discover` runs: radios that answer and are not in the map).
 """
 
 from __future__ import annotations
@@ -9,9 +9,11 @@ from __future__ import annotations
 import re
 from collections.abc import Iterable, Mapping
 
-from server.models import MAX_LANDMARK_ID
-from web.doubt import Doubt
-from web.services import Candidate
+from commissioning.doubt import Doubt
+from commissioning.types import Candidate
+
+MAX_LANDMARK_ID = 2**31 - 1
+"""The largest landmark ID (`server.models.MAX_LANDMARK_ID` checks it is the same)."""
 
 _TRAILING_DIGITS = re.compile(r"(\d+)\s*$")
 

@@ -3,10 +3,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from commissioning.coverage import CoverageConfig, coverage_grid, spacing_flags
 from localizer.camera import predict_pixels
 from localizer.geometry import T_world_body_from_pose
 from sim.cameras import wide_angle_camera
-from web.coverage import CoverageConfig, coverage_grid, spacing_flags
 
 
 def test_counts_match_predict_pixels_at_one_heading() -> None:

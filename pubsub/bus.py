@@ -1,9 +1,12 @@
-"""A publish/subscribe bus with a bounded queue per subscriber (poses, site events).
+"""A publish/subscribe bus with a bounded queue per subscriber: the one drop-oldest queue of
+irloc (the server's poses and site events, the gateway's LED states and events).
 
 Publishers call `publish` from any thread and never block: a subscriber whose queue is full
-loses its oldest item (counted in `dropped`), so a slow client never stalls the others.
-Consumers read from asyncio (`await sub.get_batch()`) or from a plain thread
-(`sub.get(timeout_s)`).
+loses its oldest item (counted in `dropped`), so a slow client never stalls the others (for
+LED states the latest is the one that matters). Consumers read from asyncio
+(`await sub.get_batch()`, `await sub.next()`, `async for item in sub`), from a plain thread
+(`sub.get(timeout_s)`), or without waiting (`sub.drain()`, `sub.get_nowait()`).
+Imports nothing of irloc's.
 """
 
 from __future__ import annotations
@@ -12,7 +15,7 @@ import asyncio
 import contextlib
 import threading
 from collections import deque
-from collections.abc import Callable
+from collections.abc import AsyncIterator, Callable
 from typing import Generic, TypeVar
 
 T = TypeVar("T")
@@ -52,6 +55,39 @@ class Subscription(Generic[T]):
             self._cond.notify()
             waiter, self._waiter = self._waiter, None
         return waiter
+
+    def get_nowait(self) -> T | None:
+        """The oldest item, or None when none is queued."""
+        with self._cond:
+            if not self._items:
+                return None
+            self.delivered += 1
+            return self._items.popleft()
+
+    async def next(self) -> T:
+        """Wait for the oldest item (on an event loop); RuntimeError once closed and empty."""
+        while True:
+            with self._cond:
+                if self._items:
+                    self.delivered += 1
+                    return self._items.popleft()
+                if self.closed:
+                    raise RuntimeError("subscription closed")
+                fut: asyncio.Future[None] = asyncio.get_running_loop().create_future()
+                self._waiter = fut
+            await fut
+
+    def __aiter__(self) -> AsyncIterator[T]:
+        return self._iterate()
+
+    async def _iterate(self) -> AsyncIterator[T]:
+        """Every item, oldest first, until closed."""
+        while True:
+            items = await self.get_batch()
+            if not items and self.closed:
+                return
+            for item in items:
+                yield item
 
     def drain(self) -> list[T]:
         """Everything queued now (possibly nothing), oldest first."""
@@ -138,10 +174,17 @@ class Bus(Generic[T]):
         self._lock = threading.Lock()
 
     def subscribe(
-        self, maxsize: int | None = None, accept: Callable[[T], bool] | None = None
+        self,
+        maxsize: int | None = None,
+        accept: Callable[[T], bool] | None = None,
+        *,
+        initial: T | None = None,
     ) -> Subscription[T]:
-        """A new subscription receiving what is published from now on (`accept` filters)."""
+        """A new subscription receiving what is published from now on (`accept` filters),
+        `initial` first when given (e.g. the current state)."""
         sub = Subscription(self, maxsize or self.default_maxsize, accept)
+        if initial is not None:
+            sub.offer(initial)
         with self._lock:
             self._subs = (*self._subs, sub)
         return sub

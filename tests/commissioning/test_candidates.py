@@ -1,7 +1,7 @@
 from __future__ import annotations
 
-from web.candidates import doubted_candidates, landmark_id_for_radio, new_radio_candidates
-from web.doubt import Doubt
+from commissioning.candidates import doubted_candidates, landmark_id_for_radio, new_radio_candidates
+from commissioning.doubt import Doubt
 from web.services import Candidate
 
 
