@@ -43,6 +43,7 @@ from server.routes import (
     remote,
     robots,
     streams,
+    survey,
 )
 from server.seams import ViewerApp
 from server.services import SiteServices
@@ -145,7 +146,7 @@ def create_app(settings: Settings | None = None, viewer: ViewerApp | None = None
     api = APIRouter(prefix=API_PREFIX)
     for module in (
         landmarks, map, history, floorplan, robots, calibration, remote, admin, streams,
-        commissioning,
+        commissioning, survey,
     ):  # fmt: skip
         api.include_router(module.router)
     api.add_api_route(
