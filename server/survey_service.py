@@ -181,9 +181,9 @@ class LiveSurvey:
         deadline = time.monotonic() + timeout_s
         while time.monotonic() < deadline:
             state = None if gateway is None else gateway.leds
-            if state is not None and gateway is not None and not state.changing:
-                if (landmark_id in state.lit_among(gateway.landmarks)) == lit:
-                    return True
+            ready = state is not None and gateway is not None and not state.changing
+            if ready and (landmark_id in state.lit_among(gateway.landmarks)) == lit:  # type: ignore[union-attr]
+                return True
             if self._stop.wait(0.005):
                 return False
         return not self._stop.is_set()
