@@ -87,7 +87,8 @@ class BundleConfig:
             drive, or two landmarks answering to one name).
         flag_moved_m: a landmark this far from its given position is flagged (moved, or
             radios swapped).
-        min_views: a landmark seen in fewer independent views is flagged.
+        min_views: a landmark seen in fewer independent views is not placed (it is reported
+            with the unseen ones).
     """
 
     keyframe_period_s: float = 0.2
@@ -666,8 +667,8 @@ def _result(
             moved = float(np.linalg.norm(pos - given))
             if moved > cfg.flag_moved_m:
                 flags.append(f"{moved:.2f} m from its given position: moved, or radios swapped?")
-        if views < cfg.min_views:
-            flags.append(f"seen from only {views} independent view(s): drive past it again")
+        if views < cfg.min_views and lid not in anchors:
+            continue  # too little to place it: reported as not surveyed (`unseen`)
         conflicts = obs.conflicts.get(lid, 0)
         if conflicts:
             flags.append(f"two spots named {lid} at once in {conflicts} frame(s)")

@@ -48,6 +48,8 @@ class TrackingConfig:
             (or leaves the field of view) cannot vote: it may just have left the image.
         vote_margin_px: a track votes only if it vanished and came back this far inside the
             image (at the edge of a wide lens a dim spot fades in and out by itself).
+        min_gap_frames: a track votes only if it stayed away this many frames (a spot
+            missing from one frame is more often a flicker than a blink).
         max_dark_landmarks: a frame in which more landmarks are dark than this cannot
             name a vanished track (the vanishing would be ambiguous).
         min_agreement: share of a track's votes its name needs.
@@ -58,7 +60,8 @@ class TrackingConfig:
     gate_px: float = 8.0
     max_coast_frames: int = 8
     edge_margin_px: float = 6.0
-    vote_margin_px: float = 40.0
+    vote_margin_px: float = 25.0
+    min_gap_frames: int = 2
     max_dark_landmarks: int = 1
     min_agreement: float = 0.75
     led_time_tolerance_s: float = 0.06
@@ -259,7 +262,11 @@ def _resume(
         before, after = gap[0] - 1, f
         gap_dark = [_either(dark[g], dark_late[g]) for g in gap]
         known = [d for d in gap_dark if d is not None]
-        clear = t.coast_ok and _inside(camera, spot, cfg.vote_margin_px)
+        clear = (
+            t.coast_ok
+            and len(gap) >= cfg.min_gap_frames
+            and _inside(camera, spot, cfg.vote_margin_px)
+        )
         if (
             clear
             and len(known) == len(gap)
