@@ -66,6 +66,11 @@ class Settings(BaseSettings):
         serial_robot: the robot whose poses go to the serial sink (None: every robot).
         log_format: `text` (human-readable lines) or `json` (one JSON object a line).
         allow_remote_viewer_without_auth: never set this on a shared network.
+        led_policy: `scheduled` lights only the landmarks the robots need
+            (`server.led_schedule`); `all_lit` lights every landmark (the paper's way).
+        radio_sleep_period_s: the landmarks' radios sleep in cycles of this period (XBee
+            `SP`, seconds; the virtual site's radios then sleep too, and LED commands are
+            sent that much ahead of need); None: always-awake radios (`SM=0`).
     """
 
     model_config = SettingsConfigDict(env_prefix="IRLOC_", extra="ignore")
@@ -90,6 +95,8 @@ class Settings(BaseSettings):
     serial_robot: str | None = None
     log_format: Literal["text", "json"] = "text"
     allow_remote_viewer_without_auth: bool = False
+    led_policy: Literal["scheduled", "all_lit"] = "all_lit"
+    radio_sleep_period_s: float | None = Field(default=None, ge=0.32, le=28.0)
 
     @field_validator("radio")
     @classmethod

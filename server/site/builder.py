@@ -19,8 +19,6 @@ from localizer.camera import camera_from_sensor, sensor_from_camera
 from localizer.events import FrameObserved, Mode
 from localizer.landmark_map import LandmarkMap
 from localizer.robot import RobotGeometry
-from rf_gateway.battery import BatteryConfig
-from rf_gateway.config import GatewayConfig
 from rf_gateway.errors import RfGatewayError
 from rf_gateway.events import (
     LandmarkReachable,
@@ -30,6 +28,14 @@ from rf_gateway.events import (
 )
 from rf_gateway.gateway import Gateway
 from server.crud.landmarks import parse_map_json
+from server.led_schedule import LedScheduler
+from server.led_schedule.site import (
+    attach_scheduler,
+    gateway_config,
+    localizer_config,
+    radio_sleep,
+    xbee_config,
+)
 from server.models import LandmarkPublic, RobotCreate, RobotPublic
 from server.site.leds import LedCoordinator
 from server.site.robot import RobotRunner, make_localizer
@@ -60,6 +66,7 @@ class LiveSiteRunner:
         self.sim: Any = None
         self.gateway: Gateway | None = None
         self.leds: LedCoordinator | None = None
+        self.scheduler: LedScheduler | None = None
         self.cameras: dict[str, CameraSource] = {}
         self.wheels: dict[str, SerialWheelSource] = {}
         self._stop = threading.Event()
@@ -108,7 +115,7 @@ class LiveSiteRunner:
             robot.name,
             camera,
             geometry,
-            make_localizer(camera, s.map.landmark_map(), geometry),
+            make_localizer(camera, s.map.landmark_map(), geometry, localizer_config(s.settings)),
             publish=s.poses.publish,
             request_leds=self._request_leds,
             source=robot.source,
@@ -145,6 +152,7 @@ class LiveSiteRunner:
             load_scenario(self.settings.scenario),
             seed=self.settings.seed,
             clock_ns=self.services.clock_ns,
+            radio_sleep=radio_sleep(self.settings),
         )
 
     def _sim_names(self) -> list[str]:
@@ -179,17 +187,21 @@ class LiveSiteRunner:
         s = self.services
         try:
             transport = make_transport(
-                self.settings.radio, sim_radio=None if self.sim is None else self.sim.radio
+                self.settings.radio,
+                sim_radio=None if self.sim is None else self.sim.radio,
+                xbee_config=xbee_config(self.settings),
             )
         except ValueError as exc:
             log.error("no radio: %s", exc)
             return
-        config = GatewayConfig(battery=BatteryConfig(interval_s=None))
+        config = gateway_config(self.settings)
         self.gateway = Gateway(transport, s.map.addresses(), config, clock_ns=s.clock_ns)
         s.gateway = self.gateway
         await self.gateway.start()
         self.leds = LedCoordinator(self.gateway, s.robots.runners, self._on_led_error)
         self.leds.start()
+        if self.settings.led_policy == "scheduled":
+            self.scheduler = attach_scheduler(s, self.leds)
         loop = asyncio.get_running_loop()
         self._tasks = [loop.create_task(self._gateway_events())]
         if self.settings.battery_interval_s is not None:
@@ -316,6 +328,8 @@ class LiveSiteRunner:
         for task in self._tasks:
             with contextlib.suppress(asyncio.CancelledError, Exception):
                 await task
+        if self.scheduler is not None:
+            await self.scheduler.stop()
         if self.leds is not None:
             await self.leds.stop()
         if self.gateway is not None:

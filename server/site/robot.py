@@ -39,11 +39,14 @@ class LocalizerLike(Protocol):
     def mode(self) -> Mode: ...
 
 
-def make_localizer(camera: CameraModel, landmark_map: LandmarkMap, robot: RobotGeometry) -> Any:
-    """The project's localizer (imported here so the server starts without it in tests)."""
+def make_localizer(
+    camera: CameraModel, landmark_map: LandmarkMap, robot: RobotGeometry, config: Any = None
+) -> Any:
+    """The project's localizer (imported here so the server starts without it in tests);
+    `config`: a `LocalizerConfig` (None: the defaults)."""
     from localizer.localizer import Localizer
 
-    return Localizer(camera, landmark_map, robot)
+    return Localizer(camera, landmark_map, robot, config)
 
 
 class RobotRunner:
