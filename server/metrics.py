@@ -83,6 +83,9 @@ class SiteCollector(Collector):
             wheel_bad.add_metric([name], src.bad_lines)
         yield wheel_lines
         yield wheel_bad
+        from server.led_schedule.status import energy_metrics
+
+        yield from energy_metrics(s)
         waiting = 0 if site is None or site.leds is None else site.leds.waiting
         yield GaugeMetricFamily("irloc_radio_queue", "LED requests waiting", value=waiting)
         http = CounterMetricFamily("irloc_http_errors", "HTTP error answers", labels=["status"])

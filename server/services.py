@@ -31,6 +31,7 @@ from server.crud import EventLog, KeyStore, MapRepository, RobotStore
 from server.db import make_engine, migrate
 from server.errors import NotFoundError, UnavailableError
 from server.events import EventHub
+from server.led_schedule.status import EnergyStatus, site_energy
 from server.models import LandmarkPublic, RobotCreate, RobotPublic
 from server.poses import PoseUpdate
 from server.settings import Settings
@@ -261,6 +262,11 @@ class SiteServices:
         left = days_left(t_ns, mvs, cfg.cutoff_mv, min_span_days=cfg.min_fit_span_days)
         hist = [(r.t.isoformat(), r.supply_mv) for r in rows]
         return BatteryStatus(landmark_id, mv, pct, left, hist)
+
+    def energy(self) -> EnergyStatus:
+        """Each landmark's lit state and reason, duty and modelled days left; the site's lit
+        fraction and predicted battery life (`server.led_schedule.status`)."""
+        return site_energy(self)
 
     # -- robots ----------------------------------------------------------------------------
     def relocalize(self, name: str, near: tuple[float, float, float] | None = None) -> None:

@@ -7,8 +7,8 @@ message waits; after a message the radio stays awake `ST`, polling every 100 ms,
 next commands arrive within a poll interval). `EnergyLedger` counts, per landmark, what it
 actually did (LED on time, time with the radio awake, messages) and the charge each drew;
 `predict_life_days` turns measured duty cycles into days on a fresh pair of cells with the
-alkaline discharge curve of `sim.battery` (the LED current falls with the voltage, so the curve is integrated, not a
-straight division).
+alkaline discharge curve of `sim.battery` (the LED current falls with the voltage, so the
+curve is integrated, not a straight division).
 """
 
 from __future__ import annotations

@@ -80,9 +80,7 @@ class LiveSite:
         self.world: World = build_world(sc, gens[0])
         self.radio = SimRadio(
             self.world, rng=gens[1], latency_s=sc.radio_latency_s, loss=sc.radio_loss,
-            timeout_s=max(0.3, 2.0 * sc.radio_latency_s[1])
-            + (0.0 if radio_sleep is None else radio_sleep.period_s),
-            sleep=radio_sleep,
+            timeout_s=max(0.3, 2.0 * sc.radio_latency_s[1]), sleep=radio_sleep,
         )  # fmt: skip
         self.observe = observe
         self._render_rng = gens[2]

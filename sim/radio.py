@@ -33,7 +33,8 @@ class SimRadio:
         rng: draws latencies and losses.
         latency_s: (min, max) one-way-and-back latency of a delivered command, seconds.
         loss: probability that a packet is lost, each way.
-        timeout_s: how long a caller waits for an answer that never comes, seconds.
+        timeout_s: how long a caller waits for an answer that never comes, seconds (after
+            the landmark's wake-up when it sleeps).
         discover_s: how long a node discovery listens, seconds.
         sleep: the landmarks' radios sleep in cycles (None: always awake); also sets the
             world's energy model to it.
@@ -68,6 +69,11 @@ class SimRadio:
         self.messages = 0
         self._awake_until: dict[int, float] = {}
 
+    @property
+    def sleep_period_s(self) -> float:
+        """The longest a command waits for a landmark to wake, seconds (0: awake radios)."""
+        return 0.0 if self.sleep is None else self.sleep.period_s
+
     def wake_delay_s(self, landmark_id: int, now_s: float) -> float:
         """Seconds from `now_s` until the landmark next polls its parent (0 when the radio
         never sleeps): within a poll interval while it is awake after a command, else at
@@ -99,11 +105,11 @@ class SimRadio:
         """
         latency = float(self.rng.uniform(*self.latency_s))
         lm = self.world.by_address(address)
-        if lm is None or not lm.reachable or self._lost():
-            await asyncio.sleep(self.timeout_s)
-            return None
         loop = asyncio.get_running_loop()
-        wait = self.wake_delay_s(lm.id, loop.time() + latency / 4)
+        wait = 0.0 if lm is None else self.wake_delay_s(lm.id, loop.time() + latency / 4)
+        if lm is None or not lm.reachable or self._lost():
+            await asyncio.sleep(wait + self.timeout_s)  # from when it would have arrived
+            return None
         await asyncio.sleep(wait + latency / 2)
         self._delivered(lm.id, loop.time())
         return lm

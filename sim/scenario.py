@@ -23,7 +23,12 @@ from sim.robot import FloorBump
 from sim.robot_spec import RobotSpec, robot_from_node
 
 SCENARIOS: tuple[str, ...] = (
-    "demo", "paper_testbed", "paper_floor", "dense_grid_fast", "hostile", "floor50",
+    "demo",
+    "paper_testbed",
+    "paper_floor",
+    "dense_grid_fast",
+    "hostile",
+    "floor50",
 )
 
 

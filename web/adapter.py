@@ -27,6 +27,7 @@ from localizer.events import LedsChanged, PoseEstimate
 from localizer.spots import DetectionConfig, detect_spots
 from rf_gateway.errors import LandmarkUnreachableError, RfGatewayError
 from server.errors import UnavailableError
+from server.led_schedule.status import site_energy
 from web.candidates import doubted_candidates, new_radio_candidates
 from web.doubt import Doubt, DoubtConfig, DoubtTracker
 from web.led_timeline import LedTimeline
@@ -159,8 +160,12 @@ class SiteAdapter:
         with self._pose_lock:
             doubted = self._doubt.doubted()
         out = []
+        energy = site_energy(
+            self.services, lambda i: getattr(self._battery_of(i), "supply_mv", None)
+        )
         for lm in self._map():
             b = self._battery_of(lm.id)
+            e = energy.landmark(lm.id)
             out.append(
                 LandmarkState(
                     id=lm.id, x=lm.x, y=lm.y, z=lm.z, locked=lm.locked, radio=lm.radio,
@@ -168,6 +173,8 @@ class SiteAdapter:
                     percent=None if b is None else b.percent,
                     days_left=None if b is None else b.days_left,
                     reachable=lm.id not in unreachable, doubted=lm.id in doubted,
+                    lit=e.lit, lit_reason=e.reason, duty=e.duty, model_days=e.days_left,
+                    low=e.low,
                 )
             )  # fmt: skip
         return out

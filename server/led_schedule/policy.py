@@ -2,25 +2,34 @@
 few well-spread ones per robot rather than every one in view (pure logic, no clock, no I/O).
 
 Per robot, `plan_leds`:
-1. Without a usable pose (no pose yet, identifying, lost, or too uncertain) the robot's
-   neighbourhood is lit: every landmark within what its camera can see from anywhere it may
-   be (the last pose's uncertainty grown at the maximum speed since); with no pose at all,
-   every landmark (identification needs the LEDs it may be under).
+1. Without a usable pose the robot's neighbourhood is lit: while it identifies (no pose
+   yet, or lost, even with a prior) every landmark, since a partly dark ceiling leaves a
+   regular grid's shifted hypotheses unrefuted (a prior-guided hand-off then takes the
+   wrong row); a robot in dead reckoning whose pose grew too uncertain gets every landmark
+   within what its camera can see from anywhere it may be.
 2. With a pose, its motion (velocity, or its route when known) is sampled from now to
    `horizon_s` ahead. At each sample the landmarks in view with a margin are found (the
    camera model's projection, the image shrunk by the pose uncertainty plus how far the robot
    can drive at its maximum speed while a command is on its way, `latency_s`). Each sample
-   needs `per_robot` lit ones among them: those already chosen count; more are added greedily,
-   best spread first (far from the chosen ones in view), then those lit already (no radio
-   command), then least worn (lit-seconds so far), then nearest the view's centre.
-   A robot parked for `parked_after_s` with a good pose needs nothing (its pose does not
-   change while it stands; an idle site goes dark).
+   needs `per_robot` lit ones among them: those already chosen count; more are added greedily
+   (a set cover), the landmark that serves the most samples still short first (few
+   landmarks, each in view for long), then the best spread (far from the chosen ones in
+   view: good geometry), then those lit already (no radio command), then the least worn
+   (lit-seconds so far), then the nearest to the view's centre.
+   A moving robot in dead reckoning (no fix from what is lit: an occlusion, a landmark
+   whose spot is too faint at the edge) gets every landmark in its view lit until it fixes
+   again. A robot parked for `parked_after_s` with a good pose needs nothing (its pose does not
+   change while it stands; an idle site goes dark), unless what others need puts lit
+   landmarks in its view: then it gets `per_robot` of its own there too (a localizer that
+   predicts lit landmarks in view but matches fewer than two takes its observations for
+   disagreeing with the map, and gets lost).
 3. Everything chosen is lit; a landmark chosen less than `hold_s` ago stays lit (no
    flapping); the rest is darkened. While a robot identifies (or is lost), nothing is
    darkened and only what is needed is added: identification compares frames whose LED
    states differ in exactly the landmark it probes, so every other switch spoils its
-   evidence, and a switch in flight makes the state of every frame meanwhile unknown. At most `max_switches` changes are made per plan (the
-   radio's command budget): lights needed soonest first, then darkening.
+   evidence, and a switch in flight makes the state of every frame meanwhile unknown.
+   At most `max_switches` changes are made per plan (the radio's command budget): lights
+   needed soonest first, then darkening.
 
 Reasons (for the viewer's battery panel) name the robot and why: "view r1" (needed now),
 "ahead r1" (within the horizon), "area r1" (no usable pose), "held", "pinned: <why>".
@@ -73,7 +82,7 @@ class ScheduleConfig:
     max_sigma_m: float = 0.5
     parked_after_s: float = 20.0
     parked_speed_mps: float = 0.02
-    hold_s: float = 3.0
+    hold_s: float = 1.0
     max_switches: int = 40
     spread_m: float = 1.2
     wear_weight: float = 0.2
@@ -246,7 +255,7 @@ def _usable_pose(robot: RobotState, config: ScheduleConfig) -> bool:
 def _neighbourhood(
     robot: RobotState, ids: Sequence[int], xy: FloatArray, config: ScheduleConfig
 ) -> list[int]:
-    if robot.pose is None:
+    if robot.pose is None or robot.mode in ("identifying", "lost"):
         return list(ids)
     sigma = position_sigma(robot.covariance)
     sigma = 2.0 if not math.isfinite(sigma) else sigma
@@ -256,7 +265,7 @@ def _neighbourhood(
         + robot.max_speed * config.latency_s
     )
     d = np.hypot(xy[:, 0] - robot.pose[0], xy[:, 1] - robot.pose[1])
-    return [ids[k] for k in np.flatnonzero(d <= radius)]
+    return [ids[int(k)] for k in np.flatnonzero(d <= radius)]
 
 
 def _choose(
@@ -296,6 +305,55 @@ def _choose(
     return [ids[k] for k in added]
 
 
+def _cover(
+    views: list[tuple[float, npt.NDArray[np.int64], FloatArray]],
+    chosen: set[int],
+    ids: Sequence[int],
+    xy: FloatArray,
+    lit_now: frozenset[int],
+    wear_h: Mapping[int, float],
+    config: ScheduleConfig,
+) -> list[tuple[int, float]]:
+    """Greedy cover of the motion samples (t, candidate rows, centre distances): landmarks to
+    add, with the first sample time each serves, so that each sample has `per_robot`."""
+    have = {k for k in range(len(ids)) if ids[k] in chosen}
+    need = [min(config.per_robot, len(cand)) for _, cand, _ in views]
+    sets = [set(int(k) for k in cand) for _, cand, _ in views]
+    added: list[tuple[int, float]] = []
+    while True:
+        short = [j for j, s in enumerate(sets) if len(s & have) < need[j]]
+        if not short:
+            return added
+        pool: dict[int, int] = {}
+        for j in short:
+            for k in sets[j] - have:
+                pool[k] = pool.get(k, 0) + 1
+        if not pool:
+            return added
+        j0 = short[0]
+        near = [k for k in have if k in sets[j0]]
+        best, best_score = -1, -math.inf
+        for k, serves in pool.items():
+            if near:
+                d = float(np.min(np.hypot(xy[near, 0] - xy[k, 0], xy[near, 1] - xy[k, 1])))
+                spread = min(d, config.spread_m) / config.spread_m
+            else:
+                spread = 1.0
+            centre = float(views[j0][2][k]) if k in sets[j0] else 1e3
+            score = (
+                serves
+                + 2.0 * spread
+                + (0.5 if ids[k] in lit_now else 0.0)
+                - config.wear_weight * wear_h.get(ids[k], 0.0)
+                - 1e-3 * min(centre, 1e3)
+            )
+            if score > best_score:
+                best, best_score = k, score
+        have.add(best)
+        first = next(t for (t, _, _), s in zip(views, sets, strict=True) if best in s)
+        added.append((ids[best], first))
+
+
 def plan_leds(
     robots: Sequence[RobotState],
     landmark_ids: Sequence[int],
@@ -332,29 +390,48 @@ def plan_leds(
     for lid, why in (pinned or {}).items():
         if lid in ids:
             want(lid, f"pinned: {why}", 0.0)
+    parked: list[RobotState] = []
     for robot in sorted(robots, key=lambda r: r.name):
         if not _usable_pose(robot, cfg):
             for lid in _neighbourhood(robot, ids, xy, cfg):
                 want(lid, f"area {robot.name}", 0.0)
             continue
         if robot.still_s >= cfg.parked_after_s and abs(robot.omega) < 0.05:
+            parked.append(robot)
             continue
         sigma = position_sigma(robot.covariance)
         margin = cfg.pose_sigma_k * sigma + robot.max_speed * cfg.latency_s
+        if robot.mode == "dead_reckoning":  # no fix from what is lit: light all it sees
+            seen, _ = in_view(robot.camera, robot.pose, P, 0.0, cfg.ceiling_m)  # type: ignore[arg-type]
+            for k in np.flatnonzero(seen):
+                want(ids[int(k)], f"boost {robot.name} (no fix)", 0.0)
+        views = []
         for t, pose in motion_samples(robot, cfg):
             robust, centre = in_view(robot.camera, pose, P, margin, cfg.ceiling_m)
             cand = np.flatnonzero(robust)
             if len(cand) < cfg.per_robot:  # sparse ceiling: any landmark in view will do
                 seen, centre = in_view(robot.camera, pose, P, 0.0, cfg.ceiling_m)
                 cand = np.flatnonzero(seen)
-            cand = cand[np.argsort(centre[cand], kind="stable")]
-            for lid in _choose(
-                cand, centre, set(reasons), cfg.per_robot, ids, xy, lit_now, wear_h, cfg
-            ):
-                want(lid, f"{'view' if t <= cfg.latency_s else 'ahead'} {robot.name}", t)
+            views.append((t, cand, centre))
+        for lid, t in _cover(views, set(reasons), ids, xy, lit_now, wear_h, cfg):
+            want(lid, f"{'view' if t <= cfg.latency_s else 'ahead'} {robot.name}", t)
+        for t, cand, _ in views:
             for k in cand:
                 if ids[k] in reasons:
                     urgency[ids[k]] = min(urgency.get(ids[k], math.inf), t)
+    for robot in parked:  # dark, unless something lit is in its view: then a proper set
+        assert robot.pose is not None
+        seen, _ = in_view(robot.camera, robot.pose, P, 0.0, cfg.ceiling_m)
+        if not any(ids[k] in reasons for k in np.flatnonzero(seen)):
+            continue
+        margin = cfg.pose_sigma_k * position_sigma(robot.covariance)
+        robust, centre = in_view(robot.camera, robot.pose, P, margin, cfg.ceiling_m)
+        cand = np.flatnonzero(robust)
+        cand = cand[np.argsort(centre[cand], kind="stable")]
+        for lid in _choose(
+            cand, centre, set(reasons), cfg.per_robot, ids, xy, lit_now, wear_h, cfg
+        ):
+            want(lid, f"view {robot.name} (parked, others lit in its view)", 0.0)
     wanted = set(reasons)
     identifying = any(r.mode in ("identifying", "lost") for r in robots)
     for lid in lit_now:

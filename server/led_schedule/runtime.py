@@ -129,7 +129,11 @@ class LedScheduler:
     def _account(self, t_ns: int) -> frozenset[int]:
         state = self._lit_now()
         ids = self._landmarks()[0]
-        lit = frozenset() if state is None else state.lit_among(ids)
+        if state is None:  # before the gateway's start-up sweep (which lights every LED)
+            return frozenset(ids)
+        # Being switched counts as lit: a plan limited by the command budget must not drop
+        # what the start-up sweep (or the previous plan) is lighting.
+        lit = state.lit_among(ids) | (state.changing & frozenset(ids))
         if self._t_books_ns is not None:
             dt = max((t_ns - self._t_books_ns) * _NS, 0.0)
             self.accounted_s += dt

@@ -49,8 +49,13 @@ def localizer_config(settings: Settings) -> LocalizerConfig:
 
 
 def schedule_config(settings: Settings, period_s: float) -> ScheduleConfig:
-    """The policy's tuning: decisions act after one plan period plus the wake latency."""
-    return ScheduleConfig(latency_s=period_s + wake_latency_s(settings))
+    """The policy's tuning: decisions act after one plan period plus the wake latency, and
+    a plan changes at most what the radio delivers in one period (`max_in_flight` commands
+    per command latency: the awake air time, or half a sleep period on average)."""
+    gw = gateway_config(settings)
+    per_command_s = AIR_LATENCY_S + (settings.radio_sleep_period_s or 0.0) / 2
+    budget = max(round(gw.max_in_flight * period_s / per_command_s), 2)
+    return ScheduleConfig(latency_s=period_s + wake_latency_s(settings), max_switches=budget)
 
 
 def gateway_config(settings: Settings) -> GatewayConfig:
