@@ -1,6 +1,6 @@
 """Landmark battery life: `all_lit` against the LED schedule, with awake and sleeping radios.
 
-    .venv/bin/python bench/bench_battery.py [--shift-s 300] [--idle-s 90] [--sleep-period 0.5]
+    .venv/bin/python bench/bench_battery.py [--shift-s 240] [--idle-s 60] [--sleep-period 0.5]
         [--sites demo floor50] [--seed 0]
 
 For each site (`demo`: three robots patrolling without a break; `floor50`: 50 landmarks,
@@ -11,20 +11,21 @@ the simulated radio with its latencies and sleep cycles, spot-level cameras), fa
 real time.
 
 What is measured (virtual time, per landmark): in a shift window of `--shift-s` (robots
-patrolling; after `--warmup-s` from the cold start) the share of time its LED is
-lit and the radio commands it receives; in an idle window of `--idle-s` (every robot parked
-at its start; counted over the last `--idle-measure-s`) the same (the idle window starts with each robot's pose known to 2 cm, as at the end of a
-shift, not from a cold start). What is extrapolated: the
-day = 8 h of shift + 16 h idle at those duty cycles (the patrols repeat their loops, so a
-window of a few loops stands for the shift), and the battery life of a fresh pair of AA
-cells at that day's duty (`sim.energy.predict_life_days`: the discharge curve integrated,
-the LED current falling with the voltage, the radio's mean current in its mode, each
-command's charge). The demo's store-room landmark on tiny cells is left out of the battery
-figures. Per robot: time to the first fix from the site's cold start (gateway start-up
-sweep and identification); over the steady shift (from `--warmup-s`, or 10 s after the
-robot's first fix when that came later) the share of frames in landmark mode and the p95
-position error against the truth. Commands/s: the gateway's radio
-commands in the shift window.
+patrolling; after `--warmup-s` from the cold start) the share of time its LED is lit and
+the radio commands it receives; in an idle window of `--idle-s` (every robot parked at its
+start; counted over the last `--idle-measure-s`) the same (the idle window starts with each
+robot's pose known to 2 cm, as at the end of a shift, not from a cold start). What is
+extrapolated: the day = 8 h of shift + 16 h idle at those duty cycles (the patrols repeat
+their loops, so a window of a few loops stands for the shift), and the battery life of a
+fresh pair of AA cells at that day's duty (`sim.energy.predict_life_days`: the discharge
+curve integrated, the LED current falling with the voltage, the radio's mean current in its
+mode, each command's charge). The demo's store-room landmark on tiny cells is left out of
+the battery figures.
+
+Per robot: time to the first fix from the site's cold start (gateway start-up sweep and
+identification); over the steady shift (from `--warmup-s`, or 10 s after the robot's first
+fix when that came later) the share of frames in landmark mode and the p95 position error
+against the truth. Commands/s: the gateway's radio commands in the shift window.
 """
 
 from __future__ import annotations
@@ -189,9 +190,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--sites", nargs="+", default=["demo", "floor50"])
     parser.add_argument("--configs", nargs="+",
                         default=["all_lit", "scheduled", "scheduled+sleep"])  # fmt: skip
-    parser.add_argument("--shift-s", type=float, default=300.0, help="shift window, s")
+    parser.add_argument("--shift-s", type=float, default=240.0, help="shift window, s")
     parser.add_argument("--warmup-s", type=float, default=45.0, help="not counted, s")
-    parser.add_argument("--idle-s", type=float, default=90.0, help="idle window, s")
+    parser.add_argument("--idle-s", type=float, default=60.0, help="idle window, s")
     parser.add_argument("--idle-measure-s", type=float, default=30.0,
                         help="idle duty counted over the end of the idle window, s")  # fmt: skip
     parser.add_argument("--sleep-period", type=float, default=0.5, help="XBee SP, s")

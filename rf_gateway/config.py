@@ -66,7 +66,7 @@ class SleepConfig:
     """
 
     period_s: float
-    wake_s: float = 10.0
+    wake_s: float = 1.0
     poll_interval_s: float = 0.1
     air_s: float = 0.05
     lead_s: float = 0.08

@@ -63,7 +63,7 @@ class RadioSleep:
     """
 
     period_s: float = 1.0
-    wake_s: float = 10.0
+    wake_s: float = 1.0
     poll_interval_s: float = 0.1
 
     def __post_init__(self) -> None:

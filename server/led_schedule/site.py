@@ -16,7 +16,7 @@ from server.led_schedule.runtime import LedScheduler
 from server.settings import Settings
 
 if TYPE_CHECKING:
-    from server.services import SiteServices
+    from server.crud import MapRepository
     from server.site.leds import LedCoordinator
     from server.site.robot import RobotRunner
 
@@ -59,10 +59,10 @@ def schedule_config(settings: Settings, period_s: float) -> ScheduleConfig:
 
 
 def gateway_config(settings: Settings) -> GatewayConfig:
-    """The gateway's tuning for this site (battery polls are the site's own loop)."""
+    """The gateway's tuning for this site: its battery polls, the landmarks' sleep."""
     sleep = settings.radio_sleep_period_s
     return GatewayConfig(
-        battery=BatteryConfig(interval_s=None),
+        battery=BatteryConfig(interval_s=settings.battery_interval_s),
         sleep=None if sleep is None else SleepConfig(sleep),
     )
 
@@ -87,17 +87,24 @@ def radio_sleep(settings: Settings) -> Any:
 
 
 def attach_scheduler(
-    services: SiteServices, coordinator: LedCoordinator, *, period_s: float = 0.25
+    map: MapRepository,
+    runners: Callable[[], Iterable[RobotRunner]],
+    coordinator: LedCoordinator,
+    clock_ns: Callable[[], int],
+    settings: Settings,
+    *,
+    period_s: float = 0.25,
 ) -> LedScheduler:
-    """Build and start the scheduler of a site whose `led_policy` is `scheduled`."""
+    """Build and start the scheduler of a site whose `led_policy` is `scheduled`: the map's
+    landmarks that the coordinator's gateway controls, the live robots."""
     gateway = coordinator.gateway
     cache: dict[str, Any] = {}
-    services.map.add_listener(lambda _landmarks: cache.clear())
+    map.add_listener(lambda _landmarks: cache.clear())
 
     def landmarks() -> tuple[list[int], np.ndarray[Any, np.dtype[np.float64]]]:
         controlled = frozenset(gateway.landmarks)
         if cache.get("controlled") != controlled:
-            lmap = services.map.landmark_map()
+            lmap = map.landmark_map()
             ids = [int(i) for i in lmap.ids if int(i) in controlled]
             rows = [lmap.index_of(i) for i in ids]
             positions = np.asarray(lmap.positions, dtype=np.float64)[rows].reshape(-1, 3)
@@ -105,14 +112,7 @@ def attach_scheduler(
         value: tuple[list[int], np.ndarray[Any, np.dtype[np.float64]]] = cache["value"]
         return value
 
-    return make_scheduler(
-        landmarks,
-        services.robots.runners,
-        coordinator,
-        services.clock_ns,
-        services.settings,
-        period_s=period_s,
-    )
+    return make_scheduler(landmarks, runners, coordinator, clock_ns, settings, period_s=period_s)
 
 
 def make_scheduler(

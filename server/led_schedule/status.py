@@ -145,15 +145,15 @@ def site_energy(
 ) -> EnergyStatus:
     """The energy status of a running site (its scheduler, gateway and battery log;
     `supply_mv` replaces the battery log's latest reading, e.g. by a cached one)."""
-    site = services.site
-    gw = services.gateway
+    live = services.live
+    gw = services.leds.gateway
 
     def supply(landmark_id: int) -> int | None:
-        return services.battery(landmark_id).supply_mv
+        return services.leds.battery(landmark_id).supply_mv
 
     return EnergyStatus(
-        getattr(site, "scheduler", None),
-        services.lit,
+        None if live is None else live.scheduler,
+        services.leds.lit,
         supply if supply_mv is None else supply_mv,
         services.settings.radio_sleep_period_s,
         commands=lambda: 0 if gw is None else gw.stats.commands,
@@ -164,11 +164,11 @@ def site_energy(
 def energy_metrics(services: SiteServices) -> Iterator[Metric]:
     """`/metrics`: lit landmarks now, the time-averaged lit fraction, and the predicted
     battery life of the site (median and worst landmark, fresh cells, at the duty so far)."""
-    gw = services.gateway
+    gw = services.leds.gateway
     if gw is None:
         return
     status = site_energy(services)
-    yield GaugeMetricFamily("irloc_leds_lit", "landmarks lit now", value=len(services.lit()))
+    yield GaugeMetricFamily("irloc_leds_lit", "landmarks lit now", value=len(services.leds.lit()))
     yield GaugeMetricFamily(
         "irloc_leds_lit_fraction",
         "share of the landmarks lit, averaged over time since the site started",
