@@ -109,7 +109,7 @@ class BundleConfig:
     window_s: float = 30.0
     window_iterations: int = 8
     outlier_track_px: float = 6.0
-    min_votes: int = 2
+    min_votes: int = 1
     name_radius_m: float = 0.05
     name_exclusion_m: float = 0.25
     independent_view_m: float = 0.25
@@ -483,7 +483,11 @@ def _adjust(
 
     def project(x: FloatArray) -> tuple[FloatArray, npt.NDArray[np.bool_]]:
         poses, lms, _, c = lay.split(x)
-        pw = np.where(is_free[:, None], lms[np.maximum(o_free, 0)], o_anchor)
+        pw = (
+            np.where(is_free[:, None], lms[np.maximum(o_free, 0)], o_anchor)
+            if len(lms)
+            else o_anchor
+        )
         pk = poses[o_key]
         co, si = np.cos(pk[:, 2]), np.sin(pk[:, 2])
         dx, dy = pw[:, 0] - pk[:, 0], pw[:, 1] - pk[:, 1]

@@ -28,6 +28,7 @@ from server.facades import BatteryStatus
 from server.led_schedule.status import site_energy
 from server.models import LandmarkCreate, LandmarkPublic, LandmarkUpdate
 from server.services import SiteServices
+from web.panels.monitor import local_time_text
 from web.services import (
     CameraView,
     Candidate,
@@ -132,7 +133,7 @@ class SiteAdapter:
 
     def events(self, limit: int) -> list[EventLine]:
         return [
-            EventLine(e.t.strftime("%Y-%m-%d %H:%M:%S"), e.kind, e.message)
+            EventLine(local_time_text(e.t), e.kind, e.message)
             for e in self.services.events.recent(limit)
         ]
 
@@ -209,12 +210,6 @@ class SiteAdapter:
 
     def delete_landmark(self, landmark_id: int, *, actor: str) -> None:
         self.services.map.delete(landmark_id, actor=actor)
-
-    def undo_last(self, *, actor: str) -> str:
-        rec = self.services.map.undo_last(actor=actor)
-        if rec is None:
-            raise ValueError("nothing to undo")
-        return f"undid {rec.action} of landmark {rec.landmark_id} by {rec.actor}"
 
     def doubt(self, landmark_id: int) -> Doubt:
         """A landmark's chances and uses so far (`commissioning.doubt`)."""

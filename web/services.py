@@ -95,7 +95,9 @@ class EventLine:
     """A line of the event list (low battery, landmark unreachable, robot lost, map changed).
 
     Attributes:
-        when: UTC time, ISO 8601 text; kind: the event kind; message: for people.
+        when: local time with its zone, e.g. "2026-12-01 21:04:05 CET"
+            (`web.panels.monitor.local_time_text`); kind: the event kind; message: for
+            people.
     """
 
     when: str
@@ -180,10 +182,6 @@ class ViewerSite(Protocol):
     ) -> LandmarkState: ...
 
     def delete_landmark(self, landmark_id: int, *, actor: str) -> None: ...
-
-    def undo_last(self, *, actor: str) -> str:
-        """Revert the last map change made by anyone; returns a description of it."""
-        ...
 
     def store_camera(self, robot: str, camera: CameraModel, *, actor: str) -> None:
         """Replace the robot's camera (lens and mounting) and restart its localizer."""

@@ -1,8 +1,10 @@
-"""The landmark map in the database: CRUD, map import/export (JSON, CSV), audit, undo.
+"""The landmark map in the database: CRUD, map import/export (JSON, CSV), audit.
 
 Every change is one transaction committed before the call returns (an acknowledged change is
 on disk), writes an audit record (who, when, before/after) and then notifies the listeners
-(the live site re-reads the map, the viewer redraws).
+(the live site re-reads the map, the viewer redraws). Undo and redo per author:
+`server.crud.history` (`MapRepository.history`). A change that would leave the site without
+landmarks (deleting the last one, importing an empty map) needs `confirm=True`.
 """
 
 from __future__ import annotations
@@ -20,6 +22,7 @@ from sqlalchemy import Engine, delete
 from sqlmodel import Session, col, select
 
 from localizer.landmark_map import LandmarkMap
+from server.crud.history import MapHistory, drop_redo, landmark_record
 from server.errors import ConflictError, NotFoundError
 from server.models import (
     AuditRecord,
@@ -40,10 +43,6 @@ def _public(row: Landmark) -> LandmarkPublic:
     return LandmarkPublic.model_validate(row, from_attributes=True)
 
 
-def _record(row: Landmark) -> dict[str, Any]:
-    return _public(row).model_dump(mode="json")
-
-
 class MapRepository:
     """The site's landmark map.
 
@@ -55,6 +54,8 @@ class MapRepository:
         self.engine = engine
         self._listeners: list[MapListener] = []
         self._lock = threading.Lock()  # serialises writers (check-then-write)
+        self.history = MapHistory(engine, self._lock, self._notify)
+        """Undo and redo of each author's own edits."""
 
     # -- listeners ---------------------------------------------------------------------------
     def add_listener(self, listener: MapListener) -> None:
@@ -119,8 +120,11 @@ class MapRepository:
             row = Landmark.model_validate(data.model_dump())
             s.add(row)
             s.add(
-                AuditRecord(actor=actor, action="create", landmark_id=data.id, after=_record(row))
+                AuditRecord(
+                    actor=actor, action="create", landmark_id=data.id, after=landmark_record(row)
+                )
             )
+            drop_redo(s, actor)
             s.commit()
             s.refresh(row)
             out = _public(row)
@@ -137,7 +141,7 @@ class MapRepository:
             row = s.get(Landmark, landmark_id)
             if row is None:
                 raise NotFoundError(f"landmark {landmark_id} does not exist")
-            before = _record(row)
+            before = landmark_record(row)
             if "radio" in changes:
                 self._check_radio_free(s, changes["radio"], landmark_id)
             for key, value in changes.items():
@@ -150,34 +154,49 @@ class MapRepository:
                     action="update",
                     landmark_id=landmark_id,
                     before=before,
-                    after=_record(row),
+                    after=landmark_record(row),
                 )
             )
+            drop_redo(s, actor)
             s.commit()
             s.refresh(row)
             out = _public(row)
         self._notify()
         return out
 
-    def delete(self, landmark_id: int, *, actor: str) -> None:
+    def delete(self, landmark_id: int, *, actor: str, confirm: bool = False) -> None:
+        """Remove a landmark; the last one of the map only with `confirm` (ConflictError)."""
         with self._lock, Session(self.engine) as s:
             row = s.get(Landmark, landmark_id)
             if row is None:
                 raise NotFoundError(f"landmark {landmark_id} does not exist")
+            if not confirm and len(s.exec(select(Landmark.id)).all()) == 1:
+                raise ConflictError(
+                    f"landmark {landmark_id} is the last landmark of the map: deleting it "
+                    "leaves the site without landmarks; confirm it (confirm=true)"
+                )
             s.add(
                 AuditRecord(
-                    actor=actor, action="delete", landmark_id=landmark_id, before=_record(row)
+                    actor=actor,
+                    action="delete",
+                    landmark_id=landmark_id,
+                    before=landmark_record(row),
                 )
             )
             s.delete(row)
+            drop_redo(s, actor)
             s.commit()
         self._notify()
 
-    def replace_all(self, landmarks: Iterable[LandmarkCreate], *, actor: str) -> int:
-        """Replace the whole map in one transaction (map import); returns the count.
+    def replace_all(
+        self, landmarks: Iterable[LandmarkCreate], *, actor: str, confirm: bool = False
+    ) -> int:
+        """Replace the whole map in one transaction (map import; with no landmarks: clear,
+        which needs `confirm` when the map has any); returns the count. One undoable step.
 
         Raises:
-            ConflictError: a duplicate ID or radio address in the new map (nothing changes).
+            ConflictError: a duplicate ID or radio address in the new map, or a clear without
+                `confirm` (nothing changes).
         """
         items = list(landmarks)
         ids: set[int] = set()
@@ -193,57 +212,25 @@ class MapRepository:
                     )
                 radios[lm.radio] = lm.id
         with self._lock, Session(self.engine) as s:
-            before = {"landmarks": [_record(r) for r in s.exec(select(Landmark))]}
+            before = {"landmarks": [landmark_record(r) for r in s.exec(select(Landmark))]}
+            if not items and before["landmarks"] and not confirm:
+                raise ConflictError(
+                    f"the new map has no landmarks: it would remove all "
+                    f"{len(before['landmarks'])} and leave the site without landmarks; "
+                    "confirm it (confirm=true)"
+                )
             s.exec(delete(Landmark))
             s.flush()
             rows = [Landmark.model_validate(lm.model_dump()) for lm in items]
             s.add_all(rows)
             s.flush()
-            after = {"landmarks": [_record(r) for r in rows]}
-            s.add(AuditRecord(actor=actor, action="import", before=before, after=after))
+            after = {"landmarks": [landmark_record(r) for r in rows]}
+            action = "import" if items else "clear"
+            s.add(AuditRecord(actor=actor, action=action, before=before, after=after))
+            drop_redo(s, actor)
             s.commit()
         self._notify()
         return len(items)
-
-    def undo_last(self, *, actor: str) -> AuditRecord | None:
-        """Revert the newest map change (its `before`); None when there is nothing to undo.
-
-        The undo is itself a change with its own audit record (action `undo`).
-        """
-        with self._lock, Session(self.engine) as s:
-            last = s.exec(
-                select(AuditRecord)
-                .where(col(AuditRecord.action).in_(["create", "update", "delete", "import"]))
-                .order_by(col(AuditRecord.id).desc())
-            ).first()
-            if last is None:
-                return None
-            if last.action == "import":
-                s.exec(delete(Landmark))
-                s.flush()
-                for rec in (last.before or {}).get("landmarks", []):
-                    s.add(Landmark.model_validate(_from_json(rec)))
-            else:
-                row = s.get(Landmark, last.landmark_id)
-                if row is not None:
-                    s.delete(row)
-                    s.flush()
-                if last.before is not None:
-                    s.add(Landmark.model_validate(_from_json(last.before)))
-            undo = AuditRecord(
-                actor=actor,
-                action="undo",
-                landmark_id=last.landmark_id,
-                before=last.after,
-                after=last.before,
-            )
-            last.action = f"{last.action}-undone"
-            s.add(last)
-            s.add(undo)
-            s.commit()
-            s.refresh(undo)
-        self._notify()
-        return undo
 
     # -- map documents ---------------------------------------------------------------------
     def export_json(self) -> dict[str, Any]:
@@ -264,16 +251,6 @@ class MapRepository:
                 {k: getattr(lm, k) if getattr(lm, k) is not None else "" for k in CSV_FIELDS}
             )
         return out.getvalue()
-
-
-def _from_json(rec: dict[str, Any]) -> dict[str, Any]:
-    from datetime import datetime
-
-    out = dict(rec)
-    for key in ("created_at", "updated_at"):
-        if isinstance(out.get(key), str):
-            out[key] = datetime.fromisoformat(out[key])
-    return out
 
 
 def parse_map_json(data: Any, *, source: str = "map.json") -> builtins.list[LandmarkCreate]:

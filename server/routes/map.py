@@ -37,16 +37,23 @@ def export_map(
     openapi_extra={
         "requestBody": {
             "content": {
-                "application/json": {"schema": MapDocument.model_json_schema()},
+                # a reference, not the model's own schema: its `$defs` breaks ReDoc
+                "application/json": {"schema": {"$ref": "#/components/schemas/MapDocument"}},
                 "text/csv": {"schema": {"type": "string"}},
             },
             "required": True,
         }
     },
 )
-async def import_map(request: Request, services: ServicesDep, who: Admin) -> ImportResult:
-    """Replace the whole map (one transaction, audited): JSON body, or CSV with
-    `Content-Type: text/csv`."""
+async def import_map(
+    request: Request,
+    services: ServicesDep,
+    who: Admin,
+    confirm: bool = Query(False, description="required when the new map has no landmarks"),
+) -> ImportResult:
+    """Replace the whole map (one transaction, audited, one step of your undo): JSON body,
+    or CSV with `Content-Type: text/csv`. A map without landmarks needs `confirm=true`
+    (409 otherwise)."""
     raw = await request.body()
     ctype = request.headers.get("content-type", "application/json").split(";")[0].strip()
     text = raw.decode("utf-8", errors="strict") if raw else ""
@@ -59,5 +66,18 @@ async def import_map(request: Request, services: ServicesDep, who: Admin) -> Imp
         except json.JSONDecodeError as exc:
             raise ValueError(f"map: body is not JSON: {exc}") from None
         items = parse_map_json(data, source="map")
-    count = await asyncio.to_thread(services.map.replace_all, items, actor=who.actor)
+    count = await asyncio.to_thread(
+        services.map.replace_all, items, actor=who.actor, confirm=confirm
+    )
+    return ImportResult(landmarks=count)
+
+
+@router.delete("")
+async def clear_map(
+    services: ServicesDep,
+    who: Admin,
+    confirm: bool = Query(False, description="required: the site is left without landmarks"),
+) -> ImportResult:
+    """Remove every landmark (one step of your undo); 409 without `confirm=true`."""
+    count = await asyncio.to_thread(services.map.replace_all, [], actor=who.actor, confirm=confirm)
     return ImportResult(landmarks=count)

@@ -10,7 +10,7 @@ import threading
 from collections.abc import Callable, Iterable
 
 from localizer.events import LedRequest, LedsChanged
-from rf_gateway.errors import RfGatewayError
+from rf_gateway.errors import LandmarkUnreachableError, RfGatewayError
 from rf_gateway.gateway import Gateway
 from server.site.robot import RobotRunner
 
@@ -39,9 +39,14 @@ class LedCoordinator:
     Args:
         gateway: the site's gateway.
         runners: returns the robots to inform of LED changes.
-        on_error: called with (robot name, error message) when a request fails.
+        on_error: called with (robot name, error message) when a request fails, at most
+            once per `error_quiet_s` for the same message (an identifying robot sends a
+            request every few frames). A landmark that does not answer is not reported
+            here: the gateway reports it once, as `landmark_unreachable`, and every
+            request lighting it would fail the same way until it answers again.
         dwell_s: minimum time a requested state is held before the next is applied, s.
         idle_restore_s: light everything after this long without requests, seconds.
+        error_quiet_s: the same failure is reported again only after this long, seconds.
     """
 
     def __init__(
@@ -52,6 +57,7 @@ class LedCoordinator:
         *,
         dwell_s: float = 0.12,
         idle_restore_s: float = 1.5,
+        error_quiet_s: float = 30.0,
     ) -> None:
         self.gateway = gateway
         self.runners = runners
@@ -61,6 +67,8 @@ class LedCoordinator:
         self.requests = 0
         self.applied = 0
         self.failures = 0
+        self.error_quiet_s = error_quiet_s
+        self._reported: dict[str, float] = {}  # message -> loop time last reported
         self._pending: dict[str, LedRequest] = {}
         self._wake = asyncio.Event()
         self._loop = asyncio.get_running_loop()
@@ -168,13 +176,22 @@ class LedCoordinator:
             await self.gateway.set_leds(lit)
         except (RfGatewayError, KeyError) as exc:
             self.failures += 1
-            if robot == "schedule":  # the gateway's own events tell of unreachable landmarks
-                log.debug("LED schedule not applied in full: %s", exc)
-            else:
-                log.warning("LED request of robot %s failed: %s", robot, exc)
-                if self.on_error is not None:
-                    self.on_error(robot, str(exc))
+            self._report(robot, exc)
         return lit == self._normal_set()
+
+    def _report(self, robot: str, exc: Exception) -> None:
+        if isinstance(exc, LandmarkUnreachableError):  # reported once by the gateway
+            log.debug("LED request of robot %s: %s", robot, exc)
+            return
+        now, message = self._loop.time(), str(exc)
+        last = self._reported.get(message)
+        if last is not None and now - last < self.error_quiet_s:
+            log.debug("LED request of robot %s failed again: %s", robot, message)
+            return
+        self._reported[message] = now
+        log.warning("LED request of robot %s failed: %s", robot, message)
+        if self.on_error is not None:
+            self.on_error(robot, message)
 
     def _forward(self, event: LedsChanged) -> None:
         """Every LED state to every robot, synchronously as the gateway publishes it: an
