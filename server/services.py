@@ -27,6 +27,7 @@ from server.errors import UnavailableError
 from server.events import EventHub
 from server.facades import LedsAndRadio, Recordings, Robots
 from server.floorplan import FloorPlanStore
+from server.led_schedule.status import EnergyStatus, site_energy
 from server.models import LandmarkPublic
 from server.poses import PoseUpdate
 from server.settings import Settings
@@ -141,3 +142,8 @@ class SiteServices:
         )
         if self.live is not None:
             self.live.on_map_changed(landmarks)
+
+    def energy(self) -> EnergyStatus:
+        """Each landmark's lit state and reason, duty and modelled days left; the site's lit
+        fraction and predicted battery life (`server.led_schedule.status`)."""
+        return site_energy(self)

@@ -25,6 +25,7 @@ from localizer.spots import DetectionConfig, detect_spots
 from rf_gateway.errors import LandmarkUnreachableError, RfGatewayError
 from server.errors import UnavailableError
 from server.facades import BatteryStatus
+from server.led_schedule.status import site_energy
 from server.models import LandmarkCreate, LandmarkPublic, LandmarkUpdate
 from server.services import SiteServices
 from web.panels.monitor import local_time_text
@@ -96,8 +97,12 @@ class SiteAdapter:
         unreachable = self.services.leds.unreachable
         doubted = self.services.commissioning.doubted()
         out = []
+        energy = site_energy(
+            self.services, lambda i: getattr(self._battery_of(i), "supply_mv", None)
+        )
         for lm in self._map():
             b = self._battery_of(lm.id)
+            e = energy.landmark(lm.id)
             out.append(
                 LandmarkState(
                     id=lm.id, x=lm.x, y=lm.y, z=lm.z, locked=lm.locked, radio=lm.radio,
@@ -105,6 +110,8 @@ class SiteAdapter:
                     percent=None if b is None else b.percent,
                     days_left=None if b is None else b.days_left,
                     reachable=lm.id not in unreachable, doubted=lm.id in doubted,
+                    lit=e.lit, lit_reason=e.reason, duty=e.duty, model_days=e.days_left,
+                    low=e.low,
                 )
             )  # fmt: skip
         return out

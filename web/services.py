@@ -43,6 +43,12 @@ class LandmarkState:
         days_left: estimated days until the cut-off voltage, None when unknown.
         reachable: False once the radio stopped answering.
         doubted: localized robots expected it in view but rarely used it (`commissioning.doubt`).
+        lit: its LED is lit now; lit_reason: why the LED schedule lights it (None: dark,
+            or every LED lit without a schedule).
+        duty: share of the time it was lit since the site started.
+        model_days: days its cells last at that duty from the measured voltage (the energy
+            model, `server.led_schedule.status`), None when never read.
+        low: flagged: its LED dims within a week at that duty, or is dim already.
     """
 
     id: int
@@ -56,6 +62,11 @@ class LandmarkState:
     days_left: float | None = None
     reachable: bool = True
     doubted: bool = False
+    lit: bool = False
+    lit_reason: str | None = None
+    duty: float | None = None
+    model_days: float | None = None
+    low: bool = False
 
 
 @dataclass(frozen=True, eq=False)

@@ -31,6 +31,11 @@ class LedCoordinator:
     While the LEDs are *held* (`hold(True)`, e.g. by the viewer's identification wizard,
     which switches them itself), requests wait and nothing is restored.
 
+    The site's normal state ("all lit" of a request) is every landmark, or, with a schedule
+    (`normal`, `server.led_schedule`), the landmarks it lights: a probe that darkens one
+    landmark darkens it among those, and `renormal()` applies a new schedule (keeping the
+    last probe's landmark dark).
+
     Args:
         gateway: the site's gateway.
         runners: returns the robots to inform of LED changes.
@@ -70,6 +75,8 @@ class LedCoordinator:
         self._tasks: list[asyncio.Task[None]] = []
         self._held = False
         self._hold_lock = threading.Lock()
+        self.normal: Callable[[], Iterable[int]] | None = None
+        self._probe_dark: frozenset[int] = frozenset()
 
     def start(self) -> None:
         self.gateway.add_led_listener(self._forward)
@@ -112,9 +119,18 @@ class LedCoordinator:
         self._pending[robot] = req
         self._wake.set()
 
+    def renormal(self) -> None:
+        """The schedule changed: apply it (on the loop) unless a robot's request waits."""
+        if "schedule" not in self._pending:
+            self._put("schedule", LedRequest(all_lit=True))
+
+    def _normal_set(self) -> set[int]:
+        ids = set(self.gateway.landmarks)
+        return ids if self.normal is None else ids & set(self.normal())
+
     def _lit_for(self, req: LedRequest) -> set[int]:
         if req.all_lit:
-            return set(self.gateway.landmarks) - set(req.dark)
+            return self._normal_set() - set(req.dark)
         return set(req.lit)
 
     async def _apply_loop(self) -> None:
@@ -127,14 +143,19 @@ class LedCoordinator:
                     await asyncio.wait_for(self._wake.wait(), timeout)
                 except TimeoutError:
                     if not self._held and not self._pending:
-                        log.info("no LED request for %.1f s: lighting every LED", timeout)
+                        log.info("no LED request for %.1f s: back to the normal state", timeout)
+                        self._probe_dark = frozenset()
                         all_lit = await self._apply("site", LedRequest(all_lit=True))
                     continue
                 continue
             robot = next(iter(self._pending))
             req = self._pending.pop(robot)
+            if robot == "schedule":  # the latest probe's landmark stays dark
+                req = LedRequest(all_lit=True, dark=self._probe_dark)
+            else:
+                self._probe_dark = frozenset(req.dark)
             lit = self._lit_for(req)
-            all_lit = lit == set(self.gateway.landmarks)
+            all_lit = lit == self._normal_set()
             if self._current() == lit:
                 continue
             all_lit = await self._apply(robot, req)
@@ -156,7 +177,7 @@ class LedCoordinator:
         except (RfGatewayError, KeyError) as exc:
             self.failures += 1
             self._report(robot, exc)
-        return lit == set(self.gateway.landmarks)
+        return lit == self._normal_set()
 
     def _report(self, robot: str, exc: Exception) -> None:
         if isinstance(exc, LandmarkUnreachableError):  # reported once by the gateway

@@ -10,10 +10,10 @@ from commissioning.types import MapLandmark
 from commissioning.wizard import Confirm, IdentificationWizard, Skip, Start
 from sim.cameras import wide_angle_camera
 from tests.web.memsite import grid_site
+from web.battery_table import battery_table
 from web.panels.commission import nearest_landmark
 from web.panels.monitor import (
     UncertaintyHistory,
-    batteries_table,
     events_text,
     fix_age_s,
     position_sigma_m,
@@ -42,16 +42,23 @@ def test_robots_table_shows_mode_error_and_fix_age() -> None:
     assert table.count("\n") == 3
 
 
-def test_batteries_worst_first_unknown_last() -> None:
+def test_batteries_low_first_unknown_last_with_the_schedule_and_the_model() -> None:
     lms = [
-        LandmarkState(1, 0, 0, 2.5, supply_mv=3000, percent=80.0, days_left=300.0),
+        LandmarkState(1, 0, 0, 2.5, supply_mv=3000, percent=80.0, days_left=300.0,
+                      lit=True, lit_reason="view r1", duty=0.2, model_days=90.0),
         LandmarkState(2, 0, 0, 2.5),
         LandmarkState(3, 0, 0, 2.5, supply_mv=2300, percent=18.0, days_left=12.0,
-                      reachable=False),
+                      reachable=False, duty=0.5, model_days=4.0, low=True),
+        LandmarkState(4, 0, 0, 2.5, supply_mv=2900, duty=0.0, model_days=400.0),
     ]  # fmt: skip
-    rows = batteries_table(lms).splitlines()[2:]
-    assert [r.split("|")[1].strip() for r in rows] == ["3 (unreachable)", "1", "2"]
-    assert rows[0] == "| 3 (unreachable) | 2.30 | 18 | 12 |"
+    rows = battery_table(lms).splitlines()[2:]
+    assert [r.split("|")[1].strip() for r in rows] == ["3 **LOW** (unreachable)", "1", "4", "2"]
+    assert rows[0] == "| 3 **LOW** (unreachable) | 2.30 | 4 (12) | 50 % | off | dark |"
+    assert rows[1] == "| 1 | 3.00 | 90 (300) | 20 % | on | view r1 |"
+    by_volts = battery_table(lms, "volts").splitlines()[2:]
+    assert [r.split("|")[1].strip()[0] for r in by_volts] == ["3", "4", "1", "2"]
+    by_duty = battery_table(lms, "duty").splitlines()[2:]
+    assert [r.split("|")[1].strip()[0] for r in by_duty] == ["3", "1", "2", "4"]
 
 
 def test_uncertainty_history_series_ends_at_zero() -> None:

@@ -10,6 +10,7 @@ from datetime import UTC, datetime
 import numpy as np
 import viser
 
+from web.battery_table import SORT_KEYS, battery_table
 from web.roles import Session
 from web.services import EventLine, LandmarkState, RobotState, ViewerSite
 
@@ -60,24 +61,6 @@ def robots_table(robots: Sequence[RobotState]) -> str:
         err = error_text(rb)
         fix = "never" if age is None else f"{age:.1f} s ago"
         rows.append(f"| {rb.name} | {MODE_TEXT.get(rb.mode, rb.mode)} | {err} | {fix} |")
-    return "\n".join(rows)
-
-
-def batteries_table(landmarks: Sequence[LandmarkState], *, limit: int = 30) -> str:
-    """Markdown table of landmark batteries, worst first (unknown readings last)."""
-
-    def key(lm: LandmarkState) -> tuple[int, float, float, int]:
-        known = lm.percent is not None
-        days = lm.days_left if lm.days_left is not None else math.inf
-        return (0 if known else 1, lm.percent if known else 0.0, days, lm.id)  # type: ignore[return-value]
-
-    rows = ["| id | volts | % | days left |", "|---|---|---|---|"]
-    for lm in sorted(landmarks, key=key)[:limit]:
-        volts = "-" if lm.supply_mv is None else f"{lm.supply_mv / 1000:.2f}"
-        pct = "-" if lm.percent is None else f"{lm.percent:.0f}"
-        days = "-" if lm.days_left is None else f"{lm.days_left:.0f}"
-        flag = "" if lm.reachable else " (unreachable)"
-        rows.append(f"| {lm.id}{flag} | {volts} | {pct} | {days} |")
     return "\n".join(rows)
 
 
@@ -155,6 +138,7 @@ class MonitorPanel:
                 aspect=1.5,
             )
         with gui.add_folder("Landmark batteries", expand_by_default=False):
+            self.gui_battery_sort = gui.add_dropdown("Sort", SORT_KEYS, initial_value=SORT_KEYS[0])
             self.gui_batteries = gui.add_markdown("")
         with gui.add_folder("Events", expand_by_default=False):
             self.gui_events = gui.add_markdown("")
@@ -182,7 +166,9 @@ class MonitorPanel:
     ) -> None:
         """Update the tables and the plot (call at a few hertz)."""
         self._set("robots", self.gui_robots, robots_table(robots))
-        self._set("batteries", self.gui_batteries, batteries_table(landmarks))
+        self._set(
+            "batteries", self.gui_batteries, battery_table(landmarks, self.gui_battery_sort.value)
+        )
         self._set("events", self.gui_events, events_text(events))
         names = tuple(r.name for r in robots)
         if names and tuple(self.gui_robot.options) != names:
