@@ -19,17 +19,19 @@ import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Literal
+from typing import TYPE_CHECKING, Literal
 
 from localizer.events import LedRequest
-from server.crud.landmarks import MapRepository
 from server.errors import ConflictError, UnavailableError
-from server.facades import LedsAndRadio, Recordings, Robots
 from server.models import LandmarkUpdate
 from survey.blinks import BlinkConfig
 from survey.bundle import BundleConfig, solve_survey
 from survey.drive import read_survey_drive, survey_problem
 from survey.result import LandmarkEstimate, SurveyResult
+
+if TYPE_CHECKING:  # the facades are handed in (server.services); typing only
+    from server.crud.landmarks import MapRepository
+    from server.facades import LedsAndRadio, Recordings, Robots
 
 log = logging.getLogger(__name__)
 
