@@ -22,10 +22,10 @@ from typing import Any
 
 import cv2
 import numpy as np
-from fastapi import APIRouter, WebSocket, WebSocketDisconnect, status
+from fastapi import APIRouter, WebSocket, WebSocketDisconnect
 
 from localizer.events import FrameObserved, OdometryMeasured, SpotsObserved
-from server.auth import authenticate
+from server.auth import refuse_websocket, websocket_principal
 from server.errors import NotFoundError
 from server.site.serial_wheels import MAX_WHEEL_SPEED
 from server.site.sources import to_gray
@@ -147,19 +147,16 @@ def frame_from_bytes(services: Any, data: bytes) -> FrameObserved:
 @router.websocket("/robots/{name}/ws")
 async def remote_robot(ws: WebSocket, name: str) -> None:
     """A remote robot's sensor stream (operator key)."""
-    principal = authenticate(ws)
-    if principal is None or not principal.allows("operator"):
-        await ws.close(code=status.WS_1008_POLICY_VIOLATION, reason="an operator key is required")
+    if await websocket_principal(ws, "operator") is None:
         return
     services = ws.app.state.services
     try:
         runner = services.robots.get(name)
     except NotFoundError as exc:
-        await ws.close(code=status.WS_1008_POLICY_VIOLATION, reason=str(exc))
+        await refuse_websocket(ws, str(exc))
         return
     if runner.source != "remote":
-        reason = f"robot {name!r} has source {runner.source!r}, not 'remote'"
-        await ws.close(code=status.WS_1008_POLICY_VIOLATION, reason=reason)
+        await refuse_websocket(ws, f"robot {name!r} has source {runner.source!r}, not 'remote'")
         return
     await ws.accept()
     services.events.emit("robot_connected", f"remote robot {name} connected", robot=name)

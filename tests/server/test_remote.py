@@ -120,7 +120,7 @@ def test_malformed_messages_get_a_clear_error_and_the_connection_stays(
 @pytest.mark.parametrize(
     ("path", "role", "reason"),
     [
-        (WS, "viewer", "an operator key is required"),
+        (WS, "viewer", "this needs the operator role"),
         ("/api/v1/robots/nobody/ws", "operator", "'nobody' is not running"),
     ],
 )

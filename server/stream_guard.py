@@ -1,0 +1,49 @@
+"""When a long-lived stream (pose WebSocket, event stream) must end before its client leaves:
+its key was revoked (through the API: at once; by `irloc keys revoke` in another process:
+within about a second), or the server is shutting down (`draining`).
+"""
+
+from __future__ import annotations
+
+import asyncio
+
+from starlette.requests import HTTPConnection
+
+from server.auth import Principal, token_of
+
+POLL_S = 0.2
+"""How often a stream looks at the in-process revocations and the shutdown flag, seconds."""
+RECHECK_S = 1.0
+"""How often it checks its key again (cache, else the database), seconds."""
+SHUTTING_DOWN = "the server is shutting down"
+KEY_REVOKED = "the API key was revoked"
+
+
+def draining(conn: HTTPConnection) -> asyncio.Event:
+    """The app's shutdown flag: set when the server starts shutting down (`server.shutdown`)."""
+    state = conn.app.state
+    event: asyncio.Event | None = getattr(state, "draining", None)
+    if event is None:
+        event = state.draining = asyncio.Event()
+    return event
+
+
+async def stream_end(conn: HTTPConnection, principal: Principal) -> str:
+    """Wait until the stream of `conn` must end; returns why (`KEY_REVOKED`, `SHUTTING_DOWN`)."""
+    keys = conn.app.state.services.keys
+    token = token_of(conn)
+    flag = draining(conn)
+    loop = asyncio.get_running_loop()
+    next_check = loop.time() + RECHECK_S
+    while True:
+        try:
+            await asyncio.wait_for(flag.wait(), POLL_S)
+            return SHUTTING_DOWN
+        except TimeoutError:
+            pass
+        if keys.is_revoked_here(principal.key_id):
+            return KEY_REVOKED
+        if loop.time() >= next_check:
+            next_check = loop.time() + RECHECK_S
+            if token is None or await keys.role_of_async(token) is None:
+                return KEY_REVOKED
