@@ -5,7 +5,7 @@ from __future__ import annotations
 import asyncio
 from typing import Annotated, Any, Literal
 
-from fastapi import APIRouter, File, Form, UploadFile
+from fastapi import APIRouter, File, Form, Request, UploadFile
 
 from calibration.board import BoardSpec, parse_pattern
 from calibration.lens import LensCalibrationConfig
@@ -13,6 +13,8 @@ from calibration.uploads import calibrate_from_uploads, mounting_kept
 from localizer.camera import camera_from_sensor
 from server.auth import Operator
 from server.deps import RobotName, ServicesDep
+from server.errors import UnavailableError
+from server.stream_guard import stopping
 
 router = APIRouter(prefix="/robots", tags=["calibration"])
 
@@ -22,6 +24,7 @@ MAX_FILE_BYTES = 20 * 1024 * 1024
 
 @router.post("/{name}/calibration/lens")
 async def calibrate_lens_upload(
+    request: Request,
     name: RobotName,
     services: ServicesDep,
     _: Operator,
@@ -59,7 +62,14 @@ async def calibrate_lens_upload(
     old = (
         camera_from_sensor(record.camera, source=f"robot {name} camera") if record.camera else None
     )
+    halt = stopping(request.app)
+
+    def progress(done: int, total: int) -> None:  # on the worker thread, after each photo
+        if halt.is_set():
+            raise UnavailableError("the server is shutting down: calibration abandoned")
+
     options: dict[str, Any] = {
+        "progress": progress,
         "model": model,
         "board": board,
         "config": LensCalibrationConfig(min_views=min_views),

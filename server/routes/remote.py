@@ -5,7 +5,8 @@ Text messages are JSON:
 - `{"type": "spots", "pixels": [[c, r], ...], "intensities": [...], "areas": [...], "t_ns": 123}`
 Binary messages are frames: 8 bytes little-endian signed `t_ns` then a PNG or JPEG image
 (8-bit gray or colour, or 16-bit PNG), or a raw gray frame: `GRY8` (8-bit) or `GR16` (16-bit
-LE), uint32 LE width, uint32 LE height, then the pixels row-major.
+LE), uint32 LE width, uint32 LE height, then the pixels row-major. Frames are decoded off the
+event loop, at most 4096 x 4096 px (an encoded image's size is read from its header first).
 `t_ns` is on the server's site clock; omit it (or send 0 / null) to stamp on receipt. The
 server answers each frame or spots message with the resulting pose as JSON (as on
 `/poses/ws`), and a malformed message with `{"error": "<what is wrong>"}` (the connection
@@ -20,10 +21,10 @@ import json
 import struct
 from typing import Any
 
-import cv2
 import numpy as np
 from fastapi import APIRouter, WebSocket, WebSocketDisconnect
 
+from calibration.uploads import decode_image
 from localizer.events import FrameObserved, OdometryMeasured, SpotsObserved
 from server.auth import refuse_websocket, websocket_principal
 from server.errors import NotFoundError
@@ -135,7 +136,7 @@ def frame_from_bytes(services: Any, data: bytes) -> FrameObserved:
     if payload[:4] in RAW_FORMATS:
         image = raw_frame(payload)
     else:
-        image = cv2.imdecode(np.frombuffer(payload, dtype=np.uint8), cv2.IMREAD_UNCHANGED)
+        image = decode_image("frame", payload, max_pixels=MAX_RAW_PIXELS)
         if image is None:
             raise ValueError(
                 f"frame: the {len(payload)} bytes after t_ns are neither a PNG/JPEG image nor "
@@ -178,8 +179,8 @@ async def _serve(ws: WebSocket, services: Any, runner: Any) -> None:
         if msg["type"] == "websocket.disconnect":
             return
         try:
-            if msg.get("bytes") is not None:
-                event: Any = frame_from_bytes(services, msg["bytes"])
+            if msg.get("bytes") is not None:  # decoded off the event loop
+                event: Any = await asyncio.to_thread(frame_from_bytes, services, msg["bytes"])
             else:
                 event = event_from_text(services, msg.get("text") or "")
         except ValueError as exc:
