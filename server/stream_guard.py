@@ -6,6 +6,8 @@ within about a second), or the server is shutting down (`draining`).
 from __future__ import annotations
 
 import asyncio
+import threading
+from typing import Any
 
 from starlette.requests import HTTPConnection
 
@@ -19,20 +21,29 @@ SHUTTING_DOWN = "the server is shutting down"
 KEY_REVOKED = "the API key was revoked"
 
 
-def draining(conn: HTTPConnection) -> asyncio.Event:
+def draining(app: Any) -> asyncio.Event:
     """The app's shutdown flag: set when the server starts shutting down (`server.shutdown`)."""
-    state = conn.app.state
+    state = app.state
     event: asyncio.Event | None = getattr(state, "draining", None)
     if event is None:
         event = state.draining = asyncio.Event()
     return event
 
 
+def stopping(app: Any) -> threading.Event:
+    """The app's shutdown flag for work on threads (set with `draining`), made on first use."""
+    state = app.state
+    flag: threading.Event | None = getattr(state, "stopping", None)
+    if flag is None:
+        flag = state.stopping = threading.Event()
+    return flag
+
+
 async def stream_end(conn: HTTPConnection, principal: Principal) -> str:
     """Wait until the stream of `conn` must end; returns why (`KEY_REVOKED`, `SHUTTING_DOWN`)."""
     keys = conn.app.state.services.keys
     token = token_of(conn)
-    flag = draining(conn)
+    flag = draining(conn.app)
     loop = asyncio.get_running_loop()
     next_check = loop.time() + RECHECK_S
     while True:

@@ -49,7 +49,7 @@ async def poses_ws(ws: WebSocket, robot: RobotFilter = None) -> None:
     milliseconds of each other); a client that falls behind loses the oldest messages
     (bounded queue, `irloc_ws_dropped_poses_total`). Auth: the `Authorization: Bearer`
     header or `?token=`. Closed with code 1008 and a reason when the key is refused or
-    revoked, 1001 when the server shuts down.
+    revoked, 1001 or 1012 when the server shuts down.
     """
     principal = await websocket_principal(ws, "viewer")
     if principal is None:
