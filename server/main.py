@@ -27,6 +27,7 @@ from rf_gateway.errors import (
 from server.auth import Viewer, authenticate
 from server.errors import ConflictError, NotFoundError, UnavailableError
 from server.fanout import PoseFanout
+from server.http_errors import install_body_errors
 from server.metrics import make_registry, render
 from server.routes import admin, calibration, landmarks, map, remote, robots, streams
 from server.services import SiteServices
@@ -128,6 +129,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         lifespan=lifespan,
     )
     _install_error_handlers(app)
+    install_body_errors(app)
     api = APIRouter(prefix=API_PREFIX)
     for module in (landmarks, map, robots, calibration, remote, admin, streams):
         api.include_router(module.router)

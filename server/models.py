@@ -8,6 +8,7 @@ not validate on construction).
 from __future__ import annotations
 
 import math
+import re
 from datetime import UTC, datetime
 from typing import Any, Literal
 
@@ -21,6 +22,8 @@ Role = Literal["viewer", "operator", "admin"]
 ROLES: tuple[Role, ...] = ("viewer", "operator", "admin")
 
 MAX_LANDMARK_ID = 2**31 - 1
+DECIMAL_ID = re.compile(r"0|[1-9][0-9]{0,9}")
+"""A landmark ID as text (path, CSV): plain decimal digits, no sign, `_`, point or padding."""
 MAX_ABS_XY_M = 10_000.0
 """Floor coordinates beyond this (10 km) are refused as absurd."""
 MAX_Z_M = 100.0
@@ -71,7 +74,14 @@ class Landmark(LandmarkBase, table=True):
 
 
 class LandmarkCreate(LandmarkBase):
-    id: int = Field(ge=0, le=MAX_LANDMARK_ID)
+    id: int = Field(ge=0, le=MAX_LANDMARK_ID, description="landmark ID (a JSON integer)")
+
+    @field_validator("id", mode="before")
+    @classmethod
+    def _strict_id(cls, v: object) -> object:
+        if isinstance(v, bool) or not isinstance(v, int):
+            raise ValueError(f"expected an integer, got {v!r} ({type(v).__name__})")
+        return v
 
     @field_validator("x", "y", "z")
     @classmethod

@@ -10,6 +10,7 @@ from __future__ import annotations
 import builtins
 import csv
 import io
+import json
 import logging
 import threading
 from collections.abc import Callable, Iterable
@@ -22,6 +23,7 @@ from sqlmodel import Session, col, select
 from localizer.landmark_map import LandmarkMap
 from server.errors import ConflictError, NotFoundError
 from server.models import (
+    DECIMAL_ID,
     AuditRecord,
     Landmark,
     LandmarkCreate,
@@ -282,23 +284,89 @@ def parse_map_json(data: Any, *, source: str = "map.json") -> builtins.list[Land
         return MapDocument.model_validate(data).landmarks
     except ValidationError as exc:
         raise ValueError(f"{source}: {_first_error(exc)}") from None
+    except RecursionError:
+        raise ValueError(f"{source}: JSON nested too deeply") from None
+
+
+def parse_map_text(text: str, *, source: str = "map.json") -> builtins.list[LandmarkCreate]:
+    """Parse and validate map.json text; ValueError says what is wrong (not JSON, nested
+    too deeply, a bad landmark)."""
+    try:
+        data = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"{source}: body is not JSON: {exc}") from None
+    except RecursionError:
+        raise ValueError(f"{source}: JSON nested too deeply (more than ~900 levels)") from None
+    return parse_map_json(data, source=source)
+
+
+def decode_text(raw: bytes, *, source: str) -> str:
+    """UTF-8 text of an uploaded document, a leading byte-order mark (as spreadsheet
+    programs write it) dropped; ValueError for bytes that are not UTF-8."""
+    try:
+        return raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise ValueError(
+            f"{source}: body is not UTF-8 text (byte {exc.start} is {raw[exc.start]:#04x})"
+        ) from None
 
 
 def parse_map_csv(text: str, *, source: str = "map.csv") -> builtins.list[LandmarkCreate]:
-    """Parse the CSV export (`id,x,y,z,radio,locked,note`; radio, locked, note optional)."""
-    reader = csv.DictReader(io.StringIO(text))
-    if reader.fieldnames is None or not {"id", "x", "y", "z"} <= set(reader.fieldnames):
-        raise ValueError(f"{source}: header must name at least id,x,y,z")
-    items = []
-    for line, row in enumerate(reader, start=2):
-        rec: dict[str, Any] = {k: v for k, v in row.items() if k in CSV_FIELDS and v != ""}
-        if "locked" in rec:
-            rec["locked"] = str(rec["locked"]).strip().lower() in ("1", "true", "yes")
-        try:
-            items.append(LandmarkCreate.model_validate(rec))
-        except ValidationError as exc:
-            raise ValueError(f"{source} line {line}: {_first_error(exc)}") from None
+    """Parse the CSV export (`id,x,y,z,radio,locked,note`; radio, locked, note optional).
+
+    A leading byte-order mark is skipped. Raises ValueError naming the line and what is
+    wrong: an unknown column, a row with more fields than the header, a field over
+    `csv.field_size_limit()` characters, a line break inside an unquoted field, an ID that
+    is not a plain decimal integer, a bad value.
+    """
+    reader = csv.reader(io.StringIO(text.removeprefix("\ufeff")))
+    try:
+        header = next(reader, None)
+        if header is None or not {"id", "x", "y", "z"} <= set(header):
+            raise ValueError(f"{source}: header must name at least id,x,y,z")
+        unknown = [h for h in header if h not in CSV_FIELDS]
+        if unknown:
+            raise ValueError(
+                f"{source}: header: unknown column {unknown[0]!r} "
+                f"(the columns are {','.join(CSV_FIELDS)})"
+            )
+        items = []
+        for fields in reader:
+            line = reader.line_num
+            if not fields:
+                continue
+            if len(fields) > len(header):
+                raise ValueError(
+                    f"{source} line {line}: {len(fields)} fields, the header names "
+                    f"{len(header)} ({','.join(header)}): quote a value that holds a comma"
+                )
+            rec: dict[str, Any] = {k: v for k, v in zip(header, fields, strict=False) if v != ""}
+            if "id" in rec:
+                rec["id"] = _strict_id(rec["id"], f"{source} line {line}: id")
+            if "locked" in rec:
+                rec["locked"] = str(rec["locked"]).strip().lower() in ("1", "true", "yes")
+            try:
+                items.append(LandmarkCreate.model_validate(rec))
+            except ValidationError as exc:
+                raise ValueError(f"{source} line {line}: {_first_error(exc)}") from None
+    except csv.Error as exc:
+        raise ValueError(f"{source} line {reader.line_num}: {_csv_problem(exc)}") from None
     return items
+
+
+def _strict_id(text: str, where: str) -> int:
+    if not DECIMAL_ID.fullmatch(text):
+        raise ValueError(f"{where}: expected a plain decimal integer, got {text!r}")
+    return int(text)
+
+
+def _csv_problem(exc: csv.Error) -> str:
+    text = str(exc)
+    if "field limit" in text:
+        return f"a field is longer than {csv.field_size_limit()} characters"
+    if "new-line" in text:
+        return "a line break (CR or LF) inside an unquoted field: quote the field"
+    return text
 
 
 def _first_error(exc: ValidationError) -> str:

@@ -3,16 +3,16 @@
 from __future__ import annotations
 
 import asyncio
-import json
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
 from fastapi import APIRouter, Query, Request
 from fastapi.responses import PlainTextResponse
 from pydantic import BaseModel
 
 from server.auth import Admin, Viewer
-from server.crud.landmarks import parse_map_csv, parse_map_json
+from server.crud.landmarks import decode_text, parse_map_csv, parse_map_text
 from server.deps import ServicesDep
+from server.errors import ConflictError
 from server.models import LandmarkCreate, MapDocument
 
 router = APIRouter(prefix="/map", tags=["map"])
@@ -44,20 +44,30 @@ def export_map(
         }
     },
 )
-async def import_map(request: Request, services: ServicesDep, who: Admin) -> ImportResult:
+async def import_map(
+    request: Request,
+    services: ServicesDep,
+    who: Admin,
+    allow_empty: Annotated[
+        bool, Query(description="accept a map without landmarks (empties the site)")
+    ] = False,
+) -> ImportResult:
     """Replace the whole map (one transaction, audited): JSON body, or CSV with
-    `Content-Type: text/csv`."""
+    `Content-Type: text/csv` (UTF-8, a byte-order mark allowed). A map without landmarks is
+    refused (409) unless `?allow_empty=true`."""
     raw = await request.body()
     ctype = request.headers.get("content-type", "application/json").split(";")[0].strip()
-    text = raw.decode("utf-8", errors="strict") if raw else ""
     items: list[LandmarkCreate]
     if ctype == "text/csv":
-        items = parse_map_csv(text, source="map (CSV body)")
+        text = decode_text(raw, source="map (CSV body)")
+        items = await asyncio.to_thread(parse_map_csv, text, source="map (CSV body)")
     else:
-        try:
-            data = json.loads(text)
-        except json.JSONDecodeError as exc:
-            raise ValueError(f"map: body is not JSON: {exc}") from None
-        items = parse_map_json(data, source="map")
+        text = decode_text(raw, source="map")
+        items = await asyncio.to_thread(parse_map_text, text, source="map")
+    if not items and not allow_empty:
+        raise ConflictError(
+            "map: the new map has no landmarks; it would empty the site: send "
+            "?allow_empty=true to do that"
+        )
     count = await asyncio.to_thread(services.map.replace_all, items, actor=who.actor)
     return ImportResult(landmarks=count)
