@@ -161,7 +161,7 @@ async def _healthz(request: Request) -> Health:
     return Health(
         status="ok",
         robots=len(s.robots.names()),
-        landmarks=len(s.map.list()),
+        landmarks=s.map.count(),
         radio="absent" if gw is None else str(gw.transport.state),
     )
 
