@@ -29,8 +29,8 @@ def _decimal_id(value: object) -> object:
 
 LandmarkId = Annotated[
     int,
-    BeforeValidator(_decimal_id),
     Path(ge=0, le=MAX_LANDMARK_ID, description="landmark ID (plain decimal digits)"),
+    BeforeValidator(_decimal_id),
 ]
 RobotName = Annotated[
     str, Path(min_length=1, max_length=64, pattern=r"^[A-Za-z0-9_.-]+$", description="robot")

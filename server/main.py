@@ -13,7 +13,7 @@ from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
 from typing import Any
 
-from fastapi import APIRouter, FastAPI, Request
+from fastapi import APIRouter, Depends, FastAPI, Request
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse, Response
 from pydantic import BaseModel, ValidationError
@@ -27,8 +27,9 @@ from rf_gateway.errors import (
 from server.auth import Viewer, authenticate
 from server.errors import ConflictError, NotFoundError, UnavailableError
 from server.fanout import PoseFanout
-from server.http_errors import install_body_errors
+from server.http_errors import install_body_errors, refuse_unknown_query
 from server.metrics import make_registry, render
+from server.openapi import install_openapi
 from server.routes import admin, calibration, landmarks, map, remote, robots, streams
 from server.services import SiteServices
 from server.settings import Settings
@@ -130,7 +131,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     )
     _install_error_handlers(app)
     install_body_errors(app)
-    api = APIRouter(prefix=API_PREFIX)
+    api = APIRouter(prefix=API_PREFIX, dependencies=[Depends(refuse_unknown_query)])
     for module in (landmarks, map, robots, calibration, remote, admin, streams):
         api.include_router(module.router)
     api.add_api_route(
@@ -151,6 +152,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         include_in_schema=False,
     )
     _include_viewer_router(app)
+    install_openapi(app)
     return app
 
 

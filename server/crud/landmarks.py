@@ -379,6 +379,9 @@ def parse_map_csv(text: str, *, source: str = "map.csv") -> builtins.list[Landma
             rec: dict[str, Any] = {k: v for k, v in zip(header, fields, strict=False) if v != ""}
             if "id" in rec:
                 rec["id"] = _strict_id(rec["id"], f"{source} line {line}: id")
+            for key in ("x", "y", "z"):
+                if key in rec:
+                    rec[key] = _number(rec[key], f"{source} line {line}: {key}")
             if "locked" in rec:
                 rec["locked"] = str(rec["locked"]).strip().lower() in ("1", "true", "yes")
             try:
@@ -394,6 +397,13 @@ def _strict_id(text: str, where: str) -> int:
     if not DECIMAL_ID.fullmatch(text):
         raise ValueError(f"{where}: expected a plain decimal integer, got {text!r}")
     return int(text)
+
+
+def _number(text: str, where: str) -> float:
+    try:
+        return float(text)
+    except ValueError:
+        raise ValueError(f"{where}: expected a number of metres, got {text!r}") from None
 
 
 def _csv_problem(exc: csv.Error) -> str:

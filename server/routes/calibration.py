@@ -6,6 +6,7 @@ import asyncio
 from typing import Annotated, Any, Literal
 
 from fastapi import APIRouter, File, Form, Request, UploadFile
+from pydantic.json_schema import SkipJsonSchema
 
 from calibration.board import BoardSpec, parse_pattern
 from calibration.lens import LensCalibrationConfig
@@ -32,8 +33,13 @@ async def calibrate_lens_upload(
     pattern: Annotated[str, Form(description="inner corners, columns x rows")] = "9x6",
     square_m: Annotated[float, Form(gt=0, le=1, description="square side, metres")] = 0.025,
     model: Annotated[Literal["pinhole", "fisheye"], Form()] = "pinhole",
-    charuco_dictionary: Annotated[str | None, Form(description="e.g. DICT_5X5_100")] = None,
-    marker_m: Annotated[float | None, Form(gt=0, le=1)] = None,
+    charuco_dictionary: Annotated[
+        str | SkipJsonSchema[None],
+        Form(description="a ChArUco board's dictionary, e.g. DICT_5X5_100 (leave out: chessboard)"),
+    ] = None,
+    marker_m: Annotated[
+        float | SkipJsonSchema[None], Form(gt=0, le=1, description="ChArUco marker side, metres")
+    ] = None,
     min_views: Annotated[int, Form(ge=3, le=MAX_FILES)] = 5,
     store: Annotated[bool, Form(description="save the result with the robot")] = True,
 ) -> dict[str, Any]:

@@ -22,7 +22,11 @@ class ImportResult(BaseModel):
     landmarks: int
 
 
-@router.get("", response_model=MapDocument)
+@router.get(
+    "",
+    response_model=MapDocument,
+    responses={200: {"content": {"text/csv": {"schema": {"type": "string"}}}}},
+)
 def export_map(
     services: ServicesDep, _: Viewer, format: Literal["json", "csv"] = Query("json")
 ) -> Any:
@@ -37,7 +41,7 @@ def export_map(
     openapi_extra={
         "requestBody": {
             "content": {
-                "application/json": {"schema": MapDocument.model_json_schema()},
+                "application/json": {"schema": {"$ref": "#/components/schemas/MapDocument"}},
                 "text/csv": {"schema": {"type": "string"}},
             },
             "required": True,

@@ -46,7 +46,7 @@ def test_malformed_maps_are_4xx_naming_the_problem(
     assert _count(mapped) == 1  # the map is untouched
 
 
-@pytest.mark.parametrize("value", [True, "1", "1_000", 100.0, 1.5, "+100", None, [1]], ids=repr)
+@pytest.mark.parametrize("value", [True, "1", "1_000", 1.5, "+100", None, [1]], ids=repr)
 def test_landmark_ids_must_be_json_integers(api: Api, value: object) -> None:
     r = api.client.post("/api/v1/landmarks", json={**LM, "id": value}, headers=api.h("admin"))
     assert r.status_code == 422, (value, r.text)
