@@ -2,7 +2,8 @@
 landmark moved in the map is doubted.
 
 Runs the API app with the `demo` virtual site in-process (real localizers, gateway and
-simulated radio), reads the viewer's doubted landmarks (`SiteAdapter.to_identify`) every
+simulated radio), reads the doubted landmarks (`services.commissioning`, as `GET
+/api/v1/commissioning/doubts` and the viewer do) every
 0.5 s for `--seconds` from the start, prints each landmark that becomes doubted with the
 simulator's true LED brightness (0: its LED died: a true doubt), then moves the landmark
 nearest robot r2's whole patrol `--move-m` metres in the map and prints how long it took to
@@ -20,13 +21,13 @@ import tempfile
 import time
 from pathlib import Path
 
+from server.commissioning_service import Commissioning
 from server.models import LandmarkUpdate
 from tests.web.conftest import landmark_always_in_view, running_site
-from web.adapter import SiteAdapter
 
 
-def doubted(site: SiteAdapter) -> dict[int, str]:
-    return {c.landmark_id: c.reason for c in site.to_identify()}
+def doubted(site: Commissioning) -> dict[int, str]:
+    return {lid: d.reason for lid, d in site.doubted().items()}
 
 
 def main() -> None:
@@ -38,35 +39,32 @@ def main() -> None:
     args = ap.parse_args()
     with running_site(Path(tempfile.mkdtemp()), seed=args.seed) as (app, _port):
         services = app.state.services
-        site = SiteAdapter(services)
-        try:
-            start = time.monotonic()
-            first: dict[int, float] = {}
-            while time.monotonic() - start < args.seconds:
-                time.sleep(0.5)
-                for lid, why in doubted(site).items():
-                    if lid not in first:
-                        first[lid] = time.monotonic() - start
-                        bright = services.sim.world.landmarks[lid].battery.led_brightness()
-                        print(f"t={first[lid]:5.1f} s landmark {lid} doubted: {why} "
-                              f"(true LED brightness {bright:.2f})")  # fmt: skip
-            print(f"seed {args.seed}: {args.seconds:.0f} s, {len(first)} landmarks doubted")
-            if args.move_m <= 0:
+        site = services.commissioning
+        start = time.monotonic()
+        first: dict[int, float] = {}
+        while time.monotonic() - start < args.seconds:
+            time.sleep(0.5)
+            for lid, why in doubted(site).items():
+                if lid not in first:
+                    first[lid] = time.monotonic() - start
+                    bright = services.sim.world.landmarks[lid].battery.led_brightness()
+                    print(f"t={first[lid]:5.1f} s landmark {lid} doubted: {why} "
+                          f"(true LED brightness {bright:.2f})")  # fmt: skip
+        print(f"seed {args.seed}: {args.seconds:.0f} s, {len(first)} landmarks doubted")
+        if args.move_m <= 0:
+            return
+        lid = landmark_always_in_view(services, "r2")
+        lm = services.map.get(lid)
+        services.map.update(lid, LandmarkUpdate(y=lm.y + args.move_m), actor="bench")
+        moved = time.monotonic()
+        while time.monotonic() - moved < args.timeout:
+            time.sleep(0.5)
+            if lid in doubted(site):
+                print(f"landmark {lid} moved {args.move_m} m in the map: doubted after "
+                      f"{time.monotonic() - moved:.1f} s")  # fmt: skip
                 return
-            lid = landmark_always_in_view(services, "r2")
-            lm = services.map.get(lid)
-            services.map.update(lid, LandmarkUpdate(y=lm.y + args.move_m), actor="bench")
-            moved = time.monotonic()
-            while time.monotonic() - moved < args.timeout:
-                time.sleep(0.5)
-                if lid in doubted(site):
-                    print(f"landmark {lid} moved {args.move_m} m in the map: doubted after "
-                          f"{time.monotonic() - moved:.1f} s")  # fmt: skip
-                    return
-            print(f"landmark {lid} moved {args.move_m} m: not doubted in {args.timeout} s "
-                  f"({site.doubt(lid)})")  # fmt: skip
-        finally:
-            site.close()
+        print(f"landmark {lid} moved {args.move_m} m: not doubted in {args.timeout} s "
+              f"({site.doubt(lid)})")  # fmt: skip
 
 
 if __name__ == "__main__":

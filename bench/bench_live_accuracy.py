@@ -31,7 +31,7 @@ async def run(duration_s: float, seed: int = 0) -> None:
     await services.start()
     sim = services.sim
     assert sim is not None
-    sub = services.subscribe_poses(maxsize=100_000)
+    sub = services.robots.subscribe_poses(maxsize=100_000)
     updates: list[PoseUpdate] = []
     truths: dict[tuple[str, int], tuple[float, float, float] | None] = {}
     t_start = services.clock_ns()

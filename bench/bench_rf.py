@@ -78,7 +78,7 @@ async def bench_light_only(gw: Gateway, sweeps: int) -> tuple[list[float], float
         k = ids[s % len(ids)]
         t0 = time.perf_counter()
         task = asyncio.create_task(gw.set_leds([k]))
-        event = await sub.get()
+        event = await sub.next()
         latencies.append(time.perf_counter() - t0)
         await task
         if event.lit != frozenset({k}):

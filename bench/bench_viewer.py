@@ -30,14 +30,15 @@ import numpy as np
 
 from localizer.events import PoseEstimate
 from sim.cameras import wide_angle_camera
-from web.services import CameraView, Candidate, EventLine, FramePose, LandmarkState, RobotState
-from web.viewer import Viewer
+from web.services import CameraView, Candidate, EventLine, LandmarkState, RobotState
+from web.viewer import SiteViewer
 
 CHROMIUM = "/usr/bin/chromium"
 
 
 class SyntheticSite:
-    """A read-only `ViewerSite`: a 6x5 landmark grid 1.2 m apart, 3 robots on circles."""
+    """A read-only `ViewerSite` for viewer-role clients (no actions, no wizard): a 6x5
+    landmark grid 1.2 m apart, 3 robots on circles."""
 
     def __init__(self) -> None:
         self.camera = wide_angle_camera("fisheye")
@@ -78,12 +79,6 @@ class SyntheticSite:
 
     def to_identify(self, *, discover: bool = False) -> list[Candidate]:
         return []
-
-    def pose_at(self, robot: str, t_ns: int) -> FramePose | None:
-        return None
-
-    def hold_leds(self, held: bool) -> None:
-        pass
 
 
 async def _clients(port: int, n: int, seconds: float) -> list[int]:
@@ -133,7 +128,7 @@ def _browsers(port: int, n: int, seconds: float) -> None:
 
 
 def measure(
-    viewer: Viewer, n_clients: int, seconds: float, *, browsers: bool = False
+    viewer: SiteViewer, n_clients: int, seconds: float, *, browsers: bool = False
 ) -> dict[str, float]:
     proc = None
     if n_clients:
@@ -172,7 +167,7 @@ def main(argv: list[str] | None = None) -> int:
     ns = p.parse_args(args)
     if ns.browsers and not os.path.exists(CHROMIUM):
         p.error(f"--browsers needs Debian's chromium at {CHROMIUM} (apt-get install chromium)")
-    viewer = Viewer(SyntheticSite())
+    viewer = SiteViewer(SyntheticSite())
     viewer.start()
     try:
         time.sleep(2.0)

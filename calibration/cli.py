@@ -11,15 +11,14 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import sys
-import tempfile
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import yaml
 
+from calibration.atomic import write_atomic
 from calibration.board import BoardSpec, parse_pattern
 from calibration.lens import LENS_MODELS, LensCalibrationConfig
 from calibration.uploads import calibrate_from_uploads, image_paths
@@ -83,19 +82,6 @@ def _progress(total: int) -> tuple[Callable[[int, int], None] | None, Callable[[
         bar.refresh()
 
     return update, bar.close
-
-
-def write_atomic(path: Path, text: str) -> None:
-    """Write `text` to `path` via a temporary file in the same folder, then rename."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as f:
-            f.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
 
 
 def run(args: argparse.Namespace) -> str:

@@ -1,6 +1,6 @@
 """`irloc calibrate mounting RECORDING --out sensor.yaml`: the mounting from a recording.
 
-The recording (`../shared/contracts/recording.md`) must hold, in this order: the start-up
+The recording (docs/recording.md) must hold, in this order: the start-up
 identification sweep (one landmark lit at a time, robot standing still), then a turn in
 place and a straight drive with the landmarks lit. Its `cam0/sensor.yaml` gives the lens;
 its `T_BS` is what gets replaced.
@@ -21,7 +21,7 @@ import cv2
 import numpy as np
 import yaml
 
-from calibration.cli import write_atomic
+from calibration.atomic import write_atomic
 from calibration.identify import identify_spots
 from calibration.mounting import FloatArray, MountingCalibration, mounting_from_observations
 from localizer.camera import sensor_from_camera

@@ -12,13 +12,15 @@ import sys
 # subcommand -> (module, function, one-line help)
 SUBCOMMANDS: dict[str, tuple[str, str, str]] = {
     "serve": (
-        "server.cli",
+        "irloc.serve",
         "main",
         "run the server (API + viewer) on the simulated site or hardware",
     ),
+    "agent": ("agent.cli", "main", "the on-robot localizer talking MQTT to the site"),
     "simulate": ("sim.cli", "main", "write a recording of a simulated scenario"),
     "replay": ("recording.replay_cli", "main", "localize a recording and write poses.csv"),
     "calibrate": ("calibration.cli", "main", "calibrate the lens from chessboard photos"),
+    "survey": ("survey.cli", "main", "locate every landmark from a survey drive's recording"),
     "keys": ("server.keys_cli", "main", "manage API keys"),
 }
 

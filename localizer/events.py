@@ -100,7 +100,13 @@ class PoseEstimate:
         covariance: of (x, y, theta), shape (3, 3), SI units.
         mode: the localizer's mode when this estimate was made.
         landmark_ids: the landmarks whose spots were used in this frame (empty in dead
-            reckoning).
+            reckoning); a subset of `expected_ids` while tracking (a first fix from
+            identification may use landmarks it did not predict).
+        expected_ids: the landmarks the localizer expected in view and lit at this frame:
+            those it predicted inside the image (from the pose before this frame's fix) among
+            the ones surely lit (not being switched), sorted. Empty when it predicted none
+            (identifying, lost without a prior). Expected but not in `landmark_ids`: looked
+            for and not found, or found and not used (doubt detection reads this).
     """
 
     t_ns: int
@@ -110,6 +116,7 @@ class PoseEstimate:
     covariance: npt.NDArray[np.float64]
     mode: Mode
     landmark_ids: tuple[int, ...] = ()
+    expected_ids: tuple[int, ...] = ()
 
 
 @dataclass(frozen=True)

@@ -56,10 +56,12 @@ class TrackResult(NamedTuple):
         used: IDs of the landmarks whose fix was fused (empty: none).
         unexplained: spots were seen while 2+ landmarks were predicted, and no fix was
             fused (the localizer counts these toward getting lost).
+        expected: IDs of the lit landmarks predicted inside the image, sorted.
     """
 
     used: tuple[int, ...] = ()
     unexplained: bool = False
+    expected: tuple[int, ...] = ()
 
 
 _NOTHING = TrackResult()
@@ -148,6 +150,7 @@ class LandmarkTracker:
         )
         if len(pred) == 0:
             return _NOTHING
+        expected = tuple(sorted(self._ids[r] for r in pred.row_list))
         tc = self.config.tracking
         dt_free = dt_frame_s * (tc.odometry_speed_fraction if fresh_odometry else 1.0)
         px = pred.pixel_list
@@ -176,7 +179,7 @@ class LandmarkTracker:
             spots = self.full_spots(e) if spots is None else spots
             spot_px = spots.pixels.tolist()
         if not spot_px:
-            return _NOTHING
+            return TrackResult(expected=expected)
         if reacquire and spots is not None:  # (reacquiring always detects the full frame)
             pairs = self._reacquire(pred, spots, gates, pose, cov)
         else:
@@ -184,7 +187,7 @@ class LandmarkTracker:
             rows = pred.row_list
             pairs = [(rows[k], s) for k, s in bottleneck_assignment(d, gates)]
         used = self._fuse(filt, pairs, spot_px, pose) if len(pairs) >= 2 else ()
-        return TrackResult(used, unexplained=not used and len(pred) >= 2)
+        return TrackResult(used, unexplained=not used and len(pred) >= 2, expected=expected)
 
     def _reacquire(
         self,

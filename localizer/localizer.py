@@ -83,6 +83,7 @@ class Localizer:
         self._changing: frozenset[int] = frozenset()  # LEDs being switched (state unknown)
         self._odometry = OdometryTrack(self.robot.wheel_base, self.config.fusion.odometry_history_s)
         self._t_frame: int | None = None
+        self._expected: tuple[int, ...] = ()  # lit landmarks predicted in view, this frame
         self._rejections = 0  # frames in a row whose spots no fused fix explained
         self._last_request: LedRequest | None = None
         self._want_all = False
@@ -132,6 +133,7 @@ class Localizer:
     def skip_frame(self, t_ns: int) -> PoseEstimate | NoPose:
         """A frame that could not be read: the pose at `t_ns` from odometry alone."""
         self._advance(t_ns, *self._odometry.speeds)
+        self._expected = ()
         if self._filter is not None and self._mode == "landmark":
             self._mode = "dead_reckoning"
         return self._output(t_ns, ())
@@ -204,6 +206,7 @@ class Localizer:
         self._t_frame = t
         self._odometry.mark(t)
         used: tuple[int, ...] = ()
+        self._expected = ()
         if self._filter is None or self._mode in ("identifying", "lost"):
             spots = self._tracker.full_spots(e)
             self._identifier.observe(t, self._known_lit(), spots.pixels, spots.intensities)
@@ -247,6 +250,7 @@ class Localizer:
             spots=spots,
             reacquire=reacquire,
         )
+        self._expected = result.expected
         if result.used:
             self._rejections = 0
         elif result.unexplained:
@@ -352,6 +356,7 @@ class Localizer:
             covariance=self._filter.covariance,
             mode=self._mode,
             landmark_ids=used,
+            expected_ids=self._expected,
         )
         self._latest = est
         return est

@@ -1,4 +1,4 @@
-"""File names and CSV headers of a recording (`../shared/contracts/recording.md`), shared by
+"""File names and CSV headers of a recording (docs/recording.md), shared by
 the reader and the writer.
 """
 

@@ -1,4 +1,4 @@
-"""Read a recording folder (`../shared/contracts/recording.md`) into arrays and events.
+"""Read a recording folder (docs/recording.md) into arrays and events.
 
 Nothing here decodes PNGs: frames are listed as `FrameEntry` (time, path, line of
 `cam0/data.csv`) and the caller decodes them when it gets there, so a long recording costs

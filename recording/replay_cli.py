@@ -1,6 +1,6 @@
 """`irloc replay REC --out poses.csv`: run the localizer over a recording.
 
-Reads the recording (`../shared/contracts/recording.md`), feeds odometry, LED changes and
+Reads the recording (docs/recording.md), feeds odometry, LED changes and
 decoded frames to `localizer.Localizer` in time order (its LED requests are ignored: the LED
 states come from `leds.csv`) and writes one row per listed frame:
 

@@ -1,4 +1,4 @@
-"""Write a recording folder (`../shared/contracts/recording.md`): the simulator's output and
+"""Write a recording folder (docs/recording.md): the simulator's output and
 the live recorder's.
 
 The static files (map.json, robot.yaml, cam0/sensor.yaml) are written when the writer is

@@ -28,6 +28,7 @@ from functools import partial
 from typing import TypeVar
 
 from localizer.events import LedsChanged
+from pubsub.bus import Bus, Subscription
 from rf_gateway.battery import BatteryHistory, BatteryReading, read_all
 from rf_gateway.config import GatewayConfig, GatewayStats
 from rf_gateway.errors import (
@@ -45,7 +46,6 @@ from rf_gateway.events import (
     TransportStateChanged,
 )
 from rf_gateway.scheduler import Priority, PrioritySlots
-from rf_gateway.subscription import Hub, Subscription
 from rf_gateway.transport import (
     DiscoveredRadio,
     Transport,
@@ -93,9 +93,10 @@ class Gateway:
         self._failures: dict[int, int] = {}
         self._unreachable: set[int] = set()
         self._sweep_lock = asyncio.Lock()
-        self._leds_hub: Hub[LedsChanged] = Hub(self.config.subscriber_queue)
+        self._leds_hub: Bus[LedsChanged] = Bus(self.config.subscriber_queue)
         self._led_listeners: list[Callable[[LedsChanged], None]] = []
-        self._events_hub: Hub[GatewayEvent] = Hub(self.config.subscriber_queue)
+        self._battery_listeners: list[Callable[[BatteryReading], None]] = []
+        self._events_hub: Bus[GatewayEvent] = Bus(self.config.subscriber_queue)
         self._last_leds: LedsChanged | None = None
         self._battery_task: asyncio.Task[None] | None = None
         self._start_task: asyncio.Task[None] | None = None
@@ -179,7 +180,7 @@ class Gateway:
     # -- subscriptions ---------------------------------------------------------------------
     def subscribe(self) -> Subscription[LedsChanged]:
         """LED state events for one consumer; the current state (if any) comes first."""
-        return self._leds_hub.subscribe(self._last_leds)
+        return self._leds_hub.subscribe(initial=self._last_leds)
 
     def add_led_listener(self, listener: Callable[[LedsChanged], None]) -> None:
         """Call `listener` with every LED state synchronously, as it is published (before
@@ -190,6 +191,15 @@ class Gateway:
     def remove_led_listener(self, listener: Callable[[LedsChanged], None]) -> None:
         with contextlib.suppress(ValueError):
             self._led_listeners.remove(listener)
+
+    def add_battery_listener(self, listener: Callable[[BatteryReading], None]) -> None:
+        """Call `listener` with every supply reading (scheduled or asked for) synchronously,
+        before `battery` returns it: e.g. to store it."""
+        self._battery_listeners.append(listener)
+
+    def remove_battery_listener(self, listener: Callable[[BatteryReading], None]) -> None:
+        with contextlib.suppress(ValueError):
+            self._battery_listeners.remove(listener)
 
     def subscribe_events(self) -> Subscription[GatewayEvent]:
         """Gateway events: unreachable/reachable landmarks, low battery, transport state."""
@@ -384,13 +394,16 @@ class Gateway:
 
     # -- battery and discovery ----------------------------------------------------------------
     async def battery(self, landmark_id: int) -> BatteryReading:
-        """Read one landmark's supply now (battery-poll priority), record it, and raise a
-        LowBattery event at or below the threshold; raises as `set_leds`."""
+        """Read one landmark's supply now (battery-poll priority), record it, tell the
+        battery listeners, and raise a LowBattery event at or below the threshold; raises
+        as `set_leds`."""
         address = self.address_of(landmark_id)
         mv = await self._command(
             landmark_id, Priority.BATTERY, lambda: self.transport.read_supply_mv(address)
         )
         reading = self.batteries.add(landmark_id, self.clock_ns(), int(mv))
+        for listener in list(self._battery_listeners):
+            listener(reading)
         if self.batteries.became_low(reading):
             event = LowBattery(reading.t_ns, landmark_id, reading.supply_mv, reading.days_left)
             self._events_hub.publish(event)

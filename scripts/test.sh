@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Set everything up and run the test suite. Extra arguments go to pytest.
-# The browser tests need Debian's Chromium and the PostgreSQL tests Debian's PostgreSQL server
-# binaries: as root with apt available (CI) they are installed here; elsewhere those tests are
+# The browser tests need Debian's Chromium, the PostgreSQL tests Debian's PostgreSQL server
+# binaries and the fleet tests Debian's Mosquitto broker: as root with apt available (CI) they are installed here; elsewhere those tests are
 # skipped with a message saying how to install them.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -16,6 +16,15 @@ if ! ls /usr/lib/postgresql/*/bin/initdb >/dev/null 2>&1 && [ "$(id -u)" = 0 ] &
   (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq postgresql >/dev/null) \
     || echo "warning: could not install postgresql; PostgreSQL tests will be skipped" >&2
 fi
+if ! command -v mosquitto >/dev/null 2>&1 && [ ! -x /usr/sbin/mosquitto ] && [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then
+  echo "installing Debian's mosquitto for the fleet (MQTT) tests..."
+  (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq mosquitto >/dev/null) \
+    || echo "warning: could not install mosquitto; fleet tests will be skipped" >&2
+fi
+echo "checking the layering (import-linter contracts in pyproject.toml)..."
+PYTHONPATH="$PWD" .venv/bin/lint-imports
+echo "type-checking every package (mypy strict)..."
+.venv/bin/mypy pubsub localizer sim recording rf_gateway calibration commissioning server web irloc fleet agent survey
 set +e
 .venv/bin/python -m pytest "$@"
 status=$?

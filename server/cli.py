@@ -8,12 +8,17 @@ from __future__ import annotations
 import argparse
 import ipaddress
 import sys
+from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from pydantic import ValidationError
 
 from server.logs import configure_logging
 from server.settings import Settings
+
+if TYPE_CHECKING:
+    from server.seams import ViewerApp
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -29,6 +34,10 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--scenario", help="virtual site scenario name or file (default demo)")
     p.add_argument("--seed", type=int, help="virtual site seed")
     p.add_argument("--no-viewer", action="store_true", help="do not start the viewer")
+    p.add_argument("--mqtt", help="the site's MQTT broker, mqtt://HOST[:PORT]: robot agents")
+    p.add_argument(
+        "--no-sim-robots", action="store_true", help="the virtual site's robots are not run here"
+    )
     p.add_argument("--log-level", default="info", choices=["debug", "info", "warning", "error"])
     p.add_argument(
         "--log-format",
@@ -47,7 +56,11 @@ def is_loopback(host: str) -> bool:
         return False
 
 
-def main(argv: list[str] | None = None) -> int:
+def main(
+    argv: list[str] | None = None, make_viewer: Callable[[Settings], ViewerApp | None] | None = None
+) -> int:
+    """`irloc serve`; `make_viewer(settings)` builds the viewer to serve (irloc/serve.py
+    hands in `web.viewer.Viewer`; without it the API runs alone)."""
     args = _parser().parse_args(sys.argv[1:] if argv is None else argv)
     overrides = {
         k: v
@@ -61,11 +74,14 @@ def main(argv: list[str] | None = None) -> int:
             "scenario": args.scenario,
             "seed": args.seed,
             "log_format": args.log_format,
+            "mqtt_url": args.mqtt,
         }.items()
         if v is not None
     }
     if args.no_viewer:
         overrides["viewer_enabled"] = False
+    if args.no_sim_robots:
+        overrides["sim_robots"] = False
     try:
         settings = Settings(**overrides)
     except (ValidationError, ValueError) as exc:
@@ -77,29 +93,31 @@ def main(argv: list[str] | None = None) -> int:
     configure_logging(args.log_level, settings.log_format)
     import uvicorn
 
-    from server.crud.keys import KeyStore
-    from server.db import make_engine, migrate
+    from server.db import make_engine
     from server.main import create_app
+    from server.services import prepare_database
 
     engine = make_engine(settings.db_url)
-    migrate(engine)
-    first_key = KeyStore(engine).ensure_admin()
+    first_key = prepare_database(engine)
     engine.dispose()
+    viewer = make_viewer(settings) if make_viewer is not None else None
     base = f"http://{settings.host}:{settings.port}"
     print(f"irloc: data in {settings.data_dir}")
     print(f"irloc: API docs  {base}/docs")
-    if settings.viewer_enabled:
+    if viewer is not None:
         print(f"irloc: viewer    {base}/viewer/?token=<key>")
     if not is_loopback(settings.host):
         print(
             f"irloc: the API listens on {settings.host}, beyond this machine: every endpoint "
             "and the viewer need an API key; viser itself stays on 127.0.0.1"
         )
+    if settings.mqtt_url:
+        print(f"irloc: fleet     {settings.mqtt_url} (site {settings.mqtt_site!r})")
     if first_key is not None:
         print(f"irloc: first admin API key (shown once, store it): {first_key}")
     sys.stdout.flush()
     config = uvicorn.Config(
-        create_app(settings),
+        create_app(settings, viewer),
         host=settings.host,
         port=settings.port,
         workers=1,

@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 from datetime import datetime
 from typing import Any
 
-from server.bus import Bus
+from pubsub.bus import Bus
 from server.crud.log import EventLog
 
 EVENT_KINDS = (
@@ -24,9 +24,17 @@ EVENT_KINDS = (
     "led_request_failed",
     "robot_connected",
     "robot_disconnected",
+    "clock_offset",
 )
 WARNING_EVENTS = frozenset(
-    {"low_battery", "landmark_unreachable", "robot_lost", "led_request_failed", "radio_state"}
+    {
+        "low_battery",
+        "landmark_unreachable",
+        "robot_lost",
+        "led_request_failed",
+        "radio_state",
+        "clock_offset",
+    }
 )
 """Kinds logged as warnings (the others as info)."""
 log = logging.getLogger(__name__)

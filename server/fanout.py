@@ -16,7 +16,7 @@ import logging
 from collections import deque
 from collections.abc import Iterable
 
-from server.bus import Bus, Subscription
+from pubsub.bus import Bus, Subscription
 from server.poses import PoseUpdate
 
 log = logging.getLogger(__name__)

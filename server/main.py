@@ -1,17 +1,17 @@
-"""The app factory: `create_app(settings) -> FastAPI`. Nothing is built at import time.
+"""The app factory: `create_app(settings, viewer) -> FastAPI`. Nothing is built at import time.
 
 The lifespan builds `SiteServices` (database, migrations, first admin key), starts the live
-site (radio, robots, clock) and the viewer, and stops them in reverse order on shutdown.
+site (radio, robots, clock), commissioning and the viewer it was handed (a
+`server.seams.ViewerApp`; `irloc serve` builds `web.viewer.Viewer`: the server never imports
+the viewer), and stops them in reverse order on shutdown.
 """
 
 from __future__ import annotations
 
 import asyncio
-import importlib.util
 import logging
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
-from typing import Any
 
 from fastapi import APIRouter, Depends, FastAPI, Request
 from fastapi.exceptions import RequestValidationError
@@ -29,8 +29,19 @@ from server.errors import ConflictError, NotFoundError, UnavailableError
 from server.fanout import PoseFanout
 from server.http_errors import install_body_errors, refuse_unknown_query
 from server.metrics import make_registry, render
+from server.mqtt_bridge import start_mqtt_bridge
 from server.openapi import install_openapi
-from server.routes import admin, calibration, landmarks, map, remote, robots, streams
+from server.routes import (
+    admin,
+    calibration,
+    commissioning,
+    landmarks,
+    map,
+    remote,
+    robots,
+    streams,
+)
+from server.seams import ViewerApp
 from server.services import SiteServices
 from server.settings import Settings
 
@@ -93,8 +104,9 @@ def _install_error_handlers(app: FastAPI) -> None:
     app.add_exception_handler(RequestValidationError, bad_request)
 
 
-def create_app(settings: Settings | None = None) -> FastAPI:
-    """The irloc API for `settings` (defaults: environment / settings file)."""
+def create_app(settings: Settings | None = None, viewer: ViewerApp | None = None) -> FastAPI:
+    """The irloc API for `settings` (defaults: environment / settings file), serving
+    `viewer` under `/viewer/` when one is given."""
     settings = settings or Settings()
 
     @asynccontextmanager
@@ -109,11 +121,15 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         fanout.start()
         app.state.pose_fanout = fanout
         collector.fanout = fanout
-        viewer = await asyncio.to_thread(_start_viewer, services, settings)
+        if viewer is not None:
+            await asyncio.to_thread(viewer.start, services)
         app.state.viewer = viewer
+        app.state.mqtt_bridge = await start_mqtt_bridge(services)
         try:
             yield
         finally:
+            if app.state.mqtt_bridge is not None:
+                await app.state.mqtt_bridge.stop()
             if viewer is not None:
                 try:
                     # off the loop: the viewer may wait on coroutines it submits to it
@@ -132,7 +148,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     _install_error_handlers(app)
     install_body_errors(app)
     api = APIRouter(prefix=API_PREFIX, dependencies=[Depends(refuse_unknown_query)])
-    for module in (landmarks, map, robots, calibration, remote, admin, streams):
+    for module in (landmarks, map, robots, calibration, remote, admin, streams, commissioning):
         api.include_router(module.router)
     api.add_api_route(
         "/metrics",
@@ -151,7 +167,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         tags=["operations"],
         include_in_schema=False,
     )
-    _include_viewer_router(app)
+    if viewer is not None:
+        app.include_router(viewer.router(authenticate))
     install_openapi(app)
     return app
 
@@ -159,12 +176,11 @@ def create_app(settings: Settings | None = None) -> FastAPI:
 async def _healthz(request: Request) -> Health:
     """Liveness (no key needed)."""
     s: SiteServices = request.app.state.services
-    gw = s.gateway
     return Health(
         status="ok",
         robots=len(s.robots.names()),
         landmarks=s.map.count(),
-        radio="absent" if gw is None else str(gw.transport.state),
+        radio=s.leds.radio_state,
     )
 
 
@@ -172,22 +188,3 @@ async def _metrics(request: Request, _: Viewer) -> Response:
     return Response(
         render(request.app.state.metrics_registry), media_type="text/plain; version=0.0.4"
     )
-
-
-def _start_viewer(services: SiteServices, settings: Settings) -> Any:
-    if not settings.viewer_enabled or importlib.util.find_spec("web.viewer") is None:
-        return None
-    from web.viewer import Viewer as SiteViewer
-
-    viewer = SiteViewer(services, host="127.0.0.1", port=settings.viewer_port)
-    viewer.start()
-    return viewer
-
-
-def _include_viewer_router(app: FastAPI) -> None:
-    """Serve the viewer under `/viewer/` behind the key check when `web.proxy` exists."""
-    if importlib.util.find_spec("web.proxy") is None:
-        return
-    from web.proxy import viewer_router
-
-    app.include_router(viewer_router(lambda: getattr(app.state, "viewer", None), authenticate))

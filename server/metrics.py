@@ -57,7 +57,7 @@ class SiteCollector(Collector):
                 "poses dropped for WebSocket clients that fell behind",
                 value=fan.dropped_poses,
             )
-        gw = s.gateway
+        gw = s.leds.gateway
         if gw is not None:
             yield CounterMetricFamily(
                 "irloc_radio_commands", "radio commands sent", value=gw.stats.commands
@@ -71,19 +71,20 @@ class SiteCollector(Collector):
             yield GaugeMetricFamily(
                 "irloc_landmarks_unreachable", "unreachable landmarks", value=len(gw.unreachable)
             )
-        site = s.site
+        site = s.live
         wheel_lines = CounterMetricFamily(
             "irloc_wheel_lines", "serial wheel-speed lines fed to robots", labels=["robot"]
         )
         wheel_bad = CounterMetricFamily(
             "irloc_wheel_bad_lines", "serial wheel-speed lines skipped", labels=["robot"]
         )
-        for name, src in sorted(getattr(site, "wheels", {}).items()):
+        for name, src in sorted((site.wheels if site is not None else {}).items()):
             wheel_lines.add_metric([name], src.lines)
             wheel_bad.add_metric([name], src.bad_lines)
         yield wheel_lines
         yield wheel_bad
-        waiting = 0 if site is None or site.leds is None else site.leds.waiting
+        coordinator = s.leds.coordinator
+        waiting = 0 if coordinator is None else coordinator.waiting
         yield GaugeMetricFamily("irloc_radio_queue", "LED requests waiting", value=waiting)
         http = CounterMetricFamily("irloc_http_errors", "HTTP error answers", labels=["status"])
         for code, n in sorted(self.http_errors.items()):

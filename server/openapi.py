@@ -45,6 +45,13 @@ OPERATION_IDS: dict[str, str] = {
     "event_stream": "stream_events",
     "_metrics": "get_metrics",
     "_healthz": "get_health",
+    "list_doubts": "list_landmark_doubts",
+    "wizard_status": "get_wizard_status",
+    "wizard_start": "start_wizard",
+    "wizard_confirm": "confirm_wizard_measurement",
+    "wizard_skip": "skip_wizard_landmark",
+    "wizard_switch_anyway": "switch_wizard_leds_anyway",
+    "wizard_cancel": "cancel_wizard",
 }
 """Route function name -> operation id, where the function's own name does not say it."""
 RENAMED_SCHEMAS = {

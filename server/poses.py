@@ -26,6 +26,8 @@ class PoseUpdate:
         x, y, theta: metres, metres, radians (REP-103); None while there is no pose.
         covariance: of (x, y, theta), shape (3, 3), or None.
         landmark_ids: landmarks used in this frame.
+        expected_ids: the lit landmarks the localizer expected in view at this frame
+            (`PoseEstimate.expected_ids`; read by doubt detection, not sent by the API).
         computed_wall_ns: wall clock (`time.time_ns`) when the pose was computed, for ages
             and latency measurements.
     """
@@ -39,6 +41,7 @@ class PoseUpdate:
     covariance: npt.NDArray[np.float64] | None = None
     landmark_ids: tuple[int, ...] = ()
     computed_wall_ns: int = field(default_factory=time.time_ns)
+    expected_ids: tuple[int, ...] = ()
 
     @classmethod
     def from_estimate(cls, robot: str, est: PoseEstimate) -> PoseUpdate:
@@ -51,7 +54,18 @@ class PoseUpdate:
             float(est.theta),
             np.asarray(est.covariance, dtype=np.float64),
             tuple(est.landmark_ids),
+            expected_ids=tuple(est.expected_ids),
         )
+
+    def estimate(self) -> PoseEstimate | None:
+        """This update as the localizer's estimate; None when it carries no pose."""
+        if self.x is None or self.y is None or self.theta is None:
+            return None
+        cov = np.zeros((3, 3)) if self.covariance is None else self.covariance
+        return PoseEstimate(
+            self.t_ns, self.x, self.y, self.theta, cov, self.mode, self.landmark_ids,
+            self.expected_ids,
+        )  # fmt: skip
 
     def to_dict(self) -> dict[str, Any]:
         cov = None if self.covariance is None else self.covariance.tolist()

@@ -66,6 +66,11 @@ class Settings(BaseSettings):
         serial_robot: the robot whose poses go to the serial sink (None: every robot).
         log_format: `text` (human-readable lines) or `json` (one JSON object a line).
         allow_remote_viewer_without_auth: never set this on a shared network.
+        mqtt_url: the site's MQTT broker, `mqtt://HOST[:PORT]` (None: no fleet; docs/fleet.md).
+        mqtt_site: the site's name in the MQTT topics (`irloc/v1/<site>/...`).
+        vda_manufacturer: the VDA 5050 manufacturer of the agents (`uagv/v2/<it>/...`).
+        sim_robots: localize the virtual site's robots here (false: the site only, robots
+            come as agents).
     """
 
     model_config = SettingsConfigDict(env_prefix="IRLOC_", extra="ignore")
@@ -90,6 +95,10 @@ class Settings(BaseSettings):
     serial_robot: str | None = None
     log_format: Literal["text", "json"] = "text"
     allow_remote_viewer_without_auth: bool = False
+    mqtt_url: str | None = None
+    mqtt_site: str = Field(default="default", pattern=r"^[A-Za-z0-9_.-]{1,64}$")
+    vda_manufacturer: str = Field(default="irloc", pattern=r"^[A-Za-z0-9_.-]{1,64}$")
+    sim_robots: bool = True
 
     @field_validator("radio")
     @classmethod
@@ -98,6 +107,15 @@ class Settings(BaseSettings):
         if text != "sim" and not text.startswith("xbee:"):
             raise ValueError(f"radio: expected 'sim' or 'xbee:PORT[@BAUD]', got {value!r}")
         return text
+
+    @field_validator("mqtt_url")
+    @classmethod
+    def _check_mqtt(cls, value: str | None) -> str | None:
+        if value:
+            from fleet.broker import parse_broker_url
+
+            parse_broker_url(value)
+        return value or None
 
     @classmethod
     def settings_customise_sources(

@@ -39,13 +39,14 @@ class GracefulServer(uvicorn.Server):
         target = _innermost(app)
         services = getattr(target.state, "services", None) if target is not None else None
         recording = [] if services is None else _recording(services)
+        gateway = None if services is None else getattr(services.leds, "gateway", None)
         if target is not None:
             stopping(target).set()
             draining(target).set()
         await super().shutdown(sockets)
         if services is not None:
             log.info("shutdown complete in %.1f s: %s", time.monotonic() - t0,
-                     _summary(services, recording))  # fmt: skip
+                     _summary(services, gateway, recording))  # fmt: skip
 
 
 def _innermost(app: Any) -> Any:
@@ -61,8 +62,7 @@ def _recording(services: Any) -> list[str]:
     return [r.name for r in services.robots.runners() if getattr(r, "recorder", None) is not None]
 
 
-def _summary(services: Any, recording: list[str]) -> str:
-    gw = services.gateway
+def _summary(services: Any, gw: Any, recording: list[str]) -> str:
     if gw is None:
         radio = "no radio"
     else:

@@ -11,13 +11,28 @@ them once and renders many board poses.
 from __future__ import annotations
 
 import math
+from typing import Protocol
 
 import cv2
 import numpy as np
 import numpy.typing as npt
 
-from calibration.board import BoardSpec
 from localizer.camera import CameraModel, rays_from_pixels
+
+
+class BoardSpec(Protocol):
+    """The calibration board as rendered here (`calibration.board.BoardSpec` is one; sim
+    does not import calibration)."""
+
+    @property
+    def pattern(self) -> tuple[int, int]: ...
+    @property
+    def square_m(self) -> float: ...
+    @property
+    def kind(self) -> str: ...
+    def object_points(self) -> npt.NDArray[np.float64]: ...
+    def charuco_board(self) -> cv2.aruco.CharucoBoard: ...
+
 
 FloatArray = npt.NDArray[np.float64]
 ImageU8 = npt.NDArray[np.uint8]

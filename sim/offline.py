@@ -8,7 +8,7 @@ every LED. The robot stands still during this sweep and sets off once all LEDs a
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -103,6 +103,7 @@ def simulate_recording(
     lens: Lens | None = None,
     robot: str | None = None,
     sweep: SweepConfig | None = None,
+    led_program: Callable[[int], Sequence[LedsChanged]] | None = None,
     progress: Callable[[float], None] | None = None,
 ) -> SimulationSummary:
     """Write a recording (and groundtruth.csv) of one robot of a scenario.
@@ -115,6 +116,8 @@ def simulate_recording(
         lens: overrides every camera's lens.
         robot: which robot (default: the first).
         sweep: the identification sweep.
+        led_program: LED changes to play once the sweep is over, given the time the robot
+            drives off (e.g. the survey's blink schedule, `survey.blinks`); in time order.
         progress: called with the simulated seconds done, now and then.
 
     Raises:
@@ -132,6 +135,8 @@ def simulate_recording(
     end_ns = round((sc.duration_s if duration_s is None else duration_s) * NS)
 
     leds, drive_ns = sweep_schedule(world, rig, sweep or SweepConfig(), 0)
+    if led_program is not None:
+        leds += [c for c in led_program(drive_ns) if c.t_ns > leds[-1].t_ns]
     rig.robot.paused_until_ns = drive_ns
     frames = odometry = 0
     with RecordingWriter(out_dir, rig.camera_nominal, rig.geometry, world.landmark_records()) as w:

@@ -11,7 +11,18 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-PACKAGES = ["localizer", "sim", "recording", "rf_gateway", "server", "web", "calibration", "irloc"]
+PACKAGES = [
+    "localizer",
+    "sim",
+    "recording",
+    "rf_gateway",
+    "server",
+    "web",
+    "calibration",
+    "irloc",
+    "fleet",
+    "agent",
+]
 PYTHON_DIRS = [*PACKAGES, "bench", "tests"]
 
 

@@ -11,7 +11,8 @@ import math
 import numpy as np
 import numpy.typing as npt
 
-from localizer.camera import CameraModel, rays_from_pixels
+from commissioning.geometry import points_on_ceiling
+from localizer.camera import CameraModel
 from localizer.geometry import T_world_body_from_pose
 
 FloatArray = npt.NDArray[np.float64]
@@ -81,35 +82,6 @@ def ray_plane_point(
     return np.asarray(o + s * d, dtype=np.float64)
 
 
-def rays_world(cam: CameraModel, T_world_body: FloatArray, pixels: npt.ArrayLike) -> FloatArray:
-    """Unit rays of pixels in the world frame for a body pose; pixels (N, 2) -> (N, 3)."""
-    R_world_camera = (T_world_body @ cam.T_body_camera)[:3, :3]
-    return rays_from_pixels(cam, pixels) @ R_world_camera.T
-
-
-def points_on_ceiling(
-    cam: CameraModel, T_world_body: FloatArray, pixels: npt.ArrayLike, height: float
-) -> FloatArray:
-    """World points where the rays of `pixels` meet the plane z = `height`.
-
-    Args:
-        T_world_body: body pose, shape (4, 4).
-        pixels: shape (N, 2), (col, row).
-        height: the plane's z in the world frame, metres (above the camera).
-
-    Returns:
-        shape (N, 3); rows whose ray does not reach the plane are NaN.
-    """
-    origin = (T_world_body @ cam.T_body_camera)[:3, 3]
-    rays = rays_world(cam, T_world_body, pixels)
-    out = np.full((len(rays), 3), np.nan)
-    ok = rays[:, 2] > 1e-9
-    s = (height - origin[2]) / np.where(ok, rays[:, 2], 1.0)
-    ok &= s > 0.0
-    out[ok] = origin + s[ok, None] * rays[ok]
-    return out
-
-
 def image_border_pixels(cam: CameraModel, *, per_edge: int = 8) -> FloatArray:
     """Pixels around the image border, clockwise from the top-left corner, shape (4*per_edge, 2)."""
     w, h = cam.width - 0.5, cam.height - 0.5
@@ -135,23 +107,3 @@ def camera_footprint(
     if len(pts) == 0:
         return np.zeros((0, 3))
     return np.vstack([pts, pts[:1]])
-
-
-def landmark_from_spot(
-    cam: CameraModel, x: float, y: float, theta: float, pixel: npt.ArrayLike, height: float
-) -> FloatArray | None:
-    """A landmark's world position from its spot in the image of a localized robot.
-
-    The spot's ray from the camera, placed by the robot's pose (x, y, theta), is intersected
-    with the ceiling at `height` (the landmark's LED height).
-
-    Args:
-        pixel: the spot's centroid (col, row), shape (2,).
-        height: the LED's z in the world frame, metres.
-
-    Returns:
-        shape (3,), or None when the ray does not reach that height.
-    """
-    T = T_world_body_from_pose(x, y, theta)
-    p = points_on_ceiling(cam, T, np.asarray(pixel, dtype=np.float64).reshape(1, 2), height)[0]
-    return p if np.all(np.isfinite(p)) else None

@@ -17,7 +17,7 @@ import contextlib
 import logging
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import Protocol
 from urllib.parse import urlencode
 
 import viser
@@ -25,9 +25,10 @@ import websockets
 from fastapi import APIRouter, Request, WebSocket, WebSocketDisconnect
 from fastapi.responses import HTMLResponse, RedirectResponse, Response
 from starlette.requests import HTTPConnection
+from websockets.asyncio.client import ClientConnection
 
-from web.roles import Session
-from web.viewer import TICKET_PARAM
+from server.seams import Authenticate
+from web.roles import TICKET_PARAM, Session
 
 log = logging.getLogger(__name__)
 COOKIE = "irloc_viewer_key"
@@ -63,9 +64,16 @@ def _with_bearer(conn: HTTPConnection, key: str) -> HTTPConnection:
     return HTTPConnection(scope)
 
 
-def session_of(
-    conn: HTTPConnection, authenticate: Callable[[HTTPConnection], Any]
-) -> Session | None:
+class TicketIssuer(Protocol):
+    """The running viewer as the proxy needs it (`web.viewer.SiteViewer`)."""
+
+    @property
+    def port(self) -> int: ...
+
+    def issue_ticket(self, session: Session) -> str: ...
+
+
+def session_of(conn: HTTPConnection, authenticate: Authenticate) -> Session | None:
     """The viewer session of a request, or None without a valid key."""
     key = key_of(conn)
     if key is None:
@@ -86,12 +94,12 @@ NO_KEY_PAGE = """<!doctype html><title>irloc viewer</title>
 
 
 def viewer_router(
-    get_viewer: Callable[[], Any], authenticate: Callable[[HTTPConnection], Any]
+    get_viewer: Callable[[], TicketIssuer | None], authenticate: Authenticate
 ) -> APIRouter:
     """Routes serving the viewer under `/viewer/`.
 
     Args:
-        get_viewer: returns the running `web.viewer.Viewer` (None when disabled).
+        get_viewer: returns the running `web.viewer.SiteViewer` (None when disabled).
         authenticate: `server.auth.authenticate`: a connection -> principal with `role` and
             `actor`, or None for a missing or invalid key.
     """
@@ -151,7 +159,7 @@ def viewer_router(
     return router
 
 
-async def relay(ws: WebSocket, upstream: Any) -> None:
+async def relay(ws: WebSocket, upstream: ClientConnection) -> None:
     """Copy messages both ways until either side closes; then close the other."""
 
     async def down() -> None:

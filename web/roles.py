@@ -10,6 +10,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 ROLE_RANK: dict[str, int] = {"viewer": 0, "operator": 1, "admin": 2}
+TICKET_PARAM = "irloc_ticket"
+"""The query parameter of viser's WebSocket URL carrying the proxy's one-time ticket."""
 
 
 def check_role(role: str) -> str:

@@ -22,6 +22,7 @@ import numpy as np
 import numpy.typing as npt
 import viser
 
+from commissioning.coverage import Coverage, SpacingFlag
 from web.colors import (
     LIT_COLOR,
     RGB,
@@ -30,7 +31,6 @@ from web.colors import (
     landmark_color,
     mode_color,
 )
-from web.coverage import Coverage, SpacingFlag
 from web.geometry import camera_footprint, ellipse_points
 from web.services import LandmarkState, RobotState
 

@@ -8,14 +8,26 @@ the same protocol.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Protocol
 
 import numpy as np
 import numpy.typing as npt
 
+from commissioning.types import Candidate
+from commissioning.wizard import WizardStatus
 from localizer.camera import CameraModel
 from localizer.events import PoseEstimate
+
+__all__ = [
+    "CameraView",
+    "Candidate",
+    "EventLine",
+    "LandmarkState",
+    "RobotState",
+    "ViewerSite",
+]
 
 
 @dataclass(frozen=True)
@@ -30,7 +42,7 @@ class LandmarkState:
         percent: rough charge 0-100 (the server's `BatteryStatus.percent`), None when unknown.
         days_left: estimated days until the cut-off voltage, None when unknown.
         reachable: False once the radio stopped answering.
-        doubted: localized robots expected it in view but rarely used it (`web.doubt`).
+        doubted: localized robots expected it in view but rarely used it (`commissioning.doubt`).
     """
 
     id: int
@@ -44,39 +56,6 @@ class LandmarkState:
     days_left: float | None = None
     reachable: bool = True
     doubted: bool = False
-
-
-@dataclass(frozen=True)
-class Candidate:
-    """Something the identification wizard can identify.
-
-    Attributes:
-        landmark_id: the landmark (for a new radio: the ID it gets when saved).
-        radio: for a new radio from discovery (not in the map): its 64-bit address.
-        reason: why it is offered, for people ("doubted: ...", "new radio ...").
-    """
-
-    landmark_id: int
-    radio: str | None = None
-    reason: str = ""
-
-    @property
-    def is_new(self) -> bool:
-        """A radio from discovery, not yet a landmark of the map."""
-        return self.radio is not None
-
-
-@dataclass(frozen=True, eq=False)
-class FramePose:
-    """A robot's estimate at one frame's time.
-
-    Attributes:
-        pose: the localizer's estimate for that frame (a landmark fix or dead reckoning).
-        last_fix_t_ns: time of the latest landmark fix at or before that frame, None if none.
-    """
-
-    pose: PoseEstimate
-    last_fix_t_ns: int | None
 
 
 @dataclass(frozen=True, eq=False)
@@ -155,10 +134,6 @@ class ViewerSite(Protocol):
         """The nominal ceiling (LED) height, metres."""
         ...
 
-    def pose_at(self, robot: str, t_ns: int) -> FramePose | None:
-        """The robot's estimate for its frame taken at `t_ns`; None when there is none (yet)."""
-        ...
-
     # -- actions (role checked by the caller); ValueError/KeyError carry the reason --------
     def relocalize(self, robot: str, *, actor: str) -> None: ...
 
@@ -169,16 +144,6 @@ class ViewerSite(Protocol):
             the landmarks whose radio did not answer (their LED state is unknown; the
             others were switched).
         """
-        ...
-
-    def set_radio_led(self, address: str, on: bool, *, actor: str) -> None:
-        """Switch the LED of a radio that is not (yet) a landmark of the map (waits for the
-        acknowledgement)."""
-        ...
-
-    def hold_leds(self, held: bool) -> None:
-        """While held, only `set_leds` switches LEDs: robots' own LED requests (their
-        identification sweeps) are kept off the radio."""
         ...
 
     def add_landmark(
@@ -217,3 +182,28 @@ class ViewerSite(Protocol):
         """What to identify: doubted landmarks and, with `discover`, the radios a discovery
         finds that are not in the map (it waits for the radio; ValueError when it fails)."""
         ...
+
+    # -- the site's identification wizard (`commissioning.wizard`, run by the server) -------
+    def wizard_status(self) -> WizardStatus:
+        """Where the wizard stands now."""
+        ...
+
+    def wizard_start(self, robot: str, queue: Sequence[Candidate], *, actor: str) -> None:
+        """Start identifying `queue` with `robot`'s camera (ValueError: why not)."""
+        ...
+
+    def wizard_confirm(
+        self,
+        *,
+        actor: str,
+        position: tuple[float, float, float] | None = None,
+        accept_far: bool = False,
+    ) -> None:
+        """Save the agreed measurement (or `position`); a far one needs `accept_far`."""
+        ...
+
+    def wizard_skip(self, *, actor: str) -> None: ...
+
+    def wizard_switch_anyway(self, *, actor: str) -> None: ...
+
+    def wizard_cancel(self, *, actor: str) -> None: ...

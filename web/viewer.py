@@ -1,4 +1,4 @@
-"""`Viewer`: the viser app of a site, run inside the server process on its services.
+"""`SiteViewer`: the viser app of a site, run inside the server process on its services.
 
 It starts a viser server on a loopback port (viser has no login of its own: browsers reach
 it through `web.proxy.viewer_router`, which checks the API key and hands the viewer a
@@ -15,19 +15,22 @@ import secrets
 import threading
 import time
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING
 from urllib.parse import parse_qs, urlsplit
 
 import numpy as np
 import viser
+from fastapi import APIRouter
 
 from server.cli import is_loopback
+from server.seams import Authenticate
+from web.adapter import SiteAdapter
 from web.panels.calibration import CalibrationPanel
 from web.panels.commission import CommissionPanel
 from web.panels.coverage import CoveragePanel
 from web.panels.monitor import MonitorPanel, UncertaintyHistory
 from web.panels.wizard import WizardPanel
-from web.roles import ANONYMOUS, Session
+from web.roles import ANONYMOUS, TICKET_PARAM, Session
 from web.scene import SiteScene
 from web.services import ViewerSite
 from web.viser_compat import (
@@ -38,10 +41,12 @@ from web.viser_compat import (
     request_header,
     request_path,
 )
-from web.wizard import IdentificationWizard
+
+if TYPE_CHECKING:
+    from server.services import SiteServices
 
 log = logging.getLogger(__name__)
-TICKET_PARAM = "irloc_ticket"
+__all__ = ["TICKET_PARAM", "SiteViewer", "ViewerConfig"]
 
 
 @dataclass(frozen=True)
@@ -66,7 +71,7 @@ class ViewerConfig:
 
 
 class _ClientPanels:
-    def __init__(self, viewer: Viewer, client: viser.ClientHandle, session: Session) -> None:
+    def __init__(self, viewer: SiteViewer, client: viser.ClientHandle, session: Session) -> None:
         site = viewer.site
 
         def notify(title: str, body: str) -> None:
@@ -83,7 +88,7 @@ class _ClientPanels:
                 self.monitor = MonitorPanel(gui, site, session, viewer.history, notify)
                 self.coverage = CoveragePanel(client, site, notify)
             with tabs.add_tab("Commission"):
-                self.wizard = WizardPanel(gui, site, viewer.wizard, session, notify)
+                self.wizard = WizardPanel(gui, site, session, notify)
                 self.commission = CommissionPanel(client, site, session, notify)
                 self.calibration = CalibrationPanel(gui, site, session, notify)
         else:
@@ -91,12 +96,16 @@ class _ClientPanels:
             self.coverage = CoveragePanel(client, site, notify)
 
 
-class Viewer:
+class SiteViewer:
     """The site's 3D viewer.
 
+    A `server.seams.ViewerApp`: `irloc serve` builds it and hands it to `create_app`, which
+    includes `router(authenticate)` and calls `start(services)` with the running
+    `SiteServices` (seen through `web.adapter.SiteAdapter`). Tests hand any
+    `web.services.ViewerSite` to the constructor and call `start()`.
+
     Args:
-        services: the server's `SiteServices` (wrapped in `web.adapter.SiteAdapter`), or any
-            `web.services.ViewerSite`.
+        site: the site to show (None: the services given to `start`).
         host: viser's bind address; only loopback is accepted (use the proxy).
         port: viser's port; 0 picks a free one (read `port` after `start`).
         config: rates and limits.
@@ -107,7 +116,7 @@ class Viewer:
 
     def __init__(
         self,
-        services: Any,
+        site: ViewerSite | None = None,
         *,
         host: str = "127.0.0.1",
         port: int = 0,
@@ -118,15 +127,14 @@ class Viewer:
                 f"viewer: refusing to expose viser on {host!r}: it has no login of its own. "
                 "Bind it to 127.0.0.1 and open it through the API's /viewer/ page (API key)"
             )
-        self.services = services
         self.host, self._port = host, port
         self.config = config or ViewerConfig()
-        self.site: ViewerSite = services  # replaced by the adapter in start() for SiteServices
-        self._adapter: Any = None
+        self._given = site
+        self.site: ViewerSite
+        self._adapter: SiteAdapter | None = None
         self.server: viser.ViserServer | None = None
         self.scene: SiteScene | None = None
         self.history = UncertaintyHistory()
-        self.wizard: IdentificationWizard
         self._tickets: dict[str, tuple[float, Session]] = {}
         self._sessions: dict[int, Session] = {}
         self._panels: dict[int, _ClientPanels] = {}
@@ -141,14 +149,22 @@ class Viewer:
         return self.server.get_port() if self.server is not None else self._port
 
     # -- lifecycle ---------------------------------------------------------------------------
-    def start(self) -> None:
-        """Start viser, build the scene and the update thread."""
-        if not hasattr(self.services, "landmarks"):
-            from web.adapter import SiteAdapter
+    def router(self, authenticate: Authenticate) -> APIRouter:
+        """The `/viewer/` routes (web.proxy) for this viewer, behind the API key check."""
+        from web.proxy import viewer_router
 
-            self._adapter = SiteAdapter(self.services)
+        return viewer_router(lambda: self if self.server is not None else None, authenticate)
+
+    def start(self, services: SiteServices | None = None) -> None:
+        """Start viser, build the scene and the update thread (on `services`, else on the
+        site given to the constructor)."""
+        if services is not None:
+            self._adapter = SiteAdapter(services)
             self.site = self._adapter
-        self.wizard = IdentificationWizard(self.site)
+        elif self._given is not None:
+            self.site = self._given
+        else:
+            raise ValueError("viewer: no site to show (give one, or start it with services)")
         self.server = _start_viser(self.host, self._port)
         try:
             check_viser(self.server)
@@ -170,15 +186,12 @@ class Viewer:
         self._thread.start()
 
     def stop(self) -> None:
-        """Stop the update thread and viser; abandon a running wizard (the server relights
-        every LED when it stops)."""
+        """Stop the update thread and viser (the identification wizard is the server's)."""
         self._stop.set()
         if self._thread is not None:
             self._thread.join(timeout=5.0)
             self._thread = None
         if self.server is not None:
-            # no LED commands here: stop() runs on the server's loop, which the radio needs
-            self.wizard.abandon()
             self.server.stop()
             self.server = None
         if self._adapter is not None:

@@ -54,18 +54,19 @@ def revoke_key(services: ServicesDep, _: Admin, key_id: int = Path(ge=0, le=2**3
 
 @router.get("/radio")
 async def radio_state(services: ServicesDep, _: Viewer) -> RadioState:
-    gw = services.gateway
-    site = services.site
+    gw = services.leds.gateway
+    coord = services.leds.coordinator
     return RadioState(
         state="absent" if gw is None else str(gw.transport.state),
         landmarks=0 if gw is None else len(gw.landmarks),
         unreachable=[] if gw is None else sorted(gw.unreachable),
-        lit=sorted(services.lit()),
-        waiting_requests=0 if site is None or site.leds is None else site.leds.waiting,
+        lit=sorted(services.leds.lit()),
+        waiting_requests=0 if coord is None else coord.waiting,
     )
 
 
 @router.post("/radio/discover")
 async def discover(services: ServicesDep, _: Operator) -> list[Discovered]:
     """Radios that answer node discovery and are not in the map."""
-    return [Discovered(address=r.address, node_id=r.node_id) for r in await services.discover()]
+    radios = await services.leds.discover()
+    return [Discovered(address=r.address, node_id=r.node_id) for r in radios]

@@ -3,13 +3,13 @@
 from __future__ import annotations
 
 import asyncio
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any
 
 from fastapi import APIRouter, File, Form, Request, UploadFile
 from pydantic.json_schema import SkipJsonSchema
 
 from calibration.board import BoardSpec, parse_pattern
-from calibration.lens import LensCalibrationConfig
+from calibration.lens import LensCalibrationConfig, LensModel
 from calibration.uploads import calibrate_from_uploads, mounting_kept
 from localizer.camera import camera_from_sensor
 from server.auth import Operator
@@ -32,7 +32,7 @@ async def calibrate_lens_upload(
     files: Annotated[list[UploadFile], File(description="chessboard or ChArUco photos")],
     pattern: Annotated[str, Form(description="inner corners, columns x rows")] = "9x6",
     square_m: Annotated[float, Form(gt=0, le=1, description="square side, metres")] = 0.025,
-    model: Annotated[Literal["pinhole", "fisheye"], Form()] = "pinhole",
+    model: Annotated[LensModel, Form()] = "pinhole",
     charuco_dictionary: Annotated[
         str | SkipJsonSchema[None],
         Form(description="a ChArUco board's dictionary, e.g. DICT_5X5_100 (leave out: chessboard)"),
@@ -83,5 +83,5 @@ async def calibrate_lens_upload(
     }
     result = await asyncio.to_thread(calibrate_from_uploads, uploads, **options)
     if store:
-        services.store_robot_camera(name, result.sensor())
+        services.robots.store_camera(name, result.sensor())
     return {"robot": name, "stored": store, **result.to_dict()}

@@ -55,7 +55,7 @@ def _leds(services: ServicesDep, event: LedsChanged) -> LedState:
     return LedState(
         t_ns=event.t_ns,
         all_lit=event.all_lit,
-        lit=sorted(services.lit()),
+        lit=sorted(services.leds.lit()),
     )
 
 
@@ -110,13 +110,13 @@ async def set_led(
     landmark_id: LandmarkId, body: LedCommand, services: ServicesDep, _: Operator
 ) -> LedState:
     """Switch one landmark's LED; 504 naming the landmark when its radio does not answer."""
-    return _leds(services, await services.led(landmark_id, body.on))
+    return _leds(services, await services.leds.led(landmark_id, body.on))
 
 
 @router.post("/{landmark_id}/blink")
 async def blink(landmark_id: LandmarkId, services: ServicesDep, _: Operator) -> LedState:
     """Blink the LED a few times (to find it on the ceiling), then restore it."""
-    return _leds(services, await services.blink(landmark_id))
+    return _leds(services, await services.leds.blink(landmark_id))
 
 
 @router.get("/{landmark_id}/battery")
@@ -130,8 +130,8 @@ async def battery(
     if refresh:
         if not who.allows("operator"):
             raise HTTPException(status.HTTP_403_FORBIDDEN, "refresh needs the operator role")
-        await services.read_battery(landmark_id)
-    st = services.battery(landmark_id)
+        await services.leds.read_battery(landmark_id)
+    st = services.leds.battery(landmark_id)
     volts = None if st.supply_mv is None else st.supply_mv / 1000.0
     return BatteryPublic(
         landmark_id=landmark_id,

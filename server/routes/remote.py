@@ -19,6 +19,7 @@ from __future__ import annotations
 import asyncio
 import json
 import struct
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -28,8 +29,10 @@ from calibration.uploads import decode_image
 from localizer.events import FrameObserved, OdometryMeasured, SpotsObserved
 from server.auth import refuse_websocket, websocket_principal
 from server.errors import NotFoundError
+from server.services import SiteServices
+from server.site.robot import RobotRunner
 from server.site.serial_wheels import MAX_WHEEL_SPEED
-from server.site.sources import to_gray
+from server.site.sources import RemoteSource, SensorEvent, to_gray
 
 router = APIRouter(tags=["robots"])
 MAX_SPOTS = 1000
@@ -38,10 +41,14 @@ MAX_SPOTS = 1000
 MAX_T_NS = 2**62
 
 
-def _t(services: Any, value: Any) -> int:
+Clock = Callable[[], int]
+"""The site clock, nanoseconds (`SiteServices.clock_ns`)."""
+
+
+def _t(clock_ns: Clock, value: object) -> int:
     """A message's `t_ns`: absent, null or 0 stamps on receipt (site clock)."""
     if value is None or value == 0:
-        return int(services.clock_ns())
+        return int(clock_ns())
     if not isinstance(value, int) or isinstance(value, bool) or not 0 < value < MAX_T_NS:
         raise ValueError(f"t_ns: expected a positive integer (site clock, ns), got {value!r}")
     return value
@@ -62,7 +69,7 @@ def _array(msg: dict[str, Any], key: str, shape: tuple[int, ...]) -> np.ndarray:
     return arr
 
 
-def event_from_text(services: Any, text: str) -> OdometryMeasured | SpotsObserved:
+def event_from_text(clock_ns: Clock, text: str) -> OdometryMeasured | SpotsObserved:
     """Parse one JSON message; ValueError names the bad field."""
     try:
         msg = json.loads(text)
@@ -71,7 +78,7 @@ def event_from_text(services: Any, text: str) -> OdometryMeasured | SpotsObserve
     if not isinstance(msg, dict):
         raise ValueError("message must be a JSON object")
     kind = msg.get("type")
-    t_ns = _t(services, msg.get("t_ns"))
+    t_ns = _t(clock_ns, msg.get("t_ns"))
     if kind == "odometry":
         speeds: list[float] = []
         for key in ("v_left", "v_right"):
@@ -126,7 +133,7 @@ def raw_frame(data: bytes) -> np.ndarray:
     return pixels.reshape(height, width)
 
 
-def frame_from_bytes(services: Any, data: bytes) -> FrameObserved:
+def frame_from_bytes(clock_ns: Clock, data: bytes) -> FrameObserved:
     """A binary message: 8-byte LE `t_ns`, then a PNG/JPEG image or a raw frame."""
     if len(data) < 9:
         raise ValueError("frame: 8-byte t_ns then an encoded image expected")
@@ -142,7 +149,7 @@ def frame_from_bytes(services: Any, data: bytes) -> FrameObserved:
                 f"frame: the {len(payload)} bytes after t_ns are neither a PNG/JPEG image nor "
                 "a raw frame (GRY8/GR16 header)"
             )
-    return FrameObserved(_t(services, t_raw), to_gray(image))
+    return FrameObserved(_t(clock_ns, t_raw), to_gray(image))
 
 
 @router.websocket("/robots/{name}/ws")
@@ -150,19 +157,20 @@ async def remote_robot(ws: WebSocket, name: str) -> None:
     """A remote robot's sensor stream (operator key)."""
     if await websocket_principal(ws, "operator") is None:
         return
-    services = ws.app.state.services
+    services: SiteServices = ws.app.state.services
     try:
         runner = services.robots.get(name)
     except NotFoundError as exc:
         await refuse_websocket(ws, str(exc))
         return
-    if runner.source != "remote":
+    source = None if services.live is None else services.live.remote(name)
+    if runner.source != "remote" or source is None:
         await refuse_websocket(ws, f"robot {name!r} has source {runner.source!r}, not 'remote'")
         return
     await ws.accept()
     services.events.emit("robot_connected", f"remote robot {name} connected", robot=name)
     try:
-        await _serve(ws, services, runner)
+        await _serve(ws, services.clock_ns, runner, source)
     except WebSocketDisconnect:
         pass
     finally:
@@ -173,20 +181,21 @@ async def remote_robot(ws: WebSocket, name: str) -> None:
         )
 
 
-async def _serve(ws: WebSocket, services: Any, runner: Any) -> None:
+async def _serve(ws: WebSocket, clock_ns: Clock, runner: RobotRunner, source: RemoteSource) -> None:
     while True:
         msg = await ws.receive()
         if msg["type"] == "websocket.disconnect":
             return
         try:
             if msg.get("bytes") is not None:  # decoded off the event loop
-                event: Any = await asyncio.to_thread(frame_from_bytes, services, msg["bytes"])
+                data = msg["bytes"]
+                event: SensorEvent = await asyncio.to_thread(frame_from_bytes, clock_ns, data)
             else:
-                event = event_from_text(services, msg.get("text") or "")
+                event = event_from_text(clock_ns, msg.get("text") or "")
         except ValueError as exc:
             await ws.send_text(json.dumps({"error": str(exc)}))
             continue
-        await asyncio.to_thread(runner.handle, event)
+        await source.push(event)
         if not isinstance(event, OdometryMeasured):
             latest = runner.latest
             await ws.send_text(

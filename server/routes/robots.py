@@ -7,6 +7,7 @@ from pydantic import BaseModel, Field
 
 from localizer.camera import camera_from_sensor
 from localizer.events import Mode, OdometryMeasured
+from server.agent_runner import AgentRunner, agent_fields
 from server.auth import Admin, Operator, Viewer
 from server.deps import RobotName, ServicesDep
 from server.models import RobotCreate, RobotPublic
@@ -24,6 +25,10 @@ class RobotStatus(BaseModel):
     errors: int
     last_fix_t_ns: int | None
     recording: bool
+    connected: bool | None = None
+    clock_offset_s: float | None = None
+    clock_error_s: float | None = None
+    clock_ok: bool | None = None
 
 
 class WheelSpeeds(BaseModel):
@@ -42,7 +47,9 @@ class RecordingStatus(BaseModel):
 
 def _status(services: ServicesDep, name: str) -> RobotStatus:
     r = services.robots.get(name)
+    agent = agent_fields(r) if isinstance(r, AgentRunner) else {}
     return RobotStatus(
+        **agent,
         name=r.name,
         source=r.source,
         mode=r.mode,
@@ -88,7 +95,7 @@ def relocalize(
     """Forget the robot's pose and identify its landmarks again; with a body
     `{"x": .., "y": .., "theta": ..}` it starts from there (nearby landmarks first, and the
     pose may be confirmed from the map at once)."""
-    services.relocalize(name, None if near is None else (near.x, near.y, near.theta))
+    services.robots.relocalize(name, None if near is None else (near.x, near.y, near.theta))
     return _status(services, name)
 
 
@@ -114,18 +121,18 @@ def put_config(name: RobotName, body: RobotPublic, services: ServicesDep, _: Adm
     data = RobotCreate.model_validate({**body.model_dump(), "name": name})
     camera_from_sensor(data.camera, source="camera")  # 422 naming the field before saving
     record = services.robot_store.upsert(data)
-    services.apply_robot(record)
+    services.robots.apply(record)
     return record
 
 
 @router.post("/{name}/recording/start")
 def start_recording(name: RobotName, services: ServicesDep, _: Operator) -> RecordingStatus:
     """Record this robot's frames, odometry and LED changes (for `irloc replay`)."""
-    path = services.start_recording(name)
+    path = services.recordings.start(name)
     return RecordingStatus(robot=name, recording=True, path=str(path))
 
 
 @router.post("/{name}/recording/stop")
 def stop_recording(name: RobotName, services: ServicesDep, _: Operator) -> RecordingStatus:
-    path = services.stop_recording(name)
+    path = services.recordings.stop(name)
     return RecordingStatus(robot=name, recording=False, path=None if path is None else str(path))

@@ -1,23 +1,26 @@
-"""The live site: builds the virtual site (if any), the radio gateway, the LED coordinator
-and one `RobotRunner` per robot, and runs the site clock.
+"""The live site: builds the virtual site (if any), the radio gateway, the LED coordinator,
+one `RobotRunner` per robot and the `FrameSource`s that feed them.
 
-Threads: the site clock thread steps the virtual site at its camera rate and feeds each
-robot's frames and odometry to its localizer; camera sources have their own threads; the
-gateway, the LED coordinator and the battery poll run on the server's event loop.
+Threads: each source has its own (the virtual site's clock and feeder, a server camera, a
+serial wheel port); a remote robot's events are fed on worker threads from its WebSocket.
+All deliver through one sink, `Robots.deliver`. The gateway, the LED coordinator and the
+battery poll run on the server's event loop. It is handed the facades it works on
+(server/facades.py) and writes nothing back into `SiteServices`.
 """
 
 from __future__ import annotations
 
 import asyncio
 import contextlib
+import dataclasses
 import logging
-import queue
-import threading
-from typing import TYPE_CHECKING, Any
+from collections.abc import Callable, Iterable
+from typing import Protocol
 
 from localizer.camera import camera_from_sensor, sensor_from_camera
-from localizer.events import FrameObserved, Mode
+from localizer.events import Event, LedRequest, Mode
 from localizer.robot import RobotGeometry
+from pubsub.bus import Bus, Subscription
 from rf_gateway.battery import BatteryConfig
 from rf_gateway.config import GatewayConfig
 from rf_gateway.errors import RfGatewayError
@@ -28,16 +31,19 @@ from rf_gateway.events import (
     TransportStateChanged,
 )
 from rf_gateway.gateway import Gateway
+from server.crud import MapRepository, RobotStore
 from server.crud.landmarks import parse_map_json
+from server.events import EventHub
 from server.models import LandmarkPublic, RobotCreate, RobotPublic
+from server.poses import PoseUpdate
+from server.settings import Settings
 from server.site.leds import LedCoordinator
 from server.site.robot import RobotRunner, make_localizer
 from server.site.serial_sink import SerialSink
 from server.site.serial_wheels import SerialWheelSource
-from server.site.sources import CameraSource
-
-if TYPE_CHECKING:
-    from server.services import SiteServices
+from server.site.sim_source import SimSource
+from server.site.sources import CameraSource, FrameSource, RemoteSource
+from sim.live import LiveSite
 
 log = logging.getLogger(__name__)
 SITE_STEP_HZ = 100.0
@@ -45,61 +51,103 @@ MAX_FRAME_LAG_S = 0.25
 SHUTDOWN_LEDS_TIMEOUT_S = 5.0
 
 
-def _sample_parts(sample: Any) -> tuple[str, Any]:
-    """(robot name, localizer event) of one `sim.live` sensor sample."""
-    return sample.robot, sample.event
+class RobotHost(Protocol):
+    """What the live site needs of the robot registry (`server.facades.Robots`)."""
+
+    poses: Bus[PoseUpdate]
+
+    def add(self, runner: RobotRunner) -> None: ...
+    def remove(self, name: str) -> RobotRunner | None: ...
+    def runners(self) -> list[RobotRunner]: ...
+    def deliver(self, robot: str, event: Event) -> None: ...
+    def subscribe_poses(
+        self, robots: set[str] | None = None, maxsize: int | None = None
+    ) -> Subscription[PoseUpdate]: ...
+    def attach(
+        self, start: Callable[[RobotPublic], object] | None, sim_names: Iterable[str] | None
+    ) -> None: ...
+
+
+class LedHost(Protocol):
+    """What the live site needs of the LED facade (`server.facades.LedsAndRadio`)."""
+
+    def attach(self, gateway: Gateway | None, coordinator: LedCoordinator | None) -> None: ...
 
 
 class LiveSiteRunner:
-    """Start and stop everything live for `services`."""
+    """Start and stop everything live.
 
-    def __init__(self, services: SiteServices) -> None:
-        self.services = services
-        self.settings = services.settings
-        self.sim: Any = None
+    Args:
+        settings: the server's settings.
+        map, robot_store: the data layer.
+        robots: the live robots (the runner adds and removes them; `Robots.deliver` is the
+            sink of every source).
+        leds: the LED facade (the runner attaches its gateway and LED coordinator).
+        events: the site's event hub.
+        clock_ns: the site clock.
+    """
+
+    def __init__(
+        self,
+        settings: Settings,
+        *,
+        map: MapRepository,
+        robot_store: RobotStore,
+        robots: RobotHost,
+        leds: LedHost,
+        events: EventHub,
+        clock_ns: Callable[[], int],
+    ) -> None:
+        self.settings = settings
+        self.map, self.robot_store, self.robots = map, robot_store, robots
+        self.led_facade, self.events, self.clock_ns = leds, events, clock_ns
+        self.sim: LiveSite | None = None
+        self.sim_source: SimSource | None = None
         self.gateway: Gateway | None = None
         self.leds: LedCoordinator | None = None
         self.cameras: dict[str, CameraSource] = {}
         self.wheels: dict[str, SerialWheelSource] = {}
-        self._stop = threading.Event()
-        self._clock: threading.Thread | None = None
-        self._worker: threading.Thread | None = None
-        self._samples: queue.SimpleQueue[list[Any] | None] = queue.SimpleQueue()
-        self.frames_skipped = 0
+        self.remotes: dict[str, RemoteSource] = {}
         self.serial: SerialSink | None = None
         self._tasks: list[asyncio.Task[None]] = []
         self._loop: asyncio.AbstractEventLoop | None = None
 
+    @property
+    def sources(self) -> list[FrameSource]:
+        """Every running source."""
+        out: list[FrameSource] = [] if self.sim_source is None else [self.sim_source]
+        return [*out, *self.cameras.values(), *self.wheels.values(), *self.remotes.values()]
+
+    @property
+    def frames_skipped(self) -> int:
+        """Virtual-site frames skipped for being late."""
+        return 0 if self.sim_source is None else self.sim_source.frames_skipped
+
     # -- start -----------------------------------------------------------------------------
     async def start(self) -> None:
-        s = self.services
         self._loop = asyncio.get_running_loop()
         if self.settings.radio == "sim":
             self.sim = self._build_sim()
-            s.sim = self.sim
-        if self.sim is not None:
-            self._adopt_sim()
+            self._adopt_sim(self.sim)
         await self._start_gateway()
-        for robot in s.robot_store.list():
+        self.robots.attach(self.start_robot, None if self.sim is None else self.sim.robot_names)
+        for robot in self.robot_store.list():
             if robot.source == "sim" and robot.name not in self._sim_names():
                 continue
             self.start_robot(robot)
         if self.settings.serial_sink:
             robots = {self.settings.serial_robot} if self.settings.serial_robot else None
-            sub = s.subscribe_poses(robots)
+            sub = self.robots.subscribe_poses(robots)
             self.serial = SerialSink.open(sub, self.settings.serial_sink, self.settings.serial_baud)
             self.serial.start()
         if self.sim is not None:
-            self._clock = threading.Thread(target=self._run_clock, name="site-clock", daemon=True)
-            self._worker = threading.Thread(
-                target=self._run_localizers, name="site-localizers", daemon=True
+            self.sim_source = SimSource(
+                self.sim, self.clock_ns, step_hz=SITE_STEP_HZ, max_frame_lag_s=MAX_FRAME_LAG_S
             )
-            self._clock.start()
-            self._worker.start()
+            self.sim_source.start(self.robots.deliver)
 
     def start_robot(self, robot: RobotPublic) -> RobotRunner:
-        """Run (or restart with a new configuration) one robot's localizer and source."""
-        s = self.services
+        """Run (or restart with a new configuration) one robot's localizer and sources."""
         self.stop_robot(robot.name)
         geometry = RobotGeometry(robot.wheel_base, robot.max_speed)
         camera = camera_from_sensor(robot.camera, source=f"robot {robot.name} camera")
@@ -107,75 +155,77 @@ class LiveSiteRunner:
             robot.name,
             camera,
             geometry,
-            make_localizer(camera, s.map.landmark_map(), geometry),
-            publish=s.poses.publish,
+            make_localizer(camera, self.map.landmark_map(), geometry),
+            publish=self.robots.poses.publish,
             request_leds=self._request_leds,
             source=robot.source,
         )
         runner.on_mode_change = self._on_mode_change
-        s.robots.add(runner)
+        self.robots.add(runner)
         if robot.source == "camera" and robot.device:
-            cam = CameraSource(runner, robot.device, s.clock_ns)
-            cam.start()
+            cam = CameraSource(robot.name, robot.device, self.clock_ns)
+            cam.start(self.robots.deliver)
             self.cameras[robot.name] = cam
         if robot.source == "camera" and robot.wheel_port:
-            wheels = SerialWheelSource(runner, robot.wheel_port, robot.wheel_baud, s.clock_ns)
-            wheels.start()
+            wheels = SerialWheelSource(
+                robot.name, robot.wheel_port, robot.wheel_baud, self.clock_ns
+            )
+            wheels.start(self.robots.deliver)
             self.wheels[robot.name] = wheels
+        if robot.source == "remote":
+            remote = RemoteSource(robot.name)
+            remote.start(self.robots.deliver)
+            self.remotes[robot.name] = remote
         return runner
 
+    def remote(self, name: str) -> RemoteSource | None:
+        """The source of a running remote robot (its WebSocket pushes into it)."""
+        return self.remotes.get(name)
+
     def stop_robot(self, name: str) -> None:
-        """Stop a robot's camera source (if any) and remove it from the registry."""
-        cam = self.cameras.pop(name, None)
-        if cam is not None:
-            cam.stop()
-        wheels = self.wheels.pop(name, None)
-        if wheels is not None:
-            wheels.stop()
-        runner = self.services.robots.remove(name)
+        """Stop a robot's own sources (if any) and remove it from the registry."""
+        for sources in (self.cameras, self.wheels, self.remotes):
+            src = sources.pop(name, None)
+            if src is not None:
+                src.stop()
+        runner = self.robots.remove(name)
         if runner is not None:
             runner.stop_recording()
 
-    def _build_sim(self) -> Any:
-        from sim.live import LiveSite
+    def _build_sim(self) -> LiveSite:
         from sim.scenario import load_scenario
 
-        return LiveSite(
-            load_scenario(self.settings.scenario),
-            seed=self.settings.seed,
-            clock_ns=self.services.clock_ns,
-        )
+        scenario = load_scenario(self.settings.scenario)
+        if not self.settings.sim_robots:  # the same world; its robots run as agents
+            scenario = dataclasses.replace(scenario, robots=())
+        return LiveSite(scenario, seed=self.settings.seed, clock_ns=self.clock_ns)
 
     def _sim_names(self) -> list[str]:
         return list(self.sim.robot_names) if self.sim is not None else []
 
-    def _adopt_sim(self) -> None:
+    def _adopt_sim(self, sim: LiveSite) -> None:
         """First start on a virtual site: take its surveyed map and its robots."""
-        s = self.services
-        if not s.map.list():
-            items = parse_map_json(
-                {"landmarks": self.sim.landmark_records()}, source="virtual site"
-            )
-            s.map.replace_all(items, actor="virtual site")
-        known = {r.name for r in s.robot_store.list()}
-        for name in self._sim_names():
+        if not self.map.list():
+            items = parse_map_json({"landmarks": sim.landmark_records()}, source="virtual site")
+            self.map.replace_all(items, actor="virtual site")
+        known = {r.name for r in self.robot_store.list()}
+        for name in sim.robot_names:
             if name in known:
                 continue
-            geo = self.sim.robot_geometry(name)
-            s.robot_store.upsert(
+            geo = sim.robot_geometry(name)
+            self.robot_store.upsert(
                 RobotCreate(
                     name=name,
                     source="sim",
                     wheel_base=geo.wheel_base,
                     max_speed=geo.max_speed,
-                    camera=sensor_from_camera(self.sim.camera(name)),
+                    camera=sensor_from_camera(sim.camera(name)),
                 )
             )
 
     async def _start_gateway(self) -> None:
         from rf_gateway.factory import make_transport
 
-        s = self.services
         try:
             transport = make_transport(
                 self.settings.radio, sim_radio=None if self.sim is None else self.sim.radio
@@ -183,67 +233,33 @@ class LiveSiteRunner:
         except ValueError as exc:
             log.error("no radio: %s", exc)
             return
-        config = GatewayConfig(battery=BatteryConfig(interval_s=None))
-        self.gateway = Gateway(transport, s.map.addresses(), config, clock_ns=s.clock_ns)
-        s.gateway = self.gateway
+        # the gateway's own schedule reads every landmark's supply; the LED facade stores it
+        config = GatewayConfig(battery=BatteryConfig(interval_s=self.settings.battery_interval_s))
+        self.gateway = Gateway(transport, self.map.addresses(), config, clock_ns=self.clock_ns)
         await self.gateway.start()
-        self.leds = LedCoordinator(self.gateway, s.robots.runners, self._on_led_error)
+        self.leds = LedCoordinator(self.gateway, self.robots.runners, self._on_led_error)
         self.leds.start()
+        self.led_facade.attach(self.gateway, self.leds)
         loop = asyncio.get_running_loop()
         self._tasks = [loop.create_task(self._gateway_events())]
-        if self.settings.battery_interval_s is not None:
-            self._tasks.append(loop.create_task(self._battery_loop()))
 
     # -- running ---------------------------------------------------------------------------
-    def _run_clock(self) -> None:
-        """Step the virtual site often (frames are rendered with the LEDs lit at the call,
-        so a short period keeps a frame's picture true to its timestamp); the localizers
-        run on another thread."""
-        period = 1.0 / SITE_STEP_HZ
-        while not self._stop.wait(period):
-            try:
-                samples = self.sim.step(self.services.clock_ns())
-            except Exception:
-                log.exception("virtual site step failed")
-                continue
-            if samples:
-                self._samples.put(samples)
-        self._samples.put(None)
-
-    def _run_localizers(self) -> None:
-        """Feed the virtual site's samples to the robots; frames older than
-        `MAX_FRAME_LAG_S` when their turn comes are skipped (odometry never is)."""
-        robots = self.services.robots
-        while True:
-            samples = self._samples.get()
-            if samples is None:
-                return
-            for sample in samples:
-                name, event = _sample_parts(sample)
-                if isinstance(event, FrameObserved):
-                    lag_s = (self.services.clock_ns() - event.t_ns) * 1e-9
-                    if lag_s > MAX_FRAME_LAG_S:
-                        self.frames_skipped += 1
-                        continue
-                with contextlib.suppress(KeyError):
-                    robots.get(name).handle(event)
-
-    def _request_leds(self, robot: str, req: Any) -> None:
+    def _request_leds(self, robot: str, req: LedRequest) -> None:
         if self.leds is not None:
             self.leds.request(robot, req)
 
     def _on_led_error(self, robot: str, message: str) -> None:
-        self.services.events.emit("led_request_failed", f"robot {robot}: {message}", robot=robot)
+        self.events.emit("led_request_failed", f"robot {robot}: {message}", robot=robot)
 
     def _on_mode_change(self, robot: str, old: Mode, new: Mode) -> None:
         if new == "lost":
-            self.services.events.emit("robot_lost", f"robot {robot} is lost", robot=robot)
+            self.events.emit("robot_lost", f"robot {robot} is lost", robot=robot)
         elif new == "landmark" and old in ("lost", "identifying"):
-            self.services.events.emit("robot_localized", f"robot {robot} localized", robot=robot)
+            self.events.emit("robot_localized", f"robot {robot} localized", robot=robot)
 
     async def _gateway_events(self) -> None:
         assert self.gateway is not None
-        emit = self.services.events.emit
+        emit = self.events.emit
         async for ev in self.gateway.subscribe_events():
             if isinstance(ev, LowBattery):
                 emit(
@@ -267,21 +283,10 @@ class LiveSiteRunner:
             elif isinstance(ev, TransportStateChanged):
                 emit("radio_state", f"radio link {ev.state}", data={"state": ev.state})
 
-    async def _battery_loop(self) -> None:
-        interval = self.settings.battery_interval_s
-        assert interval is not None
-        while True:
-            for lm in self.services.map.list():
-                if lm.radio is None:
-                    continue
-                with contextlib.suppress(RfGatewayError, KeyError):
-                    await self.services.read_battery(lm.id)
-            await asyncio.sleep(interval)
-
     def on_map_changed(self, landmarks: list[LandmarkPublic]) -> None:
         """Give the new map to every localizer and the new addresses to the gateway."""
-        lmap = self.services.map.landmark_map()  # built once per change (20,000: ms)
-        for runner in self.services.robots.runners():
+        lmap = self.map.landmark_map()  # built once per change (20,000: ms)
+        for runner in self.robots.runners():
             runner.set_map(lmap)
         if self.gateway is not None and self._loop is not None:
             addresses = {lm.id: lm.radio for lm in landmarks if lm.radio}
@@ -297,16 +302,10 @@ class LiveSiteRunner:
     # -- stop ------------------------------------------------------------------------------
     async def stop(self) -> None:
         """Stop the clock and cameras, leave every LED on, close the radio, end recordings."""
-        self._stop.set()
-        if self._clock is not None:
-            await asyncio.to_thread(self._clock.join, 5.0)
-        if self._worker is not None:
-            await asyncio.to_thread(self._worker.join, 5.0)
-        for cam in self.cameras.values():
-            await asyncio.to_thread(cam.stop)
-        for wheels in self.wheels.values():
-            await asyncio.to_thread(wheels.stop)
-        for runner in self.services.robots.runners():
+        self.robots.attach(None, None)
+        for source in self.sources:
+            await asyncio.to_thread(source.stop)
+        for runner in self.robots.runners():
             runner.stop_recording()
         if self.serial is not None:
             await asyncio.to_thread(self.serial.stop)
@@ -315,6 +314,7 @@ class LiveSiteRunner:
         for task in self._tasks:
             with contextlib.suppress(asyncio.CancelledError, Exception):
                 await task
+        self.led_facade.attach(None, None)
         if self.leds is not None:
             await self.leds.stop()
         if self.gateway is not None:

@@ -20,11 +20,15 @@ from localizer.events import (
     Mode,
     NoPose,
     OdometryMeasured,
+    Output,
     PoseEstimate,
     RelocalizeRequested,
+    SpotsObserved,
 )
 from localizer.landmark_map import LandmarkMap
+from localizer.localizer import Localizer
 from localizer.robot import RobotGeometry
+from recording.writer import RecordingWriter
 from server.poses import PoseUpdate
 
 log = logging.getLogger(__name__)
@@ -33,16 +37,16 @@ log = logging.getLogger(__name__)
 class LocalizerLike(Protocol):
     """What the runner needs of `localizer.Localizer`."""
 
-    def handle(self, event: Any) -> list[Any]: ...
+    def handle(self, event: Event) -> list[Output]: ...
     def set_map(self, landmark_map: LandmarkMap) -> None: ...
     @property
     def mode(self) -> Mode: ...
 
 
-def make_localizer(camera: CameraModel, landmark_map: LandmarkMap, robot: RobotGeometry) -> Any:
-    """The project's localizer (imported here so the server starts without it in tests)."""
-    from localizer.localizer import Localizer
-
+def make_localizer(
+    camera: CameraModel, landmark_map: LandmarkMap, robot: RobotGeometry
+) -> LocalizerLike:
+    """The project's localizer for one robot."""
     return Localizer(camera, landmark_map, robot)
 
 
@@ -57,6 +61,7 @@ class RobotRunner:
         publish: called with every `PoseUpdate` (pose bus).
         request_leds: called with (robot name, `LedRequest`) (the LED coordinator).
         source: "sim", "camera" or "remote".
+        recent_frames: frames (or spot sets) kept for `frame_at`.
     """
 
     def __init__(
@@ -69,6 +74,7 @@ class RobotRunner:
         publish: Callable[[PoseUpdate], None],
         request_leds: Callable[[str, LedRequest], None],
         source: str = "sim",
+        recent_frames: int = 12,
     ) -> None:
         self.name = name
         self.camera = camera
@@ -81,10 +87,11 @@ class RobotRunner:
         self.latest: PoseUpdate | None = None
         self.last_fix_t_ns: int | None = None
         self.last_frame: FrameObserved | None = None
+        self.recent: deque[FrameObserved | SpotsObserved] = deque(maxlen=recent_frames)
         self.frames = 0
         self.poses = 0
         self.errors = 0
-        self.recorder: Any = None
+        self.recorder: RecordingWriter | None = None
         self.on_mode_change: Callable[[str, Mode, Mode], None] | None = None
         self._mode: Mode = localizer.mode
         self._pending: deque[Event] = deque()
@@ -111,6 +118,8 @@ class RobotRunner:
             if isinstance(event, FrameObserved):
                 self.frames += 1
                 self.last_frame = event
+            if isinstance(event, FrameObserved | SpotsObserved):
+                self.recent.append(event)
             self._record(event)
             try:
                 outputs = self.localizer.handle(event)
@@ -129,7 +138,7 @@ class RobotRunner:
         if old != self._mode and self.on_mode_change is not None:
             self.on_mode_change(self.name, old, self._mode)
 
-    def _route(self, out: Any) -> None:
+    def _route(self, out: Output) -> None:
         if isinstance(out, PoseEstimate):
             upd = PoseUpdate.from_estimate(self.name, out)
             self.latest = upd
@@ -142,6 +151,13 @@ class RobotRunner:
         elif isinstance(out, LedRequest):
             self._request_leds(self.name, out)
 
+    def frame_at(self, t_ns: int) -> FrameObserved | SpotsObserved | None:
+        """The frame (or spots) taken at `t_ns`, when it is among the last few."""
+        for event in reversed(self.recent):
+            if event.t_ns == t_ns:
+                return event
+        return None
+
     def relocalize(self, t_ns: int, near: tuple[float, float, float] | None = None) -> None:
         """The operator's request: forget the pose and identify again (near a pose)."""
         self.handle(RelocalizeRequested(t_ns, near))
@@ -153,8 +169,6 @@ class RobotRunner:
     # -- recording ---------------------------------------------------------------------------
     def start_recording(self, root: Path, landmark_records: list[dict[str, Any]]) -> None:
         """Record this robot's frames, odometry and LED changes to a recording folder."""
-        from recording.writer import RecordingWriter
-
         with self._lock:
             if self.recorder is not None:
                 raise ValueError(f"robot {self.name!r} is already recording")

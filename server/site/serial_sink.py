@@ -16,7 +16,7 @@ import logging
 import threading
 from typing import IO, Any
 
-from server.bus import Subscription
+from pubsub.bus import Subscription
 from server.poses import PoseUpdate
 from server.site.line_framing import frame_line, nmea_checksum, unframe_line
 

@@ -9,58 +9,25 @@ of the measurement on the server's site clock, or empty to be stamped on receipt
 that does not share the site clock leaves it empty). `CS`: XOR of the bytes between `$` and
 `*`, two hex digits. Example: `$IRODO,,0.200,0.215*77`.
 
-`SerialWheelSource` reads such lines on a thread and feeds `OdometryMeasured` to the
-robot's runner. A bad line (checksum, fields, values, too long) is counted and skipped with
-a warning; when the port cannot be opened or disappears, it retries every `retry_s`.
+`SerialWheelSource` (a `server.site.sources.FrameSource` of odometry only) reads such
+lines on a thread and feeds `OdometryMeasured` to the robot's localizer. A bad line
+(checksum, fields, values, too long) is counted and skipped with a warning; when the port
+cannot be opened or disappears, it retries every `retry_s`.
 """
 
 from __future__ import annotations
 
 import logging
-import math
 import threading
 from collections.abc import Callable
 from typing import Any
 
+from fleet.serial_lines import MAX_WHEEL_SPEED, LineBuffer, parse_wheel_line, wheel_line
 from localizer.events import OdometryMeasured
-from server.site.line_framing import MAX_LINE_BYTES, frame_line, unframe_line
-from server.site.robot import RobotRunner
+from server.site.sources import SensorSink
 
 log = logging.getLogger(__name__)
-MAX_WHEEL_SPEED = 20.0
-"""m/s; faster is not a wheel speed (the same bound as `POST /robots/{name}/odometry`)."""
-
-
-def wheel_line(v_left: float, v_right: float, t_ns: int | None = None) -> str:
-    """The line for one wheel-speed sample (what the robot sends), with checksum and CR LF."""
-    t = "" if t_ns is None else str(t_ns)
-    return frame_line(f"IRODO,{t},{v_left:.4f},{v_right:.4f}")
-
-
-def parse_wheel_line(line: str) -> tuple[int | None, float, float]:
-    """(t_ns or None, v_left, v_right) of one line.
-
-    Raises:
-        ValueError: a malformed line, a wrong checksum or an absurd value, naming it.
-    """
-    parts = unframe_line(line, "wheel line")
-    if len(parts) != 4 or parts[0] != "IRODO":
-        raise ValueError(f"wheel line {line!r}: expected 4 fields starting with IRODO")
-    _, t_text, vl_text, vr_text = parts
-    try:
-        t_ns = None if t_text == "" else int(t_text)
-        v = (float(vl_text), float(vr_text))
-    except ValueError:
-        raise ValueError(f"wheel line {line!r}: t_ns must be an integer, speeds numbers") from None
-    if t_ns is not None and t_ns < 0:
-        raise ValueError(f"wheel line {line!r}: t_ns = {t_ns} is negative")
-    for name, value in zip(("v_left", "v_right"), v, strict=True):
-        if not math.isfinite(value) or abs(value) > MAX_WHEEL_SPEED:
-            raise ValueError(
-                f"wheel line {line!r}: {name} = {value} m/s is outside "
-                f"[-{MAX_WHEEL_SPEED}, {MAX_WHEEL_SPEED}]"
-            )
-    return t_ns, v[0], v[1]
+__all__ = ["MAX_WHEEL_SPEED", "SerialWheelSource", "parse_wheel_line", "wheel_line"]
 
 
 def _open_serial(port: str, baud: int) -> Any:
@@ -73,7 +40,7 @@ class SerialWheelSource:
     """Feed a robot's wheel speeds from a serial port on a thread.
 
     Args:
-        runner: the robot.
+        robot: the robot's name.
         port: device path or pyserial URL (a stable name such as /dev/serial/by-id/... is
             best: it comes back under the same name after a reconnect).
         baud: baud rate.
@@ -87,14 +54,16 @@ class SerialWheelSource:
 
     def __init__(
         self,
-        runner: RobotRunner,
+        robot: str,
         port: str,
         baud: int,
         clock_ns: Callable[[], int],
         *,
         retry_s: float = 1.0,
     ) -> None:
-        self.runner = runner
+        self.robot = robot
+        self.robots = (robot,)
+        self._sink: SensorSink | None = None
         self.port = port
         self.baud = baud
         self.clock_ns = clock_ns
@@ -104,9 +73,11 @@ class SerialWheelSource:
         self.connects = 0
         self.connected = False
         self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._run, name=f"wheels-{runner.name}", daemon=True)
+        self._thread = threading.Thread(target=self._run, name=f"wheels-{robot}", daemon=True)
 
-    def start(self) -> None:
+    def start(self, sink: SensorSink) -> None:
+        """Read the port on a thread, feeding `sink` (a `FrameSource`)."""
+        self._sink = sink
         self._thread.start()
 
     def stop(self) -> None:
@@ -121,14 +92,15 @@ class SerialWheelSource:
             self.bad_lines += 1
             log.warning(
                 "robot %s: wheel line skipped on %s: %s",
-                self.runner.name,
+                self.robot,
                 self.port,
                 exc,
-                extra={"robot": self.runner.name, "port": self.port},
+                extra={"robot": self.robot, "port": self.port},
             )
             return
         stamp = self.clock_ns() if t_ns is None else t_ns
-        self.runner.handle(OdometryMeasured(stamp, v_left, v_right))
+        if self._sink is not None:
+            self._sink(self.robot, OdometryMeasured(stamp, v_left, v_right))
         self.lines += 1
 
     def _run(self) -> None:
@@ -140,11 +112,11 @@ class SerialWheelSource:
                 if not warned:
                     log.warning(
                         "robot %s: wheel port %s unavailable (%s); retrying every %.1f s",
-                        self.runner.name,
+                        self.robot,
                         self.port,
                         exc,
                         self.retry_s,
-                        extra={"robot": self.runner.name, "port": self.port},
+                        extra={"robot": self.robot, "port": self.port},
                     )
                     warned = True
                 self._stop.wait(self.retry_s)
@@ -152,16 +124,16 @@ class SerialWheelSource:
             warned = False
             self.connects += 1
             self.connected = True
-            log.info("robot %s: wheel speeds from %s", self.runner.name, self.port)
+            log.info("robot %s: wheel speeds from %s", self.robot, self.port)
             try:
                 self._read(port)
             except Exception as exc:  # the device went away (EIO, unplugged)
                 log.warning(
                     "robot %s: wheel port %s lost (%s); reconnecting",
-                    self.runner.name,
+                    self.robot,
                     self.port,
                     exc,
-                    extra={"robot": self.runner.name, "port": self.port},
+                    extra={"robot": self.robot, "port": self.port},
                 )
             finally:
                 self.connected = False
@@ -172,16 +144,7 @@ class SerialWheelSource:
             self._stop.wait(self.retry_s)
 
     def _read(self, port: Any) -> None:
-        buf = b""
+        lines = LineBuffer()  # an overlong piece without a line end is counted as bad
         while not self._stop.is_set():
-            chunk = port.read(max(1, port.in_waiting))
-            if not chunk:
-                continue
-            buf += chunk
-            *lines, buf = buf.split(b"\n")
-            for raw in lines:
-                if raw.strip():
-                    self.handle_line(raw)
-            if len(buf) > MAX_LINE_BYTES:
-                self.handle_line(buf[:MAX_LINE_BYTES])  # counted as bad: no line end
-                buf = b""
+            for raw in lines.feed(port.read(max(1, port.in_waiting))):
+                self.handle_line(raw)

@@ -61,7 +61,8 @@ def test_a_fix_that_disagrees_with_a_confident_pose_is_not_fused() -> None:
 def test_no_spot_in_the_windows_is_not_a_rejection() -> None:
     tracker, filt, frame = _setup((0.0, -0.5, 1.2))  # far off: the windows hold nothing
     result = tracker.step(filt, frame, dt_frame_s=1 / 30, fresh_odometry=True, candidates=None)
-    assert result == ((), False)
+    assert result.used == () and not result.unexplained
+    assert result.expected == (7, 8, 9)  # predicted in view, not found
 
 
 def test_given_spots_are_used_as_they_are() -> None:

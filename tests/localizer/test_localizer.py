@@ -240,3 +240,26 @@ def test_unknown_event_is_a_type_error() -> None:
     loc = Localizer(_camera("pinhole", "centred"), TRIANGLE, ROBOT)
     with pytest.raises(TypeError):
         loc.handle("frame")  # type: ignore[arg-type]
+
+
+def test_estimate_says_which_lit_landmarks_were_expected_and_which_used() -> None:
+    cam = _camera("pinhole", "centred")
+    loc = Localizer(cam, TRIANGLE, ROBOT)
+    run = drive(
+        loc,
+        cam,
+        TRIANGLE,
+        _parked((0.45, 0.3, 0.7)),
+        duration_s=1.0,
+        wheel_base=0.36,
+        seed=3,
+        dead_ids=(2,),
+    )
+    tracked = [o for o in run.outputs if isinstance(o, PoseEstimate) and o.expected_ids]
+    assert tracked, "tracking predicted no landmark"
+    last = run.outputs[-1]
+    assert isinstance(last, PoseEstimate) and last.mode == "landmark"
+    # The dead LED is still expected (the map says it is lit) but never used.
+    assert last.expected_ids == (1, 2, 3)
+    assert last.landmark_ids == (1, 3)
+    assert all(set(o.landmark_ids) <= set(o.expected_ids) for o in tracked)

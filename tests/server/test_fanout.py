@@ -7,7 +7,7 @@ import json
 
 import numpy as np
 
-from server.bus import Bus
+from pubsub.bus import Bus
 from server.fanout import FanoutClient, PoseFanout, encode_batch
 from server.poses import PoseUpdate
 

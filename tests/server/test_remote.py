@@ -139,13 +139,13 @@ def test_a_simulated_robot_refuses_remote_frames(site: Api) -> None:
     from starlette.websockets import WebSocketDisconnect
 
     name = site.services.sim.robot_names[0]
-    site.services.site.start_robot(site.services.robot_store.get(name))
+    site.services.live.start_robot(site.services.robot_store.get(name))
     with (
         pytest.raises(WebSocketDisconnect) as exc,
         site.client.websocket_connect(f"/api/v1/robots/{name}/ws", headers=site.h("admin")) as ws,
     ):
         ws.receive_text()
-    site.services.site.stop_robot(name)
+    site.services.live.stop_robot(name)
     assert "has source 'sim', not 'remote'" in (exc.value.reason or "")
 
 

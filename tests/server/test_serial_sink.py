@@ -8,7 +8,7 @@ import time
 import numpy as np
 import pytest
 
-from server.bus import Bus
+from pubsub.bus import Bus
 from server.poses import PoseUpdate
 from server.site.serial_sink import SerialSink, nmea_checksum, parse_pose_line, pose_line
 

@@ -88,8 +88,8 @@ def test_source_feeds_a_robot_skips_bad_lines_and_reconnects(tmp_path: Path) -> 
         request_leds=lambda *_: None,
     )
     master = _pty(link)
-    source = SerialWheelSource(runner, str(link), 115200, lambda: 42, retry_s=0.05)
-    source.start()
+    source = SerialWheelSource("r1", str(link), 115200, lambda: 42, retry_s=0.05)
+    source.start(lambda _robot, event: runner.handle(event))
     try:
         _wait(lambda: source.connected)
         os.write(master, wheel_line(0.1, 0.12, 1000).encode())
@@ -129,7 +129,7 @@ def test_robot_configured_with_a_wheel_port_reads_it(tmp_path: Path) -> None:
             r = api.client.put("/api/v1/robots/cam1/config", json=body, headers=api.h("admin"))
             assert r.status_code == 200, r.text
             assert (r.json()["wheel_port"], r.json()["wheel_baud"]) == (str(link), 57600)
-            source = api.services.site.wheels["cam1"]
+            source = api.services.live.wheels["cam1"]
             _wait(lambda s=source: s.connected)  # type: ignore[misc]
             os.write(master, wheel_line(0.3, 0.31).encode() + b"$IRODO,,1,1*00\r\n")
             _wait(lambda s=source: s.lines == 1 and s.bad_lines == 1)  # type: ignore[misc]

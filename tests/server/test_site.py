@@ -56,7 +56,7 @@ def test_unanswering_radio_is_504_naming_the_landmark_and_server_carries_on(site
     c = site.client
     body = {"id": 999, "x": 20.0, "y": 20.0, "z": 2.5, "radio": "0013A200DEADBEEF"}
     assert c.post("/api/v1/landmarks", json=body, headers=site.h("admin")).status_code == 201
-    assert _wait(lambda: 999 in site.services.gateway.landmarks, 5)
+    assert _wait(lambda: 999 in site.services.leds.gateway.landmarks, 5)
     r = c.post("/api/v1/landmarks/999/led", json={"on": True}, headers=site.h("operator"))
     assert r.status_code == 504 and "landmark 999" in r.json()["detail"]
     assert c.get("/healthz").json()["status"] == "ok"
@@ -101,7 +101,7 @@ def test_every_robot_localizes_near_the_truth_and_never_far_from_it(site: Api) -
     names = set(sim.robot_names)
     good: set[str] = set()
     worst = 0.0
-    with site.services.subscribe_poses(maxsize=100_000) as sub:
+    with site.services.robots.subscribe_poses(maxsize=100_000) as sub:
         deadline = time.time() + 90
         while good != names and time.time() < deadline:
             time.sleep(0.2)

@@ -34,11 +34,12 @@ def running_site(data: Path, *, seed: int = 5) -> Iterator[tuple[Any, int]]:
     """The API app with the `demo` virtual site, served on a free port: (app, port)."""
     import uvicorn
 
+    from irloc.serve import make_viewer
     from server.main import create_app
     from server.settings import Settings
 
     settings = Settings(data_dir=data, port=0, viewer_port=0, scenario="demo", seed=seed)
-    app = create_app(settings)
+    app = create_app(settings, make_viewer(settings))  # as `irloc serve` wires it
     config = uvicorn.Config(app, host="127.0.0.1", port=0, log_level="warning", lifespan="on")
     server = uvicorn.Server(config)
     thread = threading.Thread(target=server.run, name="uvicorn-test", daemon=True)

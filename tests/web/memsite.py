@@ -7,17 +7,30 @@ from __future__ import annotations
 
 import threading
 import time
+from collections.abc import Sequence
 from dataclasses import replace
 from typing import Any
 
 import numpy as np
 
+from commissioning.candidates import new_radio_candidates
+from commissioning.types import MapLandmark
+from commissioning.wizard import (
+    Cancel,
+    Confirm,
+    IdentificationWizard,
+    SaveLandmark,
+    Skip,
+    Start,
+    SwitchAnyway,
+    WizardEvent,
+    WizardStatus,
+)
 from localizer.camera import CameraModel, predict_pixels
 from localizer.events import PoseEstimate
 from localizer.geometry import T_world_body_from_pose
 from sim.cameras import wide_angle_camera
-from web.candidates import new_radio_candidates
-from web.services import CameraView, Candidate, EventLine, FramePose, LandmarkState, RobotState
+from web.services import CameraView, Candidate, EventLine, LandmarkState, RobotState
 
 
 class MemSite:
@@ -41,6 +54,7 @@ class MemSite:
         self.held = False
         self.stored_cameras: list[tuple[str, str]] = []
         self.lock = threading.Lock()
+        self.wizard = IdentificationWizard()  # driven by the tests (no LEDs switched here)
 
     # -- reads -----------------------------------------------------------------------------
     def landmarks(self) -> list[LandmarkState]:
@@ -89,13 +103,6 @@ class MemSite:
     def ceiling_height(self) -> float:
         return 2.5
 
-    def pose_at(self, robot: str, t_ns: int) -> FramePose | None:
-        x, y, th = self.poses[robot]
-        fixed = len(self._visible_lit(robot)) >= 2
-        pose = PoseEstimate(t_ns, x, y, th, np.diag([1e-4, 4e-4, 1e-4]),
-                            "landmark" if fixed else "dead_reckoning")  # fmt: skip
-        return FramePose(pose, t_ns if fixed else self._lit_at)
-
     # -- actions -----------------------------------------------------------------------------
     def relocalize(self, robot: str, *, actor: str) -> None:
         self.relocalized.append(robot)
@@ -104,15 +111,6 @@ class MemSite:
         with self.lock:
             self.camera = camera
             self.stored_cameras.append((robot, actor))
-
-    def hold_leds(self, held: bool) -> None:
-        self.held = held
-
-    def set_radio_led(self, address: str, on: bool, *, actor: str) -> None:
-        if address not in self.radios:
-            raise ValueError(f"radio {address} does not answer")
-        (self.radio_lit.add if on else self.radio_lit.discard)(address)
-        self.led_log.append(frozenset(self._lit))
 
     def set_leds(self, lit: frozenset[int], *, actor: str) -> frozenset[int]:
         self._lit = frozenset(lit) - self.dead
@@ -175,6 +173,38 @@ class MemSite:
             found = [(a, f"LM{a[-4:]}") for a in self.radios]
             out += new_radio_candidates(found, set(self.map))
         return out
+
+    # -- the wizard: its own pure one, fed directly (no LEDs switched here) -----------------
+    def _wizard_feed(self, event: WizardEvent) -> None:
+        for out in self.wizard.handle(event):
+            if isinstance(out, SaveLandmark):
+                c, (x, y, z) = out.candidate, out.position
+                self.update_landmark(c.landmark_id, actor="wizard", x=x, y=y, z=z)
+
+    def wizard_status(self) -> WizardStatus:
+        return self.wizard.status()
+
+    def wizard_start(self, robot: str, queue: Sequence[Candidate], *, actor: str) -> None:
+        lms = {i: MapLandmark(i, lm.x, lm.y, lm.z, lm.locked) for i, lm in self.map.items()}
+        self._wizard_feed(Start(0, robot, self.camera, tuple(queue), lms, 2.5, tuple(self.poses)))
+
+    def wizard_confirm(
+        self,
+        *,
+        actor: str,
+        position: tuple[float, float, float] | None = None,
+        accept_far: bool = False,
+    ) -> None:
+        self._wizard_feed(Confirm(1, position, accept_far))
+
+    def wizard_skip(self, *, actor: str) -> None:
+        self._wizard_feed(Skip(1))
+
+    def wizard_switch_anyway(self, *, actor: str) -> None:
+        self._wizard_feed(SwitchAnyway(1))
+
+    def wizard_cancel(self, *, actor: str) -> None:
+        self._wizard_feed(Cancel(1))
 
 
 def grid_site(*, doubted: dict[int, tuple[float, float]] | None = None) -> MemSite:

@@ -112,11 +112,14 @@ def test_viewer_key_sees_but_cannot_edit(browser: Any, live_site: LiveSite) -> N
         page.close()
 
 
-def test_wizard_lights_the_landmark_alone_and_saves_its_true_position(
+def test_wizard_keeps_the_fleet_tracking_and_a_far_measurement_needs_accept_far(
     browser: Any, live_site: LiveSite
 ) -> None:
-    """Through the browser's buttons, on the live site: the position is computed from the
-    robot's own localized pose; the simulator's truth only checks it."""
+    """Through the browser's buttons, on the live site: the landmark's map position is 4.2 m
+    off; the wizard darkens it alone against the lit ceiling, the other robots stay in
+    landmark mode on >= 95 % of their frames, the far measurement is flagged and Confirm
+    stays disabled until "Accept far" is ticked; the saved position is the true one (the
+    simulator's truth only checks it)."""
     from server.models import LandmarkUpdate
     from tests.web.conftest import landmark_always_in_view, wait_localized
 
@@ -125,34 +128,52 @@ def test_wizard_lights_the_landmark_alone_and_saves_its_true_position(
     viewer = live_site.app.state.viewer
     robot = "r2"
     page = open_viewer(browser, live_site, live_site.admin_key)
+    sub = services.robots.subscribe_poses(maxsize=100_000)
     try:
         page.get_by_role("tab", name="Commission").click()
         page.get_by_label("Camera of").click()  # a Mantine select: open it, pick the option
         page.get_by_role("option", name=robot, exact=True).click()
-        # a landmark the patrolling robot always sees; its map position 30 cm off
         lid = landmark_always_in_view(services, robot)
         truth = np.array(world.landmarks[lid].p_true)
-        services.map.update(lid, LandmarkUpdate(x=float(truth[0]) + 0.3), actor="test")
+        far = LandmarkUpdate(x=float(truth[0]) + 3.0, y=float(truth[1]) + 3.0)
+        services.map.update(lid, far, actor="test")
         # viser's text input's label does not point at it (its `for` is another id)
         ids = page.locator("xpath=//label[normalize-space()='Landmark IDs']/following::input[1]")
         ids.fill(str(lid))
         ids.press("Enter")
         time.sleep(1.0)
         wait_localized(viewer.site, robot, services)
+        confirm = page.get_by_role("button", name="Confirm position")
+        assert confirm.is_disabled()  # nothing measured
+        sub.drain()
         page.get_by_role("button", name="Start identification").click()
-        deadline = time.monotonic() + 60
-        while viewer.wizard.state.measurement is None and time.monotonic() < deadline:
-            time.sleep(0.2)
-        m = viewer.wizard.state.measurement
-        assert m is not None and m.landmark_id == lid and m.position is not None, m
-        page.get_by_text(re.compile(rf"landmark {lid} at \(")).wait_for(timeout=60_000)
-        assert world.lit_ids() == {lid}  # the virtual site's LEDs: that one alone
+        page.get_by_text(re.compile("Far from the map")).wait_for(timeout=90_000)
+        st = services.commissioning.status()
+        assert st.measurement is not None and st.measurement.plausibility.far, st
+        assert st.phase == "measuring" and not st.can_confirm
+        assert world.lit_ids() >= set(services.map.addresses()) - {lid}  # never the ceiling
         time.sleep(2.0)
         save_shot(page, "viewer-commissioning.png", doc=True)
-        page.get_by_role("button", name="Confirm position").click()
-        page.get_by_text(re.compile(r"done")).wait_for(timeout=60_000)
+        assert confirm.is_disabled()  # cannot be confirmed by accident
+        confirm.click(force=True)  # a click on the disabled button does nothing
+        time.sleep(1.0)
+        assert services.map.get(lid).x == pytest.approx(far.x)
+        poses = sub.drain()
+        for other in ("r1", "r3"):
+            modes = [p.mode for p in poses if p.robot == other]
+            share = modes.count("landmark") / max(1, len(modes))
+            assert len(modes) > 30 and share >= 0.95, (other, share, len(modes))
+        page.get_by_text("Accept far", exact=True).click()
+        page.wait_for_function(
+            "() => [...document.querySelectorAll('button')].some(b => "
+            "b.textContent.trim() === 'Confirm position' && !b.disabled)",
+            timeout=30_000,
+        )
+        confirm.click()
+        page.get_by_text(re.compile(r"done: saved")).wait_for(timeout=60_000)
         saved = services.map.get(lid)
         err = np.hypot(saved.x - truth[0], saved.y - truth[1])
-        assert err < 0.02, f"saved ({saved.x:.3f}, {saved.y:.3f}), truth {truth[:2]}"
+        assert err < 0.03, f"saved ({saved.x:.3f}, {saved.y:.3f}), truth {truth[:2]}"
     finally:
+        sub.close()
         page.close()

@@ -9,9 +9,9 @@ from pathlib import Path
 
 import pytest
 
+from commissioning.doubt import DoubtConfig
 from tests.web.conftest import running_site
 from web.adapter import SiteAdapter
-from web.doubt import DoubtConfig
 
 pytestmark = pytest.mark.slow
 
@@ -34,7 +34,7 @@ def test_no_landmark_is_doubted_on_a_correct_map_from_the_start(tmp_path: Path) 
                     if lm.doubted:
                         doubted.setdefault(lm.id, (when, "doubted in landmarks()"))
             assert doubted == {}
-            assert samples >= 85
+            assert samples >= 70  # every 0.5 s or so (a busy machine stretches the period)
             # the rule was exercised: the landmarks were judged, and used in their chances
             records = [site.doubt(lm.id) for lm in services.map.list()]
             judged = [d for d in records if d.chances >= DoubtConfig().min_chances]

@@ -6,16 +6,11 @@ from typing import Literal
 import numpy as np
 import pytest
 
+from commissioning.geometry import landmark_from_spot
 from localizer.camera import T_body_camera_upward, predict_pixels
 from localizer.geometry import T_world_body_from_pose
 from sim.cameras import wide_angle_camera
-from web.geometry import (
-    camera_footprint,
-    ellipse_axes,
-    ellipse_points,
-    landmark_from_spot,
-    ray_plane_point,
-)
+from web.geometry import camera_footprint, ellipse_axes, ellipse_points, ray_plane_point
 
 
 def test_ellipse_axes_of_a_rotated_covariance() -> None:

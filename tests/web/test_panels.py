@@ -3,6 +3,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from commissioning.types import MapLandmark
+from commissioning.wizard import Confirm, IdentificationWizard, Skip, Start
+from sim.cameras import wide_angle_camera
 from tests.web.memsite import grid_site
 from web.panels.commission import nearest_landmark
 from web.panels.monitor import (
@@ -21,7 +24,6 @@ from web.panels.wizard import (
     targets_text,
 )
 from web.services import CameraView, Candidate, LandmarkState
-from web.wizard import WizardState
 
 
 def test_robots_table_shows_mode_error_and_fix_age() -> None:
@@ -64,14 +66,18 @@ def test_parse_targets_and_status() -> None:
         parse_targets("3 x")
     with pytest.raises(ValueError, match="'0013A2004100010' is neither"):
         parse_targets("0013A2004100010")  # 15 hex digits
-    st = WizardState(phase="done", queue=[Candidate(3), Candidate(5)], index=2, saved=[3],
-                     skipped=[5])  # fmt: skip
-    assert "saved [3], skipped [5]" in status_text(st)
+    wiz = IdentificationWizard()
+    lms = {3: MapLandmark(3, 0.0, 0.0, 2.5), 5: MapLandmark(5, 1.0, 0.0, 2.5)}
     new = Candidate(109, "0013A2004100006D", "new radio")
-    st = WizardState(phase="measured", queue=[Candidate(3), new], index=1)
-    assert status_text(st).startswith(
-        "New radio `0013A2004100006D` (to be landmark **109**) (2 of 2), lit alone."
+    cam = wide_angle_camera("pinhole")
+    wiz.handle(Start(0, "r1", cam, (Candidate(3), Candidate(5), new), lms, 2.5, ("r1",)))
+    wiz.handle(Confirm(1, (0.1, 0.0, 2.5)))
+    wiz.handle(Skip(2))
+    assert status_text(wiz.status()).startswith(
+        "New radio 0013A2004100006D (to be landmark 109) (3 of 3)"
     )
+    wiz.handle(Skip(3))
+    assert "done: saved 3, skipped 5, 109; LEDs restored" in status_text(wiz.status())
 
 
 def test_typed_targets_become_candidates() -> None:

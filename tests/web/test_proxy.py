@@ -51,9 +51,9 @@ def test_websocket_relays_viser_only_with_a_key(live_site: LiveSite) -> None:
 
 
 def test_viser_itself_listens_on_loopback_only(live_site: LiveSite) -> None:
-    from web.viewer import Viewer
+    from web.viewer import SiteViewer
 
     assert live_site.services.settings.viewer_enabled
 
     with pytest.raises(ValueError, match="no login"):
-        Viewer(live_site.services, host="0.0.0.0")
+        SiteViewer(live_site.services, host="0.0.0.0")

@@ -8,7 +8,7 @@ from collections.abc import Callable
 import numpy as np
 import viser
 
-from web.coverage import CoverageConfig, coverage_grid, spacing_flags
+from commissioning.coverage import CoverageConfig, coverage_grid, spacing_flags
 from web.scene import draw_coverage
 from web.services import ViewerSite
 

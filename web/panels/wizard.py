@@ -1,6 +1,9 @@
-"""The identification wizard's GUI: robot, what to identify (landmark IDs and radio
+"""The identification wizard's GUI, a thin client of the server's wizard (the same one
+`/api/v1/commissioning/wizard` drives): robot, what to identify (landmark IDs and radio
 addresses; "Suggest" fills in the doubted landmarks and the new radios a discovery finds),
-the camera frame with its detections, the proposed position, and confirm / retry / skip /
+the camera frame with the target's spot, what the wizard says (what it waits for, what to
+move), the agreed position, and confirm (only for a plausible measurement that agrees over
+several frames; one far from the map needs "accept far" ticked) / switch anyway / skip /
 type by hand / cancel."""
 
 from __future__ import annotations
@@ -13,11 +16,10 @@ import numpy as np
 import numpy.typing as npt
 import viser
 
-from web.candidates import landmark_id_for_radio
-from web.measure import Measurement
+from commissioning.candidates import landmark_id_for_radio
+from commissioning.wizard import WizardStatus
 from web.roles import Session
 from web.services import CameraView, Candidate, ViewerSite
-from web.wizard import IdentificationWizard, WizardState
 
 
 def annotated_frame(
@@ -87,22 +89,15 @@ def suggestions_text(candidates: Sequence[Candidate]) -> str:
     )
 
 
-def status_text(state: WizardState) -> str:
+def status_text(state: WizardStatus) -> str:
     """What the wizard is doing, in markdown."""
     if state.phase == "idle":
         return "Pick a robot that sees the landmarks, then start."
-    if state.phase in ("done", "cancelled"):
-        return (
-            f"**{state.phase}**: saved {state.saved or 'none'}, skipped {state.skipped or 'none'};"
-            " LEDs restored."
-        )
+    text = state.prompt
     m = state.measurement
-    c = state.candidate
-    what = f"Landmark **{state.current}**"
-    if c is not None and c.radio is not None:
-        what = f"New radio `{c.radio}` (to be landmark **{c.landmark_id}**)"
-    head = f"{what} ({state.index + 1} of {len(state.queue)}), lit alone."
-    return head if m is None else f"{head}\n\n{m.message}"
+    if state.phase in ("waiting", "measuring") and m is not None and m.plausibility.far:
+        text += "\n\n**Far from the map**: tick *accept far* to confirm it anyway."
+    return text
 
 
 class WizardPanel:
@@ -112,11 +107,10 @@ class WizardPanel:
         self,
         gui: viser.GuiApi,
         site: ViewerSite,
-        wizard: IdentificationWizard,
         session: Session,
         notify: Callable[[str, str], None],
     ) -> None:
-        self.site, self.wizard, self.session, self.notify = site, wizard, session, notify
+        self.site, self.session, self.notify = site, session, notify
         names = [r.name for r in site.robots()] or ["-"]
         with gui.add_folder("Identify landmarks"):
             self.gui_robot = gui.add_dropdown("Camera of", names)
@@ -125,28 +119,34 @@ class WizardPanel:
             self.gui_suggested = gui.add_markdown("")
             self.gui_start = gui.add_button("Start identification")
             self.gui_progress = gui.add_progress_bar(0.0)
-            self.gui_status = gui.add_markdown(status_text(wizard.state))
+            self.gui_status = gui.add_markdown(status_text(site.wizard_status()))
             self.gui_frame = gui.add_image(np.zeros((240, 320, 3), np.uint8), label="camera")
-            self.gui_confirm = gui.add_button("Confirm position")
-            self.gui_retry = gui.add_button("Retry")
-            self.gui_skip = gui.add_button("Skip")
+            self.gui_accept_far = gui.add_checkbox("Accept far", False, disabled=True)
+            self.gui_confirm = gui.add_button("Confirm position", disabled=True)
+            self.gui_anyway = gui.add_button("Switch anyway", disabled=True)
+            self.gui_skip = gui.add_button("Skip", disabled=True)
             self.gui_manual = gui.add_vector3("Position by hand (m)", (0.0, 0.0, 2.5), step=0.01)
-            self.gui_save_manual = gui.add_button("Save position by hand")
-            self.gui_cancel = gui.add_button("Cancel identification", color="red")
+            self.gui_save_manual = gui.add_button("Save position by hand", disabled=True)
+            self.gui_cancel = gui.add_button("Cancel identification", color="red", disabled=True)
         self.gui_suggest.on_click(lambda _: self._suggest())
         self.gui_start.on_click(lambda _: self._run(self._start))
         self.gui_confirm.on_click(
-            lambda _: self._run(lambda: self.wizard.confirm(actor=self.actor))
-        )
-        self.gui_retry.on_click(lambda _: self._run(lambda: self.wizard.retry(actor=self.actor)))
-        self.gui_skip.on_click(lambda _: self._run(lambda: self.wizard.skip(actor=self.actor)))
-        self.gui_save_manual.on_click(
             lambda _: self._run(
-                lambda: self.wizard.confirm(actor=self.actor, position=self.gui_manual.value)
+                lambda: self.site.wizard_confirm(
+                    actor=self.actor, accept_far=bool(self.gui_accept_far.value)
+                )
             )
         )
-        self.gui_cancel.on_click(lambda _: self._run(lambda: self.wizard.cancel(actor=self.actor)))
-        self._shown: tuple[str, int, int | None] | None = None
+        self.gui_anyway.on_click(
+            lambda _: self._run(lambda: self.site.wizard_switch_anyway(actor=self.actor))
+        )
+        self.gui_skip.on_click(lambda _: self._run(lambda: self.site.wizard_skip(actor=self.actor)))
+        self.gui_save_manual.on_click(lambda _: self._run(self._save_manual))
+        self.gui_cancel.on_click(
+            lambda _: self._run(lambda: self.site.wizard_cancel(actor=self.actor))
+        )
+        self.gui_accept_far.on_update(lambda _: self.refresh(force=True))
+        self._shown: tuple[object, ...] | None = None
         self._suggested: list[Candidate] = []
         self.refresh()
 
@@ -164,40 +164,53 @@ class WizardPanel:
         self.gui_suggested.content = suggestions_text(found)
         self.gui_ids.value = targets_text(found)  # type: ignore[misc]
 
-    def _start(self) -> Measurement | None:
+    def _start(self) -> None:
         targets = parse_targets(self.gui_ids.value)
         if not targets:
-            return self.wizard.start(self.gui_robot.value, self._suggested, actor=self.actor)
+            self.site.wizard_start(self.gui_robot.value, self._suggested, actor=self.actor)
+            return
         taken = {lm.id for lm in self.site.landmarks()}
         queue = candidates_for(targets, self._suggested, taken)
-        return self.wizard.start(self.gui_robot.value, queue, actor=self.actor)
+        self.site.wizard_start(self.gui_robot.value, queue, actor=self.actor)
 
-    def _run(self, step: Callable[[], Measurement | None]) -> None:
+    def _save_manual(self) -> None:
+        x, y, z = (float(v) for v in self.gui_manual.value)
+        self.site.wizard_confirm(actor=self.actor, position=(x, y, z))
+
+    def _run(self, step: Callable[[], None]) -> None:
         try:
-            m = step()
-        except (KeyError, ValueError, TimeoutError) as exc:
+            step()
+        except (KeyError, ValueError, RuntimeError, TimeoutError) as exc:
             self.notify("Identification", str(exc))
-        else:
-            if m is not None and m.position is not None:
-                p = m.position
-                self.gui_manual.value = (float(p[0]), float(p[1]), float(p[2]))  # type: ignore[misc]
-        self.refresh()
+        self.refresh(force=True)
 
-    def refresh(self) -> None:
+    def refresh(self, *, force: bool = False) -> None:
         """Show the wizard's state (cheap when unchanged)."""
-        st = self.wizard.state
+        st = self.site.wizard_status()
         m = st.measurement
-        key = (st.phase, st.index, None if m is None or m.view is None else m.view.t_ns)
-        if key == self._shown:
+        key = (st.phase, st.index, st.prompt, None if m is None else m.position, st.can_confirm,
+               st.needs_accept_far)  # fmt: skip
+        if key == self._shown and not force:
             return
         self._shown = key
+        running = st.phase in ("waiting", "measuring")
         done = 100.0 if st.phase == "done" else 0.0
-        self.gui_progress.value = st.progress if st.phase == "measured" else done  # type: ignore[misc]
+        progress = 100.0 * st.index / st.total if running and st.total else done
+        self.gui_progress.value = progress  # type: ignore[misc]
         self.gui_status.content = status_text(st)
-        running = st.phase == "measured"
-        for b in (self.gui_confirm, self.gui_retry, self.gui_skip, self.gui_save_manual,
-                  self.gui_cancel):  # fmt: skip
+        far_ok = st.needs_accept_far and bool(self.gui_accept_far.value)
+        self.gui_confirm.disabled = not (st.can_confirm or far_ok)
+        self.gui_accept_far.disabled = not st.needs_accept_far
+        if not st.needs_accept_far and self.gui_accept_far.value:
+            self.gui_accept_far.value = False  # type: ignore[misc]  # never carried over
+        self.gui_anyway.disabled = not (running and bool(st.waiting_for))
+        for b in (self.gui_skip, self.gui_save_manual, self.gui_cancel):
             b.disabled = not running
         self.gui_start.disabled = running
-        if m is not None and m.view is not None:
-            self.gui_frame.image = annotated_frame(m.view, m.spot)
+        if running and m is not None:
+            x, y, z = m.position
+            self.gui_manual.value = (x, y, z)  # type: ignore[misc]
+        if running:
+            view = self.site.camera_view(st.robot)
+            if view is not None:
+                self.gui_frame.image = annotated_frame(view, None if m is None else m.pixel)

@@ -1,0 +1,294 @@
+"""The agent's localization loop, without the network: the same sans-I/O `Localizer` the
+server runs, fed from the robot's sensors and the site's LED states, and the messages it
+produces (poses, LED requests, VDA 5050 visualization).
+
+Time order: a frame must meet every LED state of its time. LED states travel over the
+network, frames do not, so sensor samples wait `hold_s` (`reorder_hold_s`) in a reorder
+buffer and are fed with the LED states merged in time order; the simulated source is stepped
+that far behind real time too. A state that arrives later than that is fed at once and
+counted (`late_leds`).
+
+Thread-safety: `on_*` methods may be called from the network thread while `tick` runs on the
+sensor thread; they only queue.
+"""
+
+from __future__ import annotations
+
+import heapq
+import itertools
+import json
+import logging
+import threading
+from dataclasses import dataclass
+from typing import Literal, Protocol, TextIO
+
+from agent.timebase import TimeBase
+from fleet.payloads import (
+    AgentSource,
+    AgentStatus,
+    CommandMessage,
+    LedRequestMessage,
+    LedStateMessage,
+    MapMessage,
+    PoseMessage,
+)
+from fleet.vda5050 import HeaderIds, visualization_message
+from localizer.camera import CameraModel, sensor_from_camera
+from localizer.events import (
+    Event,
+    FrameObserved,
+    LedRequest,
+    Mode,
+    NoPose,
+    PoseEstimate,
+    RelocalizeRequested,
+    SpotsObserved,
+)
+from localizer.landmark_map import LandmarkMap
+from localizer.localizer import Localizer
+from localizer.robot import RobotGeometry
+
+log = logging.getLogger(__name__)
+NS = 1_000_000_000
+
+OutKind = Literal["pose", "led_request", "visualization"]
+
+
+class SensorSource(Protocol):
+    """What the agent's sensors give: the robot's camera and wheels, simulated or real."""
+
+    @property
+    def camera(self) -> CameraModel: ...
+    @property
+    def geometry(self) -> RobotGeometry: ...
+    def step(self, t_ns: int) -> list[Event]: ...
+    def apply_leds(self, t_ns: int, lit: frozenset[int] | None) -> None: ...
+    def true_pose_at(self, t_ns: int) -> tuple[float, float, float] | None: ...
+    @property
+    def start_pose(self) -> tuple[float, float, float] | None: ...
+
+
+@dataclass(frozen=True)
+class AgentConfig:
+    """Tuning of an agent.
+
+    Attributes:
+        name: the robot's name (its VDA 5050 serial number).
+        manufacturer: VDA 5050 manufacturer.
+        source: what feeds it ("sim", "sim-light", "camera").
+        reorder_hold_s: how long sensor samples wait for LED states of their time, seconds
+            (more than the network's one-way delay to the broker and back).
+        pose_rate_hz: irloc pose messages per second at most (a mode change always goes at
+            once); 0: one per frame.
+        visualization_rate_hz: VDA 5050 visualization messages per second at most.
+        start_known: the robot knows where it starts (a dock): the localizer is given the
+            source's `start_pose` as a prior, and the map confirms it without LED probes
+            when the landmarks in view agree.
+    """
+
+    name: str
+    manufacturer: str = "irloc"
+    source: AgentSource = "sim"
+    reorder_hold_s: float = 0.03
+    pose_rate_hz: float = 10.0
+    visualization_rate_hz: float = 1.0
+    start_known: bool = False
+
+
+@dataclass(frozen=True)
+class Outgoing:
+    kind: OutKind
+    payload: bytes
+
+
+class AgentCore:
+    """One robot's localizer and its messages (see the module docstring)."""
+
+    def __init__(
+        self,
+        config: AgentConfig,
+        source: SensorSource,
+        timebase: TimeBase,
+        *,
+        truth_log: TextIO | None = None,
+    ) -> None:
+        self.config = config
+        self.truth_log = truth_log
+        self.source = source
+        self.time = timebase
+        self.localizer: Localizer | None = None
+        self.map_id: str | None = None
+        self.mode: Mode = "identifying"
+        self.frames = 0
+        self.poses = 0
+        self.errors = 0
+        self.late_leds = 0
+        self.led_states = 0
+        self._inbox: list[MapMessage | LedStateMessage | CommandMessage] = []
+        self._inbox_lock = threading.Lock()
+        self._heap: list[tuple[int, int, Event]] = []
+        self._count = itertools.count()
+        self._fed_t_ns = 0
+        self._seq = itertools.count()
+        self._headers = HeaderIds()
+        self._last_pose_mono = -(10**18)
+        self._last_vis_mono = -(10**18)
+        self._last_mode_sent: Mode | None = None
+        self._last_led: tuple[int, int] | None = None
+
+    # -- from the network (any thread) -------------------------------------------------------
+    def on_map(self, msg: MapMessage) -> None:
+        self._post(msg)
+
+    def on_leds(self, msg: LedStateMessage) -> None:
+        self._post(msg)
+
+    def on_command(self, msg: CommandMessage) -> None:
+        self._post(msg)
+
+    def _post(self, msg: MapMessage | LedStateMessage | CommandMessage) -> None:
+        with self._inbox_lock:
+            self._inbox.append(msg)
+
+    # -- the sensor loop ------------------------------------------------------------------------
+    def tick(self, now_mono_ns: int) -> list[Outgoing]:
+        """Take what arrived, step the sensors to `now - hold`, feed the localizer in time
+        order; the messages to send."""
+        hold_ns = round(self.config.reorder_hold_s * NS)
+        horizon = now_mono_ns - hold_ns
+        with self._inbox_lock:
+            inbox, self._inbox = self._inbox, []
+        for msg in inbox:
+            self._take(msg, horizon)
+        for event in self.source.step(horizon):
+            self._push(event)
+        out: list[Outgoing] = []
+        while self._heap and self._heap[0][0] <= horizon:
+            _, _, event = heapq.heappop(self._heap)
+            out += self._feed(event, now_mono_ns)
+        return out
+
+    def _push(self, event: Event) -> None:
+        heapq.heappush(self._heap, (event.t_ns, next(self._count), event))
+
+    def _take(self, msg: MapMessage | LedStateMessage | CommandMessage, horizon: int) -> None:
+        if isinstance(msg, MapMessage):
+            self._set_map(msg)
+        elif isinstance(msg, LedStateMessage):
+            key = (msg.seq, msg.t_ns)
+            if key == self._last_led:
+                return  # a retained copy of the state already taken (after a reconnect)
+            self._last_led = key
+            self.led_states += 1
+            t = self.time.mono_from_site(msg.t_ns)
+            if t < self._fed_t_ns:
+                self.late_leds += 1
+                t = self._fed_t_ns
+            self.source.apply_leds(t, None if msg.all_lit else frozenset(msg.lit))
+            self._push(msg.event(t))
+        else:
+            self._push(RelocalizeRequested(max(horizon, self._fed_t_ns), msg.near))
+
+    def _set_map(self, msg: MapMessage) -> None:
+        if msg.map_id == self.map_id:
+            return
+        lmap = LandmarkMap.from_records(msg.records(), source=f"map {msg.map_id}")
+        if self.localizer is None:
+            self.localizer = Localizer(self.source.camera, lmap, self.source.geometry)
+            start = self.source.start_pose
+            if self.config.start_known and start is not None:
+                self.localizer.set_initial_pose(*start, self._fed_t_ns)
+        else:
+            self.localizer.set_map(lmap)
+        self.map_id = msg.map_id
+        log.info("%s: map %s (%d landmarks)", self.config.name, msg.map_id, len(msg.landmarks))
+
+    def _feed(self, event: Event, now_mono: int) -> list[Outgoing]:
+        self._fed_t_ns = max(self._fed_t_ns, event.t_ns)
+        if isinstance(event, FrameObserved | SpotsObserved):
+            self.frames += 1
+        if self.localizer is None:
+            return []  # no map yet: nothing to localize on
+        try:
+            outputs = self.localizer.handle(event)
+        except Exception:
+            self.errors += 1
+            log.exception("%s: localizer failed on %s", self.config.name, type(event).__name__)
+            return []
+        self.mode = self.localizer.mode
+        out: list[Outgoing] = []
+        for o in outputs:
+            if isinstance(o, LedRequest):
+                out.append(Outgoing("led_request", LedRequestMessage.from_request(o).encode()))
+            else:
+                out += self._pose_out(o, now_mono)
+        return out
+
+    def _pose_out(self, o: PoseEstimate | NoPose, now_mono: int) -> list[Outgoing]:
+        cfg = self.config
+        mode_changed = o.mode != self._last_mode_sent
+        # 0.8: a frame a little early still goes (a 10 Hz camera gives 10 Hz of poses)
+        elapsed = now_mono - self._last_pose_mono
+        due = cfg.pose_rate_hz <= 0 or elapsed * cfg.pose_rate_hz >= 0.8 * NS
+        if not (mode_changed or due):
+            return []
+        self._last_pose_mono = now_mono
+        self._last_mode_sent = o.mode
+        t_site = self.time.site_from_mono(o.t_ns)
+        wall = self.time.site_now_ns()
+        seq = next(self._seq)
+        out: list[Outgoing] = []
+        if isinstance(o, PoseEstimate):
+            self.poses += 1
+            msg = PoseMessage.from_estimate(seq, o, t_site, wall)
+            self._log_truth(o, t_site)
+        else:
+            msg = PoseMessage(seq=seq, t_ns=t_site, wall_ns=wall, mode=o.mode)
+        out.append(Outgoing("pose", msg.encode()))
+        if mode_changed or (now_mono - self._last_vis_mono) * cfg.visualization_rate_hz >= 0.8 * NS:
+            self._last_vis_mono = now_mono
+            out.append(Outgoing("visualization", self.visualization(msg)))
+        return out
+
+    def _log_truth(self, o: PoseEstimate, t_site: int) -> None:
+        """`t_ns,mode,x,y,theta,true_x,true_y,true_theta` for a simulated robot (tests)."""
+        truth = self.source.true_pose_at(o.t_ns) if self.truth_log is not None else None
+        if truth is None or self.truth_log is None:
+            return
+        self.truth_log.write(
+            f"{t_site},{o.mode},{o.x:.5f},{o.y:.5f},{o.theta:.6f},"
+            f"{truth[0]:.5f},{truth[1]:.5f},{truth[2]:.6f}\n"
+        )
+        self.truth_log.flush()
+
+    def visualization(self, msg: PoseMessage) -> bytes:
+        """The VDA 5050 visualization message of a pose message."""
+        pose = None if msg.x is None or msg.y is None or msg.theta is None else (
+            msg.x, msg.y, msg.theta
+        )  # fmt: skip
+        vis = visualization_message(
+            self._headers.take(self.config.name, "visualization"),
+            msg.wall_ns,
+            self.config.manufacturer,
+            self.config.name,
+            map_id=self.map_id or "",
+            mode=msg.mode,
+            pose=pose,
+            covariance=msg.covariance(),
+        )
+        return json.dumps(vis, separators=(",", ":")).encode()
+
+    def status(self, clock_offset_ns: int | None, clock_error_ns: int | None) -> AgentStatus:
+        return AgentStatus(
+            source=self.config.source,
+            camera=sensor_from_camera(self.source.camera),
+            wheel_base=self.source.geometry.wheel_base,
+            max_speed=self.source.geometry.max_speed,
+            mode=self.mode,
+            clock_offset_ns=clock_offset_ns,
+            clock_error_ns=clock_error_ns,
+            frames=self.frames,
+            poses=self.poses,
+            errors=self.errors,
+            map_id=self.map_id,
+        )

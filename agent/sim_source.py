@@ -1,0 +1,158 @@
+"""One simulated robot of a scenario, simulated on the agent: its odometry, and either
+rendered frames (`light=False`, what a camera would give) or, in the light mode, the LED
+spots projected straight into the image (spot-level simulation, no rendering and no spot
+detection: a hundred agents fit on one machine).
+
+The site's LEDs are switched by the site server's radio; the agent hears of each confirmed
+state over MQTT and switches its copy of the world's LEDs at the state's own time
+(`apply_leds`), so each frame shows the LEDs as they were when it was taken. The agent steps
+this source a little behind real time (`agent.reorder`), so that every LED state of a frame's
+time has arrived before the frame is made.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+
+import numpy as np
+
+from localizer.camera import CameraModel, predict_pixels
+from localizer.events import Event, FrameObserved, OdometryMeasured, SpotsObserved
+from localizer.robot import RobotGeometry
+from sim.build import build_robot, build_world, seed_generators
+from sim.render import render_frame
+from sim.robot import FramePose
+from sim.scenario import Scenario
+
+SPOT_AREA_PX = 9.0
+"""Pixel count of a projected spot (light mode)."""
+
+
+class SimRobotSource:
+    """Robot `robot` of `scenario` (the world as the site server builds it from the same
+    scenario and seed, so the map the server publishes is this world's survey).
+
+    Args:
+        scenario: the site's scenario.
+        robot: which of its robots this agent is.
+        seed: the site's seed (`irloc serve --seed`).
+        light: spot-level simulation instead of rendered frames.
+        pixel_sigma_px: centroid noise of a projected spot per axis, pixels (light mode).
+        min_intensity: projected spots fainter than this (1.0 = a nominal LED on the
+            optical axis at 2.5 m) are not detected (light mode).
+    """
+
+    def __init__(
+        self,
+        scenario: Scenario,
+        robot: str,
+        *,
+        seed: int | None = None,
+        light: bool = False,
+        pixel_sigma_px: float = 0.15,
+        min_intensity: float = 0.05,
+    ) -> None:
+        names = [r.name for r in scenario.robots]
+        if robot not in names:
+            raise ValueError(f"robot {robot!r} is not in scenario {scenario.name!r}: {names}")
+        index = names.index(robot)
+        gens = seed_generators(scenario.seed if seed is None else seed, 3 + len(names))
+        self.scenario = scenario
+        self.world = build_world(scenario, gens[0])
+        self.rig = build_robot(scenario.robots[index], scenario, gens[3 + index], index=index)
+        self.light = light
+        self.pixel_sigma_px = pixel_sigma_px
+        self.min_intensity = min_intensity
+        self._rng = gens[2]
+        self._t0_ns: int | None = None
+        self._t_local_ns = 0
+        self._led_t_local_ns = 0
+        self.world.led_clock_ns = lambda: self._led_t_local_ns
+        self.truth: dict[int, tuple[float, float, float]] = {}
+        self.truth_history = 300
+
+    @property
+    def camera(self) -> CameraModel:
+        """The nominal (calibrated) camera: what the localizer is told."""
+        return self.rig.camera_nominal
+
+    @property
+    def geometry(self) -> RobotGeometry:
+        return self.rig.geometry
+
+    @property
+    def start_pose(self) -> tuple[float, float, float]:
+        """Where the robot starts (x, y, theta; metres, radians): its dock."""
+        return self.rig.spec.start
+
+    def true_pose_at(self, t_ns: int) -> tuple[float, float, float] | None:
+        """The true planar pose when the frame stamped `t_ns` was taken (recent frames)."""
+        return self.truth.get(t_ns)
+
+    def apply_leds(self, t_ns: int, lit: Iterable[int] | None) -> None:
+        """The site's LEDs from `t_ns` (the agent's clock) on: exactly `lit` (None: all)."""
+        lit_set = None if lit is None else set(lit)
+        self._led_t_local_ns = max(0, t_ns - (self._t0_ns if self._t0_ns is not None else t_ns))
+        for lm in self.world.landmarks.values():
+            if lm.reachable:
+                self.world.set_led(lm.id, lit_set is None or lm.id in lit_set)
+
+    def step(self, t_ns: int) -> list[Event]:
+        """Drive to `t_ns` (the agent's clock); the samples due, in time order."""
+        if self._t0_ns is None:
+            self._t0_ns = t_ns
+            self.world.advance(0)
+            return []
+        local = t_ns - self._t0_ns
+        if local <= self._t_local_ns:
+            return []
+        out: list[Event] = []
+        for item in self.rig.robot.advance_to(local):
+            t_out = item.t_ns + self._t0_ns
+            if isinstance(item, OdometryMeasured):
+                out.append(OdometryMeasured(t_out, item.v_left, item.v_right))
+                continue
+            self.world.advance(item.t_ns)
+            out.append(self._frame(item, t_out))
+            self.truth[t_out] = item.pose
+            if len(self.truth) > self.truth_history:
+                del self.truth[next(iter(self.truth))]
+        self.world.advance(local)
+        self._t_local_ns = local
+        return out
+
+    def _frame(self, item: FramePose, t_ns: int) -> FrameObserved | SpotsObserved:
+        cam = self.rig.camera_true
+        p_cam = (item.T_world_body @ cam.T_body_camera)[:3, 3]
+        sources, intensities = self.world.point_sources(p_cam, t_ns=item.t_ns)
+        if not self.light:
+            image = render_frame(
+                cam, item.T_world_body, sources, intensities, rng=self._rng,
+                config=self.scenario.render, extended=self.world.extended,
+            )  # fmt: skip
+            return FrameObserved(t_ns, image)
+        return self._spots(item, t_ns, sources, intensities, p_cam)
+
+    def _spots(
+        self,
+        item: FramePose,
+        t_ns: int,
+        sources: np.ndarray,
+        intensities: np.ndarray,
+        p_cam: np.ndarray,
+    ) -> SpotsObserved:
+        """Project the lit sources: brightness falls with the square of the distance
+        (1.0 at the render's nominal distance)."""
+        if len(sources) == 0:
+            empty = np.zeros((0, 2))
+            return SpotsObserved(t_ns, empty, np.zeros(0), np.zeros(0))
+        pixels, valid = predict_pixels(self.rig.camera_true, item.T_world_body, sources)
+        d = np.linalg.norm(sources - p_cam, axis=1)
+        nominal = self.scenario.render.nominal_distance_m
+        brightness = intensities * (nominal / np.maximum(d, 1e-3)) ** 2
+        keep = valid & (brightness >= self.min_intensity)
+        px = pixels[keep] + self._rng.normal(0.0, self.pixel_sigma_px, (int(keep.sum()), 2))
+        peak = 255.0 * SPOT_AREA_PX
+        return SpotsObserved(
+            t_ns, px, np.minimum(brightness[keep], 4.0) * peak, np.full(len(px), SPOT_AREA_PX)
+        )

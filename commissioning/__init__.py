@@ -1,0 +1,1 @@
+"""Commissioning logic (docs/commissioning.md)."""

@@ -1,0 +1,705 @@
+"""The identification wizard as a sans-I/O state machine (docs/commissioning.md).
+
+It measures, one candidate at a time, where a landmark (or a new radio from discovery) hangs,
+with one chosen robot's camera, while every robot keeps tracking: it never darkens the
+ceiling. A landmark of the map is darkened *alone* against the lit set for `dark_s`, then lit
+again for `lit_s`, over and over (as robots identify themselves); a new radio is lit alone
+and darkened again. Pairs of frames, one with the target lit and one without (the other LEDs
+the same), give one sample each of where it is (`commissioning.measuring`); the robot may
+move meanwhile. Confirm is offered once `min_agreeing` samples agree, and a position far
+from the map's needs an explicit "accept far".
+
+Before darkening a landmark it checks the robots that track: when one of them would be left
+with fewer than `min_fix_landmarks` landmarks (its fix), the wizard waits and says so; after
+`wait_fix_s` it asks whether to switch anyway.
+
+Events in (`handle`): `Start`, `PoseSeen` (any robot's estimate), `FrameSeen` (the chosen
+robot's spots with its estimate for that frame), `LedsSeen` (every confirmed LED state),
+`RadioSwitched` (a new radio's acknowledgement), `Tick`, and the user's `Confirm`, `Skip`,
+`SwitchAnyway`, `Cancel`. Outputs: `SwitchLandmark`, `SwitchRadio`, `SaveLandmark`,
+`Finished`. `status()` says where it stands. Nothing here waits, sleeps or reads a clock.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+import numpy.typing as npt
+
+from commissioning.doubt import expected_in_view
+from commissioning.measuring import (
+    Agreement,
+    PlacedFrame,
+    Plausibility,
+    agreement,
+    lone_spots,
+    place_spots,
+    plausibility,
+)
+from commissioning.types import Candidate, MapLandmark
+from localizer.camera import CameraModel
+from localizer.events import PoseEstimate
+
+Phase = Literal["idle", "waiting", "measuring", "done", "cancelled"]
+FloatArray = npt.NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class WizardConfig:
+    """The wizard's tuning.
+
+    Attributes:
+        dark_s: a landmark is held dark (a new radio lit) this long per cycle, seconds.
+        lit_s: ... and lit (a new radio dark) this long between, seconds.
+        settle_s: a frame counts once taken this long after its LED state was confirmed, s.
+        resend_s: an LED state the wizard wants and does not see is asked for again after
+            this long (a robot's own LED request may have replaced it), seconds.
+        match_m: a spot of the lit frame with no spot of the dark frame within this
+            (horizontally, on the ceiling) is the target's, metres.
+        agree_m: samples agree when within this of their median (horizontally), metres.
+        min_agreeing: Confirm is offered once this many successive samples agree.
+        far_m: a measurement farther than this from the map's position is flagged, metres.
+        min_fix_landmarks: a tracking robot keeps its fix with this many landmarks.
+        wait_fix_s: after waiting this long for robots to free a landmark, the wizard asks
+            whether to switch it anyway, seconds.
+        no_spot_s: after measuring this long without a sample, it says what to move, s.
+        max_sigma_m: the measuring robot's 1-sigma position error must be at most this, m.
+        keep_s: frames and LED states kept for pairing, seconds.
+        margin_px: a map position this far inside the image border counts as in view, px.
+    """
+
+    dark_s: float = 0.5
+    lit_s: float = 0.6
+    settle_s: float = 0.05
+    resend_s: float = 0.4
+    match_m: float = 0.15
+    agree_m: float = 0.03
+    min_agreeing: int = 5
+    far_m: float = 0.5
+    min_fix_landmarks: int = 3
+    wait_fix_s: float = 10.0
+    no_spot_s: float = 4.0
+    max_sigma_m: float = 0.05
+    keep_s: float = 2.0
+    margin_px: float = 10.0
+
+
+# -- events in ---------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Start:
+    """Begin with `robot`'s camera on `queue`.
+
+    Attributes:
+        landmarks: the map (ID -> landmark); ceiling_z: height of a new radio's LED, metres.
+        robots: the robots running now (the chosen one must be among them).
+    """
+
+    t_ns: int
+    robot: str
+    camera: CameraModel
+    queue: tuple[Candidate, ...]
+    landmarks: Mapping[int, MapLandmark]
+    ceiling_z: float
+    robots: tuple[str, ...]
+
+
+@dataclass(frozen=True, eq=False)
+class PoseSeen:
+    """Any robot's estimate for one of its frames."""
+
+    robot: str
+    pose: PoseEstimate
+
+    @property
+    def t_ns(self) -> int:
+        return self.pose.t_ns
+
+
+@dataclass(frozen=True, eq=False)
+class FrameSeen:
+    """The chosen robot's frame: its spots (col, row), shape (N, 2), and its estimate for it."""
+
+    robot: str
+    pose: PoseEstimate
+    pixels: FloatArray
+
+    @property
+    def t_ns(self) -> int:
+        return self.pose.t_ns
+
+
+@dataclass(frozen=True)
+class LedsSeen:
+    """A confirmed LED state: `lit` from `t_ns` on; `changing`: being switched."""
+
+    t_ns: int
+    lit: frozenset[int]
+    changing: frozenset[int] = frozenset()
+
+
+@dataclass(frozen=True)
+class RadioSwitched:
+    """A new radio acknowledged (or failed, `error`) switching its LED."""
+
+    t_ns: int
+    address: str
+    on: bool
+    error: str = ""
+
+
+@dataclass(frozen=True)
+class Tick:
+    t_ns: int
+
+
+@dataclass(frozen=True)
+class Confirm:
+    """Save the measurement, or `position` (typed by hand; x, y, z metres); `accept_far`
+    confirms a measurement flagged far from the map."""
+
+    t_ns: int
+    position: tuple[float, float, float] | None = None
+    accept_far: bool = False
+
+
+@dataclass(frozen=True)
+class Skip:
+    t_ns: int
+
+
+@dataclass(frozen=True)
+class SwitchAnyway:
+    """Darken the landmark even though a robot would lose its fix."""
+
+    t_ns: int
+
+
+@dataclass(frozen=True)
+class Cancel:
+    t_ns: int
+
+
+WizardEvent = (
+    Start | PoseSeen | FrameSeen | LedsSeen | RadioSwitched | Tick | Confirm | Skip
+    | SwitchAnyway | Cancel
+)  # fmt: skip
+
+
+# -- outputs --------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class SwitchLandmark:
+    """Darken landmark `landmark_id` alone (`on=False`: every other LED stays as it is), or
+    give it back (`on=True`)."""
+
+    landmark_id: int
+    on: bool
+
+
+@dataclass(frozen=True)
+class SwitchRadio:
+    """Switch a new radio's LED (not a landmark of the map yet); answer with
+    `RadioSwitched`."""
+
+    address: str
+    on: bool
+
+
+@dataclass(frozen=True)
+class SaveLandmark:
+    """Store the position: move landmark `candidate.landmark_id`, or create it with the new
+    radio's address."""
+
+    candidate: Candidate
+    position: tuple[float, float, float]
+
+
+@dataclass(frozen=True)
+class Finished:
+    phase: Literal["done", "cancelled"]
+    saved: tuple[int, ...]
+    skipped: tuple[int, ...]
+
+
+WizardOutput = SwitchLandmark | SwitchRadio | SaveLandmark | Finished
+
+
+@dataclass(frozen=True)
+class Measurement:
+    """The wizard's current proposal.
+
+    Attributes:
+        position: world frame, metres; samples: how many agree; spread_m: their spread, m.
+        plausibility: against the map (`far` needs `Confirm(accept_far=True)`).
+        pixel: where the target's spot was in the latest lit frame (col, row).
+        frame_t_ns: that frame's time.
+    """
+
+    position: tuple[float, float, float]
+    samples: int
+    spread_m: float
+    plausibility: Plausibility
+    pixel: tuple[float, float] | None
+    frame_t_ns: int
+
+
+@dataclass(frozen=True)
+class WizardStatus:
+    """Where the wizard stands (what the REST API and the viewer show)."""
+
+    phase: Phase
+    robot: str
+    index: int
+    total: int
+    candidate: Candidate | None
+    prompt: str
+    measurement: Measurement | None
+    can_confirm: bool
+    needs_accept_far: bool
+    waiting_for: tuple[str, ...]
+    saved: tuple[int, ...]
+    skipped: tuple[int, ...]
+
+
+@dataclass
+class _Target:
+    """The candidate being measured and its LED cycle."""
+
+    candidate: Candidate
+    known: MapLandmark | None
+    height: float
+    want_on: bool  # the target's LED as the cycle wants it now
+    since_ns: int | None = None  # when the wanted state was confirmed (None: not yet)
+    asked_ns: int | None = None  # when it was last asked for
+    force: bool = False
+    waiting_since_ns: int | None = None
+    blockers: tuple[str, ...] = ()
+    started_ns: int = 0
+    frames_on: deque[PlacedFrame] = field(default_factory=deque)
+    frames_off: deque[PlacedFrame] = field(default_factory=deque)
+    samples: list[FloatArray] = field(default_factory=list)
+    pairs: int = 0
+    ambiguous: int = 0
+    last_pixel: tuple[float, float] | None = None
+    last_frame_ns: int = 0
+    agreed: Agreement | None = None
+    note: str = ""
+
+
+class IdentificationWizard:
+    """One site's wizard (its LEDs are shared): feed it events, carry out what it returns."""
+
+    def __init__(self, config: WizardConfig | None = None) -> None:
+        self.config = config or WizardConfig()
+        self._phase: Phase = "idle"
+        self._robot = ""
+        self._camera: CameraModel | None = None
+        self._queue: tuple[Candidate, ...] = ()
+        self._index = 0
+        self._landmarks: dict[int, MapLandmark] = {}
+        self._ceiling_z = 2.5
+        self._poses: dict[str, PoseEstimate] = {}
+        self._leds: deque[LedsSeen] = deque()
+        self._radio_on: dict[str, tuple[bool, int]] = {}  # address -> (on, since t_ns)
+        self._target: _Target | None = None
+        self._saved: list[int] = []
+        self._skipped: list[int] = []
+        self._prompt = "Pick a robot that sees the landmarks, then start."
+
+    @property
+    def running(self) -> bool:
+        return self._phase in ("waiting", "measuring")
+
+    # -- the one entry point -----------------------------------------------------------------
+    def handle(self, event: WizardEvent) -> list[WizardOutput]:
+        """Take one event; returns what to do. ValueError for a user action that does not
+        fit (names why); nothing changes then."""
+        if isinstance(event, Start):
+            return self._start(event)
+        if isinstance(event, PoseSeen):
+            self._poses[event.robot] = event.pose
+            return []
+        if isinstance(event, LedsSeen):
+            self._on_leds(event)
+            return self._step(event.t_ns)
+        if isinstance(event, RadioSwitched):
+            return self._on_radio(event)
+        if isinstance(event, FrameSeen):
+            self._poses[event.robot] = event.pose
+            if self.running and event.robot == self._robot:
+                self._on_frame(event)
+            return self._step(event.t_ns)
+        if isinstance(event, Tick):
+            return self._step(event.t_ns)
+        if isinstance(event, Confirm):
+            return self._confirm(event)
+        if isinstance(event, Skip):
+            t = self._need_target("skip")
+            self._skipped.append(t.candidate.landmark_id)
+            return self._next(event.t_ns)
+        if isinstance(event, SwitchAnyway):
+            t = self._need_target("switch anyway")
+            if t.known is None or not t.blockers:
+                raise ValueError("nothing is waiting for a robot: no need to switch anyway")
+            t.force = True
+            return self._step(event.t_ns)
+        if isinstance(event, Cancel):
+            if not self.running:
+                return []
+            return self._finish("cancelled")
+        raise TypeError(f"not a wizard event: {type(event).__name__}")
+
+    def status(self) -> WizardStatus:
+        t = self._target
+        m = None if t is None else self._measurement(t)
+        far = m is not None and m.plausibility.far
+        return WizardStatus(
+            phase=self._phase,
+            robot=self._robot,
+            index=self._index,
+            total=len(self._queue),
+            candidate=None if t is None else t.candidate,
+            prompt=self._prompt,
+            measurement=m,
+            can_confirm=self.running and m is not None and not far,
+            needs_accept_far=self.running and far,
+            waiting_for=() if t is None else t.blockers,
+            saved=tuple(self._saved),
+            skipped=tuple(self._skipped),
+        )
+
+    # -- user actions --------------------------------------------------------------------------
+    def _start(self, e: Start) -> list[WizardOutput]:
+        if self.running:
+            raise ValueError("the identification wizard is already running")
+        if not e.queue:
+            raise ValueError("nothing to identify: name landmark IDs or radio addresses")
+        if e.robot not in e.robots:
+            raise ValueError(f"unknown robot {e.robot!r}; robots: {', '.join(e.robots)}")
+        for c in e.queue:
+            if c.radio is None and c.landmark_id not in e.landmarks:
+                raise ValueError(f"landmark {c.landmark_id} is not in the map")
+        self._phase, self._robot, self._camera = "waiting", e.robot, e.camera
+        self._queue, self._index = tuple(e.queue), 0
+        self._landmarks = dict(e.landmarks)
+        self._ceiling_z = e.ceiling_z
+        self._saved, self._skipped = [], []
+        # unmapped LEDs would be stray spots in every frame: new radios start dark
+        out: list[WizardOutput] = [SwitchRadio(c.radio, False) for c in e.queue if c.radio]
+        self._begin(e.t_ns)
+        return out + self._step(e.t_ns)
+
+    def _confirm(self, e: Confirm) -> list[WizardOutput]:
+        t = self._need_target("confirm")
+        if e.position is not None:
+            p = tuple(float(v) for v in e.position)
+            if len(p) != 3 or not all(math.isfinite(v) for v in p):
+                raise ValueError(f"position: expected three finite numbers (m), got {p}")
+            pos = (p[0], p[1], p[2])
+        else:
+            m = self._measurement(t)
+            if m is None:
+                raise ValueError(
+                    "nothing measured yet: wait for the measurement, type the position by "
+                    "hand, or skip"
+                )
+            if m.plausibility.far and not e.accept_far:
+                raise ValueError(
+                    f"the measurement is far from the map ({m.plausibility.note}): "
+                    "confirm with accept_far if the landmark really moved"
+                )
+            pos = m.position
+        self._saved.append(t.candidate.landmark_id)
+        out: list[WizardOutput] = [SaveLandmark(t.candidate, pos)]
+        if t.candidate.radio is not None:  # a landmark now: the site switches it
+            self._radio_on.pop(t.candidate.radio, None)
+        return out + self._next(e.t_ns, saved_radio=t.candidate.radio is not None)
+
+    def _need_target(self, action: str) -> _Target:
+        if not self.running or self._target is None:
+            raise ValueError(f"cannot {action}: the identification wizard is not running")
+        return self._target
+
+    # -- the queue -------------------------------------------------------------------------------
+    def _begin(self, t_ns: int) -> None:
+        c = self._queue[self._index]
+        known = self._landmarks.get(c.landmark_id) if c.radio is None else None
+        height = known.z if known is not None else self._ceiling_z
+        # a landmark starts lit (then is darkened); a new radio starts dark (then is lit)
+        self._target = _Target(c, known, height, want_on=known is not None, started_ns=t_ns)
+        self._phase = "waiting"
+        self._prompt = f"{self._what(c)}: starting"
+
+    def _next(self, t_ns: int, *, saved_radio: bool = False) -> list[WizardOutput]:
+        t = self._target
+        out: list[WizardOutput] = []
+        if t is not None and t.known is not None:
+            out.append(SwitchLandmark(t.candidate.landmark_id, True))
+        elif t is not None and t.candidate.radio is not None and not saved_radio:
+            out.append(SwitchRadio(t.candidate.radio, False))
+        self._index += 1
+        if self._index >= len(self._queue):
+            return out + self._finish("done", relit=True)
+        self._begin(t_ns)
+        return out + self._step(t_ns)
+
+    def _finish(
+        self, phase: Literal["done", "cancelled"], *, relit: bool = False
+    ) -> list[WizardOutput]:
+        t = self._target
+        out: list[WizardOutput] = []
+        if not relit and t is not None and t.known is not None:
+            out.append(SwitchLandmark(t.candidate.landmark_id, True))
+        # radios from discovery that were not saved are left lit, as before the start
+        out += [
+            SwitchRadio(c.radio, True)
+            for c in self._queue
+            if c.radio is not None and c.landmark_id not in self._saved
+        ]
+        self._phase, self._target = phase, None
+        saved = ", ".join(map(str, self._saved)) or "none"
+        skipped = ", ".join(map(str, self._skipped)) or "none"
+        self._prompt = f"{phase}: saved {saved}, skipped {skipped}; LEDs restored"
+        return [*out, Finished(phase, tuple(self._saved), tuple(self._skipped))]
+
+    # -- LEDs --------------------------------------------------------------------------------------
+    def _on_leds(self, e: LedsSeen) -> None:
+        if self._leds and e.t_ns < self._leds[-1].t_ns:
+            return  # stale
+        self._leds.append(e)
+        horizon = e.t_ns - round(self.config.keep_s * 1e9)
+        while len(self._leds) >= 2 and self._leds[1].t_ns <= horizon:
+            self._leds.popleft()
+
+    def _leds_at(self, t_ns: int) -> LedsSeen | None:
+        """The LED state in force at `t_ns`, when it was settled by then."""
+        state = None
+        for s in self._leds:
+            if s.t_ns <= t_ns:
+                state = s
+        if state is None or t_ns - state.t_ns < self.config.settle_s * 1e9:
+            return None
+        return state
+
+    def _on_radio(self, e: RadioSwitched) -> list[WizardOutput]:
+        t = self._target
+        if e.error:
+            if t is not None and t.candidate.radio == e.address and self.running:
+                self._prompt = f"radio {e.address} did not switch its LED ({e.error}): skip it"
+            return []
+        self._radio_on[e.address] = (e.on, e.t_ns)
+        return self._step(e.t_ns)
+
+    def _target_on_at(self, t: _Target, t_ns: int, leds: LedsSeen) -> bool | None:
+        """Whether the target's LED was (surely) lit at `t_ns`; None when unknown."""
+        settle = round(self.config.settle_s * 1e9)
+        if t.known is not None:
+            lid = t.candidate.landmark_id
+            return None if lid in leds.changing else lid in leds.lit
+        radio = self._radio_on.get(t.candidate.radio or "")
+        if radio is None or t_ns - radio[1] < settle:
+            return None
+        return radio[0]
+
+    def _target_on_now(self, t: _Target) -> bool | None:
+        if t.known is not None:
+            if not self._leds:
+                return None
+            now = self._leds[-1]
+            lid = t.candidate.landmark_id
+            return None if lid in now.changing else lid in now.lit
+        radio = self._radio_on.get(t.candidate.radio or "")
+        return None if radio is None else radio[0]
+
+    # -- robots' fixes -------------------------------------------------------------------------
+    def _blockers(self, t: _Target) -> tuple[str, ...]:
+        """Robots tracking with the target that would keep fewer than `min_fix_landmarks`
+        other landmarks."""
+        lid = t.candidate.landmark_id
+        out = []
+        for name, pose in sorted(self._poses.items()):
+            used = set(pose.landmark_ids)
+            short = len(used - {lid}) < self.config.min_fix_landmarks
+            if pose.mode == "landmark" and lid in used and short:
+                out.append(name)
+        return tuple(out)
+
+    # -- the cycle -------------------------------------------------------------------------------
+    def _step(self, t_ns: int) -> list[WizardOutput]:
+        t = self._target
+        if not self.running or t is None:
+            return []
+        cfg = self.config
+        out: list[WizardOutput] = []
+        on_now = self._target_on_now(t)
+        if on_now is not None and on_now == t.want_on and t.since_ns is None:
+            t.since_ns = t_ns
+        held_s = None if t.since_ns is None else (t_ns - t.since_ns) * 1e-9
+        want_next = not t.want_on
+        if held_s is not None and held_s >= (cfg.dark_s if not t.want_on else cfg.lit_s):
+            if t.known is not None and not want_next and not t.force:
+                blockers = self._blockers(t)
+                if blockers:
+                    t.blockers = blockers
+                    t.waiting_since_ns = t.waiting_since_ns or t_ns
+                    self._phase = "waiting"
+                    self._prompt = self._waiting_prompt(t, t_ns)
+                    return out
+            t.blockers, t.waiting_since_ns = (), None
+            t.want_on, t.since_ns, t.asked_ns = want_next, None, None
+            self._phase = "measuring"
+        if t.since_ns is None and (
+            t.asked_ns is None or t_ns - t.asked_ns >= cfg.resend_s * 1e9
+        ):  # ask for the wanted state (again: something may have replaced it)
+            t.asked_ns = t_ns
+            if t.known is not None:
+                out.append(SwitchLandmark(t.candidate.landmark_id, t.want_on))
+            elif t.candidate.radio is not None:
+                out.append(SwitchRadio(t.candidate.radio, t.want_on))
+        if self._phase == "measuring":
+            self._prompt = self._measuring_prompt(t, t_ns)
+        elif not t.blockers and (t_ns - t.started_ns) * 1e-9 >= cfg.no_spot_s:
+            state = "lit" if t.want_on else "dark"
+            self._prompt = (
+                f"{self._what(t.candidate)}: its LED was never confirmed {state} (does its "
+                "radio answer?): skip it, or type its position by hand"
+            )
+        return out
+
+    def _on_frame(self, e: FrameSeen) -> None:
+        t = self._target
+        assert t is not None and self._camera is not None
+        cfg = self.config
+        pose = e.pose
+        cov = np.asarray(pose.covariance, dtype=np.float64)
+        sigma = math.sqrt(max(0.0, float(cov[0, 0] + cov[1, 1])))
+        if pose.mode != "landmark" or sigma > cfg.max_sigma_m:
+            return
+        leds = self._leds_at(e.t_ns)
+        if leds is None:
+            return
+        on = self._target_on_at(t, e.t_ns, leds)
+        if on is None:
+            return
+        pts = place_spots(self._camera, (pose.x, pose.y, pose.theta), e.pixels, t.height)
+        lit = leds.lit - ({t.candidate.landmark_id} if t.known is not None else set())
+        px = np.asarray(e.pixels, dtype=np.float64).reshape(-1, 2)
+        frame = PlacedFrame(e.t_ns, frozenset(lit), on, px, pts, (pose.x, pose.y, pose.theta))
+        mine, other = (t.frames_on, t.frames_off) if on else (t.frames_off, t.frames_on)
+        mine.append(frame)
+        horizon = e.t_ns - round(cfg.keep_s * 1e9)
+        for q in (t.frames_on, t.frames_off):
+            while q and q[0].t_ns < horizon:
+                q.popleft()
+        partner = next((f for f in reversed(other) if f.lit == frame.lit), None)
+        if partner is None:
+            return
+        lit_frame, dark_frame = (frame, partner) if on else (partner, frame)
+        t.pairs += 1
+        lone = lone_spots(
+            self._camera, lit_frame, dark_frame, match_m=cfg.match_m, margin_px=cfg.margin_px
+        )
+        if len(lone) != 1:
+            t.ambiguous += len(lone) > 1
+            return
+        p = lone[0]
+        t.samples.append(p)
+        del t.samples[: -4 * cfg.min_agreeing]
+        k = int(np.argmin(np.linalg.norm(np.nan_to_num(lit_frame.points, nan=1e9) - p, axis=1)))
+        t.last_pixel = (float(lit_frame.pixels[k, 0]), float(lit_frame.pixels[k, 1]))
+        t.last_frame_ns = lit_frame.t_ns
+        agreed = agreement(t.samples, agree_m=cfg.agree_m, needed=cfg.min_agreeing)
+        if agreed is not None:
+            t.agreed = agreed
+
+    def _measurement(self, t: _Target) -> Measurement | None:
+        a = t.agreed
+        if a is None:
+            return None
+        others = [lm for lid, lm in self._landmarks.items() if lid != t.candidate.landmark_id]
+        plaus = plausibility(a.position, t.known, others, far_m=self.config.far_m)
+        return Measurement(a.position, a.count, a.spread_m, plaus, t.last_pixel, t.last_frame_ns)
+
+    # -- prompts ---------------------------------------------------------------------------------
+    def _what(self, c: Candidate) -> str:
+        n = f"({self._index + 1} of {len(self._queue)})"
+        if c.radio is not None:
+            return f"New radio {c.radio} (to be landmark {c.landmark_id}) {n}"
+        return f"Landmark {c.landmark_id} {n}"
+
+    def _waiting_prompt(self, t: _Target, t_ns: int) -> str:
+        lid = t.candidate.landmark_id
+        names = ", ".join(t.blockers)
+        waited = (t_ns - (t.waiting_since_ns or t_ns)) * 1e-9
+        text = (
+            f"{self._what(t.candidate)}: darkening it would cost {names} its landmark fix "
+            f"(it tracks with landmark {lid} and fewer than {self.config.min_fix_landmarks} "
+            f"others): waiting for {names} to move on ({waited:.0f} s)"
+        )
+        if waited >= self.config.wait_fix_s:
+            text += "; switch anyway (it falls back to dead reckoning for a moment), or skip"
+        return text
+
+    def _measuring_prompt(self, t: _Target, t_ns: int) -> str:
+        head = self._what(t.candidate)
+        m = self._measurement(t)
+        if m is not None:
+            x, y, z = m.position
+            text = (
+                f"{head}: at ({x:.3f}, {y:.3f}, {z:.3f}) m, {m.samples} frames agree within "
+                f"{100 * m.spread_m:.1f} cm; {m.plausibility.note}"
+            )
+            return text
+        if t.samples:
+            return f"{head}: measuring ({len(t.samples)} frames, not yet agreeing)"
+        if (t_ns - t.started_ns) * 1e-9 < self.config.no_spot_s:
+            return f"{head}: measuring"
+        return f"{head}: {self._no_spot(t)}"
+
+    def _no_spot(self, t: _Target) -> str:
+        robot = self._robot
+        pose = self._poses.get(robot)
+        if pose is None or pose.mode != "landmark":
+            return (
+                f"{robot} has no landmark fix, and measuring needs one: drive {robot} where "
+                "it sees at least three lit landmarks"
+            )
+        where = f"{robot} is at ({pose.x:.2f}, {pose.y:.2f})"
+        if t.ambiguous > t.pairs // 2:
+            return (
+                f"more than one spot switches with it in {robot}'s view (reflections?): "
+                f"drive {robot} a little to another place"
+            )
+        if t.known is None:
+            return (
+                f"no spot of radio {t.candidate.radio} in {robot}'s view ({where}): drive "
+                f"{robot} to where the radio hangs, or skip it"
+            )
+        lm = t.known
+        assert self._camera is not None
+        seen = expected_in_view(
+            self._camera,
+            (pose.x, pose.y, pose.theta),
+            np.array([[lm.x, lm.y, lm.z]]),
+            margin_px=self.config.margin_px,
+        )
+        d = math.hypot(lm.x - pose.x, lm.y - pose.y)
+        if not bool(seen[0]):
+            return (
+                f"landmark {lm.id}'s map position ({lm.x:.2f}, {lm.y:.2f}) is not in {robot}'s "
+                f"view ({where}, {d:.1f} m away): drive {robot} under it"
+            )
+        return (
+            f"no spot switches with landmark {lm.id} in {robot}'s view although its map "
+            f"position is in view ({where}): its LED may be dead or it hangs elsewhere; drive "
+            f"{robot} around where it may be, or skip it"
+        )
+
+
+def landmarks_from(records: Sequence[MapLandmark]) -> dict[int, MapLandmark]:
+    """The map by ID."""
+    return {lm.id: lm for lm in records}

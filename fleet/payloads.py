@@ -1,0 +1,219 @@
+"""The JSON payloads of irloc's MQTT topics (pydantic models) and their conversions to and
+from the localizer's events.
+
+Every time on the wire is the site server's wall clock, Unix nanoseconds (`t_ns`, `wall_ns`):
+the agent converts to and from its own clocks with its measured offset (`fleet.clock`).
+Decoding bad input raises `PayloadError` naming the topic and the field.
+"""
+
+from __future__ import annotations
+
+from typing import Literal, TypeVar
+
+import numpy as np
+import numpy.typing as npt
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
+
+from localizer.events import LedRequest, LedsChanged, Mode, PoseEstimate
+
+M = TypeVar("M", bound=BaseModel)
+MAX_T_NS = 2**63 - 1
+
+
+class PayloadError(ValueError):
+    """A message that is not what its topic carries."""
+
+
+class _Msg(BaseModel):
+    model_config = ConfigDict(extra="ignore", frozen=True)
+
+    def encode(self) -> bytes:
+        return self.model_dump_json(exclude_none=True).encode()
+
+
+def decode(model: type[M], topic: str, payload: bytes | bytearray | str) -> M:
+    """Parse one message of `topic`; PayloadError names the topic and the bad field."""
+    try:
+        return model.model_validate_json(payload)
+    except ValidationError as exc:
+        err = exc.errors()[0]
+        where = ".".join(str(p) for p in err["loc"]) or "message"
+        raise PayloadError(f"{topic}: {where}: {err['msg']}") from None
+
+
+class MapLandmark(_Msg):
+    id: int = Field(ge=0)
+    x: float = Field(allow_inf_nan=False)
+    y: float = Field(allow_inf_nan=False)
+    z: float = Field(allow_inf_nan=False)
+
+
+class MapMessage(_Msg):
+    """`<site>/map`: the landmark map (surveyed positions, metres, world frame)."""
+
+    map_id: str = Field(min_length=1, max_length=128)
+    landmarks: list[MapLandmark]
+
+    def records(self) -> list[dict[str, float]]:
+        """The landmarks as `LandmarkMap.from_records` takes them."""
+        return [lm.model_dump() for lm in self.landmarks]
+
+
+class LedStateMessage(_Msg):
+    """`<site>/leds`: one LED state of the site (`localizer.events.LedsChanged`), in force from
+    `t_ns`; `seq` counts the server's states (a gap means a missed one)."""
+
+    seq: int = Field(ge=0)
+    t_ns: int = Field(ge=0, le=MAX_T_NS)
+    lit: list[int] = []
+    all_lit: bool = False
+    changing: list[int] = []
+
+    @classmethod
+    def from_event(cls, seq: int, event: LedsChanged, t_ns: int) -> LedStateMessage:
+        """`event` stamped `t_ns` (the server's wall clock)."""
+        return cls(
+            seq=seq,
+            t_ns=t_ns,
+            lit=sorted(event.lit),
+            all_lit=event.all_lit,
+            changing=sorted(event.changing),
+        )
+
+    def event(self, t_ns: int) -> LedsChanged:
+        """The localizer event, stamped `t_ns` (the receiver's clock)."""
+        return LedsChanged(t_ns, frozenset(self.lit), self.all_lit, frozenset(self.changing))
+
+
+class LedRequestMessage(_Msg):
+    """`agents/<robot>/led_request`: a robot's `localizer.events.LedRequest`."""
+
+    lit: list[int] = []
+    all_lit: bool = False
+    dark: list[int] = []
+
+    @classmethod
+    def from_request(cls, req: LedRequest) -> LedRequestMessage:
+        return cls(lit=sorted(req.lit), all_lit=req.all_lit, dark=sorted(req.dark))
+
+    def request(self) -> LedRequest:
+        """The request; ValueError when `dark` comes without `all_lit`."""
+        return LedRequest(frozenset(self.lit), self.all_lit, frozenset(self.dark))
+
+
+_UPPER = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))
+COV_DIGITS = 4
+"""Significant digits kept of each covariance entry."""
+
+
+def _sig(v: float, digits: int = COV_DIGITS) -> float:
+    return float(f"{v:.{digits}g}")
+
+
+class PoseMessage(_Msg):
+    """`agents/<robot>/pose`: one localizer result.
+
+    Attributes:
+        seq: counts the agent's pose messages.
+        t_ns: the frame's time (site server's wall clock, ns).
+        wall_ns: when the agent computed it (site server's wall clock, ns).
+        mode: the localizer's mode.
+        x, y, theta: metres, metres, radians (REP-103); absent while there is no pose.
+        cov: the covariance of (x, y, theta), upper triangle row by row
+            (xx, xy, xt, yy, yt, tt), SI units.
+        lm: the landmarks used for this pose.
+    """
+
+    seq: int = Field(ge=0)
+    t_ns: int = Field(ge=0, le=MAX_T_NS)
+    wall_ns: int = Field(ge=0, le=MAX_T_NS)
+    mode: Mode
+    x: float | None = Field(default=None, allow_inf_nan=False)
+    y: float | None = Field(default=None, allow_inf_nan=False)
+    theta: float | None = Field(default=None, allow_inf_nan=False)
+    cov: tuple[float, float, float, float, float, float] | None = None
+    lm: list[int] = []
+
+    @classmethod
+    def from_estimate(cls, seq: int, est: PoseEstimate, t_ns: int, wall_ns: int) -> PoseMessage:
+        c = np.asarray(est.covariance, dtype=np.float64)
+        return cls(
+            seq=seq,
+            t_ns=t_ns,
+            wall_ns=wall_ns,
+            mode=est.mode,
+            x=round(float(est.x), 5),
+            y=round(float(est.y), 5),
+            theta=round(float(est.theta), 6),
+            cov=tuple(_sig(float(c[i, j])) for i, j in _UPPER),  # type: ignore[arg-type]
+            lm=list(est.landmark_ids),
+        )
+
+    def covariance(self) -> npt.NDArray[np.float64] | None:
+        """The full (3, 3) covariance, or None."""
+        if self.cov is None:
+            return None
+        xx, xy, xt, yy, yt, tt = self.cov
+        return np.array([[xx, xy, xt], [xy, yy, yt], [xt, yt, tt]], dtype=np.float64)
+
+
+AgentSource = Literal["sim", "sim-light", "camera"]
+
+
+class AgentStatus(_Msg):
+    """`agents/<robot>/status` (retained): what the server needs to show the robot.
+
+    Attributes:
+        source: "sim" (rendered frames), "sim-light" (spot-level simulation), "camera".
+        camera: its camera as `cam0/sensor.yaml` (intrinsics, distortion, mounting `T_BS`).
+        wheel_base, max_speed: metres, m/s.
+        mode: the localizer's mode now.
+        clock_offset_ns, clock_error_ns: server clock minus the agent's, and its bound (ns);
+            absent before the first measurement.
+        frames, poses, errors: counters of the agent's localizer.
+        map_id: the map the agent localizes on.
+    """
+
+    source: AgentSource
+    camera: dict[str, object]
+    wheel_base: float = Field(gt=0, le=10)
+    max_speed: float = Field(gt=0, le=20)
+    mode: Mode
+    clock_offset_ns: int | None = None
+    clock_error_ns: int | None = None
+    frames: int = 0
+    poses: int = 0
+    errors: int = 0
+    map_id: str | None = None
+
+
+class ClockRequest(_Msg):
+    """`<site>/clock/request`: agent `robot` sends at `t1` (its clock), id `n`."""
+
+    robot: str
+    n: int
+    t1: int
+
+
+class ClockReply(_Msg):
+    """`agents/<robot>/clock/reply`: the request's `n`, `t1`, and the server's receive and
+    send times `t2`, `t3` (its wall clock)."""
+
+    n: int
+    t1: int
+    t2: int
+    t3: int
+
+
+class CommandMessage(_Msg):
+    """`agents/<robot>/command`: an operator's request (relocalize, optionally near a pose
+    (x, y, theta), metres and radians)."""
+
+    command: Literal["relocalize"]
+    near: tuple[float, float, float] | None = None
+
+
+class ServerState(_Msg):
+    """`<site>/server` (retained; last will OFFLINE)."""
+
+    state: Literal["ONLINE", "OFFLINE"]

@@ -1,0 +1,1 @@
+"""Publish/subscribe with a bounded drop-oldest queue per subscriber (docs/architecture.md)."""

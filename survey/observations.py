@@ -1,0 +1,308 @@
+"""Which spot is which landmark during a survey drive: spot tracks named by blinks.
+
+A survey starts with most landmark positions unknown or rough, so the localizer's way of
+naming spots (predict each landmark's pixel from the pose) does not apply. Instead:
+
+1. **Tracks.** Spots are followed from frame to frame in the image: each track's pixel is
+   carried to the next frame through the wheels' motion (the ray meets the ceiling, the
+   point moves with the inverse of the body's motion, and is projected again), then tracks
+   and spots are paired by least total distance within a gate (`linear_sum_assignment`).
+   A track that finds no spot coasts on its prediction for a few frames, so a landmark that
+   blinks dark keeps its track.
+2. **Names.** A track that vanishes exactly while one landmark is dark and is back when it is
+   lit again votes for that landmark (`survey.blinks`); a track seen in a frame where only
+   one landmark was lit (the start-up sweep, Sec. III-A) votes for it. A track takes the name
+   most of its votes give, if they agree clearly.
+
+Everything here is pure: frames arrive as detected spot pixels with their time and the LED
+state in force.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import Counter
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+import numpy.typing as npt
+from scipy.optimize import linear_sum_assignment
+
+from localizer.camera import CameraModel, pixels_from_points_camera, rays_from_pixels
+from localizer.events import LedsChanged
+from localizer.geometry import transform_points
+
+FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.int64]
+
+
+@dataclass(frozen=True)
+class TrackingConfig:
+    """Tuning of the spot tracks and their naming.
+
+    Attributes:
+        gate_px: a spot pairs with a track's prediction within this distance, pixels.
+        max_coast_frames: a track with no spot for longer ends.
+        edge_margin_px: a coasting track whose prediction comes this close to the image edge
+            (or leaves the field of view) cannot vote: it may just have left the image.
+        max_dark_landmarks: a frame in which more landmarks are dark than this cannot
+            name a vanished track (the vanishing would be ambiguous).
+        min_agreement: share of a track's votes its name needs.
+    """
+
+    gate_px: float = 8.0
+    max_coast_frames: int = 8
+    edge_margin_px: float = 6.0
+    max_dark_landmarks: int = 1
+    min_agreement: float = 0.75
+
+
+@dataclass(frozen=True, eq=False)
+class LabelledObservations:
+    """Spots named by landmark, over the frames of a drive.
+
+    Every spot of every track is kept, named or not: the estimator confirms names by geometry
+    and names more tracks by where they sit (`survey.bundle`).
+
+    Attributes:
+        frame: index into the frame list, shape (M,).
+        landmark_id: the name the blinks gave the spot's track, -1 for none, shape (M,).
+        name_votes: blink votes for that name, shape (M,) (0 for unnamed tracks).
+        pixels: measured spot centres (col, row), shape (M, 2).
+        track: the spot track each observation belongs to, shape (M,).
+        conflicts: landmark id -> how many of its tracks disagreed with the others in one
+            frame (two spots named alike at once: a swapped or duplicated radio address).
+        votes: landmark id -> blink votes its tracks received.
+        tracks: number of tracks followed; named: how many got a name.
+    """
+
+    frame: IntArray
+    landmark_id: IntArray
+    pixels: FloatArray
+    track: IntArray
+    name_votes: IntArray
+    conflicts: dict[int, int] = field(default_factory=dict)
+    votes: dict[int, int] = field(default_factory=dict)
+    tracks: int = 0
+    named: int = 0
+
+    def __len__(self) -> int:
+        return len(self.frame)
+
+    def seen_ids(self) -> set[int]:
+        """Landmarks named by at least one blink."""
+        return {int(i) for i in np.unique(self.landmark_id) if i >= 0}
+
+
+@dataclass
+class _Track:
+    pixel: FloatArray
+    born: int
+    last_seen: int
+    frames: list[int] = field(default_factory=list)
+    pixels: list[tuple[float, float]] = field(default_factory=list)
+    coast: list[int] = field(default_factory=list)  # frames coasted in the current gap
+    coast_ok: bool = True  # the current gap's predictions stayed well inside the image
+    votes: Counter[int] = field(default_factory=Counter)
+
+
+def lit_state_at_frames(
+    frame_t_ns: Sequence[int], leds: Sequence[LedsChanged]
+) -> list[LedsChanged | None]:
+    """The LED state in force at each frame time (None before the first state)."""
+    times = [c.t_ns for c in leds]
+    out: list[LedsChanged | None] = []
+    for t in frame_t_ns:
+        i = int(np.searchsorted(times, t, side="right")) - 1
+        out.append(leds[i] if i >= 0 else None)
+    return out
+
+
+def predict_pixels_after_motion(
+    camera: CameraModel, pixels: FloatArray, delta: FloatArray, ceiling_z_m: float
+) -> tuple[FloatArray, npt.NDArray[np.bool_]]:
+    """Where ceiling spots (N, 2) appear after the body moved by `delta` (dx, dy, dtheta) in
+    its own frame; their rays are taken to meet the ceiling at `ceiling_z_m` above the floor.
+    """
+    if len(pixels) == 0:
+        return np.zeros((0, 2)), np.zeros(0, dtype=bool)
+    rays = rays_from_pixels(camera, pixels) @ camera.T_body_camera[:3, :3].T
+    origin = camera.T_body_camera[:3, 3]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s = (ceiling_z_m - origin[2]) / rays[:, 2]
+    ok = np.isfinite(s) & (s > 0)
+    p = origin + np.where(ok, s, 1.0)[:, None] * np.nan_to_num(rays)
+    c, si = math.cos(delta[2]), math.sin(delta[2])
+    x, y = p[:, 0] - delta[0], p[:, 1] - delta[1]
+    p_new = np.stack([c * x + si * y, -si * x + c * y, p[:, 2]], axis=1)
+    px, valid = pixels_from_points_camera(camera, transform_points(camera.T_camera_body, p_new))
+    return px, valid & ok
+
+
+def _dark_of(state: LedsChanged | None, ids: frozenset[int]) -> frozenset[int] | None:
+    """Landmarks dark in a state (None: unknown, before any state)."""
+    if state is None:
+        return None
+    return frozenset() if state.all_lit else ids - state.lit
+
+
+def label_spot_tracks(
+    camera: CameraModel,
+    landmark_ids: Sequence[int],
+    frame_t_ns: Sequence[int],
+    frame_spots: Sequence[FloatArray],
+    frame_motion: FloatArray,
+    leds: Sequence[LedsChanged],
+    *,
+    ceiling_z_m: float,
+    config: TrackingConfig | None = None,
+) -> LabelledObservations:
+    """Follow the spots of a drive and name the tracks by the LED blinks.
+
+    Args:
+        camera: the surveying camera.
+        landmark_ids: every landmark of the site (the LED states refer to them).
+        frame_t_ns: frame times, shape (F,).
+        frame_spots: each frame's spot pixels, shape (N_f, 2).
+        frame_motion: body motion from each frame to the next in the earlier frame's own
+            frame (dx, dy, dtheta), shape (F - 1, 3), e.g. from the wheels.
+        leds: LED states in time order.
+        ceiling_z_m: typical landmark height, metres (for carrying spots between frames).
+    """
+    cfg = config or TrackingConfig()
+    ids = frozenset(int(i) for i in landmark_ids)
+    states = lit_state_at_frames(frame_t_ns, leds)
+    dark = [_dark_of(s, ids) for s in states]
+    live: list[_Track] = []
+    done: list[_Track] = []
+    for f, spots in enumerate(frame_spots):
+        spots = np.asarray(spots, dtype=np.float64).reshape(-1, 2)
+        if f > 0 and live:
+            pred, valid = predict_pixels_after_motion(
+                camera, np.array([t.pixel for t in live]), frame_motion[f - 1], ceiling_z_m
+            )
+        else:
+            pred, valid = np.zeros((len(live), 2)), np.ones(len(live), dtype=bool)
+        pairs = _pair(pred, valid, spots, cfg.gate_px)
+        matched_tracks = {ti for ti, _ in pairs}
+        used_spots = {si for _, si in pairs}
+        for ti, si in pairs:
+            _resume(live[ti], f, spots[si], dark, states, cfg)
+        still: list[_Track] = []
+        for ti, t in enumerate(live):
+            if ti in matched_tracks:
+                still.append(t)
+                continue
+            inside = bool(valid[ti]) and _inside(camera, pred[ti], cfg.edge_margin_px)
+            if not inside or f - t.last_seen > cfg.max_coast_frames:
+                done.append(t)
+                continue
+            t.pixel = pred[ti]
+            t.coast.append(f)
+            still.append(t)
+        for si in range(len(spots)):
+            if si not in used_spots:
+                t = _Track(spots[si].copy(), f, f, [f], [(spots[si, 0], spots[si, 1])])
+                _vote_single_lit(t, f, states)
+                still.append(t)
+        live = still
+    done.extend(live)
+    return _observations(done, cfg)
+
+
+def _pair(
+    pred: FloatArray, valid: npt.NDArray[np.bool_], spots: FloatArray, gate_px: float
+) -> list[tuple[int, int]]:
+    if len(pred) == 0 or len(spots) == 0:
+        return []
+    cost = np.linalg.norm(pred[:, None, :] - spots[None, :, :], axis=2)
+    cost[~valid] = 1e6
+    rows, cols = linear_sum_assignment(np.where(cost <= gate_px, cost, 1e6))
+    return [(int(r), int(c)) for r, c in zip(rows, cols, strict=True) if cost[r, c] <= gate_px]
+
+
+def _inside(camera: CameraModel, px: FloatArray, margin: float) -> bool:
+    return bool(
+        margin <= px[0] <= camera.width - 1 - margin
+        and margin <= px[1] <= camera.height - 1 - margin
+    )
+
+
+def _resume(
+    t: _Track,
+    f: int,
+    spot: FloatArray,
+    dark: list[frozenset[int] | None],
+    states: list[LedsChanged | None],
+    cfg: TrackingConfig,
+) -> None:
+    """A track finds its spot again at frame f: a gap that matched one dark landmark votes."""
+    if t.coast:
+        gap = t.coast
+        before, after = gap[0] - 1, f
+        gap_dark = [dark[g] for g in gap]
+        known = [d for d in gap_dark if d is not None]
+        if len(known) == len(gap) and all(len(d) <= cfg.max_dark_landmarks for d in known):
+            union = frozenset().union(*known)
+            dark_frames = sum(1 for d in known if d)
+            lit_around = [dark[before], dark[after]]
+            if len(union) == 1 and 2 * dark_frames >= len(gap) and None not in lit_around:
+                (lid,) = union
+                if all(lid not in d for d in lit_around if d is not None):
+                    t.votes[lid] += 1
+        t.coast = []
+    t.pixel = spot.copy()
+    t.last_seen = f
+    t.frames.append(f)
+    t.pixels.append((float(spot[0]), float(spot[1])))
+    _vote_single_lit(t, f, states)
+
+
+def _vote_single_lit(t: _Track, f: int, states: list[LedsChanged | None]) -> None:
+    s = states[f]
+    if s is not None and not s.all_lit and len(s.lit) == 1:
+        (lid,) = s.lit
+        t.votes[lid] += 1
+
+
+def _observations(tracks: list[_Track], cfg: TrackingConfig) -> LabelledObservations:
+    frames: list[int] = []
+    lids: list[int] = []
+    n_votes: list[int] = []
+    pixels: list[tuple[float, float]] = []
+    track_ix: list[int] = []
+    votes: Counter[int] = Counter()
+    named = 0
+    seen_at: dict[tuple[int, int], int] = {}
+    conflicts: Counter[int] = Counter()
+    for k, t in enumerate(tracks):
+        lid, n = -1, 0
+        if t.votes:
+            (best, top), total = t.votes.most_common(1)[0], sum(t.votes.values())
+            if top >= cfg.min_agreement * total:
+                lid, n = best, top
+                named += 1
+                votes[lid] += top
+        for f, px in zip(t.frames, t.pixels, strict=True):
+            if lid >= 0:
+                other = seen_at.setdefault((f, lid), k)
+                if other != k:
+                    conflicts[lid] += 1
+            frames.append(f)
+            lids.append(lid)
+            n_votes.append(n)
+            pixels.append(px)
+            track_ix.append(k)
+    order = np.argsort(np.asarray(frames, dtype=np.int64), kind="stable")
+    return LabelledObservations(
+        np.asarray(frames, dtype=np.int64)[order],
+        np.asarray(lids, dtype=np.int64)[order],
+        np.asarray(pixels, dtype=np.float64).reshape(-1, 2)[order],
+        np.asarray(track_ix, dtype=np.int64)[order],
+        np.asarray(n_votes, dtype=np.int64)[order],
+        dict(conflicts),
+        dict(votes),
+        len(tracks),
+        named,
+    )
