@@ -98,8 +98,8 @@ ERRORS: dict[int, str] = {
 
 def _error_codes(method: str, path: str, op: dict[str, Any]) -> list[int]:
     codes = [422] if op.get("parameters") or op.get("requestBody") else []
-    if op.get("security"):
-        codes += [401, 403, 429]
+    if op.get("security"):  # a key; any query or body may name a landmark or robot
+        codes += [401, 403, 404, 429]
     if "{" in path:
         codes.append(404)
     if method in ("post", "put", "patch", "delete"):

@@ -7,12 +7,14 @@ from __future__ import annotations
 
 import asyncio
 import threading
-from typing import Any
+from collections.abc import Callable
+from typing import Any, TypeVar
 
 from starlette.requests import HTTPConnection
 
 from server.auth import Principal, token_of
 
+T = TypeVar("T")
 POLL_S = 0.2
 """How often a stream looks at the in-process revocations and the shutdown flag, seconds."""
 RECHECK_S = 1.0
@@ -21,22 +23,23 @@ SHUTTING_DOWN = "the server is shutting down"
 KEY_REVOKED = "the API key was revoked"
 
 
+def _flag(app: Any, name: str, make: Callable[[], T]) -> T:
+    """`app.state.<name>`, made with `make()` on first use."""
+    flag: T | None = getattr(app.state, name, None)
+    if flag is None:
+        flag = make()
+        setattr(app.state, name, flag)
+    return flag
+
+
 def draining(app: Any) -> asyncio.Event:
     """The app's shutdown flag: set when the server starts shutting down (`server.shutdown`)."""
-    state = app.state
-    event: asyncio.Event | None = getattr(state, "draining", None)
-    if event is None:
-        event = state.draining = asyncio.Event()
-    return event
+    return _flag(app, "draining", asyncio.Event)
 
 
 def stopping(app: Any) -> threading.Event:
-    """The app's shutdown flag for work on threads (set with `draining`), made on first use."""
-    state = app.state
-    flag: threading.Event | None = getattr(state, "stopping", None)
-    if flag is None:
-        flag = state.stopping = threading.Event()
-    return flag
+    """The app's shutdown flag for work on threads (set with `draining`)."""
+    return _flag(app, "stopping", threading.Event)
 
 
 async def stream_end(conn: HTTPConnection, principal: Principal) -> str:

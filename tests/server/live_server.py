@@ -11,11 +11,11 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import httpx
 import uvicorn
 
-from server.main import create_app
 from server.services import SiteServices
-from server.settings import Settings
+from tests.server.conftest import Api, make_test_app, role_keys
 
 
 @contextmanager
@@ -39,32 +39,16 @@ def served(app: Any) -> Iterator[str]:
 
 
 @dataclass
-class LiveApi:
-    """A served app: its URL, services and a key per role."""
+class LiveApi(Api):
+    """A served app: the `Api` of a test (its `client` talks to the real server) and the URL."""
 
-    url: str
-    services: SiteServices
-    keys: dict[str, str]
-
-    def h(self, role: str) -> dict[str, str]:
-        return {"Authorization": f"Bearer {self.keys[role]}"}
+    url: str = ""
 
 
 @contextmanager
 def live_api(data_dir: Path, **settings: object) -> Iterator[LiveApi]:
     """The app (the live virtual site unless `site_enabled=False`) served on a free port."""
-    conf: dict[str, object] = {
-        "data_dir": data_dir,
-        "viewer_enabled": False,
-        "battery_interval_s": None,
-    }
-    app = create_app(Settings(**{**conf, **settings}))  # type: ignore[arg-type]
-    with served(app) as url:
+    app = make_test_app(data_dir, **settings)
+    with served(app) as url, httpx.Client(base_url=url) as client:
         services: SiteServices = app.state.services
-        admin = services.initial_admin_key
-        if admin is None:
-            raise RuntimeError(f"{data_dir}: expected a fresh data folder")
-        keys = {"admin": admin}
-        for role in ("operator", "viewer"):
-            keys[role], _ = services.keys.create(role, name=f"test {role}")
-        yield LiveApi(url, services, keys)
+        yield LiveApi(client, services, role_keys(services), url)  # type: ignore[arg-type]
