@@ -3,9 +3,11 @@ deep JSON, huge or broken CSV fields, non-integer IDs, extra CSV fields, an empt
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+
 import pytest
 
-from tests.server.conftest import LM, Api
+from tests.server.conftest import LM, Api, start_api
 
 CSV_HEAD = "id,x,y,z,radio,locked,note\n"
 
@@ -14,8 +16,25 @@ def _count(api: Api) -> int:
     return len(api.client.get("/api/v1/landmarks", headers=api.h("viewer")).json())
 
 
+@pytest.fixture(scope="module")
+def shared(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Api]:
+    """One app for the module (each test sets the map it needs)."""
+    yield from start_api(tmp_path_factory.mktemp("strict"), site_enabled=False)
+
+
+@pytest.fixture
+def api(shared: Api) -> Api:
+    """The shared app with an empty map."""
+    r = shared.client.put(
+        "/api/v1/map?allow_empty=true", json={"landmarks": []}, headers=shared.h("admin")
+    )
+    assert r.status_code == 200, r.text
+    return shared
+
+
 @pytest.fixture
 def mapped(api: Api) -> Api:
+    """The shared app with one landmark."""
     r = api.client.put("/api/v1/map", json={"landmarks": [LM]}, headers=api.h("admin"))
     assert r.status_code == 200, r.text
     return api
