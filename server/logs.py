@@ -105,5 +105,6 @@ def configure_logging(
     for name in ("uvicorn", "uvicorn.error", "uvicorn.access"):
         lg = logging.getLogger(name)
         lg.handlers.clear()
+        lg.setLevel(logging.NOTSET)  # the root's level decides (uvicorn may have set its own)
         lg.propagate = True
     return handler

@@ -21,7 +21,9 @@ from tests.server.conftest import Api, make_test_app, role_keys
 @contextmanager
 def served(app: Any) -> Iterator[str]:
     """Serve `app` (its lifespan runs) on 127.0.0.1 and yield its base URL."""
-    config = uvicorn.Config(app, host="127.0.0.1", port=0, log_level="warning", lifespan="on")
+    config = uvicorn.Config(
+        app, host="127.0.0.1", port=0, log_config=None, access_log=False, lifespan="on"
+    )  # (log_config=None: leaves the test process's logging alone)
     server = uvicorn.Server(config)
     thread = threading.Thread(target=server.run, name="live-server", daemon=True)
     thread.start()
