@@ -20,9 +20,7 @@ the scenario and its seed exactly as `irloc simulate` builds it (the localizer n
 from __future__ import annotations
 
 import argparse
-import csv
 import dataclasses
-import math
 import sys
 import tempfile
 import time
@@ -42,12 +40,12 @@ import localizer.first_fix as first_fix_module  # noqa: E402
 import localizer.landmark_tracker as tracker_module  # noqa: E402
 import localizer.localizer as localizer_module  # noqa: E402
 from localizer.camera import CameraModel, predict_pixels  # noqa: E402
-from localizer.geometry import wrap_angle  # noqa: E402
 from localizer.pose import PoseFix  # noqa: E402
 from recording.reader import read_groundtruth  # noqa: E402
 from recording.replay_cli import main as replay_main  # noqa: E402
-from sim.build import build_robot, build_world, seed_generators  # noqa: E402
+from recording.scoring import error_stats, read_poses  # noqa: E402
 from sim.cli import main as simulate_main  # noqa: E402
+from sim.offline import recording_site  # noqa: E402
 from sim.scenario import load_scenario  # noqa: E402
 
 SCENARIOS = ("paper_testbed", "paper_floor", "dense_grid_fast", "hostile")
@@ -124,11 +122,7 @@ class SiteTruth:
 
 def site_truth(name: str, seed: int | None) -> SiteTruth:
     """Rebuild the truth of `irloc simulate NAME` (first robot) the way sim.offline does."""
-    sc = load_scenario(name)
-    sc = dataclasses.replace(sc, robots=sc.robots[:1])
-    gens = seed_generators(sc.seed if seed is None else seed, 4)
-    world = build_world(sc, gens[0])
-    rig = build_robot(sc.robots[0], sc, gens[3], index=0)
+    _, world, rig, _ = recording_site(load_scenario(name), seed=seed)
     ids = sorted(world.landmarks)
     P = np.array([world.landmarks[i].p_true for i in ids], dtype=np.float64)
     G = np.array([g.p_world for g in world.glints], dtype=np.float64).reshape(-1, 3)
@@ -169,46 +163,10 @@ def misidentifications(
     return bad, len(claims), worst_ok, notes
 
 
-def read_poses(path: Path) -> list[dict[str, str]]:
-    """Rows of a poses.csv."""
-    with path.open() as f:
-        return list(csv.DictReader(f))
-
-
 def compare(rec: Path, poses: Path) -> dict[str, float]:
     """Error statistics of a replay against the recording's groundtruth.csv."""
     t_gt, gt = read_groundtruth(rec)
-    rows = read_poses(poses)
-    t = np.array([int(r["timestamp_ns"]) for r in rows])
-    has = np.array([r["x"] != "" for r in rows])
-    x = np.array([float(r["x"]) if r["x"] else np.nan for r in rows])
-    y = np.array([float(r["y"]) if r["y"] else np.nan for r in rows])
-    th = np.array([float(r["theta"]) if r["theta"] else np.nan for r in rows])
-    gx = np.interp(t, t_gt, gt[:, 0])
-    gy = np.interp(t, t_gt, gt[:, 1])
-    gth = np.interp(t, t_gt, np.unwrap(gt[:, 2]))
-    err = np.hypot(x - gx, y - gy)
-    herr = np.abs(np.asarray(wrap_angle(th - gth)))
-    e = err[has]
-    modes = [r["mode"] for r in rows]
-    landmark = np.array([m == "landmark" for m in modes])
-    fix_err = err[landmark & has]
-    first = t[has][0] - t[0] if has.any() else math.inf
-    return {
-        "frames": float(len(rows)),
-        "posed": float(has.mean()),
-        "first_fix_s": first * 1e-9,
-        "mean_cm": float(np.mean(e)) * 100,
-        "p50_cm": float(np.percentile(e, 50)) * 100,
-        "p95_cm": float(np.percentile(e, 95)) * 100,
-        "max_cm": float(np.max(e)) * 100,
-        "heading_mean_deg": float(np.degrees(np.mean(herr[has]))),
-        "heading_max_deg": float(np.degrees(np.max(herr[has]))),
-        "landmark": float(landmark.mean()),
-        "dead_reckoning": float(np.mean([m == "dead_reckoning" for m in modes])),
-        "lost": float(np.mean([m == "lost" for m in modes])),
-        "fix_max_cm": float(np.max(fix_err, initial=0.0)) * 100,
-    }
+    return error_stats(read_poses(poses), t_gt, gt)
 
 
 def run(

@@ -31,7 +31,6 @@
 from __future__ import annotations
 
 import argparse
-import csv
 import io
 import json
 import math
@@ -50,41 +49,22 @@ if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
 from localizer.events import FrameObserved, OdometryMeasured  # noqa: E402
-from localizer.geometry import T_world_body_from_pose, wrap_angle  # noqa: E402
+from localizer.geometry import T_world_body_from_pose  # noqa: E402
 from localizer.landmark_map import LandmarkMap  # noqa: E402
 from localizer.localizer import Localizer  # noqa: E402
 from localizer.robot import RobotGeometry  # noqa: E402
 from localizer.spots import DetectionConfig, detect_spots  # noqa: E402
 from recording.reader import read_groundtruth, read_recording  # noqa: E402
 from recording.replay_cli import decode_threads, replay  # noqa: E402
+from recording.scoring import PAPER, SEC_V_LABELS, SETTLE_S, read_poses, sec_v  # noqa: E402
 from sim.build import build_robot, build_world, seed_generators  # noqa: E402
 from sim.cameras import wide_angle_camera  # noqa: E402
 from sim.cli import main as simulate_main  # noqa: E402
 from sim.render import render_frame  # noqa: E402
 from sim.scenario import load_scenario  # noqa: E402
 
-PAPER = {"mean_cm": 4.1, "std_cm": 2.9, "max_cm": 17.1, "heading_deg": 0.26,
-         "jitter_cm": 0.5, "jitter_deg": 0.3}  # fmt: skip
 TARGET = {"mean_cm": 1.0, "max_cm": 2.0, "heading_deg": 0.05, "jitter_cm": 0.1}
-SETTLE_S = 0.25  # a stop's window starts this long after the robot parked
 DURATION_S = 180.0  # the whole paper_testbed route, its final 10 s parked stretch included
-
-
-def _stops(t: np.ndarray, gt: np.ndarray, min_s: float = 0.45) -> list[tuple[int, int]]:
-    """(start, end) ground-truth index ranges where the pose stays the same >= min_s."""
-    same = np.all(np.abs(np.diff(gt, axis=0)) < 1e-9, axis=1)
-    out, i = [], 0
-    while i < len(same):
-        if same[i]:
-            j = i
-            while j < len(same) and same[j]:
-                j += 1
-            if (t[j] - t[i]) * 1e-9 >= min_s:
-                out.append((i, j + 1))
-            i = j
-        else:
-            i += 1
-    return out
 
 
 def map_frame(scenario: str) -> tuple[float, np.ndarray, float]:
@@ -111,53 +91,17 @@ def accuracy(
     settle_s: float = SETTLE_S,
     frame: tuple[float, np.ndarray] | None = None,
 ) -> dict[str, float]:
-    """Per-stop errors and jitter of a replay of the test bed.
+    """Per-stop errors and jitter of a replay of the test bed (`recording.scoring.sec_v`).
 
     Args:
         frame: (rotation, translation) taking true positions into the surveyed map's frame;
             when given, the errors are measured in that frame.
     """
-    t_gt, gt_true = read_groundtruth(rec)
-    gt = gt_true.copy()
-    if frame is not None:
-        c, s = math.cos(frame[0]), math.sin(frame[0])
-        gt[:, :2] = gt_true[:, :2] @ np.array([[c, -s], [s, c]]).T + frame[1]
-        gt[:, 2] = gt_true[:, 2] + frame[0]
+    t_gt, gt = read_groundtruth(rec)
     sweep_end = next((e.t_ns for e in read_recording(rec).leds if e.all_lit), 0)
-    with poses.open() as f:
-        rows = [r for r in csv.DictReader(f) if r["x"]]
-    t = np.array([int(r["timestamp_ns"]) for r in rows])
-    est = np.array([[float(r["x"]), float(r["y"]), float(r["theta"])] for r in rows])
-    pos_err, head_err, jit_cm, jit_deg = [], [], [], []
-    startup_cm = 0.0
-    for a, b in _stops(t_gt, gt_true):
-        start = max(t_gt[a], sweep_end) + settle_s * 1e9
-        sel = (t >= start) & (t <= t_gt[b - 1] - 0.05e9)
-        if np.count_nonzero(sel) < 5:
-            continue
-        e = est[sel]
-        mean_xy = e[:, :2].mean(axis=0)
-        dth = np.asarray(wrap_angle(e[:, 2] - gt[a, 2]))
-        pos_err.append(float(np.hypot(*(mean_xy - gt[a, :2]))))
-        head_err.append(abs(float(np.mean(dth))))
-        jit_cm.append(float(np.max(np.hypot(*(e[:, :2] - mean_xy).T))) * 100)
-        jit_deg.append(float(np.degrees(np.max(np.abs(dth - dth.mean())))))
-        if t_gt[a] < sweep_end:  # the start-up: from the first fix to the window
-            early = (t >= t[0]) & (t < start)
-            if early.any():
-                startup_cm = float(np.max(np.hypot(*(est[early, :2] - mean_xy).T))) * 100
-    p = np.array(pos_err) * 100
-    return {
-        "stops": float(len(p)),
-        "mean_cm": float(p.mean()),
-        "std_cm": float(p.std()),
-        "max_cm": float(p.max()),
-        "heading_deg": float(np.degrees(np.mean(head_err))),
-        "jitter_cm": float(np.max(jit_cm)),
-        "jitter_deg": float(np.max(jit_deg)),
-        "startup_cm": startup_cm,
-        "sweep_end_s": sweep_end * 1e-9,
-    }
+    result = sec_v(read_poses(poses), t_gt, gt, sweep_end_ns=sweep_end, settle_s=settle_s,
+                   frame=frame)  # fmt: skip
+    return result.figures | {"startup_cm": result.startup_cm, "sweep_end_s": result.sweep_end_s}
 
 
 def timing(width: int, height: int, frames: int, runs: int = 3) -> dict[str, float]:
@@ -319,10 +263,7 @@ def main(argv: list[str] | None = None) -> int:
         in_map = accuracy(rec, poses, frame=(rotation, shift))
         print(f"Sec. V on the simulated test bed ({int(acc['stops'])} parked stops)")
         print(f"  {'':<26}{'irloc':>10}{'paper':>10}{'target':>10}{'map frame':>11}")
-        names = {"mean_cm": "mean position error, cm", "std_cm": "  std, cm",
-                 "max_cm": "max position error, cm", "heading_deg": "mean heading error, deg",
-                 "jitter_cm": "jitter, cm", "jitter_deg": "jitter, deg"}  # fmt: skip
-        for k, label in names.items():
+        for k, label in SEC_V_LABELS.items():
             tgt = f"{TARGET[k]:>10.2f}" if k in TARGET else f"{'':>10}"
             print(f"  {label:<26}{acc[k]:>10.3f}{PAPER[k]:>10.2f}{tgt}{in_map[k]:>11.3f}")
         print(

@@ -38,7 +38,11 @@ class CameraPose:
 
 
 def camera_pose_from_landmarks(
-    camera: CameraModel, pixels: npt.ArrayLike, p_world: npt.ArrayLike
+    camera: CameraModel,
+    pixels: npt.ArrayLike,
+    p_world: npt.ArrayLike,
+    *,
+    near_world_m: npt.ArrayLike | None = None,
 ) -> CameraPose | None:
     """Solve the camera pose from three or more landmarks seen at `pixels`.
 
@@ -46,6 +50,9 @@ def camera_pose_from_landmarks(
         camera: lens model and intrinsics (the mounting is not used).
         pixels: where the landmarks appear, shape (N, 2), N >= 3.
         p_world: the landmarks' world positions, metres, shape (N, 3).
+        near_world_m: where the camera was a moment ago (world, metres, shape (3,)): with
+            three landmarks P3P has up to four solutions, and the one nearest this is taken
+            (without it, the one looking most upward).
 
     Returns:
         The pose, or None when there are fewer than three landmarks or no solution.
@@ -68,6 +75,13 @@ def camera_pose_from_landmarks(
             # the camera looks up: its optical axis in the world (R^T row 3) has the largest z
             ups = [cv2.Rodrigues(r)[0][2, 2] for r in rvecs]
             best = int(np.argmax(ups))
+            if near_world_m is not None:
+                near = np.asarray(near_world_m, dtype=np.float64).reshape(3)
+                gaps = [
+                    float(np.linalg.norm(-cv2.Rodrigues(r)[0].T @ np.reshape(t, 3) - near))
+                    for r, t in zip(rvecs, tvecs, strict=True)
+                ]
+                best = int(np.argmin(gaps))
             rvec, tvec = rvecs[best], tvecs[best]
         else:
             ok, rvec, tvec = cv2.solvePnP(obj, img, K, dist, flags=cv2.SOLVEPNP_SQPNP)

@@ -11,19 +11,17 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
-import cv2
 import numpy as np
 import numpy.typing as npt
 
 from calibration.board import BoardCorners, BoardSpec, as_gray, find_board, suggest_pattern
 from calibration.coverage import Coverage, corner_coverage
+from calibration.lens_fit import fit_lens
 from localizer.camera import CameraModel, T_body_camera_upward, sensor_from_camera
 
 FloatArray = npt.NDArray[np.float64]
 LensModel = Literal["pinhole", "fisheye"]
 LENS_MODELS: tuple[LensModel, ...] = ("pinhole", "fisheye")
-
-_FISHEYE_CRITERIA = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 200, 1e-12)
 
 
 @dataclass(frozen=True)
@@ -36,6 +34,8 @@ class LensCalibrationConfig:
         outlier_min_px: ... and also this many pixels is dropped and the calibration rerun.
         coverage_cells: coverage grid (columns, rows).
         min_outer_coverage: warn when fewer of the border cells than this share held a corner.
+        recommended_views: warn when fewer photos than this were given (15-25 spread over
+            the image, docs/calibration.md).
     """
 
     min_views: int = 5
@@ -43,6 +43,7 @@ class LensCalibrationConfig:
     outlier_min_px: float = 1.0
     coverage_cells: tuple[int, int] = (8, 6)
     min_outer_coverage: float = 0.5
+    recommended_views: int = 15
 
 
 @dataclass(frozen=True)
@@ -219,15 +220,19 @@ def calibrate_lens(
                 f"{resolution[0]}x{resolution[1]}"
             )
         raise ValueError(_no_board_message(grays, labels, spec))
+    advice = _input_warnings(grays, labels, reasons, spec, cfg)
     if len(usable) < cfg.min_views:
         raise ValueError(
             f"only {len(usable)} of {len(grays)} images show the board; need at least "
-            f"{cfg.min_views} views. Rejected: "
-            + "; ".join(f"{labels[i]}: {reasons[i]}" for i in range(len(grays)) if reasons[i])
+            f"{cfg.min_views} views"
+            + _rejected(labels, reasons)
+            + "".join(f"; {w}" for w in advice)
         )
 
-    views = [c for c in corners if c is not None]
-    fit = _calibrate(views, resolution, model)
+    fit = fit_lens([corners[i] for i in usable], resolution, model, min_views=cfg.min_views)  # type: ignore[misc]
+    for k, why in fit.dropped:
+        reasons[usable[k]] = why
+    usable = [usable[k] for k in fit.kept]
     errors = dict(zip(usable, fit.view_errors, strict=True))
     limit = max(cfg.outlier_factor * float(np.median(fit.view_errors)), cfg.outlier_min_px)
     outliers = [i for i in usable if errors[i] > limit]
@@ -235,7 +240,12 @@ def calibrate_lens(
         for i in outliers:
             reasons[i] = f"outlier: error {errors[i]:.2f} px > {limit:.2f} px"
         usable = [i for i in usable if i not in outliers]
-        fit = _calibrate([corners[i] for i in usable], resolution, model)  # type: ignore[misc]
+        refit = fit_lens([corners[i] for i in usable], resolution, model,  # type: ignore[misc]
+                         min_views=cfg.min_views)  # fmt: skip
+        for k, why in refit.dropped:
+            reasons[usable[k]] = why
+        usable = [usable[k] for k in refit.kept]
+        fit = refit
         errors.update(zip(usable, fit.view_errors, strict=True))
 
     T = T_body_camera_upward() if T_body_camera is None else T_body_camera
@@ -273,63 +283,10 @@ def calibrate_lens(
         rms_px=fit.rms_px,
         views=reports,
         coverage=coverage,
-        warnings=tuple(_warnings(coverage, fit.rms_px, model, cfg)),
+        warnings=tuple(advice + _warnings(coverage, fit.rms_px, model, cfg)),
         intrinsics_std=fit.intrinsics_std,
         board=spec,
     )
-
-
-@dataclass(frozen=True, eq=False)
-class _Fit:
-    K: FloatArray
-    dist: FloatArray
-    rms_px: float
-    view_errors: list[float]
-    intrinsics_std: FloatArray | None
-
-
-def _calibrate(views: Sequence[BoardCorners], resolution: tuple[int, int], model: str) -> _Fit:
-    """Run OpenCV's calibration and measure each view's RMS reprojection error."""
-    try:
-        if model == "fisheye":
-            obj = [np.ascontiguousarray(v.object_points.reshape(1, -1, 3)) for v in views]
-            img = [np.ascontiguousarray(v.image_points.reshape(1, -1, 2)) for v in views]
-            flags = cv2.CALIB_RECOMPUTE_EXTRINSIC | cv2.CALIB_FIX_SKEW
-            _, K, D, rvecs, tvecs = cv2.fisheye.calibrate(
-                obj, img, resolution, np.eye(3), np.zeros(4), flags=flags,
-                criteria=_FISHEYE_CRITERIA,
-            )  # fmt: skip
-            std = None
-            proj = [
-                cv2.fisheye.projectPoints(o, r, t, K, D)[0]
-                for o, r, t in zip(obj, rvecs, tvecs, strict=True)
-            ]
-        else:
-            obj = [v.object_points.astype(np.float32) for v in views]
-            img = [v.image_points.astype(np.float32) for v in views]
-            out = cv2.calibrateCameraExtended(obj, img, resolution, None, None)  # type: ignore[call-overload]
-            _, K, D, rvecs, tvecs, std_int = out[:6]
-            std = np.asarray(std_int, dtype=np.float64).reshape(-1)[:4]
-            proj = [
-                cv2.projectPoints(o, r, t, K, D)[0]
-                for o, r, t in zip(obj, rvecs, tvecs, strict=True)
-            ]
-    except cv2.error as exc:
-        raise ValueError(
-            f"OpenCV could not calibrate the {model} model from {len(views)} views "
-            f"({str(exc).strip().splitlines()[-1]}); add views with the board tilted and "
-            "spread over the whole image"
-        ) from None
-    sq = [
-        np.sum((np.asarray(p, dtype=np.float64).reshape(-1, 2) - v.image_points) ** 2, axis=1)
-        for p, v in zip(proj, views, strict=True)
-    ]
-    view_errors = [float(np.sqrt(np.mean(s))) for s in sq]
-    rms = float(np.sqrt(np.mean(np.concatenate(sq))))
-    dist = np.asarray(D, dtype=np.float64).reshape(-1)
-    if not np.isfinite(rms) or not np.all(np.isfinite(K)) or not np.all(np.isfinite(dist)):
-        raise ValueError(f"the {model} calibration diverged; add views spread over the image")
-    return _Fit(np.asarray(K, dtype=np.float64), dist, rms, view_errors, std)
 
 
 def _common_resolution(
@@ -373,6 +330,46 @@ def _no_board_message(
         "; check --pattern: it counts inner corners (where four squares meet), so a board of "
         f"{cols + 1}x{rows + 1} squares has a {cols}x{rows} pattern"
     )
+
+
+def _rejected(labels: Sequence[str], reasons: Sequence[str | None]) -> str:
+    """'. Rejected: a: why; b: why' for the views with a reason, '' when there are none."""
+    parts = [f"{name}: {why}" for name, why in zip(labels, reasons, strict=True) if why]
+    return ". Rejected: " + "; ".join(parts) if parts else ""
+
+
+def _input_warnings(
+    grays: Sequence[npt.NDArray[np.uint8]],
+    labels: Sequence[str],
+    reasons: Sequence[str | None],
+    spec: BoardSpec,
+    cfg: LensCalibrationConfig,
+) -> list[str]:
+    """Advice on the photo set itself: too few photos, a pattern most photos do not show."""
+    out = []
+    if len(grays) < cfg.recommended_views:
+        out.append(
+            f"only {len(grays)} photos given; {cfg.recommended_views}-25 spread over the whole "
+            "image (edges and corners too) are recommended"
+        )
+    missing = [i for i, r in enumerate(reasons) if r == "no board found"]
+    if spec.kind == "chessboard" and 2 * len(missing) > len(grays):
+        cols, rows = spec.pattern
+        hint = next(
+            ((labels[i], h) for i in missing[:3]
+             if (h := suggest_pattern(grays[i], spec.pattern)) is not None),
+            None,
+        )  # fmt: skip
+        text = (
+            f"the {cols}x{rows} pattern was found on only {len(grays) - len(missing)} of "
+            f"{len(grays)} photos"
+        )
+        if hint is not None:
+            text += f"; {hint[0]} shows a {hint[1][0]}x{hint[1][1]} board: check --pattern"
+        else:
+            text += "; check --pattern (inner corners, columns x rows)"
+        out.append(text)
+    return out
 
 
 def _warnings(

@@ -52,6 +52,9 @@ class MountingConfig:
         min_straight_frames: fewest frames while driving straight.
         max_circle_rms_m: the turning camera centres must lie on one circle within this RMS.
         max_frame_rms_px: frames whose landmark reprojection RMS exceeds this are dropped.
+        max_height_deviation_m: frames whose camera height differs from the median of all
+            frames by more than this are dropped (on a floor the camera keeps its height; a
+            pose far off it is a wrong P3P branch or misidentified landmarks).
     """
 
     turn_max_speed_m_s: float = 0.01
@@ -64,6 +67,7 @@ class MountingConfig:
     min_straight_frames: int = 5
     max_circle_rms_m: float = 0.02
     max_frame_rms_px: float = 3.0
+    max_height_deviation_m: float = 0.03
 
 
 @dataclass(frozen=True, eq=False)
@@ -353,7 +357,8 @@ def mounting_from_observations(
         if unknown:
             raise ValueError(f"detection #{k} (t_ns {t_ns}): unknown landmark ids {unknown}")
         p_world = np.array([landmark_map.position(i) for i in ids_list]).reshape(-1, 3)
-        pose = camera_pose_from_landmarks(camera, px, p_world)
+        near = poses[-1][:3, 3] if poses else None
+        pose = camera_pose_from_landmarks(camera, px, p_world, near_world_m=near)
         if pose is None or pose.residual_rms_px > cfg.max_frame_rms_px:
             dropped += 1
             continue
@@ -364,6 +369,11 @@ def mounting_from_observations(
             f"mounting: no usable frame among {len(detections)} (each needs three or more "
             "identified landmarks that fit one camera pose)"
         )
+    heights = np.array([T[2, 3] for T in poses])
+    keep = np.abs(heights - np.median(heights)) <= cfg.max_height_deviation_m
+    dropped += int(np.count_nonzero(~keep))
+    times = [t for t, k in zip(times, keep, strict=True) if k]
+    poses = [T for T, k in zip(poses, keep, strict=True) if k]
     odo = np.asarray([(t, vl, vr) for t, vl, vr in odometry], dtype=np.float64).reshape(-1, 3)
     return estimate_mounting(
         np.array(times),

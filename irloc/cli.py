@@ -20,6 +20,8 @@ SUBCOMMANDS: dict[str, tuple[str, str, str]] = {
     "simulate": ("sim.cli", "main", "write a recording of a simulated scenario"),
     "replay": ("recording.replay_cli", "main", "localize a recording and write poses.csv"),
     "calibrate": ("calibration.cli", "main", "calibrate the lens from chessboard photos"),
+    "export": ("export.cli", "main", "write a recording as MCAP (Foxglove or ROS 2)"),
+    "report": ("export.report_cli", "main", "write the validation report (HTML) of a recording"),
     "survey": ("survey.cli", "main", "locate every landmark from a survey drive's recording"),
     "keys": ("server.keys_cli", "main", "manage API keys"),
 }

@@ -6,6 +6,7 @@ from recording.reader import (
     RecordingError,
     iter_timeline,
     read_groundtruth,
+    read_groundtruth_file,
     read_recording,
 )
 from recording.writer import RecordingWriter
@@ -17,5 +18,6 @@ __all__ = [
     "RecordingWriter",
     "iter_timeline",
     "read_groundtruth",
+    "read_groundtruth_file",
     "read_recording",
 ]

@@ -232,7 +232,15 @@ def read_leds(path: Path, landmark_map: LandmarkMap) -> list[LedsChanged]:
 
 def read_groundtruth(root: Path | str) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.float64]]:
     """groundtruth.csv of a simulated recording -> (t_ns (N,), (x, y, theta) (N, 3))."""
-    path = Path(root) / layout.GROUNDTRUTH_FILE
+    return read_groundtruth_file(Path(root) / layout.GROUNDTRUTH_FILE)
+
+
+def read_groundtruth_file(
+    path: Path | str,
+) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.float64]]:
+    """A ground-truth CSV (`timestamp_ns,x,y,theta`, header optional) anywhere -> (t_ns (N,),
+    (x, y, theta) (N, 3)); RecordingError naming the file and line of a bad value."""
+    path = Path(path)
     times: list[int] = []
     poses: list[tuple[float, float, float]] = []
     previous = 0

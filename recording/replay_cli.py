@@ -10,55 +10,30 @@ states come from `leds.csv`) and writes one row per listed frame:
 used in that frame, space-separated. A missing or unreadable frame is skipped with a warning
 and counted (its row holds the odometry pose). A malformed file ends the run with one line
 naming the file and line and exit status 1.
+
+With ground truth (`--truth FILE`, by default `groundtruth.csv` beside the recording when
+there is one) the run is scored and the Sec. V table printed (`recording.scoring`).
 """
 
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 import time
-from collections import deque
 from collections.abc import Callable, Iterator
-from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
 from typing import TextIO
 
-import cv2
-import numpy as np
-import numpy.typing as npt
-
 from localizer.config import LocalizerConfig
-from localizer.events import FrameObserved, NoPose, PoseEstimate
-from localizer.localizer import Localizer
-from recording.reader import (
-    FrameEntry,
-    Recording,
-    RecordingError,
-    iter_timeline,
-    read_recording,
-)
+from localizer.events import NoPose, PoseEstimate
+from recording.layout import GROUNDTRUTH_FILE
+from recording.localize import decode_threads, localize
+from recording.reader import RecordingError, read_groundtruth_file, read_recording
+from recording.scoring import error_stats, sec_v, sec_v_table, track_from_estimates
 
-ImageU8 = npt.NDArray[np.uint8]
+__all__ = ["HEADER", "decode_threads", "format_row", "main", "replay", "truth_summary"]
 HEADER = "timestamp_ns,x,y,theta,mode,cov_xx,cov_yy,cov_tt,landmarks"
 PROG = "irloc replay"
-
-
-_SWITCH_INTERVAL_S = 0.0005  # GIL hand-over while replaying (CPython's default: 0.005)
-
-
-def decode_threads() -> int:
-    """Threads that decode PNGs ahead of the localizer: one per core this process may use."""
-    cores = os.sched_getaffinity(0) if hasattr(os, "sched_getaffinity") else None
-    return max(1, len(cores) if cores else (os.cpu_count() or 1))
-
-
-def _decode(path: Path) -> ImageU8 | None:
-    """The frame as 8-bit grayscale, or None when missing or unreadable."""
-    if not path.is_file():
-        return None
-    image = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
-    return None if image is None else np.asarray(image, dtype=np.uint8)
 
 
 def format_row(est: PoseEstimate | NoPose) -> str:
@@ -81,6 +56,7 @@ def replay(
     warn: Callable[[str], None] = lambda _: None,
     progress: Callable[[int], Iterator[None]] | None = None,
     threads: int | None = None,
+    estimates: list[PoseEstimate | NoPose] | None = None,
 ) -> tuple[int, int]:
     """Localize a recording, writing rows to `out`.
 
@@ -91,10 +67,8 @@ def replay(
         warn: called with a message for each skipped frame.
         progress: optional callback given the frame count, returning an iterator advanced
             once per frame (a progress bar).
-        threads: PNG decoding threads (default `decode_threads()`). Decoding releases the
-            GIL, so it runs on the other cores while the localizer works on this one; the
-            GIL's switch interval is shortened meanwhile so that a finished decode is not
-            kept waiting (restored afterwards).
+        threads: PNG decoding threads (default `decode_threads()`), see `recording.localize`.
+        estimates: when given, every frame's output is appended to it as well.
 
     Returns:
         (frames written, frames skipped).
@@ -103,56 +77,36 @@ def replay(
         RecordingError: a malformed file, naming the file and line.
     """
     rec = read_recording(root)
-    loc = Localizer(rec.camera, rec.landmark_map, rec.robot, config)
     ticks = progress(len(rec.frames)) if progress is not None else None
     out.write(HEADER + "\n")
-    workers = threads or decode_threads()
-    depth = 2 * workers + 2  # frames decoded ahead
-    switch = sys.getswitchinterval()
-    sys.setswitchinterval(min(switch, _SWITCH_INTERVAL_S))
-    try:
-        with ThreadPoolExecutor(max_workers=workers, thread_name_prefix="png") as pool:
-            written, skipped = _run(rec, loc, pool, depth, out, warn, ticks)
-    finally:
-        sys.setswitchinterval(switch)
-    return written, skipped
-
-
-def _run(
-    rec: Recording,
-    loc: Localizer,
-    pool: ThreadPoolExecutor,
-    depth: int,
-    out: TextIO,
-    warn: Callable[[str], None],
-    ticks: Iterator[None] | None,
-) -> tuple[int, int]:
-    """The replay loop: frames decoded `depth` ahead on `pool`, in order."""
     written = skipped = 0
-    ahead: deque[Future[ImageU8 | None]] = deque()
-    queued = iter(rec.frames)
-    for item in iter_timeline(rec):
-        if not isinstance(item, FrameEntry):
-            loc.handle(item)
-            continue
-        while len(ahead) < depth:
-            nxt = next(queued, None)
-            if nxt is None:
-                break
-            ahead.append(pool.submit(_decode, nxt.path))
-        image = ahead.popleft().result()
-        if image is None:
+    for done in localize(rec, config=config, threads=threads):
+        if done.image is None:
             skipped += 1
-            warn(f"{item.path}: missing or unreadable frame (cam0/data.csv:{item.line}), skipped")
-            est: PoseEstimate | NoPose = loc.skip_frame(item.t_ns)
-        else:
-            outs = loc.handle(FrameObserved(item.t_ns, image))
-            est = next(o for o in outs if isinstance(o, PoseEstimate | NoPose))
-        out.write(format_row(est) + "\n")
+            warn(
+                f"{done.entry.path}: missing or unreadable frame (cam0/data.csv:"
+                f"{done.entry.line}), skipped"
+            )
+        out.write(format_row(done.estimate) + "\n")
+        if estimates is not None:
+            estimates.append(done.estimate)
         written += 1
         if ticks is not None:
             next(ticks, None)
     return written, skipped
+
+
+def truth_summary(root: Path, truth: Path, estimates: list[PoseEstimate | NoPose]) -> str:
+    """The Sec. V table of a replay against a ground-truth file (`recording.scoring`).
+
+    Raises:
+        RecordingError: a malformed ground-truth file.
+    """
+    t_gt, gt = read_groundtruth_file(truth)
+    track = track_from_estimates(estimates)
+    sweep_end = next((e.t_ns for e in read_recording(root).leds if e.all_lit), 0)
+    result = sec_v(track, t_gt, gt, sweep_end_ns=sweep_end)
+    return f"against {truth}\n" + sec_v_table(result, error_stats(track, t_gt, gt))
 
 
 def _bar(total: int) -> Iterator[None]:
@@ -169,8 +123,21 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog=PROG, description=__doc__.splitlines()[0])
     parser.add_argument("recording", type=Path, help="the recording folder")
     parser.add_argument("--out", type=Path, required=True, help="poses.csv to write")
-    parser.add_argument("--quiet", action="store_true", help="no progress bar or warnings")
+    parser.add_argument(
+        "--quiet", action="store_true", help="no progress bar, warnings or table (only errors)"
+    )
+    parser.add_argument(
+        "--truth",
+        type=Path,
+        default=None,
+        help="ground truth (timestamp_ns,x,y,theta) to score against and print the Sec. V "
+        "table; default groundtruth.csv beside the recording, when there is one",
+    )
+    parser.add_argument("--no-truth", action="store_true", help="do not score, even if present")
     args = parser.parse_args(argv)
+    truth = None if args.no_truth else args.truth
+    if truth is None and not args.no_truth and (args.recording / GROUNDTRUTH_FILE).is_file():
+        truth = args.recording / GROUNDTRUTH_FILE
     show = not args.quiet and sys.stderr.isatty()
 
     def warn(msg: str) -> None:
@@ -184,11 +151,21 @@ def main(argv: list[str] | None = None) -> int:
             print(f"{PROG}: warning: {msg}", file=sys.stderr)
 
     start = time.perf_counter()
+    estimates: list[PoseEstimate | NoPose] = []
     tmp = args.out.with_name(args.out.name + ".part")
     try:
         with tmp.open("w", encoding="utf-8", newline="\n") as f:
-            written, skipped = replay(args.recording, f, warn=warn, progress=_bar if show else None)
+            written, skipped = replay(
+                args.recording,
+                f,
+                warn=warn,
+                progress=_bar if show else None,
+                estimates=estimates,
+            )
         tmp.replace(args.out)
+        table = None
+        if truth is not None and not args.quiet:
+            table = truth_summary(args.recording, truth, estimates)
     except RecordingError as exc:
         tmp.unlink(missing_ok=True)
         print(f"{PROG}: {exc}", file=sys.stderr)
@@ -203,4 +180,6 @@ def main(argv: list[str] | None = None) -> int:
         print(
             f"{PROG}: {written} poses written to {args.out} in {took:.1f} s{note}", file=sys.stderr
         )
+    if table is not None:
+        print(table)
     return 0

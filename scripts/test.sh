@@ -24,7 +24,7 @@ fi
 echo "checking the layering (import-linter contracts in pyproject.toml)..."
 PYTHONPATH="$PWD" .venv/bin/lint-imports
 echo "type-checking every package (mypy strict)..."
-.venv/bin/mypy pubsub localizer sim recording rf_gateway calibration commissioning server web irloc fleet agent survey
+.venv/bin/mypy pubsub localizer sim recording rf_gateway calibration commissioning server web irloc fleet agent survey export
 set +e
 .venv/bin/python -m pytest "$@"
 status=$?

@@ -40,6 +40,7 @@ from server.routes import (
     remote,
     robots,
     streams,
+    survey,
 )
 from server.seams import ViewerApp
 from server.services import SiteServices
@@ -148,7 +149,17 @@ def create_app(settings: Settings | None = None, viewer: ViewerApp | None = None
     _install_error_handlers(app)
     install_body_errors(app)
     api = APIRouter(prefix=API_PREFIX, dependencies=[Depends(refuse_unknown_query)])
-    for module in (landmarks, map, robots, calibration, remote, admin, streams, commissioning):
+    for module in (
+        landmarks,
+        map,
+        robots,
+        calibration,
+        remote,
+        admin,
+        streams,
+        commissioning,
+        survey,
+    ):
         api.include_router(module.router)
     api.add_api_route(
         "/metrics",

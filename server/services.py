@@ -30,6 +30,7 @@ from server.models import LandmarkPublic
 from server.poses import PoseUpdate
 from server.settings import Settings
 from server.site.builder import LiveSiteRunner
+from server.survey_service import LiveSurvey
 
 if TYPE_CHECKING:
     from sim.live import LiveSite
@@ -72,6 +73,7 @@ class SiteServices:
         self.leds = LedsAndRadio(self.map, self.log)
         self.recordings = Recordings(settings.recordings_dir, self.robots, self.map)
         self.commissioning = Commissioning(self.map, self.robots, self.leds, self.submit)
+        self.survey = LiveSurvey(self.map, self.robots, self.leds, self.recordings)
         self.live: LiveSiteRunner | None = None
         self.loop: asyncio.AbstractEventLoop | None = None
         self.map.add_listener(self._on_map_changed)
@@ -121,6 +123,7 @@ class SiteServices:
     async def stop(self) -> None:
         """Stop commissioning and the site (LEDs left all on), then close the database."""
         await self.commissioning.stop()
+        self.survey.cancel()
         if self.live is not None:
             await self.live.stop()
             self.live = None

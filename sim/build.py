@@ -12,7 +12,7 @@ import numpy as np
 from localizer.camera import CameraModel, T_body_camera_upward
 from localizer.robot import RobotGeometry
 from sim.battery import Battery, BatteryConfig
-from sim.cameras import perturbed_camera, wide_angle_camera
+from sim.cameras import CalibrationError, miscalibrated_camera, perturbed_camera, wide_angle_camera
 from sim.render import ExtendedSource, disc_outline
 from sim.robot import OdometryModel, SimRobot
 from sim.robot_spec import RobotSpec
@@ -47,7 +47,7 @@ def build_world(scenario: Scenario, rng: np.random.Generator) -> World:
         landmarks[spec.id] = SimLandmark(
             spec.id, p_true, p_surveyed, (spec.address or default_address(spec.id)).upper(),
             Battery(BatteryConfig(capacity_mah=spec.capacity_mah), charge=spec.charge),
-            radio_dead=spec.radio_dead, led_on=not spec.radio_dead,
+            radio_dead=spec.radio_dead, led_on=not spec.radio_dead, led_dead=spec.led_dead,
         )  # fmt: skip
     extended = []
     for e in scenario.extended:
@@ -70,7 +70,11 @@ def build_robot(
         height=spec.camera.height_m, tilt_xy=spec.camera.tilt_xy_rad,
     )  # fmt: skip
     nominal = wide_angle_camera(spec.camera.lens, T_body_camera=mount, rate_hz=spec.camera.rate_hz)
-    true = perturbed_camera(nominal, rng) if spec.camera.calibration_error else nominal
+    error = spec.camera.calibration_error
+    if isinstance(error, CalibrationError):
+        true = miscalibrated_camera(nominal, error, rng)
+    else:
+        true = perturbed_camera(nominal, rng) if error else nominal
     el, er = spec.wheel_radius_error
     odometry = OdometryModel(
         rate_hz=spec.odometry_rate_hz,
@@ -83,6 +87,7 @@ def build_robot(
         camera_rate_hz=spec.camera.rate_hz, frame_drop=spec.camera.drop_rate,
         bumps=scenario.bumps, rng=rng, t0_ns=t0_ns,
         frame_offset_ns=(index * 7_000_000) % round(1e9 / spec.camera.rate_hz),
+        limits=spec.limits, slips=scenario.slips,
     )  # fmt: skip
     geometry = RobotGeometry(spec.wheel_base_m, spec.max_speed_mps)
     return RobotRig(spec, robot, geometry, nominal, true)

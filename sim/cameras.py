@@ -1,10 +1,13 @@
 """The simulated robots' upward cameras: a nominal wide-angle 640x480 camera for each lens
-model, and the "true" camera that differs from it by a realistic calibration error.
+model, and the "true" camera that differs from it by a calibration error: a good
+calibration's residual (`perturbed_camera`), or one of the levels of `CALIBRATION_LEVELS`
+(`miscalibrated_camera`).
 """
 
 from __future__ import annotations
 
 import dataclasses
+from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
@@ -12,8 +15,8 @@ import numpy.typing as npt
 
 from localizer.camera import CameraModel, T_body_camera_upward
 
-Lens = Literal["pinhole", "fisheye"]
-LENSES: tuple[Lens, ...] = ("pinhole", "fisheye")
+Lens = Literal["pinhole", "fisheye", "wide_radtan"]
+LENSES: tuple[Lens, ...] = ("pinhole", "fisheye", "wide_radtan")
 FloatArray = npt.NDArray[np.float64]
 
 
@@ -29,10 +32,13 @@ def wide_angle_camera(
 
     `pinhole`: OpenCV radial-tangential, f = 0.5 * width (90 deg horizontal field of view
     before distortion) with mild barrel distortion. `fisheye`: OpenCV equidistant,
-    f = 0.47 * width (about 120 deg horizontally).
+    f = 0.47 * width (about 120 deg horizontally). `wide_radtan`: a strong wide-angle lens as
+    Zhang's method calibrates it (OpenCV radial-tangential, f = 0.46875 * width, i.e. 300 px at
+    640x480, k1 = -0.28, k2 = 0.07, small decentring p1, p2 and k3; about 118 deg across the
+    diagonal).
 
     Args:
-        lens: "pinhole" or "fisheye".
+        lens: one of `LENSES`.
         T_body_camera: mounting, shape (4, 4); defaults to `T_body_camera_upward()`.
     """
     T = T_body_camera_upward() if T_body_camera is None else T_body_camera
@@ -48,6 +54,12 @@ def wide_angle_camera(
         return CameraModel(
             width, height, f, f, cu, cv, "equidistant",
             np.array([0.02, -0.01, 0.002, 0.0]), T, rate_hz,
+        )  # fmt: skip
+    if lens == "wide_radtan":
+        f = 0.46875 * width
+        return CameraModel(
+            width, height, f, f, cu, cv, "radial-tangential",
+            np.array([-0.28, 0.07, 4e-4, -3e-4, -0.006]), T, rate_hz,
         )  # fmt: skip
     raise ValueError(f"lens must be one of {LENSES}, got {lens!r}")
 
@@ -75,14 +87,8 @@ def perturbed_camera(
     """
     d = nominal.distortion.copy()
     d[:2] += rng.normal(0.0, distortion_sigma, 2)
-    ax, ay, az = rng.normal(0.0, mount_angle_sigma_rad, 3)
-    cx, sx, cy, sy, cz, sz = np.cos(ax), np.sin(ax), np.cos(ay), np.sin(ay), np.cos(az), np.sin(az)
-    Rx = np.array([[1, 0, 0], [0, cx, -sx], [0, sx, cx]])
-    Ry = np.array([[cy, 0, sy], [0, 1, 0], [-sy, 0, cy]])
-    Rz = np.array([[cz, -sz, 0], [sz, cz, 0], [0, 0, 1]])
-    T = nominal.T_body_camera.copy()
-    T[:3, :3] = Rz @ Ry @ Rx @ T[:3, :3]
-    T[:3, 3] += rng.normal(0.0, mount_offset_sigma_m, 3)
+    angles = rng.normal(0.0, mount_angle_sigma_rad, 3)
+    T = _moved_mount(nominal.T_body_camera, angles, rng.normal(0.0, mount_offset_sigma_m, 3))
     return dataclasses.replace(
         nominal,
         fu=nominal.fu * (1.0 + rng.normal(0.0, focal_rel_sigma)),
@@ -92,3 +98,87 @@ def perturbed_camera(
         distortion=d,
         T_body_camera=T,
     )
+
+
+@dataclass(frozen=True)
+class CalibrationError:
+    """How far the calibration handed to the localizer (the nominal camera, `sensor.yaml`) is
+    from the true lens: the bound of each parameter's error.
+
+    Each error is drawn per seed with a random sign and a magnitude uniform in
+    [0.5, 1] x its bound, so every seed carries an error of about the stated size.
+
+    Attributes:
+        focal_rel: relative error of fu and fv (each drawn on its own).
+        principal_px: error of cu and cv, pixels.
+        distortion_rel: relative error of each distortion coefficient.
+        mount_rad: error of the mounting rotation about each axis, radians.
+        mount_m: error of the mounting offset along each axis, metres.
+    """
+
+    focal_rel: float = 0.0
+    principal_px: float = 0.0
+    distortion_rel: float = 0.0
+    mount_rad: float = 0.0
+    mount_m: float = 0.0
+
+    def __post_init__(self) -> None:
+        for f in dataclasses.fields(self):
+            v = getattr(self, f.name)
+            if not 0.0 <= v <= (50.0 if f.name == "principal_px" else 1.0):
+                raise ValueError(f"calibration error: {f.name} out of range, got {v!r}")
+
+
+CALIBRATION_LEVELS: dict[str, CalibrationError] = {
+    "none": CalibrationError(),
+    "realistic": CalibrationError(focal_rel=0.002, principal_px=0.6, distortion_rel=0.05),
+    "poor": CalibrationError(focal_rel=0.006, principal_px=1.8, distortion_rel=0.15),
+}
+"""The named levels: `realistic` is what Zhang's method leaves on a wide lens (focal 0.2 %,
+principal point 0.6 px, each distortion coefficient 5 %); `poor` about three times that."""
+
+
+def _signed(rng: np.random.Generator, bound: float, n: int) -> FloatArray:
+    """`n` errors of random sign and magnitude uniform in [0.5, 1] x `bound`."""
+    sign = np.where(rng.random(n) < 0.5, -1.0, 1.0)
+    return sign * rng.uniform(0.5, 1.0, n) * bound
+
+
+def miscalibrated_camera(
+    nominal: CameraModel, error: CalibrationError, rng: np.random.Generator
+) -> CameraModel:
+    """The true camera behind a nominal one handed over with calibration `error`.
+
+    Args:
+        nominal: the camera as calibrated (written to `sensor.yaml`).
+        error: the bound of each parameter's error.
+        rng: draws the errors (the same number of draws whatever the bounds).
+    """
+    df, dc, dd = (
+        _signed(rng, error.focal_rel, 2),
+        _signed(rng, error.principal_px, 2),
+        _signed(rng, error.distortion_rel, len(nominal.distortion)),
+    )
+    angles, offset = _signed(rng, error.mount_rad, 3), _signed(rng, error.mount_m, 3)
+    return dataclasses.replace(
+        nominal,
+        fu=nominal.fu * (1.0 + df[0]),
+        fv=nominal.fv * (1.0 + df[1]),
+        cu=nominal.cu + dc[0],
+        cv=nominal.cv + dc[1],
+        distortion=nominal.distortion * (1.0 + dd),
+        T_body_camera=_moved_mount(nominal.T_body_camera, angles, offset),
+    )
+
+
+def _moved_mount(T_body_camera: FloatArray, angles: FloatArray, offset: FloatArray) -> FloatArray:
+    """The mounting (4, 4) turned by small `angles` about body x, y, z and moved by `offset`."""
+    ax, ay, az = (float(a) for a in angles)
+    cx, sx, cy, sy, cz, sz = np.cos(ax), np.sin(ax), np.cos(ay), np.sin(ay), np.cos(az), np.sin(az)
+    Rx = np.array([[1, 0, 0], [0, cx, -sx], [0, sx, cx]])
+    Ry = np.array([[cy, 0, sy], [0, 1, 0], [-sy, 0, cy]])
+    Rz = np.array([[cz, -sz, 0], [sz, cz, 0], [0, 0, 1]])
+    T = T_body_camera.copy()
+    T[:3, :3] = Rz @ Ry @ Rx @ T[:3, :3]
+    T[:3, 3] += offset
+    return T

@@ -6,7 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from sim.cameras import LENSES
+from sim.cameras import CALIBRATION_LEVELS, LENSES
 from sim.offline import simulate_recording
 from sim.scenario import SCENARIOS, load_scenario
 
@@ -28,6 +28,10 @@ def build_parser() -> argparse.ArgumentParser:
         "--duration", type=float, default=None, metavar="S", help="seconds to simulate"
     )
     parser.add_argument("--lens", choices=LENSES, default=None, help="override the lens model")
+    parser.add_argument(
+        "--calibration", choices=tuple(CALIBRATION_LEVELS), default=None,
+        help="override every camera's calibration error (the lens handed over vs the true one)",
+    )  # fmt: skip
     parser.add_argument("--robot", default=None, help="which robot (default: the first)")
     parser.add_argument("--force", action="store_true", help="write into a non-empty OUTDIR")
     parser.add_argument("--quiet", action="store_true", help="no progress or summary")
@@ -45,6 +49,8 @@ def main(argv: list[str]) -> int:
         return 2
     try:
         scenario = load_scenario(args.scenario)
+        if args.calibration is not None:
+            scenario = scenario.with_calibration(CALIBRATION_LEVELS[args.calibration])
     except ValueError as exc:
         print(f"irloc simulate: {exc}", file=sys.stderr)
         return 2

@@ -55,6 +55,7 @@ class SimulationSummary:
     odometry: int
     led_changes: int
     sweep_end_ns: int
+    kidnaps: tuple[tuple[int, int], ...] = ()  # (picked up, put down) times, ns
 
 
 def visible_landmarks(world: World, rig: RobotRig, pose: tuple[float, float, float]) -> set[int]:
@@ -123,15 +124,7 @@ def simulate_recording(
     Raises:
         ValueError: unknown robot name.
     """
-    sc = scenario.with_lens(lens) if lens else scenario
-    names = [r.name for r in sc.robots]
-    name = robot or names[0]
-    if name not in names:
-        raise ValueError(f"unknown robot {name!r}; the scenario has {names}")
-    sc = dataclasses.replace(sc, robots=tuple(r for r in sc.robots if r.name == name))
-    gens = seed_generators(sc.seed if seed is None else seed, 4)
-    world = build_world(sc, gens[0])
-    rig = build_robot(sc.robots[0], sc, gens[3], index=0)
+    sc, world, rig, gens = recording_site(scenario, seed=seed, lens=lens, robot=robot)
     end_ns = round((sc.duration_s if duration_s is None else duration_s) * NS)
 
     leds, drive_ns = sweep_schedule(world, rig, sweep or SweepConfig(), 0)
@@ -157,7 +150,34 @@ def simulate_recording(
                     frames += 1
             if progress is not None:
                 progress(t_ns / NS)
-    return SimulationSummary(frames, odometry, len(leds) - len(pending), drive_ns)
+    kidnaps = tuple(rig.robot.kidnaps)
+    return SimulationSummary(frames, odometry, len(leds) - len(pending), drive_ns, kidnaps)
+
+
+def recording_site(
+    scenario: Scenario,
+    *,
+    seed: int | None = None,
+    lens: Lens | None = None,
+    robot: str | None = None,
+) -> tuple[Scenario, World, RobotRig, list[np.random.Generator]]:
+    """The site `simulate_recording` builds for one robot: (the one-robot scenario, the
+    world, the robot, the generators of world, radio, renderer and robot). Called again with
+    the same arguments it rebuilds the same truth (a benchmark's reference).
+
+    Raises:
+        ValueError: unknown robot name.
+    """
+    sc = scenario.with_lens(lens) if lens else scenario
+    names = [r.name for r in sc.robots]
+    name = robot or names[0]
+    if name not in names:
+        raise ValueError(f"unknown robot {name!r}; the scenario has {names}")
+    sc = dataclasses.replace(sc, robots=tuple(r for r in sc.robots if r.name == name))
+    gens = seed_generators(sc.seed if seed is None else seed, 4)
+    world = build_world(sc, gens[0])
+    rig = build_robot(sc.robots[0], sc, gens[3], index=0)
+    return sc, world, rig, gens
 
 
 def _write_frame(

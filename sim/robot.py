@@ -6,8 +6,10 @@ ticks the wheels turn at constant speed, so the body follows an exact circular a
 (`localizer.odometry.integrate_arc` with the *true* wheel base). Odometry: each sample at tick
 t_k reports the wheel speeds averaged over (t_{k-1}, t_k], as counted by encoders that assume
 the nominal wheel radius (so unequal true radii scale each wheel's speed), plus noise
-proportional to the wheel speed (a parked robot reads exactly zero). Floor bumps lift and tilt
-the body (and so the camera) without changing the planar pose.
+proportional to the wheel speed (a parked robot reads exactly zero). Floor bumps and a tilted
+floor lift and tilt the body (and so the camera) without changing the planar pose. On a
+slippery patch the wheels turn as commanded (and the encoders count that) but the body moves
+only by (1 - slip) of it. A kidnap carries the robot, wheels still, to another pose.
 """
 
 from __future__ import annotations
@@ -19,7 +21,7 @@ import numpy as np
 import numpy.typing as npt
 
 from localizer.events import OdometryMeasured
-from localizer.geometry import rotation_z
+from localizer.geometry import rotation_z, wrap_angle
 from localizer.odometry import integrate_arc
 from sim.routes import DriveLimits, Route, RouteFollower
 
@@ -36,10 +38,48 @@ class FloorBump:
     height_m: float
 
 
-def floor_height(bumps: tuple[FloorBump, ...], x: float, y: float) -> tuple[float, float, float]:
+@dataclass(frozen=True)
+class FloorTilt:
+    """The whole floor out of level: a plane through (x, y) at height 0 rising by `slope_rad`
+    towards the heading `direction_rad`."""
+
+    x: float
+    y: float
+    slope_rad: float
+    direction_rad: float
+
+
+@dataclass(frozen=True)
+class SlipPatch:
+    """A slippery disc of the floor (a wet or dusty patch): there the body moves only
+    (1 - slip) of what each wheel turns, (left, right)."""
+
+    x: float
+    y: float
+    radius_m: float
+    slip: tuple[float, float]
+
+
+def slip_at(patches: tuple[SlipPatch, ...], x: float, y: float) -> tuple[float, float]:
+    """(left, right) slip at (x, y): that of the first patch covering it, else none."""
+    for p in patches:
+        if math.hypot(x - p.x, y - p.y) < p.radius_m:
+            return p.slip
+    return (0.0, 0.0)
+
+
+def floor_height(
+    bumps: tuple[FloorBump | FloorTilt, ...], x: float, y: float
+) -> tuple[float, float, float]:
     """Floor height and its gradient at (x, y): (h metres, dh/dx, dh/dy)."""
     h = gx = gy = 0.0
     for b in bumps:
+        if isinstance(b, FloorTilt):
+            g = math.tan(b.slope_rad)
+            tx, ty = g * math.cos(b.direction_rad), g * math.sin(b.direction_rad)
+            h += tx * (x - b.x) + ty * (y - b.y)
+            gx, gy = gx + tx, gy + ty
+            continue
         dx, dy = x - b.x, y - b.y
         r = math.hypot(dx, dy)
         if r >= b.radius_m:
@@ -90,7 +130,8 @@ class SimRobot:
         odometry: its odometry errors and rate.
         camera_rate_hz: frames per second.
         frame_drop: probability that a frame is lost.
-        bumps: floor bumps.
+        bumps: floor bumps and tilt.
+        slips: slippery patches.
         rng: draws odometry noise and dropped frames.
         t0_ns: start time; frames start at `t0_ns + frame_offset_ns`.
         limits: controller limits.
@@ -105,13 +146,15 @@ class SimRobot:
         odometry: OdometryModel,
         camera_rate_hz: float,
         frame_drop: float,
-        bumps: tuple[FloorBump, ...],
+        bumps: tuple[FloorBump | FloorTilt, ...],
         rng: np.random.Generator,
         t0_ns: int = 0,
         frame_offset_ns: int = 0,
         limits: DriveLimits | None = None,
+        slips: tuple[SlipPatch, ...] = (),
     ) -> None:
         self.name = name
+        self.slips = slips
         self.odometry = odometry
         self.bumps = bumps
         self.frame_drop = frame_drop
@@ -122,19 +165,26 @@ class SimRobot:
         self.x, self.y, self.theta = (float(v) for v in start)
         self.t_ns = t0_ns  # time of the state above (always a control tick)
         self._command = (0.0, 0.0)
-        self._snapshot = (self.t_ns, self.x, self.y, self.theta, self._command)
+        self._slip = (0.0, 0.0)
+        self._snapshot = (self.t_ns, self.x, self.y, self.theta, self._command, self._slip)
         self._next_frame_ns = t0_ns + frame_offset_ns
         self.paused_until_ns = t0_ns
+        self.lift_m = 0.0  # height above the floor while carried
+        self._carry_from: tuple[float, float, float] | None = None
+        self.kidnaps: list[tuple[int, int]] = []  # (picked up, put down) times, ns
 
     def _true_wheels(self, v: float, omega: float) -> tuple[float, float]:
         half = 0.5 * self.odometry.wheel_base_true_m * omega
         return v - half, v + half
 
     def _arc(
-        self, state: tuple[int, float, float, float, tuple[float, float]], t_ns: int
+        self,
+        state: tuple[int, float, float, float, tuple[float, float], tuple[float, float]],
+        t_ns: int,
     ) -> tuple[float, float, float]:
-        t0, x, y, theta, command = state
+        t0, x, y, theta, command, slip = state
         vl, vr = self._true_wheels(*command)
+        vl, vr = vl * (1.0 - slip[0]), vr * (1.0 - slip[1])
         dt_s = (t_ns - t0) * 1e-9
         xe, ye, th = integrate_arc(x, y, theta, vl, vr, dt_s, self.odometry.wheel_base_true_m)
         return float(xe), float(ye), float(th)
@@ -146,8 +196,9 @@ class SimRobot:
         """
         return self._arc(self._snapshot, t_ns)
 
-    def T_world_body(self, x: float, y: float, theta: float) -> FloatArray:
-        """Body pose (4, 4) on the floor at (x, y, theta): lifted and tilted by bumps."""
+    def T_world_body(self, x: float, y: float, theta: float, *, lift_m: float = 0.0) -> FloatArray:
+        """Body pose (4, 4) on the floor at (x, y, theta): lifted and tilted by bumps and
+        the floor's tilt (and `lift_m` higher: carried)."""
         h, gx, gy = floor_height(self.bumps, x, y)
         T = np.eye(4)
         R = rotation_z(theta)
@@ -160,7 +211,7 @@ class SimRobot:
             Rx = np.array([[1, 0, 0], [0, cr, -sr], [0, sr, cr]])
             R = R @ Ry @ Rx
         T[:3, :3] = R
-        T[:3, 3] = [x, y, h]
+        T[:3, 3] = [x, y, h + lift_m]
         return T
 
     def _measure(self) -> tuple[float, float]:
@@ -183,17 +234,38 @@ class SimRobot:
                 return out
             self.x, self.y, self.theta = self._arc(self._snapshot, tick)
             self.t_ns = tick
+            self._carry(tick)
             vl, vr = self._measure()
             out.append(OdometryMeasured(tick, vl, vr))
             if tick >= self.paused_until_ns:
                 self._command = self.follower.command(tick * 1e-9, self.x, self.y, self.theta)
             else:
                 self._command = (0.0, 0.0)
-            self._snapshot = (tick, self.x, self.y, self.theta, self._command)
+            self._slip = slip_at(self.slips, self.x, self.y) if self.slips else (0.0, 0.0)
+            self._snapshot = (tick, self.x, self.y, self.theta, self._command, self._slip)
+
+    def _carry(self, tick_ns: int) -> None:
+        """While a kidnap is under way, put the body where the carry has brought it."""
+        carry = self.follower.carrying(tick_ns * 1e-9)
+        if carry is None:
+            return
+        step, done = carry
+        if self._carry_from is None:
+            self._carry_from = (self.x, self.y, self.theta)
+            self.kidnaps.append((tick_ns, tick_ns))
+        x0, y0, th0 = self._carry_from
+        turn = float(wrap_angle(step.theta - th0))
+        self.x, self.y = x0 + done * (step.x - x0), y0 + done * (step.y - y0)
+        self.theta = float(wrap_angle(th0 + done * turn))
+        self.lift_m = step.lift_m * math.sin(math.pi * done)
+        if done >= 1.0:
+            self._carry_from = None
+            self.lift_m = 0.0
+            self.kidnaps[-1] = (self.kidnaps[-1][0], tick_ns)
 
     def _add_frame(self, out: list[OdometryMeasured | FramePose], t_ns: int) -> None:
         self._next_frame_ns += self.frame_period_ns
         if self.frame_drop > 0 and self.rng.random() < self.frame_drop:
             return
         pose = self.pose_at(t_ns)
-        out.append(FramePose(t_ns, self.T_world_body(*pose), pose))
+        out.append(FramePose(t_ns, self.T_world_body(*pose, lift_m=self.lift_m), pose))

@@ -5,16 +5,20 @@ validated field by field (errors name the file and the field's path).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
-from sim.cameras import LENSES, Lens
+from sim.cameras import CALIBRATION_LEVELS, LENSES, CalibrationError, Lens
 from sim.fields import Node
-from sim.routes import Drive, Goto, Route, Step, TurnTo, Wait, heading_sweep
+from sim.routes import Drive, DriveLimits, Goto, Kidnap, Route, Step, TurnTo, Wait, heading_sweep
 
 
 @dataclass(frozen=True)
 class CameraSpec:
-    """A robot's upward camera: lens, mounting, rate, losses, calibration error."""
+    """A robot's upward camera: lens, mounting, rate, losses, calibration error.
+
+    `calibration_error`: True draws a good calibration's residual (`perturbed_camera`),
+    False none, a `CalibrationError` that (`miscalibrated_camera`).
+    """
 
     lens: Lens
     yaw_rad: float = 0.0
@@ -23,7 +27,7 @@ class CameraSpec:
     tilt_xy_rad: tuple[float, float] = (0.0, 0.0)
     rate_hz: float = 30.0
     drop_rate: float = 0.0
-    calibration_error: bool = True
+    calibration_error: bool | CalibrationError = True
 
 
 @dataclass(frozen=True)
@@ -40,6 +44,7 @@ class RobotSpec:
     odometry_noise_rel: float
     camera: CameraSpec
     route: Route
+    limits: DriveLimits = field(default_factory=DriveLimits)
 
 
 def route_from_node(n: Node, max_speed: float, start_theta: float) -> Route:
@@ -58,7 +63,7 @@ def route_from_node(n: Node, max_speed: float, start_theta: float) -> Route:
             if sweep > 0:
                 steps += [TurnTo(start_theta), *heading_sweep(start_theta, sweep, sweep_dwell)]
     for s in n.child("steps").items():
-        s.mapping(("goto", "wait", "turn_to_deg", "sweep", "drive"))
+        s.mapping(("goto", "wait", "turn_to_deg", "sweep", "drive", "kidnap"))
         if s.has("goto"):
             x, y = s.child("goto").vector(2, "[x, y]")
             steps.append(Goto(x, y, speed))
@@ -75,6 +80,16 @@ def route_from_node(n: Node, max_speed: float, start_theta: float) -> Route:
                 math.radians(w.number("step_deg", low=1, high=180)),
                 w.number("dwell_s", 0.5, low=0),
             )
+        elif s.has("kidnap"):
+            k = s.child("kidnap").mapping(("to", "carry_s", "lift_m"))
+            x, y, deg = k.child_vector("to", 3, "[x, y, theta_deg]")
+            steps.append(
+                Kidnap(
+                    x, y, math.radians(deg),
+                    k.number("carry_s", 2.0, low=0.1, high=60.0),
+                    k.number("lift_m", 0.3, low=0.0, high=1.5),
+                )
+            )  # fmt: skip
         else:
             d = s.child("drive", required=True).mapping(("seconds", "v_mps", "omega_deg_s"))
             steps.append(
@@ -85,6 +100,40 @@ def route_from_node(n: Node, max_speed: float, start_theta: float) -> Route:
                 )
             )
     return Route(tuple(steps), n.boolean("loop", False))
+
+
+def calibration_from_node(n: Node) -> bool | CalibrationError:
+    """`calibration_error`: true / false, a level name, or a mapping of bounds."""
+    v = n.value
+    if v is None:
+        return True
+    if isinstance(v, bool):
+        return v
+    if isinstance(v, str):
+        if v not in CALIBRATION_LEVELS:
+            raise n.error(f"expected true, false, one of {list(CALIBRATION_LEVELS)} or a mapping")
+        return CALIBRATION_LEVELS[v]
+    n.mapping(("focal_rel", "principal_px", "distortion_rel", "mount_deg", "mount_m"))
+    return CalibrationError(
+        focal_rel=n.number("focal_rel", 0.0, low=0, high=0.2),
+        principal_px=n.number("principal_px", 0.0, low=0, high=50),
+        distortion_rel=n.number("distortion_rel", 0.0, low=0, high=0.9),
+        mount_rad=math.radians(n.number("mount_deg", 0.0, low=0, high=10)),
+        mount_m=n.number("mount_m", 0.0, low=0, high=0.5),
+    )
+
+
+def limits_from_node(n: Node) -> DriveLimits:
+    """`limits`: the controller's fastest turn and acceleration (defaults: `DriveLimits`)."""
+    d = DriveLimits()
+    n.mapping(("max_turn_rate_deg_s", "accel_mps2", "distance_gain"))
+    return DriveLimits(
+        max_omega_radps=math.radians(
+            n.number("max_turn_rate_deg_s", math.degrees(d.max_omega_radps), low=1, high=720)
+        ),
+        accel_mps2=n.number("accel_mps2", d.accel_mps2, low=0.05, high=1000),
+        distance_gain=n.number("distance_gain", d.distance_gain, low=0.1, high=1000),
+    )
 
 
 def robot_from_node(n: Node, default_lens: Lens) -> RobotSpec:
@@ -99,6 +148,7 @@ def robot_from_node(n: Node, default_lens: Lens) -> RobotSpec:
             "odometry",
             "camera",
             "route",
+            "limits",
         )
     )
     sx, sy, sdeg = n.child_vector("start", 3, "[x, y, theta_deg]")
@@ -125,7 +175,7 @@ def robot_from_node(n: Node, default_lens: Lens) -> RobotSpec:
         tilt_xy_rad=(math.radians(tilt[0]), math.radians(tilt[1])),
         rate_hz=cam.number("rate_hz", 30.0, low=1, high=120),
         drop_rate=cam.number("drop_rate", 0.0, low=0, high=0.9),
-        calibration_error=cam.boolean("calibration_error", True),
+        calibration_error=calibration_from_node(cam.child("calibration_error")),
     )
     wre = n.child_vector("wheel_radius_error", 2, "[left, right] relative errors", (0.0, 0.0))
     return RobotSpec(
@@ -139,4 +189,5 @@ def robot_from_node(n: Node, default_lens: Lens) -> RobotSpec:
         odometry_noise_rel=odo.number("noise_rel", 0.01, low=0, high=0.5),
         camera=camera,
         route=route_from_node(n.child("route", required=True), max_speed, math.radians(sdeg)),
+        limits=limits_from_node(n.child("limits", {})),
     )

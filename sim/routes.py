@@ -43,7 +43,19 @@ class Drive:
     omega_radps: float
 
 
-Step = Goto | Wait | TurnTo | Drive
+@dataclass(frozen=True)
+class Kidnap:
+    """The robot is lifted and put down elsewhere: carried for `carry_s` (its wheels still,
+    its camera `lift_m` higher at mid-carry) from wherever it is to (x, y, theta)."""
+
+    x: float
+    y: float
+    theta: float
+    carry_s: float = 2.0
+    lift_m: float = 0.3
+
+
+Step = Goto | Wait | TurnTo | Drive | Kidnap
 
 
 @dataclass(frozen=True)
@@ -103,6 +115,15 @@ class RouteFollower:
     def finished(self) -> bool:
         return self._index >= len(self.route.steps)
 
+    def carrying(self, t_s: float) -> tuple[Kidnap, float] | None:
+        """The kidnap under way at `t_s` and the share of its carry done (0..1), or None."""
+        if self.finished or self._step_started_s is None:
+            return None
+        step = self.route.steps[self._index]
+        if not isinstance(step, Kidnap):
+            return None
+        return step, min(1.0, (t_s - self._step_started_s) / step.carry_s)
+
     def _next(self, t_s: float) -> None:
         self._index += 1
         self._step_started_s = t_s
@@ -122,6 +143,10 @@ class RouteFollower:
             elapsed = t_s - self._step_started_s
             if isinstance(step, Wait):
                 if elapsed < step.seconds:
+                    self._v = 0.0
+                    return 0.0, 0.0
+            elif isinstance(step, Kidnap):
+                if elapsed < step.carry_s:
                     self._v = 0.0
                     return 0.0, 0.0
             elif isinstance(step, Drive):

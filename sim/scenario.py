@@ -14,12 +14,13 @@ from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 
+import numpy as np
 import yaml
 
-from sim.cameras import LENSES, Lens
+from sim.cameras import LENSES, CalibrationError, Lens
 from sim.fields import Node
 from sim.render import RenderConfig
-from sim.robot import FloorBump
+from sim.robot import FloorBump, FloorTilt, SlipPatch
 from sim.robot_spec import RobotSpec, robot_from_node
 
 SCENARIOS: tuple[str, ...] = ("demo", "paper_testbed", "paper_floor", "dense_grid_fast", "hostile")
@@ -37,6 +38,7 @@ class LandmarkSpec:
     radio_dead: bool = False
     address: str | None = None
     capacity_mah: float = 2500.0
+    led_dead: bool = False
 
 
 @dataclass(frozen=True)
@@ -80,16 +82,26 @@ class Scenario:
     extended: tuple[ExtendedSpec, ...]
     glints: tuple[GlintSpec, ...]
     people: tuple[PersonSpec, ...]
-    bumps: tuple[FloorBump, ...]
+    bumps: tuple[FloorBump | FloorTilt, ...]
     robots: tuple[RobotSpec, ...]
     radio_latency_s: tuple[float, float]
     radio_loss: float
     render: RenderConfig
+    slips: tuple[SlipPatch, ...] = ()
 
     def with_lens(self, lens: Lens) -> Scenario:
         """The same scenario with every robot's camera on `lens`."""
         robots = tuple(
             dataclasses.replace(r, camera=dataclasses.replace(r.camera, lens=lens))
+            for r in self.robots
+        )
+        return dataclasses.replace(self, robots=robots)
+
+    def with_calibration(self, error: bool | CalibrationError) -> Scenario:
+        """The same scenario with every robot's camera handed over with `error` (see
+        `CameraSpec.calibration_error`)."""
+        robots = tuple(
+            dataclasses.replace(r, camera=dataclasses.replace(r.camera, calibration_error=error))
             for r in self.robots
         )
         return dataclasses.replace(self, robots=robots)
@@ -102,6 +114,8 @@ _TOP = (
     "duration_s",
     "survey_sigma_m",
     "ceiling_height_m",
+    "ceiling_unevenness_m",
+    "layout_seed",
     "lens",
     "landmarks",
     "landmark_grid",
@@ -111,45 +125,77 @@ _TOP = (
     "glints",
     "people",
     "floor_bumps",
+    "floor_tilt",
+    "slip_patches",
     "radio",
     "render",
     "robots",
 )
 
 
-def _landmarks(doc: Node, ceiling: float) -> tuple[LandmarkSpec, ...]:
+class _Layout:
+    """Where generated landmarks go: the ceiling height, its unevenness (each landmark
+    without its own z is that much higher or lower, uniform) and the jitter of irregular
+    grids, drawn from `layout_seed` (a property of the building, not of a run's seed)."""
+
+    def __init__(self, ceiling: float, unevenness: float, seed: int) -> None:
+        self.ceiling, self.unevenness = ceiling, unevenness
+        self.rng = np.random.default_rng(seed)
+
+    def z(self, n: Node, key: str = "z") -> float:
+        if n.has(key):
+            return n.number(key, low=0.5)
+        return self.ceiling + float(self.rng.uniform(-self.unevenness, self.unevenness))
+
+    def jitter(self, amount: float) -> tuple[float, float]:
+        dx, dy = self.rng.uniform(-amount, amount, 2)
+        return float(dx), float(dy)
+
+
+def _grid(g: Node, layout: _Layout) -> list[LandmarkSpec]:
+    g.mapping(("first_id", "x0", "y0", "nx", "ny", "spacing_m", "z", "jitter_m"))
+    first, nx, ny = g.integer("first_id"), g.integer("nx", low=1), g.integer("ny", low=1)
+    x0, y0, s = g.number("x0"), g.number("y0"), g.number("spacing_m", low=0.05)
+    jitter = g.number("jitter_m", 0.0, low=0.0, high=0.45 * s)
+    out = []
+    for j in range(ny):
+        for i in range(nx):
+            dx, dy = layout.jitter(jitter) if jitter else (0.0, 0.0)
+            x, y = x0 + i * s + dx, y0 + j * s + dy
+            out.append(LandmarkSpec(first + j * nx + i, x, y, layout.z(g)))
+    return out
+
+
+def _landmarks(doc: Node, layout: _Layout) -> tuple[LandmarkSpec, ...]:
     out: list[LandmarkSpec] = []
     for n in doc.child("landmarks").items():
-        n.mapping(("id", "x", "y", "z", "charge", "dead", "radio", "capacity_mah"))
+        n.mapping(("id", "x", "y", "z", "charge", "dead", "led_dead", "radio", "capacity_mah"))
         out.append(
             LandmarkSpec(
                 n.integer("id"),
                 n.number("x"),
                 n.number("y"),
-                n.number("z", ceiling, low=0.5),
+                layout.z(n),
                 n.number("charge", 1.0, low=0, high=1),
                 n.boolean("dead", False),
                 n.string("radio", "") or None,
                 n.number("capacity_mah", 2500.0, low=0.001),
+                n.boolean("led_dead", False),
             )
         )
     if doc.has("landmark_grid"):
-        g = doc.child("landmark_grid").mapping(
-            ("first_id", "x0", "y0", "nx", "ny", "spacing_m", "z")
-        )
-        first, nx, ny = g.integer("first_id"), g.integer("nx", low=1), g.integer("ny", low=1)
-        x0, y0, s = g.number("x0"), g.number("y0"), g.number("spacing_m", low=0.05)
-        z = g.number("z", ceiling, low=0.5)
-        for j in range(ny):
-            for i in range(nx):
-                out.append(LandmarkSpec(first + j * nx + i, x0 + i * s, y0 + j * s, z))
+        grids = doc.child("landmark_grid")
+        for g in grids.items() if isinstance(grids.value, list) else [grids]:
+            out += _grid(g, layout)
     for n in doc.child("landmark_pairs").items():
         n.mapping(("first_id", "x", "y", "spacing_m", "angle_deg", "z"))
         first, x, y = n.integer("first_id"), n.number("x"), n.number("y")
         half, a = 0.5 * n.number("spacing_m", low=0.05), math.radians(n.number("angle_deg", 0.0))
-        z = n.number("z", ceiling, low=0.5)
         dx, dy = half * math.cos(a), half * math.sin(a)
-        out += [LandmarkSpec(first, x - dx, y - dy, z), LandmarkSpec(first + 1, x + dx, y + dy, z)]
+        out += [
+            LandmarkSpec(first, x - dx, y - dy, layout.z(n)),
+            LandmarkSpec(first + 1, x + dx, y + dy, layout.z(n)),
+        ]
     seen: set[int] = set()
     for lm in out:
         if lm.id in seen:
@@ -213,6 +259,11 @@ def scenario_from_dict(data: object, *, source: str) -> Scenario:
     """
     doc = Node(data, "", source).mapping(_TOP)
     ceiling = doc.number("ceiling_height_m", 2.5, low=0.5, high=20)
+    layout = _Layout(
+        ceiling,
+        doc.number("ceiling_unevenness_m", 0.0, low=0.0, high=0.5 * ceiling),
+        doc.integer("layout_seed", 0),
+    )
     lens = doc.string("lens", "fisheye", choices=LENSES)
     robots = tuple(robot_from_node(n, lens) for n in doc.child("robots", required=True).items())  # type: ignore[arg-type]
     if not robots:
@@ -231,7 +282,7 @@ def scenario_from_dict(data: object, *, source: str) -> Scenario:
                 n.number("height_m", 1.8, low=0.1),
             )
         )
-    bumps = []
+    bumps: list[FloorBump | FloorTilt] = []
     for n in doc.child("floor_bumps").items():
         n.mapping(("x", "y", "radius_m", "height_m"))
         bumps.append(
@@ -242,6 +293,7 @@ def scenario_from_dict(data: object, *, source: str) -> Scenario:
                 n.number("height_m", low=-0.2, high=0.2),
             )
         )
+    bumps += _floor_tilt(doc)
     radio = doc.child("radio", {}).mapping(("latency_s", "loss"))
     latency = radio.child_vector("latency_s", 2, "[min, max] seconds", (0.01, 0.04))
     if not 0 <= latency[0] <= latency[1] <= 5:
@@ -259,7 +311,7 @@ def scenario_from_dict(data: object, *, source: str) -> Scenario:
         seed=doc.integer("seed", 0),
         duration_s=doc.number("duration_s", 60.0, low=0.1),
         survey_sigma_m=doc.number("survey_sigma_m", 0.005, low=0, high=1),
-        landmarks=_landmarks(doc, ceiling),
+        landmarks=_landmarks(doc, layout),
         extended=ext,
         glints=glints,
         people=tuple(people),
@@ -268,7 +320,34 @@ def scenario_from_dict(data: object, *, source: str) -> Scenario:
         radio_latency_s=(latency[0], latency[1]),
         radio_loss=radio.number("loss", 0.02, low=0, high=0.9),
         render=render_cfg,
+        slips=_slips(doc),
     )
+
+
+def _floor_tilt(doc: Node) -> list[FloorTilt]:
+    if not doc.has("floor_tilt"):
+        return []
+    n = doc.child("floor_tilt").mapping(("slope_deg", "direction_deg", "x", "y"))
+    return [
+        FloorTilt(
+            n.number("x", 0.0),
+            n.number("y", 0.0),
+            math.radians(n.number("slope_deg", low=-10, high=10)),
+            math.radians(n.number("direction_deg", 0.0)),
+        )
+    ]
+
+
+def _slips(doc: Node) -> tuple[SlipPatch, ...]:
+    out = []
+    for n in doc.child("slip_patches").items():
+        n.mapping(("x", "y", "radius_m", "slip"))
+        left, right = n.child_vector("slip", 2, "[left, right] slip (0..0.9)")
+        if not (0 <= left <= 0.9 and 0 <= right <= 0.9):
+            raise n.child("slip").error(f"each slip must be in [0, 0.9], got {[left, right]}")
+        out.append(SlipPatch(n.number("x"), n.number("y"), n.number("radius_m", low=0.05),
+                             (left, right)))  # fmt: skip
+    return tuple(out)
 
 
 def load_scenario(name_or_path: str | Path) -> Scenario:

@@ -33,6 +33,7 @@ class SimLandmark:
         battery: its cells.
         radio_dead: the radio never answers (a broken landmark).
         led_on: the LED pin is high.
+        led_dead: the LED never lights although the radio answers (a burnt-out LED).
     """
 
     id: int
@@ -42,6 +43,7 @@ class SimLandmark:
     battery: Battery
     radio_dead: bool = False
     led_on: bool = True
+    led_dead: bool = False
 
     @property
     def node_id(self) -> str:
@@ -218,7 +220,7 @@ class World:
         t_s = self.t_ns * 1e-9
         with self._lock:
             on = self._lit_at(t_ns)
-            lit = [lm for lid, lm in self.landmarks.items() if on[lid]]
+            lit = [lm for lid, lm in self.landmarks.items() if on[lid] and not lm.led_dead]
             pos = [lm.p_true for lm in lit]
             inten = [lm.battery.led_brightness() for lm in lit]
         for g in self.glints:

@@ -22,6 +22,7 @@ PACKAGES = [
     "irloc",
     "fleet",
     "agent",
+    "export",
 ]
 PYTHON_DIRS = [*PACKAGES, "bench", "tests"]
 

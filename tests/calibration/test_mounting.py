@@ -169,3 +169,32 @@ def test_observations_with_unknown_or_too_few_landmarks_are_rejected() -> None:
             camera, landmarks, [(5, [10, 11], np.zeros((3, 2)))], [], wheel_base_m=WHEEL_BASE
         )
     assert isinstance(MountingConfig().min_turn_angle_rad, float)
+
+
+def test_frames_off_the_cameras_height_are_dropped() -> None:
+    """Frames whose camera pose is far off the camera's height (what a wrong P3P branch or a
+    misidentification gives) are dropped, and the mounting is that of the good frames."""
+    rng = np.random.default_rng(5)
+    T_true = T_body_camera_upward(yaw=0.3, offset_xy=(0.05, 0.02), height=0.3)
+    camera = wide_angle_camera("fisheye", T_body_camera=T_true)
+    raised = wide_angle_camera("fisheye", T_body_camera=T_body_camera_upward(height=0.45))
+    landmarks = _landmarks(rng)
+    odo, pose, t_end = _drive()
+    detections = _observations(camera, landmarks, pose, t_end, rng)
+    lens = wide_angle_camera("fisheye")
+    clean = mounting_from_observations(lens, landmarks, detections, odo, wheel_base_m=WHEEL_BASE)
+    wrong = _observations(raised, landmarks, pose, t_end, rng)
+    bad = list(range(5, len(detections), 9))
+    for k in bad:
+        detections[k] = wrong[k]
+    result = mounting_from_observations(lens, landmarks, detections, odo, wheel_base_m=WHEEL_BASE)
+    # every raised frame dropped (one may be among those the clean run drops anyway)
+    assert len(bad) <= result.frames_dropped <= clean.frames_dropped + len(bad)
+    assert abs(result.yaw_rad - 0.3) < math.radians(0.2)
+    np.testing.assert_allclose(result.offset_xy_m, (0.05, 0.02), atol=0.005)
+    loose = MountingConfig(max_height_deviation_m=1.0)  # without the check they spoil it
+    spoilt = mounting_from_observations(
+        lens, landmarks, detections, odo, wheel_base_m=WHEEL_BASE, config=loose
+    )
+    assert spoilt.frames_dropped <= clean.frames_dropped
+    assert np.linalg.norm(spoilt.offset_xy_m - (0.05, 0.02)) > 0.005

@@ -108,6 +108,10 @@ def test_identification_on_the_live_site_keeps_the_other_robots_tracking(live: A
     sim = live.services.sim
     assert sim is not None
     used = live.services.robots.latest("r1")
+    deadline = time.monotonic() + 30.0  # r1 may be between landmarks (dead reckoning) now
+    while (used is None or not used.landmark_ids) and time.monotonic() < deadline:
+        time.sleep(0.2)
+        used = live.services.robots.latest("r1")
     assert used is not None and used.landmark_ids
     lid = _nearest(live, "r1", list(used.landmark_ids))
     truth = next(lm.p_true for lm in sim.world.landmarks.values() if lm.id == lid)
@@ -149,6 +153,10 @@ def test_a_radio_deleted_from_the_map_is_found_measured_and_saved_back(live: Api
     sim = live.services.sim
     assert sim is not None
     used = live.services.robots.latest("r1")
+    deadline = time.monotonic() + 30.0  # r1 may be between landmarks (dead reckoning) now
+    while (used is None or not used.landmark_ids) and time.monotonic() < deadline:
+        time.sleep(0.2)
+        used = live.services.robots.latest("r1")
     assert used is not None and used.landmark_ids
     lid = _nearest(live, "r1", list(used.landmark_ids))
     address = live.services.map.get(lid).radio

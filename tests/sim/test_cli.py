@@ -77,3 +77,14 @@ def test_sweep_skips_the_dead_landmark_and_robot_waits_for_it(tmp_path: Path) ->
     t_gt, poses = read_groundtruth(out)
     assert np.all(poses[t_gt <= all_at] == poses[0])  # parked until the sweep is done
     assert 30 <= len(rec.frames) <= 46  # 5 % of 46 frames dropped on average
+
+
+def test_simulate_calibration_override_changes_the_true_lens_only(tmp_path: Path) -> None:
+    for level in ("none", "poor"):
+        args = ["paper_testbed", str(tmp_path / level), "--duration", "0.2", "--quiet"]
+        assert main([*args, "--calibration", level]) == 0
+    assert (tmp_path / "none" / "cam0" / "sensor.yaml").read_text() == (
+        tmp_path / "poor" / "cam0" / "sensor.yaml"
+    ).read_text()  # the localizer is handed the same nominal camera
+    last = read_recording(tmp_path / "none").frames[-1].path.relative_to(tmp_path / "none")
+    assert (tmp_path / "none" / last).read_bytes() != (tmp_path / "poor" / last).read_bytes()

@@ -75,7 +75,7 @@ def test_scenario_fields_and_defaults() -> None:
         (lambda d: d["landmarks"][1].update(id=1), r"landmark id 1 appears twice"),
         (lambda d: d["landmarks"][0].update(x="near"), r"landmarks\[0\]\.x: expected a number"),
         (lambda d: d["robots"][0].update(camera={"lens": "zoom"}),
-         r"robots\[0\]\.camera\.lens: expected one of \['pinhole', 'fisheye'\]"),
+         r"robots\[0\]\.camera\.lens: expected one of \['pinhole', 'fisheye', 'wide_radtan'\]"),
         (lambda d: d["robots"][0].pop("route"), r"robots\[0\]: missing field 'route'"),
         (lambda d: d.update(render={"psf_sigma_px": -1}), r"render: RenderConfig: psf_sigma_px"),
         (lambda d: d["robots"][1].update(name="a"), r"robots: robot names must be unique"),

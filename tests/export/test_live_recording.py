@@ -1,0 +1,71 @@
+"""`irloc export` and `irloc report` on a recording the server wrote from a live robot (the
+demo site, recorded from its start): no ground truth, the site's clock, LED probes of every
+robot in leds.csv. (Replayed, the localizer does not identify from such a recording: it
+identifies from its own LED requests, which a replay cannot answer; so the poses are
+whatever `irloc replay` gives, checked for consistency, not for count.)"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from mcap.reader import make_reader
+
+from export.cli import main as export_main
+from recording.reader import read_recording
+from recording.replay_cli import main as replay
+from recording.scoring import PoseTrack, read_poses
+from tests.server.conftest import start_api
+
+pytestmark = pytest.mark.slow
+FRAMES = 60
+
+
+@pytest.fixture(scope="module")
+def live_recording(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    site = start_api(tmp_path_factory.mktemp("live"))
+    api = next(site)
+    try:
+        c, h = api.client, api.h("operator")
+        assert c.post("/api/v1/robots/r1/recording/start", headers=h).status_code == 200
+        robot = api.services.robots.get("r1")
+        frames0, t_end = robot.frames, time.monotonic() + 90
+        while robot.frames < frames0 + FRAMES and time.monotonic() < t_end:
+            time.sleep(0.1)
+        r = c.post("/api/v1/robots/r1/recording/stop", headers=h)
+        return Path(r.json()["path"])
+    finally:
+        site.close()
+
+
+@pytest.fixture(scope="module")
+def replayed(live_recording: Path, tmp_path_factory: pytest.TempPathFactory) -> PoseTrack:
+    out = tmp_path_factory.mktemp("live_poses") / "poses.csv"
+    assert replay([str(live_recording), "--out", str(out), "--quiet"]) == 0
+    return read_poses(out)
+
+
+@pytest.mark.parametrize("profile", ["foxglove", "ros2"])
+def test_live_recording_exports(
+    live_recording: Path, replayed: PoseTrack, tmp_path: Path, profile: str
+) -> None:
+    rec = read_recording(live_recording)
+    assert len(rec.frames) >= FRAMES - 5
+    out = tmp_path / "live.mcap"
+    args = [str(live_recording), "--mcap", str(out), "--profile", profile, "--quiet"]
+    assert export_main(args) == 0
+    with out.open("rb") as f:
+        summary = make_reader(f).get_summary()
+    counts = {
+        c.topic: summary.statistics.channel_message_counts[cid]
+        for cid, c in summary.channels.items()
+    }
+    assert counts["/cam0/image/compressed"] == len(rec.frames)
+    assert counts["/tf"] == len(rec.frames)
+    assert "/groundtruth" not in counts
+    assert counts.get("/irloc/pose", 0) == int(replayed.has_pose.sum())
+    assert counts["/irloc/mode"] >= 1
+    assert counts["/landmarks"] == len(rec.leds)  # the start, then every LED change
+    assert counts["/odom"] == int(np.sum(rec.odom_t_ns <= rec.frames[-1].t_ns))

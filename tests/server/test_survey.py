@@ -1,0 +1,106 @@
+"""`/commissioning/survey`: a robot of the live demo site surveys the grid while the
+landmarks blink one at a time; the other robots keep tracking; the proposals are the
+simulator's true positions; accepting writes them through the data layer."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Iterator
+from typing import Any
+
+import numpy as np
+import pytest
+
+from tests.server.conftest import Api, start_api
+
+S = "/api/v1/commissioning/survey"
+ANCHORS = (100, 129)  # opposite corners of the demo's 6 x 5 grid
+
+
+@pytest.fixture(scope="module")
+def live(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Api]:
+    yield from start_api(tmp_path_factory.mktemp("survey"), seed=11)
+
+
+def _wait(c: Any, h: dict[str, str], until: Any, timeout_s: float) -> dict[str, Any]:
+    deadline = time.monotonic() + timeout_s
+    st: dict[str, Any] = {}
+    while time.monotonic() < deadline:
+        st = c.get(S, headers=h).json()
+        if until(st):
+            return st
+        time.sleep(0.5)
+    raise AssertionError(f"survey did not get there in {timeout_s} s: {st}")
+
+
+def test_roles_and_bad_input(api: Api) -> None:
+    c = api.client
+    assert c.get(S).status_code == 401
+    r = c.get(S, headers=api.h("viewer"))
+    assert r.status_code == 200 and r.json()["state"] == "idle", r.text
+    for role in ("viewer", "operator"):
+        assert c.post(S + "/start", json={"robot": "r1"}, headers=api.h(role)).status_code == 403
+    h = api.h("admin")
+    r = c.post(S + "/start", json={"robot": "bad name!"}, headers=h)
+    assert r.status_code == 422 and "robot" in r.json()["detail"]
+    r = c.post(S + "/start", json={"robot": "r1"}, headers=h)
+    assert r.status_code == 503 and "no radio" in r.json()["detail"]  # no live site here
+    assert c.post(S + "/stop", headers=h).status_code == 409
+    r = c.post(S + "/accept", json={}, headers=h)
+    assert r.status_code == 409 and "no survey result" in r.json()["detail"]
+    r = c.post(S + "/accept", json={"landmarks": ["a"]}, headers=h)
+    assert r.status_code == 422
+
+
+@pytest.mark.slow
+def test_a_live_survey_places_the_grid_and_keeps_the_fleet_tracking(live: Api) -> None:
+    c, h = live.client, live.h("admin")
+    r = c.post(S + "/start", json={"robot": "r1"}, headers=h)
+    assert r.status_code == 409 and "locked" in r.json()["detail"]  # no anchors yet
+    for lid in ANCHORS:
+        assert (
+            c.patch(f"/api/v1/landmarks/{lid}", json={"locked": True}, headers=h).status_code == 200
+        )
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline:  # every robot tracking first
+        if all(live.services.robots.mode(n) == "landmark" for n in live.services.robots.names()):
+            break
+        time.sleep(0.2)
+    sub = live.services.robots.subscribe_poses(maxsize=100_000)
+    r = c.post(S + "/start", json={"robot": "r1"}, headers=h)
+    assert r.status_code == 200 and r.json()["state"] == "driving", r.text
+    assert c.post(S + "/start", json={"robot": "r1"}, headers=h).status_code == 409
+    time.sleep(30.0)  # r1 drives most of its loop round the grid
+    poses = sub.drain()
+    sub.close()
+    r = c.post(S + "/stop", headers=h)
+    assert r.status_code == 200 and r.json()["state"] == "solving", r.text
+    assert r.json()["blinks"] > 60
+    st = _wait(c, h, lambda s: s["state"] in ("done", "failed"), 240)
+    assert st["state"] == "done", st
+    for robot in ("r2", "r3"):  # blinking one landmark at a time blinds nobody
+        modes = [p.mode for p in poses if p.robot == robot]
+        assert len(modes) > 100 and modes.count("landmark") / len(modes) >= 0.9, robot
+    sim = live.services.sim
+    assert sim is not None
+    truth = {lm.id: lm.p_true for lm in sim.world.landmarks.values()}
+    props = {p["landmark_id"]: p for p in st["proposals"]}
+    grid = [lid for lid in props if 100 <= lid < 130 and not props[lid]["anchor"]]
+    assert len(grid) >= 15, sorted(props)
+    errors = [np.hypot(props[i]["x"] - truth[i][0], props[i]["y"] - truth[i][1]) for i in grid]
+    assert float(np.percentile(errors, 90)) < 0.02, sorted(zip(errors, grid, strict=True))
+    assert all(props[i]["sigma_m"] > 0 for i in grid)
+    assert {props[a]["anchor"] for a in ANCHORS if a in props} <= {True}
+    # accept two: written through the data layer, audited as the survey's
+    pick = sorted(grid)[:2]
+    r = c.post(S + "/accept", json={"landmarks": [*pick, 9999]}, headers=h)
+    assert r.status_code == 422 and "9999" in r.json()["detail"]
+    r = c.post(S + "/accept", json={"landmarks": pick}, headers=h)
+    assert r.status_code == 200 and r.json()["accepted"] == pick, r.text
+    for lid in pick:
+        saved = live.services.map.get(lid)
+        assert (saved.x, saved.y, saved.z) == pytest.approx(
+            (props[lid]["x"], props[lid]["y"], props[lid]["z"])
+        )
+    audit = live.services.map.audit(limit=5)
+    assert any("(survey)" in a.actor for a in audit)
