@@ -182,8 +182,9 @@ def main(argv: list[str] | None = None) -> int:
     w = wizard(drive, anchors, rng)
     print(
         f"\nwizard, one landmark at a time ({w['n']} landmarks, five samples each, ceiling "
-        f"height assumed): x-y p95 {1000 * w['xy_p95']:.1f} mm, max {1000 * w['xy_max']:.1f} mm; z p95 "
-        f"{1000 * w['z_p95']:.1f} mm, max {1000 * w['z_max']:.1f} mm; at ~20 s of robot and "
+        f"height assumed): x-y p95 {1000 * w['xy_p95']:.1f} mm, max "
+        f"{1000 * w['xy_max']:.1f} mm; z p95 {1000 * w['z_p95']:.1f} mm, max "
+        f"{1000 * w['z_max']:.1f} mm; at ~20 s of robot and "
         f"staff time per landmark, {w['n'] * 20 / 60:.0f} min"
     )
     return 0

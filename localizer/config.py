@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 from localizer.handoff import HandoffConfig
 from localizer.identification import IdentificationConfig
+from localizer.noise_model import PixelNoiseConfig
 from localizer.pose_filter import FilterConfig
+from localizer.relocalization import RelocalizationConfig
 from localizer.spots import DetectionConfig
 from localizer.tracking import TrackingConfig
 
@@ -19,7 +22,15 @@ class FusionConfig:
         pixel_sigma_px: standard deviation of a spot's position per axis, pixels: centroid
             noise plus what the calibration leaves (solver weight and fix covariance; too
             small a value makes honest fixes fail the innovation gate).
-        max_residual_px: a fix whose reprojection RMS exceeds this is inconsistent, pixels.
+        max_residual_px: a first fix (from identification) whose reprojection RMS exceeds
+            this is inconsistent, pixels.
+        robust_loss: the tracking fix's robust loss ("huber", "cauchy" or None: least
+            squares), with 3+ landmarks.
+        robust_scale: its threshold, in pixel sigmas (`LocalizerConfig.noise`).
+        outlier_sigma: a landmark whose residual exceeds this many of its pixel sigmas is
+            left out of the fix (the others are solved again).
+        max_chi2_per_dof: a tracking fix whose chi-square per degree of freedom (2n - 3)
+            exceeds this is inconsistent.
         nis_gate: a fix whose normalised innovation squared (3 dof) exceeds this is rejected
             (16.3 is the 99.9 % point of chi-square with 3 dof).
         tilt_from_landmarks: with 3+ landmarks also estimate the body tilt (taken only when
@@ -27,6 +38,8 @@ class FusionConfig:
         tilt_sigma_rad: zero-mean prior on that tilt, radians (a tilt moves every spot
             almost like a translation, so an unconstrained one is noisy).
         lost_sigma_m: position standard deviation beyond which the localizer is lost, metres.
+        lost_sigma_rad: heading standard deviation given to a pose the observations keep
+            disagreeing with (a kidnapped robot may face anywhere), radians.
         lost_after_rejections: this many consecutive frames with spots seen while 2+
             landmarks are predicted in view but no accepted fix (observations that disagree
             with the map) make the localizer lost.
@@ -37,19 +50,31 @@ class FusionConfig:
             frame).
         odometry_history_s: how much raw odometry is kept to carry identification sightings
             to the current frame, seconds.
+        odometry_interval_mean: an odometry sample is each wheel's mean speed over the
+            interval since the previous one (docs/recording.md); False: instantaneous speeds
+            (integrated by the trapezoid rule).
+        odometry_stale_s: odometry older than this at a frame is stale: the whole frame
+            interval counts as unpredicted motion, seconds.
     """
 
     pixel_sigma_px: float = 1.0
     max_residual_px: float = 2.0
+    robust_loss: str | None = "huber"
+    robust_scale: float = 2.0
+    outlier_sigma: float = 4.0
+    max_chi2_per_dof: float = 9.0
     nis_gate: float = 16.3
     tilt_from_landmarks: bool = True
     tilt_sigma_rad: float = 0.02
     lost_sigma_m: float = 1.0
+    lost_sigma_rad: float = math.pi
     lost_after_rejections: int = 30
     initial_sigma_m: float = 0.5
     initial_sigma_rad: float = 0.3
     full_frame_every_s: float = 0.0
     odometry_history_s: float = 5.0
+    odometry_interval_mean: bool = True
+    odometry_stale_s: float = 0.2
 
 
 @dataclass(frozen=True)
@@ -62,3 +87,5 @@ class LocalizerConfig:
     handoff: HandoffConfig = field(default_factory=HandoffConfig)
     fusion: FusionConfig = field(default_factory=FusionConfig)
     filter: FilterConfig = field(default_factory=FilterConfig)
+    relocalization: RelocalizationConfig = field(default_factory=RelocalizationConfig)
+    noise: PixelNoiseConfig = field(default_factory=PixelNoiseConfig)

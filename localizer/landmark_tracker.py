@@ -33,8 +33,10 @@ from localizer.handoff import (
     visible_radius_m,
 )
 from localizer.landmark_map import LandmarkMap
-from localizer.pose import solve_pose
+from localizer.noise_model import PixelNoiseModel
+from localizer.pose import PoseFix, solve_pose
 from localizer.pose_filter import PoseFilter
+from localizer.relocalization import relocalize
 from localizer.robot import RobotGeometry
 from localizer.spot_windows import spot_rows_in_windows
 from localizer.spots import Spots, detect_spots, estimate_background
@@ -105,6 +107,10 @@ class LandmarkTracker:
         ceiling_m = float(np.median(heights)) if len(heights) else 2.2
         self.scale_px_per_m = scale_px_per_m(max(self.camera.fu, self.camera.fv), ceiling_m)
         self._reach = visible_radius_m(self.camera, float(np.max(heights, initial=ceiling_m)))
+        old: PixelNoiseModel | None = getattr(self, "noise", None)
+        self.noise = PixelNoiseModel(self.camera, self.config.noise, self.scale_px_per_m)
+        if old is not None:
+            self.noise.factor = old.factor  # what the residuals taught so far
 
     def full_spots(self, e: Frame) -> Spots:
         """The spots of the whole frame (remembering its background for the windows)."""
@@ -123,8 +129,16 @@ class LandmarkTracker:
         candidates: npt.NDArray[np.int64] | None,
         spots: Spots | None = None,
         reacquire: bool = False,
+        since_sample_s: float = 0.0,
     ) -> TrackResult:
         """Find the lit landmarks near their predictions, solve and fuse.
+
+        The prediction extrapolates the last odometry sample's speeds to the frame's time;
+        the wheels may have changed speed since (a turn in place starting right after
+        driving). When no fix fits that prediction, a second hypothesis is tried: the pose
+        uncertainty widened by a change of each wheel's speed of `speed_change_sigma` x the
+        maximum speed over `since_sample_s` (windows and gates widen with it, most at the
+        image edge where a rotation moves spots most).
 
         Args:
             filt: the pose filter, at the frame's time; a fix is fused into it.
@@ -136,7 +150,31 @@ class LandmarkTracker:
             spots: the frame's spots when already detected (full frame).
             reacquire: require a map-consistent hypothesis (also forced by a large
                 position uncertainty).
+            since_sample_s: time from the last odometry sample to the frame, seconds.
         """
+        result = self._attempt(filt, e, dt_frame_s, fresh_odometry, candidates, spots, reacquire)
+        if result.used or not result.expected or since_sample_s <= 0 or reacquire:
+            return result
+        tc = self.config.tracking
+        sv = tc.speed_change_sigma * self.robot.max_speed * since_sample_s
+        filt.inflate(0.5 * sv * sv, 2.0 * (sv / self.robot.wheel_base) ** 2)
+        retry = self._attempt(filt, e, dt_frame_s, fresh_odometry, candidates, spots, reacquire)
+        if not retry.used:
+            return result
+        filt.snap_output()  # the correction is motion, not noise: no output lag
+        return retry
+
+    def _attempt(
+        self,
+        filt: PoseFilter,
+        e: Frame,
+        dt_frame_s: float,
+        fresh_odometry: bool,
+        candidates: npt.NDArray[np.int64] | None,
+        spots: Spots | None,
+        reacquire: bool,
+    ) -> TrackResult:
+        """One prediction, search, assignment and fusion (see `step`)."""
         pose, cov = filt.pose, filt.covariance_rows
         sigma_xy = position_sigma_m(cov)
         pred = predict_landmarks(
@@ -155,9 +193,10 @@ class LandmarkTracker:
         dt_free = dt_frame_s * (tc.odometry_speed_fraction if fresh_odometry else 1.0)
         px = pred.pixel_list
         cu, cv = self.camera.cu, self.camera.cv
+        noise = self.noise.sigma_px
         gates = [  # window half sizes and assignment gates, pixels
             tc.min_half_size_px
-            + tc.sigma_gate * sigma
+            + tc.sigma_gate * math.hypot(sigma, noise(u, v))
             + motion_bound_px(
                 math.hypot(u - cu, v - cv),
                 max_speed_m_s=self.robot.max_speed,
@@ -188,6 +227,42 @@ class LandmarkTracker:
             pairs = [(rows[k], s) for k, s in bottleneck_assignment(d, gates)]
         used = self._fuse(filt, pairs, spot_px, pose) if len(pairs) >= 2 else ()
         return TrackResult(used, unexplained=not used and len(pred) >= 2, expected=expected)
+
+    def relocalize(
+        self,
+        filt: PoseFilter,
+        spots: Spots,
+        candidates: npt.NDArray[np.int64] | None,
+    ) -> PoseFix | None:
+        """Re-localization without LEDs (`relocalization.relocalize`) around the filter's
+        pose and covariance: the fix of the one unambiguous hypothesis, or None."""
+        rows = np.arange(len(self.map.positions)) if candidates is None else candidates
+        if len(rows) < 2 or len(spots) < 2:
+            return None
+        pose = filt.pose
+        cov = filt.covariance + np.diag([1e-4, 1e-4, 1e-4])
+        # only the landmarks that could be in view of a pose within the prior
+        reach = self._reach + 3.0 * position_sigma_m(cov)
+        P = self.map.positions[rows]
+        rows = rows[np.hypot(P[:, 0] - pose[0], P[:, 1] - pose[1]) <= reach]
+        if len(rows) < 2:
+            return None
+        rc = self.config.relocalization
+        found = relocalize(self.camera, self.map.positions[rows], spots.pixels, pose, cov, rc)
+        if not found.accepted or found.pose is None:
+            return None
+        pairs = [(int(rows[r]), s) for r, s in found.pairs]
+        fc = self.config.fusion
+        px = spots.pixels[[s for _, s in pairs]].tolist()
+        sig = [self.noise.sigma_px(u, v) for u, v in px]
+        fix = self._solve([r for r, _ in pairs], px, sig, found.pose, robust=True)
+        if fix is None or fix.n_landmarks < 2:
+            return None
+        res = fix.residuals_px or (fix.residual_rms_px,) * len(sig)
+        inliers = sum(1 for r, si in zip(res, sig, strict=True) if r <= fc.outlier_sigma * si)
+        if inliers < max(2, 0.8 * len(sig)):
+            return None
+        return fix
 
     def _reacquire(
         self,
@@ -222,23 +297,111 @@ class LandmarkTracker:
         spot_px: list[list[float]],
         pose: tuple[float, float, float],
     ) -> tuple[int, ...]:
-        """Solve the pose from matched (map row, spot) pairs; fuse it when consistent."""
+        """Solve the pose from matched (map row, spot) pairs; fuse it when consistent.
+
+        Robust: with 3+ landmarks the solve uses `FusionConfig.robust_loss`; a landmark whose
+        residual then exceeds `outlier_sigma` of its own pixel sigma is left out and the rest
+        solved again (one bad pair costs that pair, never the fix). The fix is then gated by
+        its chi-square per degree of freedom and by its NIS against the filter.
+        """
         fc = self.config.fusion
         rows = [r for r, _ in pairs]
         px = [spot_px[s] for _, s in pairs]
-        ids = tuple(self._ids[r] for r in rows)
-        fix = solve_pose(
-            self.camera,
-            px,
-            self.map.positions[rows],
-            initial=pose,
-            estimate_tilt=fc.tilt_from_landmarks and len(pairs) >= 3,
-            tilt_sigma_rad=fc.tilt_sigma_rad,
-            pixel_sigma_px=fc.pixel_sigma_px,
-            landmark_ids=ids,
-        )
-        if fix is None or fix.residual_rms_px > fc.max_residual_px:
+        sig = [self.noise.sigma_px(u, v) for u, v in px]
+        fix = self._solve(rows, px, sig, pose, robust=len(rows) >= 3)
+        if fix is None:
+            return ()
+        res = fix.residuals_px
+        if res:
+            keep = [i for i, (r, si) in enumerate(zip(res, sig, strict=True))
+                    if r <= fc.outlier_sigma * si]  # fmt: skip
+            if len(keep) < len(rows):
+                if len(keep) < 2:
+                    return ()
+                rows, px, sig = (
+                    [rows[i] for i in keep],
+                    [px[i] for i in keep],
+                    [sig[i] for i in keep],
+                )
+                fix = self._solve(rows, px, sig, (fix.x, fix.y, fix.theta), robust=False)
+                if fix is None:
+                    return ()
+                res = fix.residuals_px
+        # A spot at the image edge paired with a landmark the fixed pose puts outside the
+        # image (a neighbour of the one that made it, during a fast turn): leave it out.
+        edge = self._off_image(rows, px, (fix.x, fix.y, fix.theta))
+        if edge:
+            keep = [i for i in range(len(rows)) if i not in edge]
+            if len(keep) < 2:
+                return ()
+            rows, px, sig = [rows[i] for i in keep], [px[i] for i in keep], [sig[i] for i in keep]
+            fix = self._solve(rows, px, sig, (fix.x, fix.y, fix.theta), robust=False)
+            if fix is None:
+                return ()
+            res = fix.residuals_px
+        n = len(rows)
+        if res:
+            chi2 = sum((r / si) ** 2 for r, si in zip(res, sig, strict=True))
+        else:  # (a tilted fit: its RMS against the mean sigma)
+            chi2 = n * (fix.residual_rms_px / (sum(sig) / n)) ** 2
+        if chi2 / max(2 * n - 3, 1) > fc.max_chi2_per_dof:
             return ()
         if not filt.update_fix(fix, max_nis=fc.nis_gate) <= fc.nis_gate:
             return ()
-        return ids
+        self.noise.observe(chi2, n)
+        return fix.landmark_ids
+
+    def _off_image(
+        self, rows: list[int], px: list[list[float]], pose: tuple[float, float, float]
+    ) -> set[int]:
+        """Indices of the pairs near the image border whose landmark projects outside the
+        image, within `border_px` of its edge (a cut spot's centroid is biased, and a small
+        pose error puts it outside), or away from its spot, at `pose`."""
+        m = self.config.tracking.edge_check_px
+        W, H = self.camera.width, self.camera.height
+        near = [
+            i for i, (u, v) in enumerate(px) if u < m or v < m or u > W - 1 - m or v > H - 1 - m
+        ]
+        if not near:
+            return set()
+        zero = ([0.0] * 3, [0.0] * 3, [0.0] * 3)
+        cand = np.array([rows[i] for i in near], dtype=np.int64)
+        pred = predict_landmarks(self.camera, pose, zero, self.map.positions, candidates=cand,
+                                 scale_px_per_m=self.scale_px_per_m, reach_m=1e9)  # fmt: skip
+        at = dict(zip(pred.row_list, pred.pixel_list, strict=True))
+        out = set()
+        b = self.config.tracking.border_px
+        for i in near:
+            p = at.get(rows[i])
+            u, v = px[i]
+            if (
+                p is None
+                or not (b <= p[0] <= W - 1 - b and b <= p[1] <= H - 1 - b)
+                or math.hypot(p[0] - u, p[1] - v)
+                > self.config.fusion.outlier_sigma * (self.noise.sigma_px(u, v))
+            ):
+                out.add(i)
+        return out
+
+    def _solve(
+        self,
+        rows: list[int],
+        px: list[list[float]],
+        sig: list[float],
+        initial: tuple[float, float, float],
+        *,
+        robust: bool,
+    ) -> PoseFix | None:
+        fc = self.config.fusion
+        return solve_pose(
+            self.camera,
+            px,
+            self.map.positions[rows],
+            initial=initial,
+            estimate_tilt=fc.tilt_from_landmarks and len(rows) >= 3,
+            tilt_sigma_rad=fc.tilt_sigma_rad,
+            pixel_sigma_px=sig,
+            landmark_ids=tuple(self._ids[r] for r in rows),
+            loss=fc.robust_loss if robust else None,
+            loss_scale=fc.robust_scale,
+        )

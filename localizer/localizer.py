@@ -81,7 +81,14 @@ class Localizer:
         self._latest: PoseEstimate | None = None
         self._lit: frozenset[int] | None = None  # None: all lit (or unknown)
         self._changing: frozenset[int] = frozenset()  # LEDs being switched (state unknown)
-        self._odometry = OdometryTrack(self.robot.wheel_base, self.config.fusion.odometry_history_s)
+        self._odometry = OdometryTrack(
+            self.robot.wheel_base,
+            self.config.fusion.odometry_history_s,
+            interval_mean=self.config.fusion.odometry_interval_mean,
+        )
+        self._t_filter = 0  # time of the filter's state (the last sample or fused frame)
+        self._commit = False  # this frame's filter is kept (a fix, a reset)
+        self._t_relocalized: int | None = None  # the last re-localization attempt
         self._t_frame: int | None = None
         self._expected: tuple[int, ...] = ()  # lit landmarks predicted in view, this frame
         self._rejections = 0  # frames in a row whose spots no fused fix explained
@@ -132,11 +139,13 @@ class Localizer:
 
     def skip_frame(self, t_ns: int) -> PoseEstimate | NoPose:
         """A frame that could not be read: the pose at `t_ns` from odometry alone."""
-        self._advance(t_ns, *self._odometry.speeds)
+        base = self._advance(t_ns, *self._odometry.speeds)
         self._expected = ()
         if self._filter is not None and self._mode == "landmark":
             self._mode = "dead_reckoning"
-        return self._output(t_ns, ())
+        out = self._output(t_ns, ())
+        self._settle(t_ns, base)
+        return out
 
     def handle(self, event: Event) -> list[Output]:
         """Process one event; returns the outputs (see the module docstring)."""
@@ -150,6 +159,7 @@ class Localizer:
             return self._requests(event.t_ns)
         if isinstance(event, RelocalizeRequested):
             self._filter = None
+            self._t_filter = event.t_ns
             self._mode = "identifying"
             if event.near is not None:
                 self.set_initial_pose(*event.near, event.t_ns)
@@ -171,18 +181,48 @@ class Localizer:
             self._filter.reset(x, y, theta, cov)
         t_state = self._odometry.t_state_ns
         self._odometry.t_state_ns = t_ns if t_state is None else max(t_state, t_ns)
+        self._t_filter = max(self._t_filter, t_ns)
+        self._commit = True
         self._rejections = 0
 
-    def _advance(self, t_ns: int, v_left: float, v_right: float) -> None:
-        """Integrate odometry (filter and raw) from the last state time to `t_ns`."""
-        dt = self._odometry.step(t_ns, v_left, v_right)
-        if dt > 0 and self._filter is not None:
-            self._filter.predict(v_left, v_right, dt)
+    def _advance(self, t_ns: int, v_left: float, v_right: float) -> PoseFilter | None:
+        """Extrapolate odometry (raw, and a copy of the filter) from the last state time to
+        `t_ns` at the given speeds; returns the committed filter (None: none), which stays
+        as it was: the frame works on the copy (`self._filter`), kept only on `_settle`."""
+        self._odometry.step(t_ns, v_left, v_right)
+        base = self._filter
+        if base is None:
+            return None
+        work = base.copy()
+        dt = (t_ns - self._t_filter) * _NS
+        if dt > 0:
+            work.predict(v_left, v_right, dt)
+        self._filter = work
+        return base
+
+    def _settle(self, t_ns: int, base: PoseFilter | None) -> None:
+        """End of a frame: keep its filter when it took a fix (or was reset, or odometry is
+        stale), else go back to the committed one: the next odometry sample says what the
+        wheels did since the last one, better than the extrapolation."""
+        keep = self._commit or base is None or not self._fresh_odometry(t_ns)
+        self._commit = False
+        if keep:
+            self._t_filter = max(self._t_filter, t_ns)
+        else:
+            self._filter = base
+
+    def _fresh_odometry(self, t_ns: int) -> bool:
+        t_sample = self._odometry.t_sample_ns
+        return (
+            t_sample is not None and (t_ns - t_sample) * _NS < self.config.fusion.odometry_stale_s
+        )
 
     def _on_odometry(self, e: OdometryMeasured) -> None:
-        vl, vr, dt = self._odometry.add_sample(e.t_ns, e.v_left, e.v_right)
-        if dt > 0 and self._filter is not None:
+        vl, vr, _ = self._odometry.add_sample(e.t_ns, e.v_left, e.v_right)
+        dt = (e.t_ns - self._t_filter) * _NS
+        if self._filter is not None and dt > 0:
             self._filter.predict(vl, vr, dt)
+        self._t_filter = max(self._t_filter, e.t_ns)
 
     def _motion_bound_px(self, t0_ns: int, t1_ns: int) -> float:
         """Bound on a spot's image motion between two times: from odometry (with 20 % slack)
@@ -201,7 +241,7 @@ class Localizer:
     # -- frames --------------------------------------------------------------------------------
     def _on_frame(self, e: FrameObserved | SpotsObserved) -> PoseEstimate | NoPose:
         t = e.t_ns
-        self._advance(t, *self._odometry.speeds)
+        base = self._advance(t, *self._odometry.speeds)
         dt_frame = min((t - self._t_frame) * _NS, 1.0) if self._t_frame is not None else 0.0
         self._t_frame = t
         self._odometry.mark(t)
@@ -218,6 +258,8 @@ class Localizer:
             elif self._filter is not None:
                 # With a prior (lost, or an initial pose) also try a map-consistent hand-off.
                 used = self._track(e, dt_frame, spots=spots, reacquire=True)
+                if not used:
+                    used = self._relocalize(t, spots)
                 if used:
                     self._mode = "landmark"
                     self._sweeping = False
@@ -225,8 +267,11 @@ class Localizer:
         else:
             used = self._track(e, dt_frame)
             self._mode = "landmark" if used else "dead_reckoning"
+        self._commit = self._commit or bool(used)
         self._check_lost(t)
-        return self._output(t, used)
+        out = self._output(t, used)
+        self._settle(t, base)
+        return out
 
     def _track(
         self,
@@ -240,12 +285,18 @@ class Localizer:
         if self._filter is None:
             return ()
         cand = None if self._lit is None and not self._changing else self._lit_rows()
-        t_sample = self._odometry.t_sample_ns
+        fresh = self._fresh_odometry(e.t_ns)
+        track = self._odometry
+        since = 0.0
+        if fresh and track.t_sample_ns is not None:
+            since = (e.t_ns - track.t_sample_ns) * _NS
+            since = min(since, 1.5 * (track.interval_s or since))
         result = self._tracker.step(
             self._filter,
             e,
             dt_frame_s=dt_frame,
-            fresh_odometry=t_sample is not None and (e.t_ns - t_sample) * _NS < 0.2,
+            fresh_odometry=fresh,
+            since_sample_s=since,
             candidates=cand,
             spots=spots,
             reacquire=reacquire,
@@ -256,6 +307,21 @@ class Localizer:
         elif result.unexplained:
             self._rejections += 1
         return result.used
+
+    def _relocalize(self, t_ns: int, spots: Spots) -> tuple[int, ...]:
+        """Re-localization without LEDs around the filter's pose (lost, or a prior)."""
+        if self._filter is None or self._changing:
+            return ()
+        every = self.config.relocalization.every_s
+        if self._t_relocalized is not None and (t_ns - self._t_relocalized) * _NS < every:
+            return ()
+        self._t_relocalized = t_ns
+        cand = None if self._lit is None else self._lit_rows()
+        fix = self._tracker.relocalize(self._filter, spots, cand)
+        if fix is None:
+            return ()
+        self._reset_filter(fix.x, fix.y, fix.theta, fix.covariance, t_ns)
+        return fix.landmark_ids
 
     def _fix_from_sightings(self, t_ns: int) -> PoseFix | None:
         """First fix from identified landmarks, each carried by odometry to the frame time."""
@@ -309,13 +375,16 @@ class Localizer:
         if sigma > fc.lost_sigma_m or self._rejections >= fc.lost_after_rejections:
             self._mode = "lost"
             self._start_identification()
+            self._commit = True
             if sigma < fc.lost_sigma_m:
-                # The observations disagree with the pose: widen its uncertainty so that a
-                # map-consistent re-acquisition can correct it.
+                # The observations disagree with the pose (a kidnapped robot, put down
+                # anywhere, facing anywhere): widen its uncertainty so that a map-consistent
+                # re-acquisition can correct it.
                 x, y, th = (float(v) for v in self._filter.state)
                 cov = self._filter.covariance
                 cov[:2, :2] = np.eye(2) * fc.lost_sigma_m**2
                 cov[:2, 2] = cov[2, :2] = 0.0
+                cov[2, 2] = max(float(cov[2, 2]), fc.lost_sigma_rad**2)
                 self._filter.reset(x, y, th, cov)
 
     def _start_identification(self) -> None:

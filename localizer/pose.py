@@ -21,6 +21,7 @@ Frames: see docs/conventions.md and docs/estimation.md.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -148,6 +149,8 @@ class PoseFix:
             (sqrt of the mean over landmarks of the squared pixel distance).
         landmark_ids: the landmarks used, in the order given.
         n_landmarks: how many landmarks were used.
+        residuals_px: each landmark's reprojection error of the level fit, pixels (empty
+            when the tilted fit was taken).
     """
 
     x: float
@@ -158,6 +161,7 @@ class PoseFix:
     residual_rms_px: float = 0.0
     landmark_ids: tuple[int, ...] = ()
     n_landmarks: int = 0
+    residuals_px: tuple[float, ...] = ()
 
 
 def solve_pose(
@@ -167,9 +171,11 @@ def solve_pose(
     *,
     initial: PoseFix | tuple[float, float, float] | None = None,
     estimate_tilt: bool = False,
-    pixel_sigma_px: float = 0.3,
+    pixel_sigma_px: float | Sequence[float] = 0.3,
     landmark_ids: tuple[int, ...] = (),
     tilt_sigma_rad: float | None = None,
+    loss: str | None = None,
+    loss_scale: float = 2.0,
     tilt_min_chi2_drop: float = 9.21,
     min_separation_px: float = 2.0,
     max_iterations: int = 20,
@@ -196,7 +202,10 @@ def solve_pose(
             one: with 0.3 px noise and 3-4 landmarks within ~1 m at 2.5 m, several cm against
             ~2 mm. Hence the test, and the recommendation to catch floor bumps primarily with
             the filter's innovation gate.
-        pixel_sigma_px: standard deviation of a spot centre per axis, pixels.
+        pixel_sigma_px: standard deviation of a spot centre per axis, pixels: one for all,
+            or one per landmark (e.g. growing with the radius, `noise_model`).
+        loss: robust loss of the level fit, "huber" or "cauchy" (`pose_planar`), or None
+            (least squares); `loss_scale` is its threshold in sigmas.
         landmark_ids: IDs to carry into the fix.
         tilt_sigma_rad: optional zero-mean prior on roll and pitch (None: no prior).
         tilt_min_chi2_drop: the tilted fit is taken only when it lowers the chi-square
@@ -255,16 +264,21 @@ def solve_pose(
         start = (initial.x, initial.y, initial.theta)
     else:
         start = (float(initial[0]), float(initial[1]), float(initial[2]))
-    planar = solve_planar(q, G, P_xy, start, pixel_sigma_px, max_iterations)
+    planar = solve_planar(
+        q, G, P_xy, start, pixel_sigma_px, max_iterations, loss=loss, loss_scale=loss_scale
+    )
     if planar is None:
         return None
-    (x, y, theta), c, rms = planar
+    (x, y, theta), c, rms, res = planar
+    sig = [pixel_sigma_px] * n if isinstance(pixel_sigma_px, int | float) else pixel_sigma_px
+    chi2_level = sum((r / si) ** 2 for r, si in zip(res, sig, strict=True))
+    sigma_px = math.sqrt(sum(si * si for si in sig) / n)
     covariance = np.array([[c[0], c[1], c[2]], [c[1], c[3], c[4]], [c[2], c[4], c[5]]])
     tilt = np.zeros(2)
     # Tilt only when the data demand it: the level fit's chi-square must drop by more than
     # `tilt_min_chi2_drop` (a likelihood-ratio test, 2 dof). The drop cannot exceed the level
     # fit's own chi-square, so a consistent level fit skips the tilted solve altogether.
-    chi2_level = n * (rms / pixel_sigma_px) ** 2
+    residuals = tuple(res)
     if estimate_tilt and n >= 3 and chi2_level > tilt_min_chi2_drop:
         roll0, pitch0 = (float(v) for v in initial.tilt) if isinstance(initial, PoseFix) else (0, 0)
         tilted = solve_tilted(
@@ -274,16 +288,17 @@ def solve_pose(
             P_xy,
             camera.T_body_camera,
             (x, y, theta, roll0, pitch0),
-            pixel_sigma_px,
+            sigma_px,
             tilt_sigma_rad,
             max_iterations,
         )
         if tilted is not None:
             params, cov_full, rms_tilted = tilted
-            if chi2_level - n * (rms_tilted / pixel_sigma_px) ** 2 > tilt_min_chi2_drop:
+            if chi2_level - n * (rms_tilted / sigma_px) ** 2 > tilt_min_chi2_drop:
                 x, y, theta = params[0], params[1], params[2]
                 covariance, tilt = cov_full[:3, :3].copy(), np.array(params[3:5])
                 rms = rms_tilted
+                residuals = ()
     return PoseFix(
         x=x,
         y=y,
@@ -293,4 +308,5 @@ def solve_pose(
         residual_rms_px=rms,
         landmark_ids=tuple(map(int, landmark_ids)),
         n_landmarks=n,
+        residuals_px=residuals,
     )

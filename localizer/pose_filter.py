@@ -58,9 +58,14 @@ class FilterConfig:
         output_settle_s: for this long after `reset` (a first fix, a relocalisation) the
             output takes corrections at once: the refinements of a fresh estimate (e.g. a
             third landmark after a first fix from two) are not smoothed into a slow drift.
+        adapt_noise: adapt the odometry noise (`noise_scale`, a factor on both noise
+            terms) from the fused fixes' NIS: a running estimate of NIS / 3 (1 when the
+            filter's predicted covariance is right); the configured values are the prior.
+        adapt_gain: weight of one fix in that running estimate.
+        noise_scale_bounds: the factor stays within these.
     """
 
-    wheel_noise_m_per_sqrt_s: float = 0.0003
+    wheel_noise_m_per_sqrt_s: float = 0.003
     wheel_slip_m_per_sqrt_m: float = 0.002
     calibration_walk_per_sqrt_s: float = 1e-5
     calibration_prior_sigma: float = 0.03
@@ -69,6 +74,9 @@ class FilterConfig:
     output_time_constant_s: float = 0.2
     output_snap_m: float = 0.5
     output_settle_s: float = 1.0
+    adapt_noise: bool = True
+    adapt_gain: float = 0.005
+    noise_scale_bounds: tuple[float, float] = (0.7, 4.0)
 
     def __post_init__(self) -> None:
         for name in (
@@ -196,6 +204,7 @@ class PoseFilter:
         self._offset = [0.0, 0.0, 0.0]  # output_state - state
         self._age_s = 0.0  # time since the last reset
         self._propagation = DeferredPropagation()
+        self.noise_scale = 1.0  # odometry noise over the configured one (adapted online)
         self.reset(x, y, theta, covariance)
 
     # -- state ----------------------------------------------------------------------------------
@@ -270,6 +279,34 @@ class PoseFilter:
         self._offset = [0.0, 0.0, 0.0]
         self._age_s = 0.0
 
+    def copy(self) -> PoseFilter:
+        """An independent copy (state, covariance, output offset): a frame's tentative
+        filter, extrapolated past the last odometry sample and kept only if a fix is fused."""
+        self._flush()
+        twin = object.__new__(PoseFilter)
+        twin.config, twin.wheel_base = self.config, self.wheel_base
+        twin._X = list(self._X)
+        twin._P = [list(r) for r in self._P]
+        twin._offset = list(self._offset)
+        twin._age_s = self._age_s
+        twin._propagation = DeferredPropagation()
+        twin.noise_scale = self.noise_scale
+        return twin
+
+    def inflate(self, var_xy_m2: float, var_theta_rad2: float) -> None:
+        """Add independent variance to the pose: an unmodelled motion (e.g. the wheel speeds
+        may have changed since the last odometry sample)."""
+        self._flush()
+        self._P[0][0] += var_xy_m2
+        self._P[1][1] += var_xy_m2
+        self._P[2][2] += var_theta_rad2
+
+    def snap_output(self) -> None:
+        """Let the output take the estimate at once (no smoothing of the last correction):
+        for a correction of motion the prediction did not know of (a turn begun after the
+        last odometry sample), which smoothing would only turn into a lag."""
+        self._offset = [0.0, 0.0, 0.0]
+
     # -- predict --------------------------------------------------------------------------------
     def predict(self, v_left: float, v_right: float, dt: float) -> None:
         """Dead-reckon over `dt` seconds with the measured wheel speeds (m/s); any rate.
@@ -282,7 +319,8 @@ class PoseFilter:
         X = self._X
         self._X, F_top, G = motion_step(X, v_left, v_right, dt, self.wheel_base)
         # M: variance of each wheel's true speed, from its travel's noise over the step
-        q2, s2 = cfg.wheel_noise_m_per_sqrt_s**2 * dt, cfg.wheel_slip_m_per_sqrt_m**2
+        k2 = self.noise_scale * self.noise_scale
+        q2, s2 = k2 * cfg.wheel_noise_m_per_sqrt_s**2 * dt, k2 * cfg.wheel_slip_m_per_sqrt_m**2
         m_l = (q2 + s2 * abs(X[4] * v_left * dt)) / (dt * dt)
         m_r = (q2 + s2 * abs(X[3] * v_right * dt)) / (dt * dt)
 
@@ -363,6 +401,10 @@ class PoseFilter:
         X[3], X[4], X[5] = min(max(X[3], lo), hi), min(max(X[4], lo), hi), min(max(X[5], lo), hi)
         self._X = X
 
+        if self.config.adapt_noise:
+            lo_s, hi_s = self.config.noise_scale_bounds
+            k2 = self.noise_scale**2 * (1.0 + self.config.adapt_gain * (min(nis, 30.0) / 3 - 1))
+            self.noise_scale = min(max(math.sqrt(max(k2, 0.0)), lo_s), hi_s)
         jump = [old[0] - X[0], old[1] - X[1], float(wrap_angle(old[2] - X[2]))]
         settling = self._age_s < self.config.output_settle_s
         if settling or math.hypot(jump[0], jump[1]) > self.config.output_snap_m:

@@ -107,44 +107,125 @@ def procrustes_2d(
     return Px - (c * qx - s * qy), Py - (s * qx + c * qy), theta
 
 
+def huber_weight(e: float, k: float) -> float:
+    """IRLS weight of a whitened residual norm `e` under Huber's loss with threshold `k`
+    (sigmas): 1 inside, k / e beyond (the loss grows linearly there, not quadratically)."""
+    return 1.0 if e <= k else k / e
+
+
+def cauchy_weight(e: float, k: float) -> float:
+    """IRLS weight under the Cauchy (Lorentzian) loss with scale `k`: 1 / (1 + (e / k)^2)
+    (a far outlier's influence goes to zero)."""
+    return 1.0 / (1.0 + (e / k) ** 2)
+
+
+ROBUST_WEIGHTS = {"huber": huber_weight, "cauchy": cauchy_weight}
+
+
 def solve_planar(
     q: list[Point],
     G: list[Mat2],
     P: list[Point],
     start: tuple[float, float, float],
-    sigma_px: float,
+    sigma_px: float | Sequence[float],
     max_iterations: int,
-) -> tuple[tuple[float, float, float], list[float], float] | None:
-    """Gauss-Newton for (x, y, theta) minimising sum |G_i^-1 (q_i - Rz^T (P_i - t))|^2 / sigma^2.
+    *,
+    loss: str | None = None,
+    loss_scale: float = 2.0,
+) -> tuple[tuple[float, float, float], list[float], float, list[float]] | None:
+    """Gauss-Newton for (x, y, theta) minimising sum rho(|G_i^-1 (q_i - Rz^T (P_i - t))| / sigma_i).
 
-    With W_i = G_i^-1 / sigma, r_i = q_i - Rz^T (P_i - t) and (u_i, v_i) = Rz^T (P_i - t), the
-    Jacobian of W_i r_i is W_i [Rz^T | (-v_i, u_i)], so J^T J and J^T e need only the
-    information matrices O_i = W_i^T W_i: the (x, y) block is Rz (sum O_i) Rz^T (sum O_i
-    once), the rest comes from O_i r_i and O_i (-v_i, u_i) in the body frame.
+    With W_i = G_i^-1 / sigma_i, r_i = q_i - Rz^T (P_i - t) and (u_i, v_i) = Rz^T (P_i - t),
+    the Jacobian of W_i r_i is W_i [Rz^T | (-v_i, u_i)], so J^T J and J^T e need only the
+    information matrices O_i = W_i^T W_i: the (x, y) block is Rz (sum O_i) Rz^T, the rest
+    comes from O_i r_i and O_i (-v_i, u_i) in the body frame. rho is the square (plain least
+    squares) or, with `loss`, Huber's or Cauchy's loss by iteratively reweighted least
+    squares: each round weighs O_i by `huber_weight` / `cauchy_weight` of landmark i's
+    whitened residual and solves again, until the weights settle, so one bad spot pulls the
+    pose by a bounded amount instead of quadratically. The least-squares fit is the first
+    round; when every residual is within `loss_scale` it is already the answer (the usual
+    frame pays nothing for the robust loss).
+
+    Args:
+        sigma_px: pixel standard deviation, one for all or one per landmark.
+        loss: None, "huber" or "cauchy".
+        loss_scale: the loss's threshold / scale, in sigmas.
 
     Returns:
-        ((x, y, theta), covariance as (c00 c01 c02 c11 c12 c22), residual RMS in pixels),
-        or None when singular or not converged.
+        ((x, y, theta), covariance as (c00 c01 c02 c11 c12 c22), residual RMS in pixels,
+        each landmark's reprojection error in pixels), or None when singular or not
+        converged. The covariance is that of the weighted problem.
     """
-    O: list[tuple[float, float, float]] = []  # W^T W as (o00, o01, o11)
-    for g00, g01, g10, g11 in G:
-        det = (g00 * g11 - g01 * g10) * sigma_px
+    n = len(q)
+    sig = [float(sigma_px)] * n if isinstance(sigma_px, int | float) else list(sigma_px)
+    O0: list[tuple[float, float, float]] = []  # W^T W as (o00, o01, o11)
+    for (g00, g01, g10, g11), si in zip(G, sig, strict=True):
+        det = (g00 * g11 - g01 * g10) * si
         if det == 0.0:
             return None
         w00, w01, w10, w11 = g11 / det, -g01 / det, -g10 / det, g00 / det
-        O.append((w00 * w00 + w10 * w10, w00 * w01 + w10 * w11, w01 * w01 + w11 * w11))
+        O0.append((w00 * w00 + w10 * w10, w00 * w01 + w10 * w11, w01 * w01 + w11 * w11))
+    fit = _gauss_newton(q, P, O0, start, max_iterations)
+    if fit is None:
+        return None
+    pose, cov = fit
+    e = _whitened_norms(q, P, O0, pose)
+    if loss is not None and max(e) > loss_scale:
+        # Reweigh until the weights settle (plain least squares is the first iterate).
+        weight = ROBUST_WEIGHTS[loss]
+        ws = [1.0] * n
+        for _ in range(max_iterations):
+            new = [weight(v, loss_scale) for v in e]
+            O = [(w * a, w * b, w * d) for w, (a, b, d) in zip(new, O0, strict=True)]
+            fit = _gauss_newton(q, P, O, pose, max_iterations)
+            if fit is None:
+                return None
+            pose, cov = fit
+            e = _whitened_norms(q, P, O0, pose)
+            if max(abs(u - v) for u, v in zip(new, ws, strict=True)) < 1e-3:
+                break
+            ws = new
+    res = [si * v for si, v in zip(sig, e, strict=True)]
+    rms = math.sqrt(sum(r * r for r in res) / n)
+    return pose, cov, rms, res
+
+
+def _whitened_norms(
+    q: list[Point],
+    P: list[Point],
+    O: list[tuple[float, float, float]],
+    pose: tuple[float, float, float],
+) -> list[float]:
+    """|W_i r_i| per landmark at `pose`: the reprojection error in sigmas."""
+    x, y, th = pose
+    c, s = math.cos(th), math.sin(th)
+    out = []
+    for (qx, qy), (X, Y), (o00, o01, o11) in zip(q, P, O, strict=True):
+        dX, dY = X - x, Y - y
+        rx, ry = qx - (c * dX + s * dY), qy - (-s * dX + c * dY)
+        out.append(math.sqrt(max(o00 * rx * rx + 2.0 * o01 * rx * ry + o11 * ry * ry, 0.0)))
+    return out
+
+
+def _gauss_newton(
+    q: list[Point],
+    P: list[Point],
+    O: list[tuple[float, float, float]],
+    start: tuple[float, float, float],
+    max_iterations: int,
+) -> tuple[tuple[float, float, float], list[float]] | None:
+    """Gauss-Newton on the whitened problem with information matrices O: (pose, H^-1)."""
     S00, S01, S11 = (sum(o[k] for o in O) for k in range(3))
     x, y, th = start
     for _ in range(max_iterations):
         c, s = math.cos(th), math.sin(th)
-        m0 = m1 = k0 = k1 = h22 = g2 = ee = 0.0
+        m0 = m1 = k0 = k1 = h22 = g2 = 0.0
         for (qx, qy), (X, Y), (o00, o01, o11) in zip(q, P, O, strict=True):
             dX, dY = X - x, Y - y
             u, v = c * dX + s * dY, -s * dX + c * dY  # Rz^T (P - t)
             rx, ry = qx - u, qy - v
             a0, a1 = o00 * rx + o01 * ry, o01 * rx + o11 * ry  # O r
             b0, b1 = o01 * u - o00 * v, o11 * u - o01 * v  # O (-v, u)
-            ee += rx * a0 + ry * a1
             m0, m1, k0, k1 = m0 + a0, m1 + a1, k0 + b0, k1 + b1
             h22 += u * b1 - v * b0
             g2 += u * a1 - v * a0
@@ -163,14 +244,9 @@ def solve_planar(
         d2 = -(i02 * g0 + i12 * g1 + i22 * g2)
         x, y, th = x + d0, y + d1, th + d2
         # the step's length in standard deviations squared: d^T H d = -d^T g
-        step2 = -(d0 * g0 + d1 * g1 + d2 * g2)
-        if step2 < 1e-6:
-            break
-    else:
-        return None
-    # residual after the last step, to first order: |e + J d|^2 = |e|^2 - d^T H d
-    rms = sigma_px * math.sqrt(max(ee - step2, 0.0) / len(q))
-    return (x, y, th), cov, rms
+        if -(d0 * g0 + d1 * g1 + d2 * g2) < 1e-6:
+            return (x, y, th), cov
+    return None
 
 
 def rotation_world_body(theta: float, roll: float = 0.0, pitch: float = 0.0) -> FloatArray:

@@ -35,6 +35,13 @@ class TrackingConfig:
             speed and wheel base (2 v_max / W).
         odometry_speed_fraction: when odometry is fresh the unmodelled motion between two
             frames is at most this fraction of the maximum (the rest is predicted).
+        speed_change_sigma: standard deviation of a change of each wheel's speed between
+            two odometry samples, as a fraction of the maximum speed (a turn in place right
+            after driving switches them within one sample): the prediction's second
+            hypothesis when the extrapolated one finds no fix.
+        edge_check_px: a matched spot this close to the image border is checked after the
+            fix: its landmark must project inside the image, near it, at the fixed pose.
+        border_px: and at least this far inside the image, pixels.
     """
 
     min_half_size_px: float = 6.0
@@ -42,6 +49,9 @@ class TrackingConfig:
     sigma_gate: float = 4.0
     max_angular_speed_rad_s: float | None = None
     odometry_speed_fraction: float = 0.25
+    speed_change_sigma: float = 0.5
+    edge_check_px: float = 40.0
+    border_px: float = 3.0
 
     def __post_init__(self) -> None:
         if not 0 < self.min_half_size_px <= self.max_half_size_px:

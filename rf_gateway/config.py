@@ -28,6 +28,8 @@ class GatewayConfig:
         blink_count, blink_period_s: `blink` toggles the LED this many times, one period each.
         subscriber_queue: events buffered per subscriber.
         battery: battery monitoring settings.
+        sleep: the landmarks' radios sleep in cycles (None: always awake): commands wait
+            for a landmark's predicted wake-up before taking an in-flight slot.
     """
 
     max_in_flight: int = 4
@@ -43,6 +45,47 @@ class GatewayConfig:
     blink_period_s: float = 0.4
     subscriber_queue: int = 256
     battery: BatteryConfig = field(default_factory=BatteryConfig)
+    sleep: SleepConfig | None = None
+
+
+@dataclass(frozen=True)
+class SleepConfig:
+    """The landmarks' radios sleep in cycles (XBee `SM=4`, end devices, `SP` = `period_s`):
+    a command waits at the parent until the landmark next polls, up to one period.
+
+    Attributes:
+        period_s: the sleep period `SP`, seconds (XBee 3 Zigbee: 0.32 .. 28 s; the parent
+            buffers a message for up to 30 s).
+        wake_s: `ST`, how long a landmark stays awake after a message (polling its parent
+            every `poll_interval_s`), seconds.
+        poll_interval_s: its polls while awake (XBee: 100 ms), seconds.
+        air_s: a command's time on the air and back once the landmark polls, seconds.
+        lead_s: a command to a landmark whose wake-up time is known is sent this long before
+            it (clock drift of the sleep timer, the host's own latency), seconds.
+        awake_timeout_s: answer timeout of an awake radio, seconds (the transport's).
+    """
+
+    period_s: float
+    wake_s: float = 1.0
+    poll_interval_s: float = 0.1
+    air_s: float = 0.05
+    lead_s: float = 0.08
+    awake_timeout_s: float = 1.0
+
+    def __post_init__(self) -> None:
+        if not 0.32 <= self.period_s <= 28.0:
+            raise ValueError(f"SleepConfig.period_s: 0.32 .. 28 s (XBee SP), got {self.period_s}")
+        if self.wake_s < 0 or self.poll_interval_s <= 0 or self.lead_s < 0:
+            raise ValueError(
+                "SleepConfig: wake_s >= 0, poll_interval_s > 0, lead_s >= 0, got "
+                f"{self.wake_s}, {self.poll_interval_s}, {self.lead_s}"
+            )
+
+    @property
+    def command_timeout_s(self) -> float:
+        """How long to wait for a sleeping landmark's answer: one period plus the awake
+        timeout (digi-xbee's per-remote sync-ops timeout must be at least this)."""
+        return self.period_s + self.awake_timeout_s
 
 
 @dataclass

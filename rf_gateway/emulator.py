@@ -48,7 +48,10 @@ class EmulatedRemote:
         supply_mv: what `%V` answers, millivolts.
         reachable: False: the coordinator answers status 4 (transmission failure).
         silent: True: no answer at all (the host times out).
-        delay_s: extra reply latency of this radio (e.g. a sleeping end device), seconds.
+        delay_s: extra reply latency of this radio, seconds.
+        sleep_period_s: the radio sleeps in cycles of this period (XBee cyclic sleep, `SP`):
+            a command waits at its parent until the next wake-up, at `sleep_phase_s` into
+            each cycle (None: always awake).
         late_replies: the next this many replies come `late_delay_s` late (a reply crossing
             the host's retry).
         pins: DIO configuration values by command ("D4" -> 5 means output high).
@@ -61,6 +64,8 @@ class EmulatedRemote:
     reachable: bool = True
     silent: bool = False
     delay_s: float = 0.0
+    sleep_period_s: float | None = None
+    sleep_phase_s: float = 0.0
     late_replies: int = 0
     late_delay_s: float = 0.5
     pins: dict[str, int] = field(default_factory=dict)
@@ -69,6 +74,12 @@ class EmulatedRemote:
     @property
     def address64(self) -> int:
         return int(self.address, 16)
+
+    def wake_delay_s(self, now_s: float) -> float:
+        """Seconds from `now_s` (monotonic) to the radio's next wake-up (0 when awake)."""
+        if self.sleep_period_s is None:
+            return 0.0
+        return (self.sleep_phase_s - now_s) % self.sleep_period_s
 
 
 @dataclass
@@ -361,7 +372,9 @@ class XBeeEmulator:
         answer = fr.RemoteAtResponse(
             frame.frame_id, frame.address64, 0x1000, frame.command, status, data
         )
-        delay = remote.delay_s
+        delay = remote.delay_s + remote.wake_delay_s(time.monotonic())
+        if remote.sleep_period_s is not None:
+            self.counts["buffered_for_sleep"] += 1
         if remote.late_replies > 0:
             remote.late_replies -= 1
             delay += remote.late_delay_s

@@ -44,15 +44,24 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--escaped", action="store_true", help="API mode 2 (AP=2)")
     p.add_argument("--delay-ms", type=float, default=5.0, help="reply latency")
     p.add_argument("--drop", type=float, default=0.0, help="probability a reply is lost")
+    p.add_argument(
+        "--sleep-ms", type=float, default=None,
+        help="the landmarks sleep in cycles of this period (XBee SP): commands wait for them",
+    )  # fmt: skip
     args = p.parse_args(argv)
+    if args.sleep_ms is not None and not 320 <= args.sleep_ms <= 28000:
+        p.error(f"--sleep-ms: XBee 3 cyclic sleep periods are 320 .. 28000 ms, got {args.sleep_ms}")
     try:
         remotes = remotes_from_map(args.map) if args.map else []
         dead = {normalize_address(a, source="--dead") for a in args.dead.split(",") if a}
     except ValueError as exc:
         p.error(str(exc))
     remotes += [EmulatedRemote(f"0013A20042{i:06X}", f"NEW{i}") for i in range(1, args.count + 1)]
-    for remote in remotes:
+    for k, remote in enumerate(remotes):
         remote.silent = remote.address in dead
+        if args.sleep_ms is not None:  # each radio wakes at its own phase of the cycle
+            remote.sleep_period_s = args.sleep_ms / 1e3
+            remote.sleep_phase_s = (k * 0.618034 % 1.0) * remote.sleep_period_s
     faults = FaultConfig(delay_s=args.delay_ms / 1e3, drop=args.drop)
     stop = threading.Event()
     signal.signal(signal.SIGINT, lambda *_: stop.set())

@@ -53,6 +53,7 @@ from rf_gateway.transport import (
     normalize_landmark_radios,
 )
 from rf_gateway.waiters import ALL, SeqWaiters
+from rf_gateway.wake import WakeTracker
 
 log = logging.getLogger(__name__)
 T = TypeVar("T")
@@ -84,6 +85,7 @@ class Gateway:
         self.batteries = BatteryHistory(self.config.battery)
         self._addresses = normalize_landmark_radios(landmarks)
         self._slots = PrioritySlots(self.config.max_in_flight, self.config.max_waiting)
+        self.wake = WakeTracker(self.config.sleep)
         self._desired: dict[int, tuple[bool, int]] = {}  # id -> (level, seq)
         self._confirmed: dict[int, tuple[bool, int, int]] = {}  # id -> (level, seq, t_ns)
         self._waiters = SeqWaiters()
@@ -356,11 +358,18 @@ class Gateway:
             if attempt:
                 self.stats.retries += 1
                 await asyncio.sleep(self.config.retry_backoff_s * 2 ** (attempt - 1))
+            loop = asyncio.get_running_loop()
+            delay = self.wake.send_delay_s(lid, loop.time())
+            if delay > 0:  # a sleeping landmark: take a slot just before it wakes
+                await asyncio.sleep(delay)
             try:
                 async with self._slots.slot(priority):
                     self.stats.commands += 1
+                    sent = loop.time()
                     result = await asyncio.wait_for(send(), self.config.command_timeout_s)
+                    self.wake.answered(lid, sent, loop.time())
             except (RadioTimeout, TimeoutError) as exc:
+                self.wake.forget(lid)
                 last, radio_failures = exc, radio_failures + 1
             except RemoteCommandError as exc:
                 last, radio_failures = exc, radio_failures + 1

@@ -19,6 +19,11 @@ class SimRadioLike(Protocol):
     async def discover(self) -> list[tuple[str, str]]: ...
 
 
+def _radio_float(radio: object, name: str, default: float) -> float:
+    value = getattr(radio, name, default)
+    return float(value) if isinstance(value, int | float) else default
+
+
 class SimTransport(StateReporter):
     """`Transport` over a simulated radio.
 
@@ -26,14 +31,18 @@ class SimTransport(StateReporter):
         radio: the virtual site's radio (a `SimRadio`).
         command_timeout_s: longest wait for one answer; a command not acknowledged (False /
             None from the radio) or not answered in time raises `RadioTimeout`. Default: the
-            radio's own `timeout_s` plus 0.2 s (0.5 s when it has none).
+            radio's own `timeout_s` plus 0.2 s (0.5 s when it has none), plus its
+            `sleep_period_s` (a sleeping landmark's command waits for its wake-up).
     """
 
     def __init__(self, radio: SimRadioLike, *, command_timeout_s: float | None = None) -> None:
         super().__init__()
         self.radio = radio
         if command_timeout_s is None:
-            command_timeout_s = float(getattr(radio, "timeout_s", 0.3)) + 0.2
+            command_timeout_s = (
+                _radio_float(radio, "timeout_s", 0.3) + 0.2
+                + _radio_float(radio, "sleep_period_s", 0.0)
+            )  # fmt: skip
         self.command_timeout_s = command_timeout_s
 
     async def open(self) -> None:

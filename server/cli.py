@@ -101,11 +101,13 @@ def main(
     first_key = prepare_database(engine)
     engine.dispose()
     viewer = make_viewer(settings) if make_viewer is not None else None
-    base = f"http://{settings.host}:{settings.port}"
-    print(f"irloc: data in {settings.data_dir}")
-    print(f"irloc: API docs  {base}/docs")
-    if viewer is not None:
-        print(f"irloc: viewer    {base}/viewer/?token=<key>")
+    from server.console import startup_lines
+
+    lines = startup_lines(
+        host=settings.host, port=settings.port, data_dir=settings.data_dir,
+        viewer_enabled=viewer is not None, first_key=first_key,
+    )  # fmt: skip
+    print("\n".join(lines[:-1] if first_key is not None else lines))
     if not is_loopback(settings.host):
         print(
             f"irloc: the API listens on {settings.host}, beyond this machine: every endpoint "
@@ -114,7 +116,7 @@ def main(
     if settings.mqtt_url:
         print(f"irloc: fleet     {settings.mqtt_url} (site {settings.mqtt_site!r})")
     if first_key is not None:
-        print(f"irloc: first admin API key (shown once, store it): {first_key}")
+        print(lines[-1])  # the key, last: easy to spot
     sys.stdout.flush()
     config = uvicorn.Config(
         create_app(settings, viewer),

@@ -16,7 +16,8 @@ from contextlib import asynccontextmanager
 from fastapi import APIRouter, Depends, FastAPI, Request
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse, Response
-from pydantic import BaseModel, ValidationError
+from fastapi_offline import FastAPIOffline
+from pydantic import ValidationError
 
 from rf_gateway.errors import (
     LandmarkUnreachableError,
@@ -27,7 +28,9 @@ from rf_gateway.errors import (
 from server.auth import Viewer, authenticate
 from server.errors import ConflictError, NotFoundError, UnavailableError
 from server.fanout import PoseFanout
+from server.health import Health, site_health
 from server.http_errors import install_body_errors, refuse_unknown_query
+from server.landing import landing_router
 from server.metrics import make_registry, render
 from server.mqtt_bridge import start_mqtt_bridge
 from server.openapi import install_openapi
@@ -35,6 +38,8 @@ from server.routes import (
     admin,
     calibration,
     commissioning,
+    floorplan,
+    history,
     landmarks,
     map,
     remote,
@@ -48,13 +53,6 @@ from server.settings import Settings
 
 log = logging.getLogger(__name__)
 API_PREFIX = "/api/v1"
-
-
-class Health(BaseModel):
-    status: str
-    robots: int
-    landmarks: int
-    radio: str
 
 
 def _error_status(exc: Exception) -> tuple[int, str]:
@@ -140,7 +138,7 @@ def create_app(settings: Settings | None = None, viewer: ViewerApp | None = None
             await fanout.stop()
             await services.stop()
 
-    app = FastAPI(
+    app = FastAPIOffline(  # Swagger UI and ReDoc from the package: plant networks are offline
         title="irloc",
         version="0.1.0",
         summary="Indoor localization with IR ceiling landmarks: map, robots, radio",
@@ -150,16 +148,9 @@ def create_app(settings: Settings | None = None, viewer: ViewerApp | None = None
     install_body_errors(app)
     api = APIRouter(prefix=API_PREFIX, dependencies=[Depends(refuse_unknown_query)])
     for module in (
-        landmarks,
-        map,
-        robots,
-        calibration,
-        remote,
-        admin,
-        streams,
-        commissioning,
-        survey,
-    ):
+        landmarks, map, history, floorplan, robots, calibration, remote, admin, streams,
+        commissioning, survey,
+    ):  # fmt: skip
         api.include_router(module.router)
     api.add_api_route(
         "/metrics",
@@ -180,19 +171,14 @@ def create_app(settings: Settings | None = None, viewer: ViewerApp | None = None
     )
     if viewer is not None:
         app.include_router(viewer.router(authenticate))
+    app.include_router(landing_router())
     install_openapi(app)
     return app
 
 
 async def _healthz(request: Request) -> Health:
     """Liveness (no key needed)."""
-    s: SiteServices = request.app.state.services
-    return Health(
-        status="ok",
-        robots=len(s.robots.names()),
-        landmarks=s.map.count(),
-        radio=s.leds.radio_state,
-    )
+    return site_health(request.app.state.services)
 
 
 async def _metrics(request: Request, _: Viewer) -> Response:

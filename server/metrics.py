@@ -9,6 +9,8 @@ from prometheus_client import CollectorRegistry, generate_latest
 from prometheus_client.core import CounterMetricFamily, GaugeMetricFamily, Metric
 from prometheus_client.registry import Collector
 
+from server.led_schedule.status import energy_metrics
+
 if TYPE_CHECKING:
     from server.fanout import PoseFanout
     from server.services import SiteServices
@@ -83,6 +85,7 @@ class SiteCollector(Collector):
             wheel_bad.add_metric([name], src.bad_lines)
         yield wheel_lines
         yield wheel_bad
+        yield from energy_metrics(s)
         coordinator = s.leds.coordinator
         waiting = 0 if coordinator is None else coordinator.waiting
         yield GaugeMetricFamily("irloc_radio_queue", "LED requests waiting", value=waiting)

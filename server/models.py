@@ -243,6 +243,14 @@ class AuditRecord(SQLModel, table=True):
     landmark_id: int | None = Field(default=None, index=True)
     before: dict[str, Any] | None = Field(default=None, sa_column=Column(JSON, nullable=True))
     after: dict[str, Any] | None = Field(default=None, sa_column=Column(JSON, nullable=True))
+    target_id: int | None = Field(
+        default=None, description="for `undo` and `redo`: the audit record they revert/reapply"
+    )
+    undo_state: str = Field(
+        default="",
+        description="for edits: '' (in effect), 'undone' (may be redone) or 'dropped' "
+        "(undone, then its author made a new edit: no longer redoable)",
+    )
 
 
 # -- API keys ------------------------------------------------------------------------------

@@ -26,6 +26,8 @@ from server.db import make_engine, migrate
 from server.errors import UnavailableError
 from server.events import EventHub
 from server.facades import LedsAndRadio, Recordings, Robots
+from server.floorplan import FloorPlanStore
+from server.led_schedule.status import EnergyStatus, site_energy
 from server.models import LandmarkPublic
 from server.poses import PoseUpdate
 from server.settings import Settings
@@ -63,6 +65,7 @@ class SiteServices:
         self.engine = engine or make_engine(settings.db_url)
         self.initial_admin_key: str | None = prepare_database(self.engine)
         self.map = MapRepository(self.engine)
+        self.floorplan = FloorPlanStore(settings.data_dir)
         self.keys = KeyStore(self.engine)
         self.robot_store = RobotStore(self.engine)
         self.log = EventLog(self.engine)
@@ -139,3 +142,8 @@ class SiteServices:
         )
         if self.live is not None:
             self.live.on_map_changed(landmarks)
+
+    def energy(self) -> EnergyStatus:
+        """Each landmark's lit state and reason, duty and modelled days left; the site's lit
+        fraction and predicted battery life (`server.led_schedule.status`)."""
+        return site_energy(self)

@@ -71,6 +71,11 @@ class Settings(BaseSettings):
         vda_manufacturer: the VDA 5050 manufacturer of the agents (`uagv/v2/<it>/...`).
         sim_robots: localize the virtual site's robots here (false: the site only, robots
             come as agents).
+        led_policy: `scheduled` lights only the landmarks the robots need
+            (`server.led_schedule`); `all_lit` lights every landmark (the paper's way).
+        radio_sleep_period_s: the landmarks' radios sleep in cycles of this period (XBee
+            `SP`, seconds; the virtual site's radios then sleep too, and LED commands are
+            sent that much ahead of need); None: always-awake radios (`SM=0`).
     """
 
     model_config = SettingsConfigDict(env_prefix="IRLOC_", extra="ignore")
@@ -95,6 +100,8 @@ class Settings(BaseSettings):
     serial_robot: str | None = None
     log_format: Literal["text", "json"] = "text"
     allow_remote_viewer_without_auth: bool = False
+    led_policy: Literal["scheduled", "all_lit"] = "all_lit"
+    radio_sleep_period_s: float | None = Field(default=None, ge=0.32, le=28.0)
     mqtt_url: str | None = None
     mqtt_site: str = Field(default="default", pattern=r"^[A-Za-z0-9_.-]{1,64}$")
     vda_manufacturer: str = Field(default="irloc", pattern=r"^[A-Za-z0-9_.-]{1,64}$")

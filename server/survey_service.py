@@ -4,7 +4,8 @@ lit ceiling, then `survey.solve_survey` places every landmark (docs/survey.md).
 An admin starts it with a robot (`start`): the robot's frames, odometry and LED states are
 recorded (`Recordings`), and a blink driver asks the LED coordinator, as the requester
 "survey", to darken one landmark at a time (`survey.blinks.BlinkConfig` timing), as robots
-identify themselves, so the other robots keep their fixes. `stop` ends both and solves on the
+identify themselves, so the other robots keep their fixes; it blinks the landmarks the
+surveying robot expects in view, least blinked first. `stop` ends both and solves on the
 recording in a worker thread; the locked landmarks are the anchors, every other landmark's map
 position is its rough position. The result is a proposal: `accept` writes the chosen
 landmarks' positions through the map's data layer (audited, undoable), never silently.
@@ -18,17 +19,19 @@ import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Literal
+from typing import TYPE_CHECKING, Literal
 
 from localizer.events import LedRequest
-from server.crud.landmarks import MapRepository
-from server.errors import ConflictError, UnavailableError
-from server.facades import LedsAndRadio, Recordings, Robots
+from server.errors import ConflictError, NotFoundError, UnavailableError
 from server.models import LandmarkUpdate
 from survey.blinks import BlinkConfig
 from survey.bundle import BundleConfig, solve_survey
 from survey.drive import read_survey_drive, survey_problem
 from survey.result import LandmarkEstimate, SurveyResult
+
+if TYPE_CHECKING:  # the facades are handed in (server.services); typing only
+    from server.crud.landmarks import MapRepository
+    from server.facades import LedsAndRadio, Recordings, Robots
 
 log = logging.getLogger(__name__)
 
@@ -114,13 +117,13 @@ class LiveSurvey:
     def start(self, robot: str, *, actor: str) -> SurveyStatus:
         """Start recording `robot` and blinking. ConflictError while a survey drives or
         solves, or with fewer than two locked landmarks; UnavailableError without a radio;
-        ValueError for an unknown robot."""
+        NotFoundError for an unknown robot."""
         coordinator = self.leds.coordinator
         if coordinator is None:
             raise UnavailableError("no radio: the site runs without a gateway, nothing can blink")
         names = self.robots.names()
         if robot not in names:
-            raise ValueError(f"unknown robot {robot!r}; robots: {', '.join(sorted(names))}")
+            raise NotFoundError(f"unknown robot {robot!r}; robots: {', '.join(sorted(names))}")
         anchors = self.anchors()
         if len(anchors) < 2:
             raise ConflictError(
@@ -143,27 +146,49 @@ class LiveSurvey:
         return self.status()
 
     def _blink(self, ids: list[int]) -> None:
-        """One landmark dark at a time against the lit ceiling, round robin, until stopped."""
+        """One landmark dark at a time against the lit ceiling until stopped: of the
+        landmarks the surveying robot expects in view (its localizer says which), the one
+        blinked least so far; every landmark in turn while the robot has no pose."""
         coordinator = self.leds.coordinator
-        if coordinator is None:
+        robot = self._robot
+        if coordinator is None or robot is None:
             return
         cfg = self.blinks
         dark_s = cfg.dark_frames * cfg.frame_period_s + cfg.radio_latency_s
         lit_s = cfg.lit_frames * cfg.frame_period_s + cfg.radio_latency_s
+        blinked = dict.fromkeys(ids, 0)
         k = 0
         while not self._stop.is_set() and ids:
-            coordinator.request(
-                SURVEY, LedRequest(all_lit=True, dark=frozenset({ids[k % len(ids)]}))
-            )
+            pose = self.robots.latest(robot)
+            near = [i for i in (pose.expected_ids if pose is not None else ()) if i in blinked]
+            lid = min(near, key=lambda i: blinked[i]) if near else ids[k % len(ids)]
+            k += not near
+            blinked[lid] += 1
+            coordinator.request(SURVEY, LedRequest(all_lit=True, dark=frozenset({lid})))
             with self._lock:
                 self._count += 1
-            if self._stop.wait(dark_s):
+            # each window starts once the radio confirmed the switch, so that windows never
+            # run into each other (the recording then names one dark landmark at a time)
+            if not self._confirmed(lid, lit=False) or self._stop.wait(dark_s):
                 break
             coordinator.request(SURVEY, LedRequest(all_lit=True))
-            if self._stop.wait(lit_s):
+            if not self._confirmed(lid, lit=True) or self._stop.wait(lit_s):
                 break
-            k += 1
         coordinator.request(SURVEY, LedRequest(all_lit=True))
+
+    def _confirmed(self, landmark_id: int, *, lit: bool, timeout_s: float = 1.0) -> bool:
+        """Wait until the gateway confirmed `landmark_id` lit (or dark), or `timeout_s`
+        passed (a lost command, other requesters first). False when stopped."""
+        gateway = self.leds.gateway
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline:
+            state = None if gateway is None else gateway.leds
+            ready = state is not None and gateway is not None and not state.changing
+            if ready and (landmark_id in state.lit_among(gateway.landmarks)) == lit:  # type: ignore[union-attr]
+                return True
+            if self._stop.wait(0.005):
+                return False
+        return not self._stop.is_set()
 
     def stop(self, *, actor: str) -> SurveyStatus:
         """End the drive and solve in a worker thread. ConflictError when not driving."""

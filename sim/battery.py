@@ -123,8 +123,17 @@ class Battery:
         """The radio and microcontroller still run (supply above brown-out)."""
         return self.open_circuit_v() >= self.config.brownout_v
 
+    def led_ma(self, led_on: bool) -> float:
+        """The LED's current now, mA (0 when dark or browned out)."""
+        if not led_on or not self.alive:
+            return 0.0
+        return led_current_ma(self.config, self.supply_v(True))
+
+    def draw(self, mah: float) -> None:
+        """Take `mah` of charge (an energy model's account of what the landmark did)."""
+        self.drawn_mah = min(self.drawn_mah + max(mah, 0.0), self.config.capacity_mah)
+
     def advance(self, dt_s: float, led_on: bool) -> None:
-        """Draw the load's charge for `dt_s` seconds."""
+        """Draw the load's charge for `dt_s` seconds (LED and `idle_current_ma`)."""
         if dt_s > 0:
-            drawn = self.current_ma(led_on) * dt_s / 3600.0
-            self.drawn_mah = min(self.drawn_mah + drawn, self.config.capacity_mah)
+            self.draw(self.current_ma(led_on) * dt_s / 3600.0)

@@ -9,18 +9,21 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Literal
 
 import numpy as np
 import numpy.typing as npt
 
 from localizer.camera import CameraModel
-from localizer.events import FrameObserved, OdometryMeasured
+from localizer.events import FrameObserved, OdometryMeasured, SpotsObserved
 from localizer.robot import RobotGeometry
 from sim.build import RobotRig, build_robot, build_world, seed_generators
+from sim.energy import RadioSleep
 from sim.radio import SimRadio
 from sim.render import RenderConfig, render_frame
 from sim.robot import FramePose
 from sim.scenario import Scenario, load_scenario
+from sim.spot_view import observe_spots
 from sim.world import World
 
 
@@ -45,7 +48,7 @@ class SensorSample:
     """A frame or an odometry sample of the robot `robot`."""
 
     robot: str
-    event: FrameObserved | OdometryMeasured
+    event: FrameObserved | SpotsObserved | OdometryMeasured
 
 
 class LiveSite:
@@ -56,6 +59,9 @@ class LiveSite:
         seed: overrides the scenario's seed.
         max_frame_lag_s: frames older than this at a `step` are dropped (the caller fell
             behind); the robots still move through that time.
+        radio_sleep: the landmarks' radios sleep in cycles (`SimRadio`); None: awake.
+        observe: "frames" renders every frame; "spots" reports each frame's spots directly
+            (`sim.spot_view`, for long simulated shifts).
     """
 
     def __init__(
@@ -65,6 +71,8 @@ class LiveSite:
         seed: int | None = None,
         max_frame_lag_s: float = 0.2,
         clock_ns: Callable[[], int] | None = None,
+        radio_sleep: RadioSleep | None = None,
+        observe: Literal["frames", "spots"] = "frames",
     ) -> None:
         self.scenario = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
         sc = self.scenario
@@ -72,8 +80,9 @@ class LiveSite:
         self.world: World = build_world(sc, gens[0])
         self.radio = SimRadio(
             self.world, rng=gens[1], latency_s=sc.radio_latency_s, loss=sc.radio_loss,
-            timeout_s=max(0.3, 2.0 * sc.radio_latency_s[1]),
+            timeout_s=max(0.3, 2.0 * sc.radio_latency_s[1]), sleep=radio_sleep,
         )  # fmt: skip
+        self.observe = observe
         self._render_rng = gens[2]
         self._rigs: dict[str, RobotRig] = {
             spec.name: build_robot(spec, sc, gens[3 + i], index=i)
@@ -166,11 +175,19 @@ class LiveSite:
                 out.append(SensorSample(name, OdometryMeasured(t_out, item.v_left, item.v_right)))
             elif local - t_local <= self._max_lag_ns:
                 self.world.advance(t_local)
-                image = self.render(name, item.T_world_body, t_ns=t_local)
                 truth = self._frame_truth[name]
                 truth[t_out] = item.pose
                 if len(truth) > self.truth_history:
                     del truth[next(iter(truth))]
+                if self.observe == "spots":
+                    cam = self.rig(name).camera_true
+                    spots = observe_spots(
+                        self.world, cam, item.T_world_body, t_out, self._render_rng,
+                        self.scenario.render, led_t_ns=t_local,
+                    )  # fmt: skip
+                    out.append(SensorSample(name, spots))
+                    continue
+                image = self.render(name, item.T_world_body, t_ns=t_local)
                 out.append(SensorSample(name, FrameObserved(t_out, image)))
         self.world.advance(local)
         self._t_local_ns = local

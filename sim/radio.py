@@ -4,15 +4,25 @@ Each command takes a random latency, may be lost on the way out or back, and a l
 that cannot answer (broken radio, flat battery, unknown address) lets the caller wait for a
 timeout. A delivered command switches the world's LED at once; the cameras see it in their
 next frame.
+
+Sleeping radios (`sleep`, XBee cyclic sleep): a landmark wakes every `period_s` (each at its
+own phase) and polls its parent, which has buffered the command meanwhile; the command is
+delivered at that wake-up, so it waits up to one period before the usual latency. After a
+command the landmark stays awake `wake_s` (XBee `ST`), polling every `poll_interval_s`, so
+the commands that follow soon wait at most a poll interval.
 """
 
 from __future__ import annotations
 
 import asyncio
+import math
 
 import numpy as np
 
+from sim.energy import RadioSleep
 from sim.world import SimLandmark, World
+
+_GOLDEN = (math.sqrt(5.0) - 1.0) / 2.0
 
 
 class SimRadio:
@@ -23,8 +33,11 @@ class SimRadio:
         rng: draws latencies and losses.
         latency_s: (min, max) one-way-and-back latency of a delivered command, seconds.
         loss: probability that a packet is lost, each way.
-        timeout_s: how long a caller waits for an answer that never comes, seconds.
+        timeout_s: how long a caller waits for an answer that never comes, seconds (after
+            the landmark's wake-up when it sleeps).
         discover_s: how long a node discovery listens, seconds.
+        sleep: the landmarks' radios sleep in cycles (None: always awake); also sets the
+            world's energy model to it.
     """
 
     def __init__(
@@ -36,6 +49,7 @@ class SimRadio:
         loss: float = 0.02,
         timeout_s: float = 0.3,
         discover_s: float = 0.2,
+        sleep: RadioSleep | None = None,
     ) -> None:
         lo, hi = latency_s
         if not 0 <= lo <= hi or not 0 <= loss < 1 or timeout_s < hi:
@@ -49,6 +63,37 @@ class SimRadio:
         self.loss = float(loss)
         self.timeout_s = float(timeout_s)
         self.discover_s = float(discover_s)
+        self.sleep = sleep
+        if world.energy is not None:
+            world.energy.sleep = sleep
+        self.messages = 0
+        self._awake_until: dict[int, float] = {}
+
+    @property
+    def sleep_period_s(self) -> float:
+        """The longest a command waits for a landmark to wake, seconds (0: awake radios)."""
+        return 0.0 if self.sleep is None else self.sleep.period_s
+
+    def wake_delay_s(self, landmark_id: int, now_s: float) -> float:
+        """Seconds from `now_s` until the landmark next polls its parent (0 when the radio
+        never sleeps): within a poll interval while it is awake after a command, else at
+        its next cyclic wake-up."""
+        if self.sleep is None:
+            return 0.0
+        phase = (landmark_id * _GOLDEN % 1.0) * self.sleep.period_s
+        if now_s < self._awake_until.get(landmark_id, -math.inf):
+            return (phase - now_s) % self.sleep.poll_interval_s
+        return (phase - now_s) % self.sleep.period_s
+
+    def _delivered(self, landmark_id: int, now_s: float) -> None:
+        """Account a delivered command and keep the radio awake `wake_s` after it."""
+        extra = 0.0
+        if self.sleep is not None:
+            until = now_s + self.sleep.wake_s
+            extra = max(until - max(self._awake_until.get(landmark_id, now_s), now_s), 0.0)
+            self._awake_until[landmark_id] = max(until, self._awake_until.get(landmark_id, 0.0))
+        self.messages += 1
+        self.world.radio_message(landmark_id, extra)
 
     def _lost(self) -> bool:
         return bool(self.rng.random() < self.loss)
@@ -60,10 +105,13 @@ class SimRadio:
         """
         latency = float(self.rng.uniform(*self.latency_s))
         lm = self.world.by_address(address)
+        loop = asyncio.get_running_loop()
+        wait = 0.0 if lm is None else self.wake_delay_s(lm.id, loop.time() + latency / 4)
         if lm is None or not lm.reachable or self._lost():
-            await asyncio.sleep(self.timeout_s)
+            await asyncio.sleep(wait + self.timeout_s)  # from when it would have arrived
             return None
-        await asyncio.sleep(latency / 2)
+        await asyncio.sleep(wait + latency / 2)
+        self._delivered(lm.id, loop.time())
         return lm
 
     async def _answer(self, latency_started: float) -> bool:

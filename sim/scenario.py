@@ -23,7 +23,14 @@ from sim.render import RenderConfig
 from sim.robot import FloorBump, FloorTilt, SlipPatch
 from sim.robot_spec import RobotSpec, robot_from_node
 
-SCENARIOS: tuple[str, ...] = ("demo", "paper_testbed", "paper_floor", "dense_grid_fast", "hostile")
+SCENARIOS: tuple[str, ...] = (
+    "demo",
+    "paper_testbed",
+    "paper_floor",
+    "dense_grid_fast",
+    "hostile",
+    "floor50",
+)
 
 
 @dataclass(frozen=True)

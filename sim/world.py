@@ -16,6 +16,7 @@ import numpy as np
 import numpy.typing as npt
 
 from sim.battery import Battery
+from sim.energy import EnergyLedger
 from sim.render import ExtendedSource
 
 FloatArray = npt.NDArray[np.float64]
@@ -128,6 +129,8 @@ class World:
         extended: lamps and sunlight patches.
         people: occluders.
         t_ns: the time the world has been advanced to.
+        energy: what each landmark's LED and radio draw (`sim.energy`); None: the
+            battery's own constant `idle_current_ma` for the radio.
     """
 
     landmarks: dict[int, SimLandmark]
@@ -138,6 +141,7 @@ class World:
     battery_step_s: float = 0.25
     led_clock_ns: Callable[[], int] | None = None
     led_log_s: float = 2.0
+    energy: EnergyLedger | None = field(default_factory=EnergyLedger)
     _lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
     _battery_t_ns: int = 0
     _led_log: deque[tuple[int, int, bool]] = field(default_factory=deque, repr=False)
@@ -201,8 +205,21 @@ class World:
             return
         with self._lock:
             for lm in self.landmarks.values():
-                lm.battery.advance(dt_s, lm.led_on)
+                if self.energy is None:
+                    lm.battery.advance(dt_s, lm.led_on)
+                    continue
+                led_ma = lm.battery.led_ma(lm.led_on)
+                radio_mah = self.energy.advance(lm.id, dt_s, led_ma) if lm.battery.alive else 0.0
+                lm.battery.draw(led_ma * dt_s / 3600.0 + radio_mah)
         self._battery_t_ns = t_ns
+
+    def radio_message(self, landmark_id: int, extra_awake_s: float = 0.0) -> None:
+        """A command reached the landmark and it answered (and stays awake `extra_awake_s`
+        longer than it would have): account the radio's charge."""
+        if self.energy is not None:
+            with self._lock:
+                q = self.energy.message(landmark_id, extra_awake_s)
+                self.landmarks[landmark_id].battery.draw(q)
 
     def point_sources(
         self, p_camera_world: FloatArray, *, t_ns: int | None = None

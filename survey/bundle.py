@@ -87,7 +87,8 @@ class BundleConfig:
             drive, or two landmarks answering to one name).
         flag_moved_m: a landmark this far from its given position is flagged (moved, or
             radios swapped).
-        min_views: a landmark seen in fewer independent views is flagged.
+        min_views: a landmark seen in fewer independent views is not placed (it is reported
+            with the unseen ones).
     """
 
     keyframe_period_s: float = 0.2
@@ -109,7 +110,7 @@ class BundleConfig:
     window_s: float = 30.0
     window_iterations: int = 8
     outlier_track_px: float = 6.0
-    min_votes: int = 2
+    min_votes: int = 1
     name_radius_m: float = 0.05
     name_exclusion_m: float = 0.25
     independent_view_m: float = 0.25
@@ -483,7 +484,11 @@ def _adjust(
 
     def project(x: FloatArray) -> tuple[FloatArray, npt.NDArray[np.bool_]]:
         poses, lms, _, c = lay.split(x)
-        pw = np.where(is_free[:, None], lms[np.maximum(o_free, 0)], o_anchor)
+        pw = (
+            np.where(is_free[:, None], lms[np.maximum(o_free, 0)], o_anchor)
+            if len(lms)
+            else o_anchor
+        )
         pk = poses[o_key]
         co, si = np.cos(pk[:, 2]), np.sin(pk[:, 2])
         dx, dy = pw[:, 0] - pk[:, 0], pw[:, 1] - pk[:, 1]
@@ -662,8 +667,8 @@ def _result(
             moved = float(np.linalg.norm(pos - given))
             if moved > cfg.flag_moved_m:
                 flags.append(f"{moved:.2f} m from its given position: moved, or radios swapped?")
-        if views < cfg.min_views:
-            flags.append(f"seen from only {views} independent view(s): drive past it again")
+        if views < cfg.min_views and lid not in anchors:
+            continue  # too little to place it: reported as not surveyed (`unseen`)
         conflicts = obs.conflicts.get(lid, 0)
         if conflicts:
             flags.append(f"two spots named {lid} at once in {conflicts} frame(s)")

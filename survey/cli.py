@@ -34,7 +34,7 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
     p.add_argument("--out", type=Path, required=True, help="where to write the surveyed map")
     p.add_argument(
         "--allow-unseen", action="store_true",
-        help="write the map even if some landmarks were never identified (they keep what "
+        help="write the map even if some landmarks could not be surveyed (they keep what "
         "map.json gave them)",
     )  # fmt: skip
     p.add_argument("--quiet", action="store_true", help="no progress bar and no table")
@@ -99,9 +99,9 @@ def main(argv: list[str] | None = None) -> int:
     never = sorted(set(lm.id for lm in drive.landmarks) - set(result.landmarks))
     if never and not args.allow_unseen:
         print(
-            f"{PROG}: landmark(s) {', '.join(map(str, never))} never identified in the drive; "
-            "drive under them (or pass --allow-unseen to keep their map.json positions); "
-            "nothing written",
+            f"{PROG}: landmark(s) {', '.join(map(str, never))} not surveyed (never identified, "
+            "or seen from too few places); drive under them (or pass --allow-unseen to keep "
+            "their map.json positions); nothing written",
             file=sys.stderr,
         )
         return 1

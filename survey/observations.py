@@ -46,16 +46,25 @@ class TrackingConfig:
         max_coast_frames: a track with no spot for longer ends.
         edge_margin_px: a coasting track whose prediction comes this close to the image edge
             (or leaves the field of view) cannot vote: it may just have left the image.
+        vote_margin_px: a track votes only if it vanished and came back this far inside the
+            image (at the edge of a wide lens a dim spot fades in and out by itself).
+        min_gap_frames: a track votes only if it stayed away this many frames (a spot
+            missing from one frame is more often a flicker than a blink).
         max_dark_landmarks: a frame in which more landmarks are dark than this cannot
             name a vanished track (the vanishing would be ambiguous).
         min_agreement: share of a track's votes its name needs.
+        led_time_tolerance_s: how late an LED state may be stamped after the LED switched
+            (a live recording stamps the radio's confirmation), seconds.
     """
 
     gate_px: float = 8.0
     max_coast_frames: int = 8
     edge_margin_px: float = 6.0
+    vote_margin_px: float = 25.0
+    min_gap_frames: int = 2
     max_dark_landmarks: int = 1
     min_agreement: float = 0.75
+    led_time_tolerance_s: float = 0.06
 
 
 @dataclass(frozen=True, eq=False)
@@ -174,6 +183,11 @@ def label_spot_tracks(
     ids = frozenset(int(i) for i in landmark_ids)
     states = lit_state_at_frames(frame_t_ns, leds)
     dark = [_dark_of(s, ids) for s in states]
+    # a recording made live stamps each LED change when the radio confirmed it, up to a
+    # radio round trip after the LED switched: judge a frame also by the state a moment later
+    tol_ns = round(cfg.led_time_tolerance_s * 1e9)
+    later = lit_state_at_frames([int(t) + tol_ns for t in frame_t_ns], leds)
+    dark_late = [_dark_of(s, ids) for s in later]
     live: list[_Track] = []
     done: list[_Track] = []
     for f, spots in enumerate(frame_spots):
@@ -188,7 +202,7 @@ def label_spot_tracks(
         matched_tracks = {ti for ti, _ in pairs}
         used_spots = {si for _, si in pairs}
         for ti, si in pairs:
-            _resume(live[ti], f, spots[si], dark, states, cfg)
+            _resume(live[ti], f, spots[si], dark, dark_late, states, cfg, camera)
         still: list[_Track] = []
         for ti, t in enumerate(live):
             if ti in matched_tracks:
@@ -199,7 +213,10 @@ def label_spot_tracks(
                 done.append(t)
                 continue
             t.pixel = pred[ti]
+            if not t.coast:  # where it vanished: near the edge a spot can fade by itself
+                t.coast_ok = _inside(camera, t.pixel, cfg.vote_margin_px)
             t.coast.append(f)
+            t.coast_ok = t.coast_ok and _inside(camera, pred[ti], cfg.vote_margin_px)
             still.append(t)
         for si in range(len(spots)):
             if si not in used_spots:
@@ -234,22 +251,36 @@ def _resume(
     f: int,
     spot: FloatArray,
     dark: list[frozenset[int] | None],
+    dark_late: list[frozenset[int] | None],
     states: list[LedsChanged | None],
     cfg: TrackingConfig,
+    camera: CameraModel,
 ) -> None:
     """A track finds its spot again at frame f: a gap that matched one dark landmark votes."""
     if t.coast:
         gap = t.coast
         before, after = gap[0] - 1, f
-        gap_dark = [dark[g] for g in gap]
+        gap_dark = [_either(dark[g], dark_late[g]) for g in gap]
         known = [d for d in gap_dark if d is not None]
-        if len(known) == len(gap) and all(len(d) <= cfg.max_dark_landmarks for d in known):
+        clear = (
+            t.coast_ok
+            and len(gap) >= cfg.min_gap_frames
+            and _inside(camera, spot, cfg.vote_margin_px)
+        )
+        if (
+            clear
+            and len(known) == len(gap)
+            and all(len(d) <= cfg.max_dark_landmarks for d in known)
+        ):
             union = frozenset().union(*known)
             dark_frames = sum(1 for d in known if d)
-            lit_around = [dark[before], dark[after]]
-            if len(union) == 1 and 2 * dark_frames >= len(gap) and None not in lit_around:
+            seen_before = dark[before]
+            if len(union) == 1 and 2 * dark_frames >= len(gap) and seen_before is not None:
                 (lid,) = union
-                if all(lid not in d for d in lit_around if d is not None):
+                after_lit = any(
+                    d is not None and lid not in d for d in (dark[after], dark_late[after])
+                )
+                if lid not in seen_before and after_lit:
                     t.votes[lid] += 1
         t.coast = []
     t.pixel = spot.copy()
@@ -257,6 +288,13 @@ def _resume(
     t.frames.append(f)
     t.pixels.append((float(spot[0]), float(spot[1])))
     _vote_single_lit(t, f, states)
+
+
+def _either(a: frozenset[int] | None, b: frozenset[int] | None) -> frozenset[int] | None:
+    """Landmarks dark in either of two states (None when neither is known)."""
+    if a is None or b is None:
+        return a if b is None else b
+    return a | b
 
 
 def _vote_single_lit(t: _Track, f: int, states: list[LedsChanged | None]) -> None:

@@ -68,7 +68,8 @@ class SurveyResult:
 
     Attributes:
         landmarks: by ID, every landmark that was seen (anchors included).
-        unseen: landmarks of the map with no observation.
+        unseen: landmarks of the map the survey could not place: never identified, or seen
+            from fewer than `BundleConfig.min_views` independent views.
         trajectory_t_ns: keyframe times, shape (K,); trajectory: body poses there
             (x, y, theta), shape (K, 3).
         wheel_calibration: (left scale, right scale, wheel-base scale), 1 = nominal.

@@ -23,6 +23,9 @@ PACKAGES = [
     "fleet",
     "agent",
     "export",
+    "survey",
+    "commissioning",
+    "pubsub",
 ]
 PYTHON_DIRS = [*PACKAGES, "bench", "tests"]
 

@@ -25,8 +25,10 @@ from localizer.spots import DetectionConfig, detect_spots
 from rf_gateway.errors import LandmarkUnreachableError, RfGatewayError
 from server.errors import UnavailableError
 from server.facades import BatteryStatus
+from server.led_schedule.status import site_energy
 from server.models import LandmarkCreate, LandmarkPublic, LandmarkUpdate
 from server.services import SiteServices
+from web.panels.monitor import local_time_text
 from web.services import (
     CameraView,
     Candidate,
@@ -95,8 +97,12 @@ class SiteAdapter:
         unreachable = self.services.leds.unreachable
         doubted = self.services.commissioning.doubted()
         out = []
+        energy = site_energy(
+            self.services, lambda i: getattr(self._battery_of(i), "supply_mv", None)
+        )
         for lm in self._map():
             b = self._battery_of(lm.id)
+            e = energy.landmark(lm.id)
             out.append(
                 LandmarkState(
                     id=lm.id, x=lm.x, y=lm.y, z=lm.z, locked=lm.locked, radio=lm.radio,
@@ -104,6 +110,8 @@ class SiteAdapter:
                     percent=None if b is None else b.percent,
                     days_left=None if b is None else b.days_left,
                     reachable=lm.id not in unreachable, doubted=lm.id in doubted,
+                    lit=e.lit, lit_reason=e.reason, duty=e.duty, model_days=e.days_left,
+                    low=e.low,
                 )
             )  # fmt: skip
         return out
@@ -125,7 +133,7 @@ class SiteAdapter:
 
     def events(self, limit: int) -> list[EventLine]:
         return [
-            EventLine(e.t.strftime("%Y-%m-%d %H:%M:%S"), e.kind, e.message)
+            EventLine(local_time_text(e.t), e.kind, e.message)
             for e in self.services.events.recent(limit)
         ]
 
@@ -202,12 +210,6 @@ class SiteAdapter:
 
     def delete_landmark(self, landmark_id: int, *, actor: str) -> None:
         self.services.map.delete(landmark_id, actor=actor)
-
-    def undo_last(self, *, actor: str) -> str:
-        rec = self.services.map.undo_last(actor=actor)
-        if rec is None:
-            raise ValueError("nothing to undo")
-        return f"undid {rec.action} of landmark {rec.landmark_id} by {rec.actor}"
 
     def doubt(self, landmark_id: int) -> Doubt:
         """A landmark's chances and uses so far (`commissioning.doubt`)."""

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import html
 import logging
 from collections.abc import Callable
 from pathlib import Path
@@ -87,10 +88,25 @@ def session_of(conn: HTTPConnection, authenticate: Authenticate) -> Session | No
     return Session(str(principal.role), f"viewer:{principal.actor}")
 
 
-NO_KEY_PAGE = """<!doctype html><title>irloc viewer</title>
+NO_KEY_PAGE = """<!doctype html><meta charset="utf-8"><title>irloc viewer</title>
+<style>body {{ font-family: system-ui, sans-serif; max-width: 44rem; margin: 2rem auto; }}
+code {{ background: #f2f2f2; padding: 0 0.25rem; }}</style>
 <h1>irloc viewer</h1><p>This page needs an API key: open
-<code>/viewer/?token=&lt;key&gt;</code> (create one with
-<code>irloc keys create --role viewer</code>).</p>"""
+<code>/viewer/?token=KEY</code>, or paste the key here:</p>
+<form action="/viewer/" method="get"><input name="token" type="password" placeholder="API key"
+autocomplete="off"> <button type="submit">Open the viewer</button></form>
+<p>Create a key on the server's machine with
+<code>irloc keys create --role viewer --data-dir {data_dir}</code>
+(<code>--role operator</code> or <code>admin</code> to act, not only watch).
+<a href="/">Home</a></p>"""
+
+
+def no_key_page(conn: HTTPConnection) -> str:
+    """The 401 page, naming this server's data folder in the `irloc keys create` hint."""
+    services = getattr(conn.app.state, "services", None)
+    settings = getattr(services, "settings", None)
+    data_dir = str(getattr(settings, "data_dir", "DIR"))
+    return NO_KEY_PAGE.format(data_dir=html.escape(data_dir))
 
 
 def viewer_router(
@@ -117,7 +133,7 @@ def viewer_router(
             return HTMLResponse("<h1>the viewer is not running</h1>", status_code=503)
         session = session_of(request, authenticate)
         if session is None:
-            return HTMLResponse(NO_KEY_PAGE, status_code=401)
+            return HTMLResponse(no_key_page(request), status_code=401)
         query_key = next(
             (request.query_params[n] for n in KEY_PARAMS if n in request.query_params), None
         )

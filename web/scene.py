@@ -1,6 +1,8 @@
 """The 3D scene: floor, ceiling, landmarks and robots, kept in step with site snapshots.
 
-Node names are hierarchical: `/landmarks/17` (sphere), `/landmarks/17/label`,
+Node names are hierarchical: `/floor` (the one grid: 1 m cells, 5 m sections), `/ceiling`
+(the ceiling's outline at its height: no second grid, so floor and ceiling never overlap
+into a moire), `/floorplan` (`web.floorplan_view`), `/landmarks/17` (sphere), `/landmarks/17/label`,
 `/landmarks/17/glow` (shown while lit), `/robots/r1/position` (follows the robot's position
 without turning), `/robots/r1/position/body` (turns with its heading),
 `/robots/r1/position/body/footprint`, `/robots/r1/position/ellipse`, `/robots/r1/trail/<k>`,
@@ -31,13 +33,15 @@ from web.colors import (
     landmark_color,
     mode_color,
 )
-from web.geometry import camera_footprint, ellipse_points
+from web.footprint import Bounds, footprint_in_site, usable_footprint_body
+from web.geometry import ellipse_points
 from web.services import LandmarkState, RobotState
 
 FloatArray = npt.NDArray[np.float64]
 TRAIL_COLOR: RGB = (90, 90, 200)
 FOOTPRINT_COLOR: RGB = (80, 160, 200)
 RAY_COLOR: RGB = (250, 220, 90)
+CEILING_COLOR: RGB = (170, 170, 205)
 BODY_Z_M = 0.125
 """Height of a robot's box centre, metres (its scene node's origin)."""
 
@@ -56,6 +60,9 @@ class SceneConfig:
         ellipse_rtol: redraw the ellipse when its covariance changed by this share.
         rays_every: redraw the rays every this many pose updates while the landmarks used
             stay the same (3: 10 Hz at 30 Hz); at once when they change.
+        footprint_max_off_axis_rad: the camera footprint drawn reaches at most this far
+            from the optical axis, radians (the usable angle: `commissioning.doubt.DoubtConfig`'s
+            `max_off_axis_rad`; a fisheye's image border reaches far beyond it).
     """
 
     landmark_radius_m: float = 0.1
@@ -66,6 +73,7 @@ class SceneConfig:
     ellipse_min_m: float = 0.02
     ellipse_rtol: float = 0.05
     rays_every: int = 3
+    footprint_max_off_axis_rad: float = math.radians(40.0)
 
 
 def wxyz_from_heading(theta: float) -> tuple[float, float, float, float]:
@@ -164,7 +172,8 @@ class _RobotNodes:
         self.trail = Trail(scene, f"{root}/trail", piece=cfg.trail_piece, max_points=cfg.trail_len)
         self.ellipse = scene.add_line_segments(f"{at}/ellipse", empty, UNKNOWN_COLOR)
         self.footprint = scene.add_line_segments(f"{at}/body/footprint", empty, FOOTPRINT_COLOR)
-        self.footprint_set = False
+        self.footprint_body: FloatArray | None = None  # unclipped, body frame
+        self.footprint_clipped = False  # the node holds a version clipped to the site
         self.rays = scene.add_line_segments(f"{root}/rays", empty, RAY_COLOR, thickness=0.005)
         self.updates = 0
         self.mode = ""
@@ -187,6 +196,7 @@ class SiteScene:
         self._robots: dict[str, _RobotNodes] = {}
         self._positions: dict[int, FloatArray] = {}
         self.ceiling_z = 2.5
+        self.bounds: Bounds = (-5.0, 5.0, -5.0, 5.0)
         server.scene.set_up_direction("+z")
 
     def set_site(self, bounds: tuple[float, float, float, float], ceiling_z: float) -> None:
@@ -195,18 +205,22 @@ class SiteScene:
         cx, cy = (x0 + x1) / 2.0, (y0 + y1) / 2.0
         w, h = max(x1 - x0, 1.0), max(y1 - y0, 1.0)
         self.ceiling_z = ceiling_z
+        self.bounds = (cx - w / 2.0, cx + w / 2.0, cy - h / 2.0, cy + h / 2.0)
         scene = self.server.scene
-        scene.add_grid("/floor", w, h, plane="xy", position=(cx, cy, 0.0), cell_size=0.5)
         scene.add_grid(
-            "/ceiling", w, h, plane="xy", position=(cx, cy, ceiling_z), cell_size=1.0,
-            cell_color=(215, 215, 235), section_color=(180, 180, 210), plane_opacity=0.0,
-            shadow_opacity=0.0,
+            "/floor", w, h, plane="xy", position=(cx, cy, 0.0), cell_size=1.0,
+            section_size=5.0, cell_color=(215, 215, 215), section_color=(160, 160, 160),
+            fade_distance=1e4, shadow_opacity=0.0,
         )  # fmt: skip
-        span = max(w, h)
-        cam = self.server.initial_camera
-        cam.position = (cx - 0.2 * span, cy - 0.75 * span, ceiling_z + 0.3 * span)
-        cam.look_at = (cx, cy, 0.8)
-        cam.up = (0.0, 0.0, 1.0)
+        bx0, bx1, by0, by1 = self.bounds
+        corners = np.array(
+            [[bx0, by0], [bx1, by0], [bx1, by1], [bx0, by1], [bx0, by0]], dtype=np.float64
+        )
+        ring = np.column_stack([corners, np.full(5, ceiling_z)])
+        scene.add_line_segments("/ceiling", polyline_segments(ring), CEILING_COLOR, thickness=0.03)
+        from web.camera_views import apply_top_view  # the default: near-orthographic top
+
+        apply_top_view(self.server.initial_camera, self.bounds)
 
     # -- landmarks ---------------------------------------------------------------------------
     def update_landmarks(self, landmarks: list[LandmarkState], lit: frozenset[int]) -> None:
@@ -302,12 +316,9 @@ class SiteScene:
             ring = ellipse_points((0.0, 0.0), c, n_sigma=cfg.ellipse_sigma, n_points=24)
             ring3 = np.column_stack([ring, np.full(len(ring), 0.02)])
             set_segments(nodes.ellipse, polyline_segments(ring3), color)
-        if not nodes.footprint_set:  # fixed to the body: computed once, moves with it
-            foot = camera_footprint(rb.camera, 0.0, 0.0, 0.0, self.ceiling_z, per_edge=6)
-            foot[:, 2] -= BODY_Z_M
-            set_segments(nodes.footprint, polyline_segments(foot), FOOTPRINT_COLOR)
-            nodes.footprint_set = True
-        if not self._rays_due(nodes, tuple(pose.landmark_ids)):
+        rays_due = self._rays_due(nodes, tuple(pose.landmark_ids))
+        self._update_footprint(nodes, rb, pose.x, pose.y, pose.theta, due=rays_due)
+        if not rays_due:
             return
         cam_world = np.array([pose.x, pose.y, 0.0]) + np.array(
             [[math.cos(pose.theta), -math.sin(pose.theta), 0.0],
@@ -316,6 +327,31 @@ class SiteScene:
         used = [self._positions[i] for i in pose.landmark_ids if i in self._positions]
         rays = np.stack([np.stack([cam_world, p]) for p in used]) if used else np.zeros((0, 2, 3))
         set_segments(nodes.rays, rays, RAY_COLOR)
+
+    def _update_footprint(
+        self, nodes: _RobotNodes, rb: RobotState, x: float, y: float, theta: float, *, due: bool
+    ) -> None:
+        """The usable footprint, fixed to the body (computed once, moves with it); near the
+        site's edge it is clipped there, redrawn with the rays (10 Hz)."""
+        first = nodes.footprint_body is None
+        if nodes.footprint_body is None:
+            foot = usable_footprint_body(
+                rb.camera, self.ceiling_z,
+                max_off_axis_rad=self.config.footprint_max_off_axis_rad,
+            )  # fmt: skip
+            foot[:, 2] -= BODY_Z_M
+            nodes.footprint_body = foot
+        if not (first or due):
+            return
+        clipped = footprint_in_site(nodes.footprint_body, x, y, theta, self.bounds)
+        if clipped is None:
+            if first or nodes.footprint_clipped:
+                segs = polyline_segments(nodes.footprint_body)
+                set_segments(nodes.footprint, segs, FOOTPRINT_COLOR)
+            nodes.footprint_clipped = False
+        elif first or due:
+            set_segments(nodes.footprint, polyline_segments(clipped), FOOTPRINT_COLOR)
+            nodes.footprint_clipped = True
 
     def _rays_due(self, nodes: _RobotNodes, used: tuple[int, ...]) -> bool:
         if used != nodes.used:

@@ -43,6 +43,12 @@ class LandmarkState:
         days_left: estimated days until the cut-off voltage, None when unknown.
         reachable: False once the radio stopped answering.
         doubted: localized robots expected it in view but rarely used it (`commissioning.doubt`).
+        lit: its LED is lit now; lit_reason: why the LED schedule lights it (None: dark,
+            or every LED lit without a schedule).
+        duty: share of the time it was lit since the site started.
+        model_days: days its cells last at that duty from the measured voltage (the energy
+            model, `server.led_schedule.status`), None when never read.
+        low: flagged: its LED dims within a week at that duty, or is dim already.
     """
 
     id: int
@@ -56,6 +62,11 @@ class LandmarkState:
     days_left: float | None = None
     reachable: bool = True
     doubted: bool = False
+    lit: bool = False
+    lit_reason: str | None = None
+    duty: float | None = None
+    model_days: float | None = None
+    low: bool = False
 
 
 @dataclass(frozen=True, eq=False)
@@ -84,7 +95,9 @@ class EventLine:
     """A line of the event list (low battery, landmark unreachable, robot lost, map changed).
 
     Attributes:
-        when: UTC time, ISO 8601 text; kind: the event kind; message: for people.
+        when: local time with its zone, e.g. "2026-12-01 21:04:05 CET"
+            (`web.panels.monitor.local_time_text`); kind: the event kind; message: for
+            people.
     """
 
     when: str
@@ -169,10 +182,6 @@ class ViewerSite(Protocol):
     ) -> LandmarkState: ...
 
     def delete_landmark(self, landmark_id: int, *, actor: str) -> None: ...
-
-    def undo_last(self, *, actor: str) -> str:
-        """Revert the last map change made by anyone; returns a description of it."""
-        ...
 
     def store_camera(self, robot: str, camera: CameraModel, *, actor: str) -> None:
         """Replace the robot's camera (lens and mounting) and restart its localizer."""

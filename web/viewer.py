@@ -25,10 +25,13 @@ from fastapi import APIRouter
 from server.cli import is_loopback
 from server.seams import Authenticate
 from web.adapter import SiteAdapter
+from web.floorplan_view import FloorPlanLayer, FloorPlanPanel, floorplan_store_of
 from web.panels.calibration import CalibrationPanel
 from web.panels.commission import CommissionPanel
 from web.panels.coverage import CoveragePanel
+from web.panels.history import HistoryPanel, map_repository_of
 from web.panels.monitor import MonitorPanel, UncertaintyHistory
+from web.panels.view import ViewPanel
 from web.panels.wizard import WizardPanel
 from web.roles import ANONYMOUS, TICKET_PARAM, Session
 from web.scene import SiteScene
@@ -79,9 +82,13 @@ class _ClientPanels:
 
         gui = client.gui
         gui.add_markdown(f"**irloc** - signed in as *{session.role}*")
+        assert viewer.scene is not None  # started
+        bounds, ceiling_z = viewer.scene.bounds, viewer.scene.ceiling_z
+        self.view = ViewPanel(client, bounds, ceiling_z, [r.name for r in site.robots()])
         self.monitor: MonitorPanel
         self.wizard: WizardPanel | None = None
         self.commission: CommissionPanel | None = None
+        self.history: HistoryPanel | None = None
         if session.can_commission:
             tabs = gui.add_tab_group()
             with tabs.add_tab("Monitor"):
@@ -90,7 +97,13 @@ class _ClientPanels:
             with tabs.add_tab("Commission"):
                 self.wizard = WizardPanel(gui, site, session, notify)
                 self.commission = CommissionPanel(client, site, session, notify)
+                repo = map_repository_of(viewer.services)
+                if repo is not None:
+                    self.history = HistoryPanel(gui, repo, session, notify)
                 self.calibration = CalibrationPanel(gui, site, session, notify)
+                store = floorplan_store_of(viewer.services)
+                if store is not None:
+                    self.floorplan = FloorPlanPanel(gui, store, bounds, notify)
         else:
             self.monitor = MonitorPanel(gui, site, session, viewer.history, notify)
             self.coverage = CoveragePanel(client, site, notify)
@@ -130,10 +143,12 @@ class SiteViewer:
         self.host, self._port = host, port
         self.config = config or ViewerConfig()
         self._given = site
+        self.services: SiteServices | None = None
         self.site: ViewerSite
         self._adapter: SiteAdapter | None = None
         self.server: viser.ViserServer | None = None
         self.scene: SiteScene | None = None
+        self.floorplan: FloorPlanLayer | None = None
         self.history = UncertaintyHistory()
         self._tickets: dict[str, tuple[float, Session]] = {}
         self._sessions: dict[int, Session] = {}
@@ -158,6 +173,7 @@ class SiteViewer:
     def start(self, services: SiteServices | None = None) -> None:
         """Start viser, build the scene and the update thread (on `services`, else on the
         site given to the constructor)."""
+        self.services = services  # its map and floor plan stores, for the panels that edit them
         if services is not None:
             self._adapter = SiteAdapter(services)
             self.site = self._adapter
@@ -179,6 +195,8 @@ class SiteViewer:
         hi = pos.max(axis=0) + m if len(pos) else np.array([5.0, 5.0])
         self.scene.set_site((lo[0], hi[0], lo[1], hi[1]), self.site.ceiling_height())
         self.scene.update_landmarks(lms, self.site.lit())
+        store = floorplan_store_of(self.services)
+        self.floorplan = None if store is None else FloorPlanLayer(self.server.scene, store)
         self.server.on_client_connect(self._on_connect)
         self.server.on_client_disconnect(self._on_disconnect)
         self._stop.clear()
@@ -295,6 +313,15 @@ class SiteViewer:
                 self.scene.update_robots(robots)
                 if landmarks_due and lms is not None:
                     self.scene.update_landmarks(lms, self.site.lit())
+        if landmarks_due and self.floorplan is not None:
+            self.floorplan.refresh()
+        with self._lock:
+            following = [p.view for p in self._panels.values()]
+        for view in following:
+            try:
+                view.follow(robots, time.monotonic())
+            except Exception:  # its browser went away mid-update
+                log.debug("viewer: follow failed", exc_info=True)
         if panels_due and lms is not None:
             self.history.add(robots)
             events = self.site.events(self.config.event_limit)
@@ -303,8 +330,11 @@ class SiteViewer:
             for cid, p in panels:
                 try:
                     p.monitor.refresh(robots, lms, events)
+                    p.coverage.refresh(lms)
                     if p.wizard is not None:
                         p.wizard.refresh()
+                    if p.history is not None:
+                        p.history.refresh()
                 except Exception:  # its browser went away mid-update
                     log.debug("viewer: dropping the panels of client %s", cid, exc_info=True)
                     with self._lock:

@@ -1,12 +1,15 @@
-"""The landmark map in the database: CRUD, map import/export (JSON, CSV), audit, undo.
+"""The landmark map in the database: CRUD, map import/export (JSON, CSV), audit.
 
 Every change is one transaction committed before the call returns (an acknowledged change is
 on disk), writes an audit record (who, when, before/after) and then notifies the listeners
-(the live site re-reads the map, the viewer redraws).
+(the live site re-reads the map, the viewer redraws). Undo and redo per author:
+`server.crud.history` (`MapRepository.history`). A change that would leave the site without
+landmarks (deleting the last one, importing an empty map) needs `confirm=True`.
 
 Reads come from an in-memory snapshot of the table, rebuilt after each change (the server is
-the map's only writer): listing 20,000 landmarks, `/healthz`'s count and the localizer's
-`LandmarkMap` cost no query. An import is one multi-row INSERT in one transaction.
+the map's only writer; every change, undo and redo included, ends in `_notify`): listing
+20,000 landmarks, `/healthz`'s count and the localizer's `LandmarkMap` cost no query. An
+import is one multi-row INSERT in one transaction.
 """
 
 from __future__ import annotations
@@ -26,6 +29,7 @@ from sqlalchemy import Engine, delete, insert
 from sqlmodel import Session, col, select
 
 from localizer.landmark_map import LandmarkMap
+from server.crud.history import MapHistory, drop_redo, landmark_record
 from server.errors import ConflictError, NotFoundError
 from server.models import (
     DECIMAL_ID,
@@ -47,10 +51,6 @@ def _public(row: Landmark) -> LandmarkPublic:
     return LandmarkPublic.model_validate(row, from_attributes=True)
 
 
-def _record(row: Landmark) -> dict[str, Any]:
-    return _public(row).model_dump(mode="json")
-
-
 class MapRepository:
     """The site's landmark map.
 
@@ -65,6 +65,8 @@ class MapRepository:
         self._revision = 0  # bumped after every committed change
         self._snapshot: tuple[int, builtins.list[LandmarkPublic]] | None = None
         self._map: tuple[int, LandmarkMap] | None = None
+        self.history = MapHistory(engine, self._lock, self._notify)
+        """Undo and redo of each author's own edits."""
 
     # -- listeners ---------------------------------------------------------------------------
     def add_listener(self, listener: MapListener) -> None:
@@ -156,8 +158,11 @@ class MapRepository:
             row = Landmark.model_validate(data.model_dump())
             s.add(row)
             s.add(
-                AuditRecord(actor=actor, action="create", landmark_id=data.id, after=_record(row))
+                AuditRecord(
+                    actor=actor, action="create", landmark_id=data.id, after=landmark_record(row)
+                )
             )
+            drop_redo(s, actor)
             s.commit()
             s.refresh(row)
             out = _public(row)
@@ -174,7 +179,7 @@ class MapRepository:
             row = s.get(Landmark, landmark_id)
             if row is None:
                 raise NotFoundError(f"landmark {landmark_id} does not exist")
-            before = _record(row)
+            before = landmark_record(row)
             if "radio" in changes:
                 self._check_radio_free(s, changes["radio"], landmark_id)
             for key, value in changes.items():
@@ -187,34 +192,49 @@ class MapRepository:
                     action="update",
                     landmark_id=landmark_id,
                     before=before,
-                    after=_record(row),
+                    after=landmark_record(row),
                 )
             )
+            drop_redo(s, actor)
             s.commit()
             s.refresh(row)
             out = _public(row)
         self._notify()
         return out
 
-    def delete(self, landmark_id: int, *, actor: str) -> None:
+    def delete(self, landmark_id: int, *, actor: str, confirm: bool = False) -> None:
+        """Remove a landmark; the last one of the map only with `confirm` (ConflictError)."""
         with self._lock, Session(self.engine) as s:
             row = s.get(Landmark, landmark_id)
             if row is None:
                 raise NotFoundError(f"landmark {landmark_id} does not exist")
+            if not confirm and len(s.exec(select(Landmark.id)).all()) == 1:
+                raise ConflictError(
+                    f"landmark {landmark_id} is the last landmark of the map: deleting it "
+                    "leaves the site without landmarks; confirm it (confirm=true)"
+                )
             s.add(
                 AuditRecord(
-                    actor=actor, action="delete", landmark_id=landmark_id, before=_record(row)
+                    actor=actor,
+                    action="delete",
+                    landmark_id=landmark_id,
+                    before=landmark_record(row),
                 )
             )
             s.delete(row)
+            drop_redo(s, actor)
             s.commit()
         self._notify()
 
-    def replace_all(self, landmarks: Iterable[LandmarkCreate], *, actor: str) -> int:
-        """Replace the whole map in one transaction (map import); returns the count.
+    def replace_all(
+        self, landmarks: Iterable[LandmarkCreate], *, actor: str, confirm: bool = False
+    ) -> int:
+        """Replace the whole map in one transaction (map import; with no landmarks: clear,
+        which needs `confirm` when the map has any); returns the count. One undoable step.
 
         Raises:
-            ConflictError: a duplicate ID or radio address in the new map (nothing changes).
+            ConflictError: a duplicate ID or radio address in the new map, or a clear without
+                `confirm` (nothing changes).
         """
         items = list(landmarks)
         ids: set[int] = set()
@@ -232,56 +252,25 @@ class MapRepository:
         now = utcnow()
         rows = [{**lm.model_dump(), "created_at": now, "updated_at": now} for lm in items]
         with self._lock, Session(self.engine) as s:
+            # the snapshot's records are `landmark_record`'s (LandmarkPublic as JSON)
             before = {"landmarks": [lm.model_dump(mode="json") for lm in self._current()]}
+            if not items and before["landmarks"] and not confirm:
+                raise ConflictError(
+                    f"the new map has no landmarks: it would remove all "
+                    f"{len(before['landmarks'])} and leave the site without landmarks; "
+                    "confirm it (confirm=true, or allow_empty=true)"
+                )
             s.exec(delete(Landmark))
             if rows:
                 s.connection().execute(insert(Landmark.__table__), rows)  # type: ignore[attr-defined]
             stamp = now.isoformat()
             after = {"landmarks": [{**r, "created_at": stamp, "updated_at": stamp} for r in rows]}
-            s.add(AuditRecord(actor=actor, action="import", before=before, after=after))
+            action = "import" if items else "clear"
+            s.add(AuditRecord(actor=actor, action=action, before=before, after=after))
+            drop_redo(s, actor)
             s.commit()
         self._notify()
         return len(items)
-
-    def undo_last(self, *, actor: str) -> AuditRecord | None:
-        """Revert the newest map change (its `before`); None when there is nothing to undo.
-
-        The undo is itself a change with its own audit record (action `undo`).
-        """
-        with self._lock, Session(self.engine) as s:
-            last = s.exec(
-                select(AuditRecord)
-                .where(col(AuditRecord.action).in_(["create", "update", "delete", "import"]))
-                .order_by(col(AuditRecord.id).desc())
-            ).first()
-            if last is None:
-                return None
-            if last.action == "import":
-                s.exec(delete(Landmark))
-                s.flush()
-                for rec in (last.before or {}).get("landmarks", []):
-                    s.add(Landmark.model_validate(_from_json(rec)))
-            else:
-                row = s.get(Landmark, last.landmark_id)
-                if row is not None:
-                    s.delete(row)
-                    s.flush()
-                if last.before is not None:
-                    s.add(Landmark.model_validate(_from_json(last.before)))
-            undo = AuditRecord(
-                actor=actor,
-                action="undo",
-                landmark_id=last.landmark_id,
-                before=last.after,
-                after=last.before,
-            )
-            last.action = f"{last.action}-undone"
-            s.add(last)
-            s.add(undo)
-            s.commit()
-            s.refresh(undo)
-        self._notify()
-        return undo
 
     # -- map documents ---------------------------------------------------------------------
     def export_json(self) -> dict[str, Any]:
@@ -302,16 +291,6 @@ class MapRepository:
                 {k: getattr(lm, k) if getattr(lm, k) is not None else "" for k in CSV_FIELDS}
             )
         return out.getvalue()
-
-
-def _from_json(rec: dict[str, Any]) -> dict[str, Any]:
-    from datetime import datetime
-
-    out = dict(rec)
-    for key in ("created_at", "updated_at"):
-        if isinstance(out.get(key), str):
-            out[key] = datetime.fromisoformat(out[key])
-    return out
 
 
 def parse_map_json(data: Any, *, source: str = "map.json") -> builtins.list[LandmarkCreate]:

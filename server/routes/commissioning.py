@@ -238,9 +238,7 @@ def wizard_start(body: WizardStart, services: ServicesDep, who: Admin) -> Wizard
                 raise ConflictError(f"radios: {radio} belongs to a landmark of the map")
             known = fresh[0]
         if known.landmark_id in taken:
-            raise ConflictError(
-                f"radios: {radio} would get landmark ID {known.landmark_id}, taken"
-            )
+            raise ConflictError(f"radios: {radio} would get landmark ID {known.landmark_id}, taken")
         taken.add(known.landmark_id)
         queue.append(known)
     return status_public(c.start_wizard(body.robot, queue, actor=who.actor))

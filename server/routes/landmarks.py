@@ -49,6 +49,8 @@ class AuditPublic(BaseModel):
     landmark_id: int | None
     before: dict[str, object] | None
     after: dict[str, object] | None
+    target_id: int | None = None
+    undo_state: str = ""
 
 
 def _leds(services: ServicesDep, event: LedsChanged) -> LedState:
@@ -82,6 +84,8 @@ def audit_log(
             landmark_id=r.landmark_id,
             before=r.before,
             after=r.after,
+            target_id=r.target_id,
+            undo_state=r.undo_state,
         )
         for r in services.map.audit(limit)
     ]
@@ -100,8 +104,14 @@ def update_landmark(
 
 
 @router.delete("/{landmark_id}", status_code=status.HTTP_204_NO_CONTENT)
-def delete_landmark(landmark_id: LandmarkId, services: ServicesDep, who: Admin) -> Response:
-    services.map.delete(landmark_id, actor=who.actor)
+def delete_landmark(
+    landmark_id: LandmarkId,
+    services: ServicesDep,
+    who: Admin,
+    confirm: bool = Query(False, description="required to delete the map's last landmark"),
+) -> Response:
+    """Delete a landmark (one step of your undo); the last one needs `confirm=true` (409)."""
+    services.map.delete(landmark_id, actor=who.actor, confirm=confirm)
     return Response(status_code=status.HTTP_204_NO_CONTENT)
 
 

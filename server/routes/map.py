@@ -12,7 +12,6 @@ from pydantic import BaseModel
 from server.auth import Admin, Viewer
 from server.crud.landmarks import decode_text, parse_map_csv, parse_map_text
 from server.deps import ServicesDep
-from server.errors import ConflictError
 from server.models import LandmarkCreate, MapDocument
 
 router = APIRouter(prefix="/map", tags=["map"])
@@ -41,6 +40,7 @@ def export_map(
     openapi_extra={
         "requestBody": {
             "content": {
+                # a reference, not the model's own schema: its `$defs` breaks ReDoc
                 "application/json": {"schema": {"$ref": "#/components/schemas/MapDocument"}},
                 "text/csv": {"schema": {"type": "string"}},
             },
@@ -55,10 +55,11 @@ async def import_map(
     allow_empty: Annotated[
         bool, Query(description="accept a map without landmarks (empties the site)")
     ] = False,
+    confirm: Annotated[bool, Query(description="the same as allow_empty")] = False,
 ) -> ImportResult:
-    """Replace the whole map (one transaction, audited): JSON body, or CSV with
-    `Content-Type: text/csv` (UTF-8, a byte-order mark allowed). A map without landmarks is
-    refused (409) unless `?allow_empty=true`."""
+    """Replace the whole map (one transaction, audited, one step of your undo): JSON body,
+    or CSV with `Content-Type: text/csv` (UTF-8, a byte-order mark allowed). A map without
+    landmarks is refused (409) unless `?allow_empty=true` (or `confirm=true`)."""
     raw = await request.body()
     ctype = request.headers.get("content-type", "application/json").split(";")[0].strip()
     items: list[LandmarkCreate]
@@ -68,10 +69,18 @@ async def import_map(
     else:
         text = decode_text(raw, source="map")
         items = await asyncio.to_thread(parse_map_text, text, source="map")
-    if not items and not allow_empty:
-        raise ConflictError(
-            "map: the new map has no landmarks; it would empty the site: send "
-            "?allow_empty=true to do that"
-        )
-    count = await asyncio.to_thread(services.map.replace_all, items, actor=who.actor)
+    count = await asyncio.to_thread(
+        services.map.replace_all, items, actor=who.actor, confirm=allow_empty or confirm
+    )
+    return ImportResult(landmarks=count)
+
+
+@router.delete("")
+async def clear_map(
+    services: ServicesDep,
+    who: Admin,
+    confirm: bool = Query(False, description="required: the site is left without landmarks"),
+) -> ImportResult:
+    """Remove every landmark (one step of your undo); 409 without `confirm=true`."""
+    count = await asyncio.to_thread(services.map.replace_all, [], actor=who.actor, confirm=confirm)
     return ImportResult(landmarks=count)

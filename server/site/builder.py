@@ -21,8 +21,6 @@ from localizer.camera import camera_from_sensor, sensor_from_camera
 from localizer.events import Event, LedRequest, Mode
 from localizer.robot import RobotGeometry
 from pubsub.bus import Bus, Subscription
-from rf_gateway.battery import BatteryConfig
-from rf_gateway.config import GatewayConfig
 from rf_gateway.errors import RfGatewayError
 from rf_gateway.events import (
     LandmarkReachable,
@@ -34,6 +32,14 @@ from rf_gateway.gateway import Gateway
 from server.crud import MapRepository, RobotStore
 from server.crud.landmarks import parse_map_json
 from server.events import EventHub
+from server.led_schedule import LedScheduler
+from server.led_schedule.site import (
+    attach_scheduler,
+    gateway_config,
+    localizer_config,
+    radio_sleep,
+    xbee_config,
+)
 from server.models import LandmarkPublic, RobotCreate, RobotPublic
 from server.poses import PoseUpdate
 from server.settings import Settings
@@ -105,6 +111,7 @@ class LiveSiteRunner:
         self.sim_source: SimSource | None = None
         self.gateway: Gateway | None = None
         self.leds: LedCoordinator | None = None
+        self.scheduler: LedScheduler | None = None
         self.cameras: dict[str, CameraSource] = {}
         self.wheels: dict[str, SerialWheelSource] = {}
         self.remotes: dict[str, RemoteSource] = {}
@@ -155,7 +162,9 @@ class LiveSiteRunner:
             robot.name,
             camera,
             geometry,
-            make_localizer(camera, self.map.landmark_map(), geometry),
+            make_localizer(
+                camera, self.map.landmark_map(), geometry, localizer_config(self.settings)
+            ),
             publish=self.robots.poses.publish,
             request_leds=self._request_leds,
             source=robot.source,
@@ -198,7 +207,12 @@ class LiveSiteRunner:
         scenario = load_scenario(self.settings.scenario)
         if not self.settings.sim_robots:  # the same world; its robots run as agents
             scenario = dataclasses.replace(scenario, robots=())
-        return LiveSite(scenario, seed=self.settings.seed, clock_ns=self.clock_ns)
+        return LiveSite(
+            scenario,
+            seed=self.settings.seed,
+            clock_ns=self.clock_ns,
+            radio_sleep=radio_sleep(self.settings),
+        )
 
     def _sim_names(self) -> list[str]:
         return list(self.sim.robot_names) if self.sim is not None else []
@@ -228,17 +242,23 @@ class LiveSiteRunner:
 
         try:
             transport = make_transport(
-                self.settings.radio, sim_radio=None if self.sim is None else self.sim.radio
+                self.settings.radio,
+                sim_radio=None if self.sim is None else self.sim.radio,
+                xbee_config=xbee_config(self.settings),
             )
         except ValueError as exc:
             log.error("no radio: %s", exc)
             return
         # the gateway's own schedule reads every landmark's supply; the LED facade stores it
-        config = GatewayConfig(battery=BatteryConfig(interval_s=self.settings.battery_interval_s))
+        config = gateway_config(self.settings)
         self.gateway = Gateway(transport, self.map.addresses(), config, clock_ns=self.clock_ns)
         await self.gateway.start()
         self.leds = LedCoordinator(self.gateway, self.robots.runners, self._on_led_error)
         self.leds.start()
+        if self.settings.led_policy == "scheduled":
+            self.scheduler = attach_scheduler(
+                self.map, self.robots.runners, self.leds, self.clock_ns, self.settings
+            )
         self.led_facade.attach(self.gateway, self.leds)
         loop = asyncio.get_running_loop()
         self._tasks = [loop.create_task(self._gateway_events())]
@@ -315,6 +335,8 @@ class LiveSiteRunner:
             with contextlib.suppress(asyncio.CancelledError, Exception):
                 await task
         self.led_facade.attach(None, None)
+        if self.scheduler is not None:
+            await self.scheduler.stop()
         if self.leds is not None:
             await self.leds.stop()
         if self.gateway is not None:

@@ -10,7 +10,7 @@ import threading
 from collections.abc import Callable, Iterable
 
 from localizer.events import LedRequest, LedsChanged
-from rf_gateway.errors import RfGatewayError
+from rf_gateway.errors import LandmarkUnreachableError, RfGatewayError
 from rf_gateway.gateway import Gateway
 from server.site.robot import RobotRunner
 
@@ -31,12 +31,22 @@ class LedCoordinator:
     While the LEDs are *held* (`hold(True)`, e.g. by the viewer's identification wizard,
     which switches them itself), requests wait and nothing is restored.
 
+    The site's normal state ("all lit" of a request) is every landmark, or, with a schedule
+    (`normal`, `server.led_schedule`), the landmarks it lights: a probe that darkens one
+    landmark darkens it among those, and `renormal()` applies a new schedule (keeping the
+    last probe's landmark dark).
+
     Args:
         gateway: the site's gateway.
         runners: returns the robots to inform of LED changes.
-        on_error: called with (robot name, error message) when a request fails.
+        on_error: called with (robot name, error message) when a request fails, at most
+            once per `error_quiet_s` for the same message (an identifying robot sends a
+            request every few frames). A landmark that does not answer is not reported
+            here: the gateway reports it once, as `landmark_unreachable`, and every
+            request lighting it would fail the same way until it answers again.
         dwell_s: minimum time a requested state is held before the next is applied, s.
         idle_restore_s: light everything after this long without requests, seconds.
+        error_quiet_s: the same failure is reported again only after this long, seconds.
     """
 
     def __init__(
@@ -47,6 +57,7 @@ class LedCoordinator:
         *,
         dwell_s: float = 0.12,
         idle_restore_s: float = 1.5,
+        error_quiet_s: float = 30.0,
     ) -> None:
         self.gateway = gateway
         self.runners = runners
@@ -56,12 +67,16 @@ class LedCoordinator:
         self.requests = 0
         self.applied = 0
         self.failures = 0
+        self.error_quiet_s = error_quiet_s
+        self._reported: dict[str, float] = {}  # message -> loop time last reported
         self._pending: dict[str, LedRequest] = {}
         self._wake = asyncio.Event()
         self._loop = asyncio.get_running_loop()
         self._tasks: list[asyncio.Task[None]] = []
         self._held = False
         self._hold_lock = threading.Lock()
+        self.normal: Callable[[], Iterable[int]] | None = None
+        self._probe_dark: frozenset[int] = frozenset()
 
     def start(self) -> None:
         self.gateway.add_led_listener(self._forward)
@@ -104,9 +119,18 @@ class LedCoordinator:
         self._pending[robot] = req
         self._wake.set()
 
+    def renormal(self) -> None:
+        """The schedule changed: apply it (on the loop) unless a robot's request waits."""
+        if "schedule" not in self._pending:
+            self._put("schedule", LedRequest(all_lit=True))
+
+    def _normal_set(self) -> set[int]:
+        ids = set(self.gateway.landmarks)
+        return ids if self.normal is None else ids & set(self.normal())
+
     def _lit_for(self, req: LedRequest) -> set[int]:
         if req.all_lit:
-            return set(self.gateway.landmarks) - set(req.dark)
+            return self._normal_set() - set(req.dark)
         return set(req.lit)
 
     async def _apply_loop(self) -> None:
@@ -119,14 +143,19 @@ class LedCoordinator:
                     await asyncio.wait_for(self._wake.wait(), timeout)
                 except TimeoutError:
                     if not self._held and not self._pending:
-                        log.info("no LED request for %.1f s: lighting every LED", timeout)
+                        log.info("no LED request for %.1f s: back to the normal state", timeout)
+                        self._probe_dark = frozenset()
                         all_lit = await self._apply("site", LedRequest(all_lit=True))
                     continue
                 continue
             robot = next(iter(self._pending))
             req = self._pending.pop(robot)
+            if robot == "schedule":  # the latest probe's landmark stays dark
+                req = LedRequest(all_lit=True, dark=self._probe_dark)
+            else:
+                self._probe_dark = frozenset(req.dark)
             lit = self._lit_for(req)
-            all_lit = lit == set(self.gateway.landmarks)
+            all_lit = lit == self._normal_set()
             if self._current() == lit:
                 continue
             all_lit = await self._apply(robot, req)
@@ -147,10 +176,22 @@ class LedCoordinator:
             await self.gateway.set_leds(lit)
         except (RfGatewayError, KeyError) as exc:
             self.failures += 1
-            log.warning("LED request of robot %s failed: %s", robot, exc)
-            if self.on_error is not None:
-                self.on_error(robot, str(exc))
-        return lit == set(self.gateway.landmarks)
+            self._report(robot, exc)
+        return lit == self._normal_set()
+
+    def _report(self, robot: str, exc: Exception) -> None:
+        if isinstance(exc, LandmarkUnreachableError):  # reported once by the gateway
+            log.debug("LED request of robot %s: %s", robot, exc)
+            return
+        now, message = self._loop.time(), str(exc)
+        last = self._reported.get(message)
+        if last is not None and now - last < self.error_quiet_s:
+            log.debug("LED request of robot %s failed again: %s", robot, message)
+            return
+        self._reported[message] = now
+        log.warning("LED request of robot %s failed: %s", robot, message)
+        if self.on_error is not None:
+            self.on_error(robot, message)
 
     def _forward(self, event: LedsChanged) -> None:
         """Every LED state to every robot, synchronously as the gateway publishes it: an

@@ -12,6 +12,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from localizer.camera import CameraModel
+from localizer.config import LocalizerConfig
 from localizer.events import (
     Event,
     FrameObserved,
@@ -44,10 +45,13 @@ class LocalizerLike(Protocol):
 
 
 def make_localizer(
-    camera: CameraModel, landmark_map: LandmarkMap, robot: RobotGeometry
+    camera: CameraModel,
+    landmark_map: LandmarkMap,
+    robot: RobotGeometry,
+    config: LocalizerConfig | None = None,
 ) -> LocalizerLike:
-    """The project's localizer for one robot."""
-    return Localizer(camera, landmark_map, robot)
+    """The project's localizer for one robot (`config`: None for the defaults)."""
+    return Localizer(camera, landmark_map, robot, config)
 
 
 class RobotRunner:

@@ -57,16 +57,37 @@ class Run:
 
 
 def wheel_speeds(
-    trajectory: Callable[[float], Pose], t: float, wheel_base: float
+    trajectory: Callable[[float], Pose], t: float, wheel_base: float, interval_s: float = 0.0
 ) -> tuple[float, float]:
-    """(v_left, v_right) of a differential drive following `trajectory` at time `t`, m/s
+    """(v_left, v_right) of a differential drive following `trajectory`, m/s: the mean over
+    the `interval_s` before `t` (as encoders report, docs/recording.md), or at `t` when 0
     (central differences)."""
+    if interval_s > 0:
+        a, b = trajectory(max(t - interval_s, 0.0)), trajectory(t)
+        dt = t - max(t - interval_s, 0.0)
+        if dt <= 0:
+            return wheel_speeds(trajectory, t, wheel_base)
+        w = float(wrap_angle(b[2] - a[2])) / dt
+        chord = float(np.hypot(b[0] - a[0], b[1] - a[1]))
+        mid = a[2] + 0.5 * float(wrap_angle(b[2] - a[2]))
+        sign = 1.0 if np.cos(mid) * (b[0] - a[0]) + np.sin(mid) * (b[1] - a[1]) >= 0 else -1.0
+        half = 0.5 * abs(w) * dt
+        arc = chord * half / np.sin(half) if half > 1e-9 else chord  # arc length of the chord
+        v = sign * arc / dt
+        return v - w * wheel_base / 2, v + w * wheel_base / 2
     h = 1e-4
     a, b = trajectory(max(t - h, 0.0)), trajectory(t + h)
     dt = t + h - max(t - h, 0.0)
     v = (np.cos(a[2]) * (b[0] - a[0]) + np.sin(a[2]) * (b[1] - a[1])) / dt
     w = float(wrap_angle(b[2] - a[2])) / dt
     return v - w * wheel_base / 2, v + w * wheel_base / 2
+
+
+def leds_after(request: LedRequest, ids: Sequence[int], t_ns: int) -> tuple[set[int], LedsChanged]:
+    """The lit set after the owner applied `request`, and the `LedsChanged` that says so."""
+    lit = set(ids) - set(request.dark) if request.all_lit else set(request.lit)
+    all_lit = lit == set(ids)
+    return lit, LedsChanged(t_ns, frozenset() if all_lit else frozenset(lit), all_lit)
 
 
 def drive(
@@ -110,14 +131,11 @@ def drive(
         t = t_ns * 1e-9
         outs: list[object] = []
         if pending is not None:
-            lit = set(ids) - set(pending.dark) if pending.all_lit else set(pending.lit)
-            all_lit = lit == set(ids)
-            outs += loc.handle(
-                LedsChanged(t_ns, frozenset() if all_lit else frozenset(lit), all_lit)
-            )
+            lit, changed = leds_after(pending, ids, t_ns)
+            outs += loc.handle(changed)
             pending = None
         if kind == 0:
-            vl, vr = wheel_speeds(trajectory, t, wheel_base)
+            vl, vr = wheel_speeds(trajectory, t, wheel_base, 1.0 / odom_rate_hz)
             outs += loc.handle(OdometryMeasured(t_ns, vl * odom_scale[0], vr * odom_scale[1]))
         else:
             pose = trajectory(t)
@@ -182,15 +200,13 @@ def drive_fleet(
         if queue and t_ns >= next_apply:
             name = next(iter(queue))
             req = queue.pop(name)
-            lit = set(ids) - set(req.dark) if req.all_lit else set(req.lit)
-            all_lit = lit == set(ids)
-            event = LedsChanged(t_ns, frozenset() if all_lit else frozenset(lit), all_lit)
+            lit, event = leds_after(req, ids, t_ns)
             next_apply = t_ns + int(dwell_s * 1e9)
             for rname, r in robots.items():
                 _queue_requests(r.loc.handle(event), r, queue, rname)
         for name, r in robots.items():
             if kind == 0:
-                vl, vr = wheel_speeds(r.trajectory, t, wheel_base)
+                vl, vr = wheel_speeds(r.trajectory, t, wheel_base, odom_dt * 1e-9)
                 r.loc.handle(OdometryMeasured(t_ns, vl, vr))
                 continue
             pose = r.trajectory(t)

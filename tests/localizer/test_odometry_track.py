@@ -14,8 +14,33 @@ W = 0.36  # wheel base, metres
 MS = 1_000_000  # nanoseconds per millisecond
 
 
-def test_samples_are_integrated_with_the_mean_of_their_ends() -> None:
+def test_a_sample_is_the_mean_speed_over_the_interval_before_it() -> None:
     track = OdometryTrack(W, history_s=1.0)
+    assert track.add_sample(0, 0.2, 0.3) == (0.2, 0.3, 0.0)
+    vl, vr, dt = track.add_sample(20 * MS, 0.4, 0.5)
+    assert (vl, vr) == (0.4, 0.5) and dt == pytest.approx(0.02)
+    expected = integrate_arc(0.0, 0.0, 0.0, 0.4, 0.5, 0.02, W)
+    np.testing.assert_allclose(track.pose, expected, rtol=0, atol=1e-15)
+
+
+def test_a_frame_marked_before_the_next_sample_is_corrected_by_it() -> None:
+    # Driving straight, then turning in place from 20 ms on: a frame at 30 ms was placed at
+    # the old speeds; the sample at 40 ms says the wheels turned the whole interval.
+    track = OdometryTrack(W, history_s=1.0)
+    track.add_sample(0, 0.5, 0.5)
+    track.add_sample(20 * MS, 0.5, 0.5)
+    track.step(30 * MS, *track.speeds)
+    track.mark(30 * MS)
+    assert track.pose_at(30 * MS) == pytest.approx((0.015, 0.0, 0.0))
+    track.add_sample(40 * MS, -0.54, 0.54)  # 3 rad/s
+    x, y, th = track.pose_at(30 * MS)
+    assert (x, y) == pytest.approx((0.01, 0.0), abs=1e-12)
+    assert th == pytest.approx(3.0 * 0.01)
+    assert track.pose[2] == pytest.approx(3.0 * 0.02)
+
+
+def test_samples_are_integrated_with_the_mean_of_their_ends() -> None:
+    track = OdometryTrack(W, history_s=1.0, interval_mean=False)
     assert track.add_sample(0, 0.2, 0.3) == (0.2, 0.3, 0.0)  # the first only sets the time
     vl, vr, dt = track.add_sample(20 * MS, 0.4, 0.5)
     assert (vl, vr) == pytest.approx((0.3, 0.4)) and dt == pytest.approx(0.02)

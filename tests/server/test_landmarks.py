@@ -17,7 +17,8 @@ def test_create_get_update_delete_round_trip(api: Api) -> None:
     r = c.patch("/api/v1/landmarks/11", json={"z": 2.45, "locked": True}, headers=h)
     assert r.status_code == 200
     assert r.json()["z"] == 2.45 and r.json()["locked"] is True and r.json()["x"] == 0.6
-    assert c.delete("/api/v1/landmarks/11", headers=h).status_code == 204
+    assert c.delete("/api/v1/landmarks/11", headers=h).status_code == 409  # the last one
+    assert c.delete("/api/v1/landmarks/11?confirm=true", headers=h).status_code == 204
     assert c.get("/api/v1/landmarks/11", headers=h).status_code == 404
     actions = [a["action"] for a in c.get("/api/v1/landmarks/audit", headers=h).json()]
     assert actions == ["delete", "update", "create"]
@@ -91,6 +92,6 @@ def test_undo_reverts_the_last_change(api: Api) -> None:
     c, h = api.client, api.h("admin")
     c.post("/api/v1/landmarks", json=LM, headers=h)
     c.patch("/api/v1/landmarks/11", json={"x": 5.0}, headers=h)
-    undo = api.services.map.undo_last(actor="test")
-    assert undo is not None and undo.action == "undo"
+    r = c.post("/api/v1/map/undo", headers=h)
+    assert r.status_code == 200 and r.json()["done"]["title"] == "undo move of landmark 11"
     assert c.get("/api/v1/landmarks/11", headers=h).json()["x"] == 0.6

@@ -122,3 +122,32 @@ def test_a_probe_left_behind_is_undone_after_the_idle_time() -> None:
         assert world.lit_ids() == ALL
 
     run_site(body, dwell_s=0.01, idle_restore_s=0.15)
+
+
+def test_failures_are_reported_once_not_per_request() -> None:
+    """An identifying robot sends a request every few frames: a landmark whose radio is dead
+    is the gateway's one `landmark_unreachable` report, not one error per request; another
+    failure is reported once per quiet time."""
+    from rf_gateway.errors import RfGatewayError
+
+    reports: list[tuple[str, str]] = []
+
+    async def body(coord: LedCoordinator, world: World, inbox: Inbox) -> None:
+        coord.on_error = lambda robot, msg: reports.append((robot, msg))
+        world.landmarks[3].radio_dead = True
+        for probe in (3, 1, 3, 2):  # darkening 3 fails (it stays lit); the others work
+            coord.request("r1", LedRequest(all_lit=True, dark=frozenset({probe})))
+            await settle(coord)
+        assert coord.failures == 2 and reports == []
+        assert {1, 4} <= world.lit_ids() and 2 not in world.lit_ids()
+
+        async def link_down(lit: object) -> LedsChanged:
+            raise RfGatewayError("radio link down")
+
+        coord.gateway.set_leds = link_down  # type: ignore[method-assign, assignment]
+        for probe in (1, 2, 4):
+            coord.request("r2", LedRequest(all_lit=True, dark=frozenset({probe})))
+            await settle(coord)
+        assert reports == [("r2", "radio link down")]
+
+    run_site(body, dwell_s=0.01)

@@ -36,7 +36,8 @@ def test_csv_export_then_import_restores_the_map(api: Api) -> None:
     c.put("/api/v1/map", json=MAP, headers=h)
     csv_text = c.get("/api/v1/map?format=csv", headers=h).text
     assert csv_text.splitlines()[0] == "id,x,y,z,radio,locked,note"
-    c.put("/api/v1/map?allow_empty=true", json={"landmarks": []}, headers=h)
+    assert c.put("/api/v1/map", json={"landmarks": []}, headers=h).status_code == 409
+    c.put("/api/v1/map?confirm=true", json={"landmarks": []}, headers=h)
     assert c.get("/api/v1/landmarks", headers=h).json() == []
     r = c.put("/api/v1/map", content=csv_text, headers={**h, "Content-Type": "text/csv"})
     assert r.status_code == 200 and r.json() == {"landmarks": 3}
@@ -62,5 +63,9 @@ def test_import_is_audited_and_can_be_undone(api: Api) -> None:
     c.put("/api/v1/map", json=MAP, headers=h)
     c.put("/api/v1/map", json={"landmarks": MAP["landmarks"][:1]}, headers=h)
     assert len(api.services.map.list()) == 1
-    api.services.map.undo_last(actor="test")
+    r = c.post("/api/v1/map/undo?confirm=true", headers=h)
+    assert r.status_code == 200 and r.json()["done"]["title"] == "undo map import (3 -> 1 landmark)"
     assert [lm.id for lm in api.services.map.list()] == [11, 12, 13]
+    r = c.post("/api/v1/landmarks/11/led", json={"on": True}, headers=api.h("operator"))
+    assert r.status_code == 503
+    assert c.get("/api/v1/landmarks/11", headers=api.h("viewer")).status_code == 200

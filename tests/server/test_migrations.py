@@ -44,6 +44,12 @@ def test_upgrade_from_first_schema_keeps_data(db_url: str) -> None:
                 "VALUES (7, '2025-01-02 03:04:05', 2950)"
             )
         )
+        conn.execute(
+            text(
+                "INSERT INTO audit_log (t, actor, action, landmark_id) "
+                "VALUES ('2025-01-02 03:04:05', 'key:1', 'update-undone', 7)"
+            )
+        )
     engine.dispose()
 
     engine = make_engine(db_url)
@@ -70,7 +76,10 @@ def test_upgrade_from_first_schema_keeps_data(db_url: str) -> None:
     assert (robot.wheel_port, robot.wheel_baud) == (None, 115200)  # added by 0003
     with engine.connect() as conn:
         assert conn.execute(text("SELECT supply_mv FROM battery_readings")).scalar() == 2950
-        assert conn.execute(text("SELECT version_num FROM alembic_version")).scalar() == "0003"
+        # 0004: an edit undone before redo existed is an edit that can no longer be redone
+        row = conn.execute(text("SELECT action, undo_state, target_id FROM audit_log")).one()
+        assert tuple(row) == ("update", "dropped", None)
+        assert conn.execute(text("SELECT version_num FROM alembic_version")).scalar() == "0004"
     engine.dispose()
 
 

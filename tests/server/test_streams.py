@@ -81,7 +81,7 @@ def test_sse_streams_map_changes(api: Api) -> None:
     with c.stream("GET", "/api/v1/events/stream?limit=2", headers=api.h("viewer")) as r:
         assert r.headers["content-type"].startswith("text/event-stream")
         c.post("/api/v1/landmarks", json=LM, headers=api.h("admin"))
-        c.delete("/api/v1/landmarks/11", headers=api.h("admin"))
+        c.delete("/api/v1/landmarks/11?confirm=true", headers=api.h("admin"))
         text = "".join(r.iter_text())
     events = [json.loads(line[6:]) for line in text.splitlines() if line.startswith("data: ")]
     assert [e["kind"] for e in events] == ["map_changed", "map_changed"]

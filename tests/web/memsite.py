@@ -155,17 +155,6 @@ class MemSite:
             old = self.map.pop(landmark_id)
             self.audit.append((actor, "delete", landmark_id, old, None))
 
-    def undo_last(self, *, actor: str) -> str:
-        with self.lock:
-            if not self.audit:
-                raise ValueError("nothing to undo")
-            who, act, lid, before, _after = self.audit.pop()
-            if before is None:
-                del self.map[lid]
-            else:
-                self.map[lid] = before
-            return f"undid {act} of landmark {lid} by {who}"
-
     def to_identify(self, *, discover: bool = False) -> list[Candidate]:
         out = [Candidate(i, None, "doubted") for i, lm in sorted(self.map.items())
                if not lm.locked and lm.doubted]  # fmt: skip

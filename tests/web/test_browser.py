@@ -105,7 +105,7 @@ def test_viewer_key_sees_but_cannot_edit(browser: Any, live_site: LiveSite) -> N
     try:
         page.get_by_text("signed in as viewer").wait_for(timeout=20_000)
         assert page.get_by_text("Commission", exact=True).count() == 0
-        for name in ("Relocalize", "Add landmark", "Start identification", "Undo last change"):
+        for name in ("Relocalize", "Add landmark", "Start identification", "Nothing to undo"):
             assert page.get_by_role("button", name=name).count() == 0, name
         assert page.evaluate(f"() => {LANDMARKS_IN_SCENE}") == len(live_site.services.map.list())
     finally:
@@ -176,4 +176,167 @@ def test_wizard_keeps_the_fleet_tracking_and_a_far_measurement_needs_accept_far(
         assert err < 0.03, f"saved ({saved.x:.3f}, {saved.y:.3f}), truth {truth[:2]}"
     finally:
         sub.close()
+        page.close()
+
+
+def floor_plan_png(bounds: tuple[float, float, float, float], px_per_m: float = 50.0) -> bytes:
+    """A drawn plan of the demo site's rooms (hall, corridor, store room) over `bounds`:
+    its walls in blue (40, 70, 170) on white, north up."""
+    import cv2
+
+    x0, x1, y0, y1 = bounds
+    w, h = round((x1 - x0) * px_per_m), round((y1 - y0) * px_per_m)
+    img = np.full((h, w, 3), 250, np.uint8)
+
+    def px(x: float, y: float) -> tuple[int, int]:
+        return round((x - x0) * px_per_m), round((y1 - y) * px_per_m)
+
+    for (ax, ay), (bx, by), name in (
+        ((-1.0, -1.0), (6.9, 5.9), "Hall"),
+        ((6.9, 1.4), (15.2, 3.4), "Corridor"),
+        ((12.0, 4.4), (15.6, 8.8), "Store room"),
+    ):
+        cv2.rectangle(img, px(ax, by), px(bx, ay), (170, 70, 40), 6)  # BGR: blue walls
+        cv2.putText(img, name, px(ax + 0.3, by - 0.6), cv2.FONT_HERSHEY_SIMPLEX, 1.0,
+                    (90, 90, 90), 2, cv2.LINE_AA)  # fmt: skip
+    ok, buf = cv2.imencode(".png", img)
+    assert ok
+    return bytes(buf.tobytes())
+
+
+def wall_pixels(png: bytes) -> int:
+    """Pixels of the plan's blue wall colour in a screenshot's 3D view (left of the panel)."""
+    import cv2
+
+    decoded = cv2.imdecode(np.frombuffer(png, np.uint8), cv2.IMREAD_COLOR)
+    assert decoded is not None
+    img = decoded[:, :900].astype(int)
+    b, g, r = img[..., 0], img[..., 1], img[..., 2]
+    return int(np.sum((b > 130) & (b < 210) & (b - r > 80) & (g < 100) & (r < 80)))
+
+
+def test_top_view_renders_the_floor_plan_under_the_map(browser: Any, live_site: LiveSite) -> None:
+    import httpx
+
+    viewer = live_site.app.state.viewer
+    bounds = viewer.scene.bounds
+    page = open_viewer(browser, live_site, live_site.admin_key)
+    try:
+        time.sleep(2.0)
+        before = wall_pixels(page.screenshot())
+        x0, x1, _, y1 = bounds
+        png = floor_plan_png(bounds)
+        width_px = round((x1 - x0) * 50.0)
+        q = f"a_px=0&a_px=0&a_m={x0}&a_m={y1}&b_px={width_px}&b_px=0&b_m={x1}&b_m={y1}"
+        r = httpx.put(
+            f"{live_site.base}/api/v1/map/floorplan?{q}", content=png,
+            headers={"Authorization": f"Bearer {live_site.admin_key}",
+                     "Content-Type": "image/png"},
+        )  # fmt: skip
+        assert r.status_code == 200, r.text
+        page.wait_for_function(
+            "() => !!window.__viserMutable.nodeRefFromName['/floorplan']", timeout=30_000
+        )
+        time.sleep(3.0)  # software WebGL: a few frames
+        save_shot(page, "viewer-top.png", doc=True)
+        after = wall_pixels((ARTIFACTS / "viewer-top.png").read_bytes())
+        # the plan's walls are drawn: thousands of pixels of their colour, where there were
+        # (nearly) none (a blue "identifying" robot comes close to it)
+        assert after > 3000 and after > 20 * before, (before, after)
+        page.get_by_text("Legend", exact=True).click()  # every colour explained
+        page.get_by_text("doubted: robots expected it but did not see it").wait_for()
+        save_shot(page, "viewer-legend.png")
+    finally:
+        page.close()
+
+
+def test_undo_and_redo_never_empty_the_map_without_a_confirmation(
+    browser: Any, live_site: LiveSite
+) -> None:
+    """The reported failure: the third undo reverted the start-up import (0 of 39 left).
+    Now each undo names its step, stops at this user's own edits, and a whole-map step
+    waits for a dialog."""
+    import httpx
+
+    services = live_site.services
+    key = services.keys.create("admin", "undo-test")[0]  # a user with no edits yet
+    api = httpx.Client(
+        base_url=f"{live_site.base}/api/v1", headers={"Authorization": f"Bearer {key}"}
+    )
+    ids = [lm.id for lm in services.map.list()]
+    n = len(ids)
+    a, b = ids[0], ids[1]
+    assert api.patch(f"/landmarks/{a}", json={"locked": True}).status_code == 200
+    assert api.patch(f"/landmarks/{b}", json={"note": "checked"}).status_code == 200
+    page = open_viewer(browser, live_site, key)
+    try:
+        page.get_by_role("tab", name="Commission").click()
+        page.get_by_role("button", name=f"Undo note change of landmark {b}").click()
+        page.get_by_role("button", name=f"Undo lock of landmark {a}").click()
+        page.get_by_role("button", name="Nothing to undo").wait_for(timeout=30_000)
+        assert page.get_by_role("button", name="Nothing to undo").is_disabled()
+        assert not services.map.get(a).locked and services.map.get(b).note == ""
+        assert len(services.map.list()) == n  # the start-up import is nobody's to undo
+        page.get_by_role("button", name=f"Redo lock of landmark {a}").wait_for(timeout=30_000)
+        # a whole-map step (this user's import of the same map) opens a dialog first
+        doc = api.get("/map").json()
+        assert api.put("/map", json=doc).status_code == 200
+        title = f"undo map import ({n} -> {n} landmarks)"
+        undo = page.get_by_role("button", name=title[0].upper() + title[1:])
+        undo.click()
+        page.get_by_text(f"Confirm: {title}").wait_for(timeout=30_000)
+        save_shot(page, "viewer-undo-confirm.png")
+        page.get_by_role("button", name="Cancel", exact=True).click()
+        page.get_by_text("cancelled: nothing changed").wait_for(timeout=30_000)
+        audit = api.get("/landmarks/audit?limit=1").json()[0]
+        assert audit["action"] == "import" and audit["undo_state"] == ""  # not undone
+        undo.click()
+        page.get_by_role("button", name=f"Yes, {title}").click()
+        page.get_by_text(f"done: {title}").wait_for(timeout=30_000)
+        assert api.get("/landmarks/audit?limit=1").json()[0]["action"] == "undo"
+        # clearing the map asks too; cancelled, every landmark stays
+        page.get_by_text("Whole map").click()
+        page.get_by_role("button", name="Clear map").click()
+        page.get_by_text("Confirm: clear the map").wait_for(timeout=30_000)
+        page.get_by_role("button", name="Cancel", exact=True).click()
+        page.get_by_text("cancelled: nothing changed").wait_for(timeout=30_000)
+        assert len(services.map.list()) == n
+        assert page.evaluate(f"() => {LANDMARKS_IN_SCENE}") == n
+    finally:
+        page.close()
+        api.close()
+
+
+def test_api_docs_render_with_the_network_cut_off(browser: Any, live_site: LiveSite) -> None:
+    """Swagger UI and ReDoc come from the package: every request leaving the machine is
+    blocked; Swagger UI tries none, ReDoc only its own decorative footer logo."""
+    from urllib.parse import urlsplit
+
+    page = browser.new_page()
+    page.set_default_timeout(60_000)
+    leaving: list[str] = []
+
+    def only_loopback(route: Any) -> None:
+        host = urlsplit(route.request.url).hostname or ""
+        if host in ("127.0.0.1", "localhost", "::1") or route.request.url.startswith("data:"):
+            route.continue_()
+        else:
+            leaving.append(route.request.url)
+            route.abort()
+
+    page.route("**/*", only_loopback)
+    try:
+        page.goto(f"{live_site.base}/")
+        page.get_by_role("link", name="API documentation").click()
+        page.locator(".swagger-ui .opblock").first.wait_for(timeout=60_000)
+        assert page.locator(".swagger-ui .opblock").count() > 30
+        page.get_by_text("/api/v1/map/undo", exact=True).first.wait_for()
+        save_shot(page, "api-docs-offline.png")
+        assert leaving == [], leaving  # Swagger UI tries nothing outside
+        page.goto(f"{live_site.base}/redoc")
+        page.get_by_role("heading", name="Undo Map Edit").first.wait_for(timeout=60_000)
+        save_shot(page, "api-redoc-offline.png")
+        # ReDoc's bundle asks for its own "by Redocly" footer logo, and renders without it
+        assert all(u.endswith("/logo-mini.svg") for u in leaving), leaving
+    finally:
         page.close()

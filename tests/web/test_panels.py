@@ -1,16 +1,20 @@
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
+import viser
 
 from commissioning.types import MapLandmark
 from commissioning.wizard import Confirm, IdentificationWizard, Skip, Start
 from sim.cameras import wide_angle_camera
 from tests.web.memsite import grid_site
+from web.battery_table import battery_table
 from web.panels.commission import nearest_landmark
 from web.panels.monitor import (
     UncertaintyHistory,
-    batteries_table,
+    events_text,
     fix_age_s,
     position_sigma_m,
     robots_table,
@@ -34,19 +38,27 @@ def test_robots_table_shows_mode_error_and_fix_age() -> None:
     assert fix_age_s(robots[0]) == pytest.approx(0.0)
     table = robots_table(robots)
     assert "| r1 | landmarks | 2.2 cm | 0.0 s ago |" in table
+    assert table.startswith("| robot | mode | error (1 sigma) | last fix |")
     assert table.count("\n") == 3
 
 
-def test_batteries_worst_first_unknown_last() -> None:
+def test_batteries_low_first_unknown_last_with_the_schedule_and_the_model() -> None:
     lms = [
-        LandmarkState(1, 0, 0, 2.5, supply_mv=3000, percent=80.0, days_left=300.0),
+        LandmarkState(1, 0, 0, 2.5, supply_mv=3000, percent=80.0, days_left=300.0,
+                      lit=True, lit_reason="view r1", duty=0.2, model_days=90.0),
         LandmarkState(2, 0, 0, 2.5),
         LandmarkState(3, 0, 0, 2.5, supply_mv=2300, percent=18.0, days_left=12.0,
-                      reachable=False),
+                      reachable=False, duty=0.5, model_days=4.0, low=True),
+        LandmarkState(4, 0, 0, 2.5, supply_mv=2900, duty=0.0, model_days=400.0),
     ]  # fmt: skip
-    rows = batteries_table(lms).splitlines()[2:]
-    assert [r.split("|")[1].strip() for r in rows] == ["3 (unreachable)", "1", "2"]
-    assert rows[0] == "| 3 (unreachable) | 2.30 | 18 | 12 |"
+    rows = battery_table(lms).splitlines()[2:]
+    assert [r.split("|")[1].strip() for r in rows] == ["3 **LOW** (unreachable)", "1", "4", "2"]
+    assert rows[0] == "| 3 **LOW** (unreachable) | 2.30 | 4 (12) | 50 % | off | dark |"
+    assert rows[1] == "| 1 | 3.00 | 90 (300) | 20 % | on | view r1 |"
+    by_volts = battery_table(lms, "volts").splitlines()[2:]
+    assert [r.split("|")[1].strip()[0] for r in by_volts] == ["3", "4", "1", "2"]
+    by_duty = battery_table(lms, "duty").splitlines()[2:]
+    assert [r.split("|")[1].strip()[0] for r in by_duty] == ["3", "1", "2", "4"]
 
 
 def test_uncertainty_history_series_ends_at_zero() -> None:
@@ -108,3 +120,63 @@ def test_annotated_frame_circles_spots() -> None:
     assert out.shape == (240, 320, 3)
     assert out[120, 170, 1] > 200  # green ring of radius 10 around (160, 120)
     assert out[50, 57, 0] > 200  # red ring of radius 7 around (50, 50)
+
+
+def test_error_column_says_nothing_while_a_robot_identifies() -> None:
+    from web.panels.monitor import error_text
+
+    rb = grid_site().robots()[0]
+    assert error_text(rb) == "2.2 cm"
+    assert error_text(replace(rb, mode="identifying")) == "-"  # its covariance reads 0
+    assert error_text(replace(rb, mode="lost")) == "-"
+    assert error_text(replace(rb, pose=None)) == "-"
+
+
+def test_events_are_in_local_time_with_a_zone_and_runs_are_folded() -> None:
+    import os
+    import time as _time
+    from datetime import datetime
+
+    from web.panels.monitor import local_time_text
+    from web.services import EventLine
+
+    old = os.environ.get("TZ")
+    os.environ["TZ"] = "Europe/Berlin"
+    _time.tzset()
+    try:
+        # naive times are UTC (as stored): 20:00 UTC is 21:00 in Berlin in winter
+        assert local_time_text(datetime(2026, 12, 1, 20, 0, 0)) == "2026-12-01 21:00:00 CET"
+    finally:
+        if old is None:
+            del os.environ["TZ"]
+        else:
+            os.environ["TZ"] = old
+        _time.tzset()
+    lines = [EventLine(f"t{i}", "led_request_failed", "robot r1: radio link down")
+             for i in range(5)]  # fmt: skip
+    lines.append(EventLine("t9", "robot_lost", "robot r2 is lost"))
+    text = events_text(lines).splitlines()
+    assert text == [
+        "- `t0` **led request failed** robot r1: radio link down (x5)",
+        "- `t9` **robot lost** robot r2 is lost",
+    ]
+
+
+def test_coverage_uses_the_chosen_robot_and_follows_map_changes() -> None:
+    from web.panels.coverage import CoveragePanel
+
+    site = grid_site()
+    server = viser.ViserServer("127.0.0.1", 0, verbose=False)
+    try:
+        panel = CoveragePanel(server, site, lambda t, b: None)
+        panel.gui_by.value = "landmarks in view"  # type: ignore[misc]
+        panel.gui_robot.value = "r2"  # type: ignore[misc]
+        text = panel.show()
+        assert "camera of **r2**" in text and "map of 12 landmarks" in text
+        assert not panel.refresh(site.landmarks())  # the first look: nothing changed yet
+        assert not panel.refresh(site.landmarks())
+        site.delete_landmark(10, actor="t")
+        assert panel.refresh(site.landmarks())
+        assert "map of 11 landmarks" in panel.gui_text.content
+    finally:
+        server.stop()

@@ -17,7 +17,10 @@ VISER = Subprotocol("viser-v1.1.1")
 
 def test_page_needs_a_key_and_moves_it_to_a_cookie(live_site: LiveSite) -> None:
     with httpx.Client(base_url=live_site.base) as http:
-        assert http.get("/viewer/").status_code == 401
+        r = http.get("/viewer/")
+        assert r.status_code == 401
+        data_dir = live_site.services.settings.data_dir
+        assert f"irloc keys create --role viewer --data-dir {data_dir}" in r.text
         assert http.get("/viewer/?token=not-a-key").status_code == 401
         r = http.get(f"/viewer/?token={live_site.viewer_key}")
         assert r.status_code == 303 and r.headers["location"] == "/viewer/"

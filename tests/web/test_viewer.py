@@ -66,8 +66,14 @@ def test_scene_holds_every_landmark_and_robot(site_viewer: tuple[MemSite, SiteVi
     s_min = np.hypot(0.03, 0.02)  # with the 2 cm floor added in quadrature
     assert radii.min() == pytest.approx(s_min, rel=1e-3)
     foot = node(viewer, "/robots/r1/position/body/footprint").points
-    assert foot.shape == (24, 2, 3)  # 6 border pixels per edge, closed
+    assert foot.shape == (48, 2, 3)  # 12 border pixels per edge, closed
     np.testing.assert_allclose(foot[..., 2], 2.5 - 0.125, atol=1e-3)  # ceiling, body frame
+    cam = site.robots()[0].camera
+    reach = (2.5 - cam.T_body_camera[2, 3]) * math.tan(math.radians(40.0))  # usable angle
+    offset = np.hypot(
+        foot[..., 0] - cam.T_body_camera[0, 3], foot[..., 1] - cam.T_body_camera[1, 3]
+    )
+    assert offset.max() <= reach + 1e-6
     rays = node(viewer, "/robots/r1/rays").points
     pose = site.robots()[0].pose
     assert pose is not None

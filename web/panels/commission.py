@@ -1,8 +1,9 @@
-"""Commissioning: add, move and delete landmarks, edit height, lock surveyed ones, undo.
+"""Commissioning: add, move and delete landmarks, edit height, lock surveyed ones.
 
 Positions come from the number fields or from a click on the ceiling (the click ray meets
 the ceiling plane; a click within `pick_radius_m` of a landmark selects it). Every change
-goes through the site's data layer (audited, actor = this browser's user). Admin only.
+goes through the site's data layer (audited, actor = this browser's user; undo and redo:
+`web.panels.history`). Admin only.
 """
 
 from __future__ import annotations
@@ -57,14 +58,12 @@ class CommissionPanel:
             self.gui_lock = gui.add_button("Lock (surveyed)")
             self.gui_unlock = gui.add_button("Unlock")
             self.gui_delete = gui.add_button("Delete landmark", color="red")
-            self.gui_undo = gui.add_button("Undo last change")
             self.gui_status = gui.add_markdown("")
         self.gui_add.on_click(lambda _: self._do(self.add))
         self.gui_move.on_click(lambda _: self._do(self.move))
         self.gui_lock.on_click(lambda _: self._do(lambda: self.set_locked(True)))
         self.gui_unlock.on_click(lambda _: self._do(lambda: self.set_locked(False)))
         self.gui_delete.on_click(lambda _: self._do(self.delete))
-        self.gui_undo.on_click(lambda _: self._do(self.undo))
         self.gui_pick.on_update(lambda _: self._pick_mode(self.gui_pick.value))
 
     # -- actions (return a status line; ValueError/KeyError become a notification) --------
@@ -109,9 +108,6 @@ class CommissionPanel:
             raise ValueError(f"landmark {lm.id} is locked (surveyed): unlock it first")
         self.site.delete_landmark(lm.id, actor=self.session.actor)
         return f"deleted landmark {lm.id}"
-
-    def undo(self) -> str:
-        return self.site.undo_last(actor=self.session.actor)
 
     # -- picking on the ceiling ---------------------------------------------------------------
     def _pick_mode(self, on: bool) -> None:

@@ -5,10 +5,12 @@ from __future__ import annotations
 import math
 from collections import deque
 from collections.abc import Callable, Sequence
+from datetime import UTC, datetime
 
 import numpy as np
 import viser
 
+from web.battery_table import SORT_KEYS, battery_table
 from web.roles import Session
 from web.services import EventLine, LandmarkState, RobotState, ViewerSite
 
@@ -35,40 +37,49 @@ def fix_age_s(robot: RobotState) -> float | None:
     return max(0.0, (robot.now_ns - robot.last_fix_t_ns) * 1e-9)
 
 
+def local_time_text(t: datetime) -> str:
+    """A UTC time (naive ones are UTC, as the database stores them) in this machine's local
+    time with its zone: "2026-12-01 21:04:05 CET"."""
+    aware = t if t.tzinfo is not None else t.replace(tzinfo=UTC)
+    return aware.astimezone().strftime("%Y-%m-%d %H:%M:%S %Z")
+
+
+def error_text(robot: RobotState) -> str:
+    """The robots table's error column: the 1-sigma estimate while it tracks; "-" while it
+    identifies or is lost (its covariance then means nothing: it reads 0.0 cm)."""
+    sigma = position_sigma_m(robot)
+    if sigma is None or robot.mode in ("identifying", "lost"):
+        return "-"
+    return f"{100 * sigma:.1f} cm"
+
+
 def robots_table(robots: Sequence[RobotState]) -> str:
     """Markdown table: robot, mode, error estimate, age of the last fix."""
-    rows = ["| robot | mode | error | last fix |", "|---|---|---|---|"]
+    rows = ["| robot | mode | error (1 sigma) | last fix |", "|---|---|---|---|"]
     for rb in robots:
-        sigma, age = position_sigma_m(rb), fix_age_s(rb)
-        err = "-" if sigma is None else f"{100 * sigma:.1f} cm"
+        age = fix_age_s(rb)
+        err = error_text(rb)
         fix = "never" if age is None else f"{age:.1f} s ago"
         rows.append(f"| {rb.name} | {MODE_TEXT.get(rb.mode, rb.mode)} | {err} | {fix} |")
     return "\n".join(rows)
 
 
-def batteries_table(landmarks: Sequence[LandmarkState], *, limit: int = 30) -> str:
-    """Markdown table of landmark batteries, worst first (unknown readings last)."""
-
-    def key(lm: LandmarkState) -> tuple[int, float, float, int]:
-        known = lm.percent is not None
-        days = lm.days_left if lm.days_left is not None else math.inf
-        return (0 if known else 1, lm.percent if known else 0.0, days, lm.id)  # type: ignore[return-value]
-
-    rows = ["| id | volts | % | days left |", "|---|---|---|---|"]
-    for lm in sorted(landmarks, key=key)[:limit]:
-        volts = "-" if lm.supply_mv is None else f"{lm.supply_mv / 1000:.2f}"
-        pct = "-" if lm.percent is None else f"{lm.percent:.0f}"
-        days = "-" if lm.days_left is None else f"{lm.days_left:.0f}"
-        flag = "" if lm.reachable else " (unreachable)"
-        rows.append(f"| {lm.id}{flag} | {volts} | {pct} | {days} |")
-    return "\n".join(rows)
-
-
 def events_text(events: Sequence[EventLine]) -> str:
-    """Markdown list of events, newest first."""
+    """Markdown list of events, newest first; a run of the same event (kind and message)
+    is one line with its count and the time of the newest ("x5")."""
     if not events:
         return "_no events_"
-    return "\n".join(f"- `{e.when}` **{e.kind}** {e.message}" for e in events)
+    lines: list[str] = []
+    runs: list[tuple[EventLine, int]] = []
+    for e in events:
+        if runs and (runs[-1][0].kind, runs[-1][0].message) == (e.kind, e.message):
+            runs[-1] = (runs[-1][0], runs[-1][1] + 1)
+        else:
+            runs.append((e, 1))
+    for e, n in runs:
+        times = f" (x{n})" if n > 1 else ""
+        lines.append(f"- `{e.when}` **{e.kind.replace('_', ' ')}** {e.message}{times}")
+    return "\n".join(lines)
 
 
 class UncertaintyHistory:
@@ -115,11 +126,19 @@ class MonitorPanel:
         with gui.add_folder("Uncertainty"):
             self.gui_plot = gui.add_uplot(
                 data=(np.zeros(0), np.zeros(0)),
-                series=({"label": "s"}, {"label": "error (cm)", "stroke": "#2a7"}),
+                series=({"label": "time"}, {"label": "error", "stroke": "#2a7", "width": 2}),
+                title=self._plot_title(),
                 scales={"x": {"time": False}},
-                aspect=1.6,
+                axes=(
+                    {"label": "seconds before now", "size": 36},
+                    {"label": "error (cm)", "size": 52},
+                ),
+                legend={"show": False},  # one series: the axis titles say what it is
+                padding=(14, 12, 0, 0),  # room for the top tick's label
+                aspect=1.5,
             )
         with gui.add_folder("Landmark batteries", expand_by_default=False):
+            self.gui_battery_sort = gui.add_dropdown("Sort", SORT_KEYS, initial_value=SORT_KEYS[0])
             self.gui_batteries = gui.add_markdown("")
         with gui.add_folder("Events", expand_by_default=False):
             self.gui_events = gui.add_markdown("")
@@ -147,11 +166,19 @@ class MonitorPanel:
     ) -> None:
         """Update the tables and the plot (call at a few hertz)."""
         self._set("robots", self.gui_robots, robots_table(robots))
-        self._set("batteries", self.gui_batteries, batteries_table(landmarks))
+        self._set(
+            "batteries", self.gui_batteries, battery_table(landmarks, self.gui_battery_sort.value)
+        )
         self._set("events", self.gui_events, events_text(events))
         names = tuple(r.name for r in robots)
         if names and tuple(self.gui_robot.options) != names:
             self.gui_robot.options = names
         t, e = self.history.series(self.gui_robot.value)
         if len(t):
+            title = self._plot_title()
+            if self.gui_plot.title != title:
+                self.gui_plot.title = title
             self.gui_plot.data = (t, e)
+
+    def _plot_title(self) -> str:
+        return f"{self.gui_robot.value}: 1-sigma position error"

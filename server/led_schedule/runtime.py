@@ -1,0 +1,216 @@
+"""`LedScheduler`: runs the LED policy on the server's loop and keeps its books.
+
+Every `period_s` it reads each robot's latest pose (speed and turn rate from the change since
+the last plan), plans (`policy.plan_leds`) and hands the lit set to the LED coordinator,
+which lights it as the site's normal state (a robot's identification probe then darkens one
+landmark *of it*). It also counts what the plan did: lit-seconds per landmark (the wear it
+spreads, and each landmark's duty cycle for the days-left model), the site's lit fraction,
+and why each landmark is lit.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+import math
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass
+from typing import Protocol
+
+import numpy as np
+import numpy.typing as npt
+
+from localizer.camera import CameraModel
+from localizer.events import LedsChanged, Mode
+from localizer.geometry import wrap_angle
+from server.led_schedule.policy import LedPlan, RobotState, ScheduleConfig, plan_leds
+from server.poses import PoseUpdate
+
+log = logging.getLogger(__name__)
+_NS = 1e-9
+
+
+class RunnerLike(Protocol):
+    """What the scheduler reads of a `server.site.robot.RobotRunner`."""
+
+    name: str
+    camera: CameraModel
+    latest: PoseUpdate | None
+
+    @property
+    def mode(self) -> Mode: ...
+
+
+@dataclass
+class _Motion:
+    t_ns: int
+    pose: tuple[float, float, float]
+    v: float = 0.0
+    omega: float = 0.0
+    still_since_ns: int | None = None
+
+
+class LedScheduler:
+    """The scheduled LED policy, live.
+
+    Args:
+        landmarks: returns the controlled landmarks (IDs, positions shape (N, 3)).
+        runners: returns the robots.
+        max_speed: robot name -> maximum speed, m/s.
+        lit_now: returns the confirmed LED state (None before the first).
+        clock_ns: the site clock.
+        config: the policy's tuning.
+        period_s: time between plans, seconds.
+        on_plan: called with each plan whose lit set differs from the previous one.
+    """
+
+    def __init__(
+        self,
+        landmarks: Callable[[], tuple[list[int], npt.NDArray[np.float64]]],
+        runners: Callable[[], Iterable[RunnerLike]],
+        max_speed: Callable[[str], float],
+        lit_now: Callable[[], LedsChanged | None],
+        clock_ns: Callable[[], int],
+        *,
+        config: ScheduleConfig | None = None,
+        period_s: float = 0.25,
+        on_plan: Callable[[LedPlan], None] | None = None,
+    ) -> None:
+        self.config = config or ScheduleConfig()
+        self.period_s = period_s
+        self._landmarks = landmarks
+        self._runners = runners
+        self._max_speed = max_speed
+        self._lit_now = lit_now
+        self._clock_ns = clock_ns
+        self.on_plan = on_plan
+        self.plan: LedPlan | None = None
+        self.lit_s: dict[int, float] = {}
+        self.accounted_s = 0.0
+        self.lit_landmark_s = 0.0
+        self.plans = 0
+        self._t_books_ns: int | None = None
+        self._chosen_ns: dict[int, int] = {}
+        self._motion: dict[str, _Motion] = {}
+        self._pinned: dict[int, tuple[str, int]] = {}
+        self._task: asyncio.Task[None] | None = None
+
+    # -- what others need ----------------------------------------------------------------
+    def pin(self, landmark_ids: Iterable[int], reason: str, duration_s: float) -> None:
+        """Keep landmarks lit for `duration_s` (the survey, a staff member's check)."""
+        until = self._clock_ns() + round(duration_s * 1e9)
+        for lid in landmark_ids:
+            self._pinned[int(lid)] = (reason, until)
+
+    # -- the books -----------------------------------------------------------------------
+    def lit_ids(self) -> frozenset[int]:
+        """What the plan lights (every landmark before the first plan)."""
+        if self.plan is None:
+            return frozenset(self._landmarks()[0])
+        return self.plan.lit
+
+    def reason(self, landmark_id: int) -> str | None:
+        """Why a landmark is lit (None: dark by the plan)."""
+        if self.plan is None:
+            return "start"
+        return self.plan.reasons.get(landmark_id)
+
+    @property
+    def lit_fraction(self) -> float:
+        """Time-averaged share of the landmarks lit since the scheduler started."""
+        n = len(self._landmarks()[0])
+        return self.lit_landmark_s / (self.accounted_s * n) if self.accounted_s > 0 and n else 0.0
+
+    def duty(self, landmark_id: int) -> float:
+        """Share of the time this landmark was lit since the scheduler started."""
+        return self.lit_s.get(landmark_id, 0.0) / self.accounted_s if self.accounted_s > 0 else 0.0
+
+    def _account(self, t_ns: int) -> frozenset[int]:
+        state = self._lit_now()
+        ids = self._landmarks()[0]
+        if state is None:  # before the gateway's start-up sweep (which lights every LED)
+            return frozenset(ids)
+        # Being switched counts as lit: a plan limited by the command budget must not drop
+        # what the start-up sweep (or the previous plan) is lighting.
+        lit = state.lit_among(ids) | (state.changing & frozenset(ids))
+        if self._t_books_ns is not None:
+            dt = max((t_ns - self._t_books_ns) * _NS, 0.0)
+            self.accounted_s += dt
+            self.lit_landmark_s += dt * len(lit)
+            for lid in lit:
+                self.lit_s[lid] = self.lit_s.get(lid, 0.0) + dt
+        self._t_books_ns = t_ns
+        return lit
+
+    # -- planning ------------------------------------------------------------------------
+    def _robot_state(self, runner: RunnerLike, t_ns: int) -> RobotState:
+        upd = runner.latest
+        vmax = self._max_speed(runner.name)
+        if upd is None or upd.x is None or upd.y is None or upd.theta is None:
+            return RobotState(runner.name, runner.camera, vmax, runner.mode, None)
+        pose = (upd.x, upd.y, upd.theta)
+        m = self._motion.get(runner.name)
+        if m is None:
+            m = self._motion[runner.name] = _Motion(upd.t_ns, pose, still_since_ns=upd.t_ns)
+        elif upd.t_ns > m.t_ns:
+            dt = (upd.t_ns - m.t_ns) * _NS
+            dx, dy = pose[0] - m.pose[0], pose[1] - m.pose[1]
+            heading = math.cos(pose[2]) * dx + math.sin(pose[2]) * dy
+            m.v = heading / dt
+            m.omega = float(wrap_angle(pose[2] - m.pose[2])) / dt
+            if abs(m.v) >= self.config.parked_speed_mps or abs(m.omega) >= 0.05:
+                m.still_since_ns = None
+            elif m.still_since_ns is None:
+                m.still_since_ns = m.t_ns
+            m.t_ns, m.pose = upd.t_ns, pose
+        still = 0.0 if m.still_since_ns is None else (t_ns - m.still_since_ns) * _NS
+        return RobotState(
+            runner.name, runner.camera, vmax, runner.mode, pose,
+            covariance=upd.covariance, pose_age_s=max((t_ns - upd.t_ns) * _NS, 0.0),
+            v=m.v, omega=m.omega, still_s=still,
+        )  # fmt: skip
+
+    def step(self, t_ns: int) -> LedPlan:
+        """Account the time since the last step and plan (call every `period_s`)."""
+        lit = self._account(t_ns)
+        ids, positions = self._landmarks()
+        self._pinned = {k: v for k, v in self._pinned.items() if v[1] > t_ns}
+        robots = [self._robot_state(r, t_ns) for r in self._runners()]
+        plan = plan_leds(
+            robots,
+            ids,
+            positions,
+            lit_now=lit,
+            last_chosen_s={k: (t_ns - v) * _NS for k, v in self._chosen_ns.items()},
+            wear_h={k: v / 3600.0 for k, v in self.lit_s.items()},
+            pinned={k: v[0] for k, v in self._pinned.items()},
+            config=self.config,
+        )
+        for lid in plan.wanted:
+            self._chosen_ns[lid] = t_ns
+        changed = self.plan is None or plan.lit != self.plan.lit
+        self.plan = plan
+        self.plans += 1
+        if changed and self.on_plan is not None:
+            self.on_plan(plan)
+        return plan
+
+    # -- running -------------------------------------------------------------------------
+    def start(self) -> None:
+        self._task = asyncio.get_running_loop().create_task(self._run())
+
+    async def stop(self) -> None:
+        if self._task is not None:
+            self._task.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await self._task
+            self._task = None
+
+    async def _run(self) -> None:
+        while True:
+            try:
+                self.step(self._clock_ns())
+            except Exception:
+                log.exception("LED schedule failed")
+            await asyncio.sleep(self.period_s)

@@ -1,0 +1,147 @@
+"""Wiring of the LED schedule into a running site (`server.site.builder` calls these)."""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable, Iterable
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from localizer.config import LocalizerConfig
+from rf_gateway.battery import BatteryConfig
+from rf_gateway.config import GatewayConfig, SleepConfig
+from server.led_schedule.policy import ScheduleConfig
+from server.led_schedule.runtime import LedScheduler
+from server.settings import Settings
+
+if TYPE_CHECKING:
+    from server.crud import MapRepository
+    from server.site.leds import LedCoordinator
+    from server.site.robot import RobotRunner
+
+AIR_LATENCY_S = 0.05
+"""A command's time on the air to an awake radio and back (docs/rf_gateway.md), seconds."""
+
+
+def wake_latency_s(settings: Settings) -> float:
+    """Worst time for a command to reach a landmark: its sleep period plus the air time."""
+    return (settings.radio_sleep_period_s or 0.0) + AIR_LATENCY_S
+
+
+def localizer_config(settings: Settings) -> LocalizerConfig:
+    """The localizer's tuning for this site: with sleeping radios an identification probe
+    waits up to the wake latency for its LED (frames meanwhile show an unknown state), so
+    its timeout and the age of the frames it compares grow by as much."""
+    base = LocalizerConfig()
+    if settings.radio_sleep_period_s is None:
+        return base
+    ident = base.identification
+    extra = wake_latency_s(settings)
+    return dataclasses.replace(
+        base,
+        identification=dataclasses.replace(
+            ident,
+            led_timeout_s=ident.led_timeout_s + extra,
+            reference_max_age_s=ident.reference_max_age_s + extra,
+        ),
+    )
+
+
+def schedule_config(settings: Settings, period_s: float) -> ScheduleConfig:
+    """The policy's tuning: decisions act after one plan period plus the wake latency, and
+    a plan changes at most what the radio delivers in one period (`max_in_flight` commands
+    per command latency: the awake air time, or half a sleep period on average)."""
+    gw = gateway_config(settings)
+    per_command_s = AIR_LATENCY_S + (settings.radio_sleep_period_s or 0.0) / 2
+    budget = max(round(gw.max_in_flight * period_s / per_command_s), 2)
+    return ScheduleConfig(latency_s=period_s + wake_latency_s(settings), max_switches=budget)
+
+
+def gateway_config(settings: Settings) -> GatewayConfig:
+    """The gateway's tuning for this site: its battery polls, the landmarks' sleep."""
+    sleep = settings.radio_sleep_period_s
+    return GatewayConfig(
+        battery=BatteryConfig(interval_s=settings.battery_interval_s),
+        sleep=None if sleep is None else SleepConfig(sleep),
+    )
+
+
+def xbee_config(settings: Settings) -> Any:
+    """The XBee transport's timeouts: above the sleep period with sleeping landmarks."""
+    from rf_gateway.xbee_transport import XBeeTransportConfig
+
+    if settings.radio_sleep_period_s is None:
+        return None
+    sleep = SleepConfig(settings.radio_sleep_period_s)
+    return XBeeTransportConfig(command_timeout_s=sleep.command_timeout_s)
+
+
+def radio_sleep(settings: Settings) -> Any:
+    """The virtual site's `sim.energy.RadioSleep` (None: awake radios)."""
+    if settings.radio_sleep_period_s is None:
+        return None
+    from sim.energy import RadioSleep
+
+    return RadioSleep(settings.radio_sleep_period_s)
+
+
+def attach_scheduler(
+    map: MapRepository,
+    runners: Callable[[], Iterable[RobotRunner]],
+    coordinator: LedCoordinator,
+    clock_ns: Callable[[], int],
+    settings: Settings,
+    *,
+    period_s: float = 0.25,
+) -> LedScheduler:
+    """Build and start the scheduler of a site whose `led_policy` is `scheduled`: the map's
+    landmarks that the coordinator's gateway controls, the live robots."""
+    gateway = coordinator.gateway
+    cache: dict[str, Any] = {}
+    map.add_listener(lambda _landmarks: cache.clear())
+
+    def landmarks() -> tuple[list[int], np.ndarray[Any, np.dtype[np.float64]]]:
+        controlled = frozenset(gateway.landmarks)
+        if cache.get("controlled") != controlled:
+            lmap = map.landmark_map()
+            ids = [int(i) for i in lmap.ids if int(i) in controlled]
+            rows = [lmap.index_of(i) for i in ids]
+            positions = np.asarray(lmap.positions, dtype=np.float64)[rows].reshape(-1, 3)
+            cache.update(controlled=controlled, value=(ids, positions))
+        value: tuple[list[int], np.ndarray[Any, np.dtype[np.float64]]] = cache["value"]
+        return value
+
+    return make_scheduler(landmarks, runners, coordinator, clock_ns, settings, period_s=period_s)
+
+
+def make_scheduler(
+    landmarks: Callable[[], tuple[list[int], np.ndarray[Any, np.dtype[np.float64]]]],
+    runners: Callable[[], Iterable[RobotRunner]],
+    coordinator: LedCoordinator,
+    clock_ns: Callable[[], int],
+    settings: Settings,
+    *,
+    period_s: float = 0.25,
+) -> LedScheduler:
+    """A started scheduler whose plans become the coordinator's normal state."""
+    by_name: dict[str, float] = {}
+
+    def max_speed(name: str) -> float:
+        if name not in by_name:
+            by_name.update({r.name: float(r.geometry.max_speed) for r in runners()})
+        return by_name.get(name, 1.0)
+
+    scheduler = LedScheduler(
+        landmarks,
+        runners,
+        max_speed,
+        lambda: coordinator.gateway.leds,
+        clock_ns,
+        config=schedule_config(settings, period_s),
+        period_s=period_s,
+        on_plan=lambda plan: coordinator.renormal(),
+    )
+    coordinator.normal = scheduler.lit_ids
+    scheduler.start()
+    return scheduler
