@@ -139,6 +139,8 @@ class XBeeEmulator:
         self.node_id = node_id
         self.tx_failure_delay_s = tx_failure_delay_s
         self.nt_100ms = 0x10
+        self.drop_local_replies = 0
+        """Replies to local AT commands still to lose (a noisy line while the host opens)."""
         self.parser = StreamParser(escaped=escaped)
         self.counts: Counter[str] = Counter()
         self._rng = random.Random(self.faults.seed)
@@ -301,6 +303,10 @@ class XBeeEmulator:
 
     def _handle_local(self, frame: fr.LocalAtCommand) -> None:
         cmd = frame.command
+        if self.drop_local_replies > 0:
+            self.drop_local_replies -= 1
+            self.counts["dropped_local"] += 1
+            return
         if cmd == "ND":
             self._node_discovery(frame.frame_id)
             return

@@ -20,7 +20,11 @@ from dataclasses import dataclass
 from typing import Any, TypeVar
 
 from digi.xbee.devices import RemoteXBeeDevice, XBeeDevice
-from digi.xbee.exception import ATCommandException, TimeoutException
+from digi.xbee.exception import (
+    ATCommandException,
+    InvalidOperatingModeException,
+    TimeoutException,
+)
 from digi.xbee.models.address import XBee16BitAddress, XBee64BitAddress
 from digi.xbee.models.options import RemoteATCmdOptions
 from digi.xbee.packets.common import RemoteATCommandPacket
@@ -47,6 +51,10 @@ class XBeeTransportConfig:
         discovery_timeout_s: longest wait for node discovery to finish.
         health_interval_s: how often the port's presence is checked.
         reopen_initial_s, reopen_max_s: backoff between reopen attempts (doubling).
+        open_timeout_s: digi-xbee's wait for each reply to a local AT command while it opens
+            the port (a module answers in milliseconds), seconds.
+        open_tries: attempts of one open, made at once when a reply was lost (a noisy
+            line), before the backoff of `reopen_*` takes over.
         pipelined: write remote commands without waiting and match the replies by frame id
             (`ReplyRouter`), so that the gateway's `max_in_flight` commands share the air;
             False: one synchronous digi-xbee call at a time.
@@ -57,6 +65,8 @@ class XBeeTransportConfig:
     health_interval_s: float = 0.25
     reopen_initial_s: float = 0.1
     reopen_max_s: float = 5.0
+    open_timeout_s: float = 1.0
+    open_tries: int = 3
     pipelined: bool = False
 
 
@@ -100,9 +110,24 @@ class XBeeTransport(StateReporter):
 
     # -- open / close / reopen -------------------------------------------------------------
     def _open_device(self) -> XBeeDevice:
+        """Open the port, retrying at once (up to `open_tries`) when a reply to one of
+        digi-xbee's local AT commands was lost; other failures raise at once."""
+        for attempt in range(1, self.config.open_tries + 1):
+            try:
+                return self._open_once()
+            except (TimeoutException, InvalidOperatingModeException) as exc:
+                if attempt == self.config.open_tries or self._state == "closed":
+                    raise
+                log.info("xbee %s: open attempt %d lost a reply (%s); again", self.port,
+                         attempt, exc)  # fmt: skip
+        raise AssertionError("unreachable")  # the loop returns or raises
+
+    def _open_once(self) -> XBeeDevice:
         device = XBeeDevice(self.port, self.baud)
         try:
+            device.set_sync_ops_timeout(self.config.open_timeout_s)
             device.open()
+            device.set_sync_ops_timeout(self.config.command_timeout_s)
             device.add_packet_received_callback(self.link_stats.on_packet)
             device.add_packet_received_callback(self.replies.on_packet)
             if self._state == "closed":  # close() was called while this thread was opening

@@ -127,5 +127,7 @@ def main(
         log_config=None,  # uvicorn's loggers go through configure_logging's handler
         lifespan="on",
     )
-    uvicorn.Server(config).run()
+    from server.shutdown import serve
+
+    serve(config)
     return 0

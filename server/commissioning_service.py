@@ -59,7 +59,7 @@ from localizer.spots import DetectionConfig, detect_spots
 from pubsub.bus import Subscription
 from rf_gateway.errors import RfGatewayError
 from server.crud import MapRepository
-from server.errors import ConflictError, UnavailableError
+from server.errors import ConflictError, NotFoundError, UnavailableError
 from server.facades import LedsAndRadio, Robots
 from server.models import LandmarkCreate, LandmarkPublic, LandmarkUpdate
 from server.poses import PoseUpdate
@@ -278,7 +278,9 @@ class Commissioning:
                 raise ConflictError("the identification wizard is already running")
             camera = runners[robot].camera if robot in runners else None
             if camera is None:
-                raise ValueError(f"unknown robot {robot!r}; robots: {', '.join(sorted(runners))}")
+                raise NotFoundError(
+                    f"unknown robot {robot!r}; robots: {', '.join(sorted(runners))}"
+                )
             self._actor = actor
             event = Start(
                 self.robots.clock_ns(),

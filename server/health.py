@@ -19,6 +19,6 @@ def site_health(s: SiteServices) -> Health:
     return Health(
         status="ok",
         robots=len(s.robots.names()),
-        landmarks=len(s.map.list()),
+        landmarks=s.map.count(),
         radio=s.leds.radio_state,
     )

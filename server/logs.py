@@ -4,12 +4,18 @@ JSON lines carry `time` (UTC, ISO 8601, milliseconds), `level`, `logger`, `messa
 fields given with `extra=` (e.g. `log.warning("...", extra={"robot": "r1"})` gives
 `"robot": "r1"`; `robot`, `landmark`, `port` are the ones the server uses) and `exc` (the
 traceback) when there is one. Everything, uvicorn's own logs included, goes to stderr.
+
+No API key reaches a line (`RedactKeys`, on the handler, so in both formats and for every
+logger, uvicorn's access lines included): `token=`, `key=` and `irloc_ticket=` query values,
+`Bearer` credentials and anything shaped like an irloc key become `[redacted]`, in the
+message, the `extra=` fields and tracebacks.
 """
 
 from __future__ import annotations
 
 import json
 import logging
+import re
 import sys
 from datetime import UTC, datetime
 from typing import IO, Any, Literal
@@ -23,6 +29,40 @@ _STANDARD = set(vars(logging.LogRecord("", 0, "", 0, "", None, None))) | {
 }
 QUIET = {"alembic.runtime.plugins": logging.WARNING}
 """Loggers too chatty at info (alembic lists its plugins at every start)."""
+
+REDACTED = "[redacted]"
+_SECRETS = (
+    (re.compile(r"(?i)\b(token|key|irloc_ticket)=[^&\s\"'#]+"), rf"\1={REDACTED}"),
+    (re.compile(r"(?i)\bBearer\s+[^\s\"',;]+"), f"Bearer {REDACTED}"),
+    (re.compile(r"\birloc_[A-Za-z0-9_-]{16,}"), f"irloc_{REDACTED}"),
+)
+
+
+def redact(text: str) -> str:
+    """`text` with API keys (query values, bearer credentials, bare keys) replaced."""
+    for pattern, replacement in _SECRETS:
+        text = pattern.sub(replacement, text)
+    return text
+
+
+class RedactKeys(logging.Filter):
+    """Rewrites each record in place so that no API key is formatted: the message (with its
+    arguments merged in), string `extra=` fields, the traceback and the stack."""
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        record.msg = redact(record.getMessage())
+        record.args = None
+        for key, value in list(vars(record).items()):
+            if key not in _STANDARD and isinstance(value, str):
+                setattr(record, key, redact(value))
+        if record.exc_info:
+            record.exc_text = logging.Formatter().formatException(record.exc_info)
+            record.exc_info = None
+        if record.exc_text:
+            record.exc_text = redact(record.exc_text)
+        if record.stack_info:
+            record.stack_info = redact(record.stack_info)
+        return True
 
 
 class JsonFormatter(logging.Formatter):
@@ -54,6 +94,7 @@ def configure_logging(
         raise ValueError(f"log format: expected 'text' or 'json', got {fmt!r}")
     handler = logging.StreamHandler(stream or sys.stderr)
     handler.setFormatter(JsonFormatter() if fmt == "json" else logging.Formatter(TEXT_FORMAT))
+    handler.addFilter(RedactKeys())
     root = logging.getLogger()
     for old in list(root.handlers):
         root.removeHandler(old)
@@ -64,5 +105,6 @@ def configure_logging(
     for name in ("uvicorn", "uvicorn.error", "uvicorn.access"):
         lg = logging.getLogger(name)
         lg.handlers.clear()
+        lg.setLevel(logging.NOTSET)  # the root's level decides (uvicorn may have set its own)
         lg.propagate = True
     return handler

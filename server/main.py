@@ -13,7 +13,7 @@ import logging
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
 
-from fastapi import APIRouter, FastAPI, Request
+from fastapi import APIRouter, Depends, FastAPI, Request
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse, Response
 from fastapi_offline import FastAPIOffline
@@ -29,9 +29,11 @@ from server.auth import Viewer, authenticate
 from server.errors import ConflictError, NotFoundError, UnavailableError
 from server.fanout import PoseFanout
 from server.health import Health, site_health
+from server.http_errors import install_body_errors, refuse_unknown_query
 from server.landing import landing_router
 from server.metrics import make_registry, render
 from server.mqtt_bridge import start_mqtt_bridge
+from server.openapi import install_openapi
 from server.routes import (
     admin,
     calibration,
@@ -143,7 +145,8 @@ def create_app(settings: Settings | None = None, viewer: ViewerApp | None = None
         lifespan=lifespan,
     )
     _install_error_handlers(app)
-    api = APIRouter(prefix=API_PREFIX)
+    install_body_errors(app)
+    api = APIRouter(prefix=API_PREFIX, dependencies=[Depends(refuse_unknown_query)])
     for module in (
         landmarks, map, history, floorplan, robots, calibration, remote, admin, streams,
         commissioning, survey,
@@ -169,6 +172,7 @@ def create_app(settings: Settings | None = None, viewer: ViewerApp | None = None
     if viewer is not None:
         app.include_router(viewer.router(authenticate))
     app.include_router(landing_router())
+    install_openapi(app)
     return app
 
 

@@ -8,10 +8,12 @@ not validate on construction).
 from __future__ import annotations
 
 import math
+import re
 from datetime import UTC, datetime
 from typing import Any, Literal
 
 from pydantic import field_validator
+from pydantic.json_schema import SkipJsonSchema
 from sqlalchemy import JSON, Column, ForeignKey, Integer
 from sqlmodel import Field, SQLModel
 
@@ -21,10 +23,21 @@ Role = Literal["viewer", "operator", "admin"]
 ROLES: tuple[Role, ...] = ("viewer", "operator", "admin")
 
 MAX_LANDMARK_ID = 2**31 - 1
+DECIMAL_ID = re.compile(r"0|[1-9][0-9]{0,9}")
+"""A landmark ID as text (path, CSV): plain decimal digits, no sign, `_`, point or padding."""
 MAX_ABS_XY_M = 10_000.0
 """Floor coordinates beyond this (10 km) are refused as absurd."""
 MAX_Z_M = 100.0
 """LED heights above this are refused as absurd (ceilings, not towers)."""
+
+
+RADIO_SCHEMA = {"json_schema_extra": {"pattern": "^[0-9A-Fa-f]{16}$"}}
+"""The radio address as the schema states it (the server also takes `0x`, `:`, `-`, spaces)."""
+RADIO_DOC = "64-bit radio address, 16 hex digits (null: none)"
+X_DOC = "metres, map frame (REP-103/105: x, y on the floor, z up)"
+XY_SCHEMA = {"json_schema_extra": {"minimum": -10_000.0, "maximum": 10_000.0}}
+Z_SCHEMA = {"json_schema_extra": {"minimum": 0.0, "maximum": 100.0}}
+"""The bounds `check_coordinate` enforces, as the schema states them."""
 
 
 def utcnow() -> datetime:
@@ -54,12 +67,12 @@ def check_radio(value: str | None) -> str | None:
 
 # -- landmarks ---------------------------------------------------------------------------
 class LandmarkBase(SQLModel):
-    x: float
-    y: float
-    z: float
-    radio: str | None = Field(default=None, description="64-bit radio address, 16 hex digits")
+    x: float = Field(description="LED position x, " + X_DOC, schema_extra=XY_SCHEMA)
+    y: float = Field(description="LED position y, " + X_DOC, schema_extra=XY_SCHEMA)
+    z: float = Field(description="LED height above the floor, " + X_DOC, schema_extra=Z_SCHEMA)
+    radio: str | None = Field(default=None, description=RADIO_DOC, schema_extra=RADIO_SCHEMA)
     locked: bool = Field(default=False, description="surveyed: not moved by commissioning")
-    note: str = Field(default="", max_length=1000)
+    note: str = Field(default="", max_length=1000, description="free text")
 
 
 class Landmark(LandmarkBase, table=True):
@@ -70,8 +83,41 @@ class Landmark(LandmarkBase, table=True):
     updated_at: datetime = Field(default_factory=utcnow)
 
 
+def strict_number(name: str, v: object) -> object:
+    """A JSON number (`true`, `"1.5"` are refused); ValueError names the field."""
+    if v is not None and (isinstance(v, bool) or not isinstance(v, int | float)):
+        raise ValueError(f"{name}: expected a number of metres, got {v!r}")
+    return v
+
+
+def strict_bool(name: str, v: object) -> object:
+    """A JSON boolean (`0`, `"yes"` are refused); ValueError names the field."""
+    if v is not None and not isinstance(v, bool):
+        raise ValueError(f"{name}: expected true or false, got {v!r}")
+    return v
+
+
 class LandmarkCreate(LandmarkBase):
-    id: int = Field(ge=0, le=MAX_LANDMARK_ID)
+    id: int = Field(ge=0, le=MAX_LANDMARK_ID, description="landmark ID (a JSON integer)")
+
+    @field_validator("locked", mode="before")
+    @classmethod
+    def _strict_locked(cls, v: object) -> object:
+        return strict_bool("locked", v)
+
+    @field_validator("x", "y", "z", mode="before")
+    @classmethod
+    def _strict_xyz(cls, v: object, info: Any) -> object:
+        return strict_number(info.field_name, v)
+
+    @field_validator("id", mode="before")
+    @classmethod
+    def _strict_id(cls, v: object) -> object:
+        if isinstance(v, float) and v.is_integer():  # JSON Schema's integer: 7.0 is one
+            return int(v)
+        if isinstance(v, bool) or not isinstance(v, int):
+            raise ValueError(f"expected an integer, got {v!r} ({type(v).__name__})")
+        return v
 
     @field_validator("x", "y", "z")
     @classmethod
@@ -85,12 +131,29 @@ class LandmarkCreate(LandmarkBase):
 
 
 class LandmarkUpdate(SQLModel):
-    x: float | None = None
-    y: float | None = None
-    z: float | None = None
-    radio: str | None = None
-    locked: bool | None = None
-    note: str | None = Field(default=None, max_length=1000)
+    """The fields to change; those left out keep their value (`radio: null` clears it)."""
+
+    x: float | SkipJsonSchema[None] = Field(
+        default=None, description="LED position x, " + X_DOC, schema_extra=XY_SCHEMA
+    )
+    y: float | SkipJsonSchema[None] = Field(
+        default=None, description="LED position y, " + X_DOC, schema_extra=XY_SCHEMA
+    )
+    z: float | SkipJsonSchema[None] = Field(
+        default=None, description="LED height above the floor, " + X_DOC, schema_extra=Z_SCHEMA
+    )
+    radio: str | None = Field(default=None, description=RADIO_DOC, schema_extra=RADIO_SCHEMA)
+    locked: bool | SkipJsonSchema[None] = None
+    note: str | SkipJsonSchema[None] = Field(default=None, max_length=1000)
+
+    @field_validator("x", "y", "z", "locked", "note", mode="before")
+    @classmethod
+    def _not_null(cls, v: object, info: Any) -> object:
+        if v is None:
+            raise ValueError(f"{info.field_name} cannot be null (leave it out to keep it)")
+        if info.field_name == "locked":
+            return strict_bool("locked", v)
+        return strict_number(info.field_name, v) if info.field_name in "xyz" else v
 
     @field_validator("x", "y", "z")
     @classmethod

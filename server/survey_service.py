@@ -22,7 +22,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Literal
 
 from localizer.events import LedRequest
-from server.errors import ConflictError, UnavailableError
+from server.errors import ConflictError, NotFoundError, UnavailableError
 from server.models import LandmarkUpdate
 from survey.blinks import BlinkConfig
 from survey.bundle import BundleConfig, solve_survey
@@ -117,13 +117,13 @@ class LiveSurvey:
     def start(self, robot: str, *, actor: str) -> SurveyStatus:
         """Start recording `robot` and blinking. ConflictError while a survey drives or
         solves, or with fewer than two locked landmarks; UnavailableError without a radio;
-        ValueError for an unknown robot."""
+        NotFoundError for an unknown robot."""
         coordinator = self.leds.coordinator
         if coordinator is None:
             raise UnavailableError("no radio: the site runs without a gateway, nothing can blink")
         names = self.robots.names()
         if robot not in names:
-            raise ValueError(f"unknown robot {robot!r}; robots: {', '.join(sorted(names))}")
+            raise NotFoundError(f"unknown robot {robot!r}; robots: {', '.join(sorted(names))}")
         anchors = self.anchors()
         if len(anchors) < 2:
             raise ConflictError(

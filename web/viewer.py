@@ -36,7 +36,14 @@ from web.panels.wizard import WizardPanel
 from web.roles import ANONYMOUS, TICKET_PARAM, Session
 from web.scene import SiteScene
 from web.services import ViewerSite
-from web.viser_compat import ViserCompatError, check_viser, request_path
+from web.viser_compat import (
+    ViserCompatError,
+    check_viser,
+    guard_connections,
+    refuse,
+    request_header,
+    request_path,
+)
 
 if TYPE_CHECKING:
     from server.services import SiteServices
@@ -177,7 +184,8 @@ class SiteViewer:
         self.server = _start_viser(self.host, self._port)
         try:
             check_viser(self.server)
-        except ViserCompatError as exc:  # every browser will be read-only
+            guard_connections(self.server, self._admit)
+        except ViserCompatError as exc:  # every browser will be refused
             log.error("viewer: %s", exc)
         self.scene = SiteScene(self.server)
         lms = self.site.landmarks()
@@ -236,6 +244,25 @@ class SiteViewer:
             return ANONYMOUS
         return hit[1]
 
+    def _admit(self, path: str | None, origin: str | None) -> str | None:
+        """None for the proxy's connection (a live ticket, no Origin header), else why not:
+        any other process on the host, or a web page in a browser on it, is refused."""
+        if origin is not None:
+            return "cross-origin connection refused: open /viewer/ on the API's port"
+        ticket = parse_qs(urlsplit(path or "").query).get(TICKET_PARAM, [""])[0]
+        with self._lock:
+            hit = self._tickets.get(ticket)
+        if hit is None or time.monotonic() - hit[0] > self.config.ticket_ttl_s:
+            return "open the viewer through /viewer/ with an API key"
+        return None
+
+    def _has_origin(self, client: viser.ClientHandle) -> bool:
+        assert self.server is not None  # started
+        try:
+            return request_header(self.server, client, "origin") is not None
+        except ViserCompatError:
+            return True  # cannot tell: refuse
+
     def session_of(self, client_id: int) -> Session | None:
         """The session of a connected browser."""
         with self._lock:
@@ -243,6 +270,12 @@ class SiteViewer:
 
     def _on_connect(self, client: viser.ClientHandle) -> None:
         session = self._session_for(client)
+        if session is ANONYMOUS or self._has_origin(client):
+            # viser's own port: only the proxy (a valid one-time ticket, no Origin header as a
+            # browser would send) gets in; any other local process or web page is refused
+            assert self.server is not None  # started
+            refuse(self.server, client, "open the viewer through /viewer/ with an API key")
+            return
         with self._lock:
             self._sessions[client.client_id] = session
         panels = _ClientPanels(self, client, session)

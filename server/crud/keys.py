@@ -1,12 +1,18 @@
 """API keys: created with a role, stored only as a SHA-256 hash of a 256-bit random token.
 
-A high-entropy token needs no slow hash (nothing to brute-force); lookups are by hash, and a
-small in-memory cache keeps the per-request check off the database. A key's `last_used_at`
-is written at most once per `touch_interval_s` (a minute) per key, on a background thread.
+A high-entropy token needs no slow hash (nothing to brute-force); lookups are by hash. A
+small in-memory cache keeps the per-request check off the database: a valid key is trusted
+for `cache_ttl_s` (0.5 s, so a key revoked by `irloc keys revoke` in another process stops
+working within that time), an unknown or revoked one is remembered for `negative_ttl_s` (so
+the same bad key reaches the database once). `role_of_async` looks keys up on a worker thread
+(never on the event loop), one lookup per key however many requests wait for it. A key's
+`last_used_at` is written at most once per `touch_interval_s` (a minute) per key, on a
+background thread.
 """
 
 from __future__ import annotations
 
+import asyncio
 import builtins
 import concurrent.futures
 import hashlib
@@ -14,8 +20,10 @@ import logging
 import secrets
 import threading
 import time
+from collections import OrderedDict
 from collections.abc import Callable
 from datetime import datetime
+from typing import Literal
 
 from sqlalchemy import Engine
 from sqlmodel import Session, col, select, update
@@ -33,6 +41,10 @@ def hash_key(token: str) -> str:
 
 log = logging.getLogger(__name__)
 TOUCH_INTERVAL_S = 60.0
+CACHE_TTL_S = 0.5
+NEGATIVE_TTL_S = 300.0
+NEGATIVE_MAX = 100_000
+Found = tuple[int, Role]
 
 
 class KeyStore:
@@ -41,7 +53,14 @@ class KeyStore:
     Args:
         engine: the database.
         touch_interval_s: at most one `last_used_at` write per key in this time, seconds.
-        clock: monotonic seconds (for the throttle).
+        cache_ttl_s: a valid key is trusted this long without asking the database, seconds
+            (the delay before a revocation by another process takes effect).
+        negative_ttl_s: an unknown or revoked key is refused this long without asking the
+            database again, seconds (at most `NEGATIVE_MAX` remembered, oldest forgotten).
+        clock: monotonic seconds (for the throttle and the caches).
+
+    Attributes:
+        lookups: database lookups made; lookup_threads: names of the threads they ran on.
     """
 
     def __init__(
@@ -49,16 +68,26 @@ class KeyStore:
         engine: Engine,
         *,
         touch_interval_s: float = TOUCH_INTERVAL_S,
+        cache_ttl_s: float = CACHE_TTL_S,
+        negative_ttl_s: float = NEGATIVE_TTL_S,
         clock: Callable[[], float] = time.monotonic,
     ) -> None:
         self.engine = engine
         self.touch_interval_s = touch_interval_s
+        self.cache_ttl_s = cache_ttl_s
+        self.negative_ttl_s = negative_ttl_s
         self.clock = clock
         self.touches = 0
-        self._cache: dict[str, tuple[int, Role]] = {}
+        self.lookups = 0
+        self.lookup_threads: set[str] = set()
+        self._cache: dict[str, tuple[Found, float]] = {}
+        self._negative: OrderedDict[str, float] = OrderedDict()
+        self._inflight: dict[str, asyncio.Future[Found | None]] = {}
+        self._revoked: set[int] = set()
         self._lock = threading.Lock()
         self._touched: dict[int, float] = {}
         self._writer = concurrent.futures.ThreadPoolExecutor(1, thread_name_prefix="key-touch")
+        self._readers = concurrent.futures.ThreadPoolExecutor(2, thread_name_prefix="key-lookup")
 
     def create(self, role: str, name: str = "") -> tuple[str, ApiKeyPublic]:
         """A new key of `role`; returns (the key, shown only now; its record)."""
@@ -74,24 +103,76 @@ class KeyStore:
             s.refresh(row)
             return token, ApiKeyPublic.model_validate(row, from_attributes=True)
 
-    def role_of(self, token: str) -> tuple[int, Role] | None:
-        """(key id, role) of a valid, unrevoked key; None otherwise."""
+    def cached(self, token: str) -> Found | Literal[False] | None:
+        """What the caches know of `token` without the database: (key id, role) of a valid
+        key, None for a key known to be bad, False when only the database can tell."""
         digest = hash_key(token)
-        hit = self._cache.get(digest) or self._lookup(digest)
-        if hit is None:
-            return None
-        self._touch(hit[0])
-        return hit
+        now = self.clock()
+        with self._lock:
+            hit = self._cache.get(digest)
+            if hit is not None and now < hit[1] and hit[0][0] not in self._revoked:
+                found = hit[0]
+            elif (until := self._negative.get(digest)) is not None and now < until:
+                return None
+            else:
+                return False
+        self._touch(found[0])
+        return found
 
-    def _lookup(self, digest: str) -> tuple[int, Role] | None:
+    def role_of(self, token: str) -> Found | None:
+        """(key id, role) of a valid, unrevoked key; None otherwise (may read the database
+        on the calling thread: on the event loop use `role_of_async`)."""
+        known = self.cached(token)
+        if known is not False:
+            return known
+        found = self._lookup(hash_key(token))
+        if found is not None:
+            self._touch(found[0])
+        return found
+
+    async def role_of_async(self, token: str) -> Found | None:
+        """`role_of` for the event loop: a database lookup runs on a worker thread, and
+        concurrent checks of the same key share one lookup."""
+        known = self.cached(token)
+        if known is not False:
+            return known
+        digest = hash_key(token)
+        pending = self._inflight.get(digest)
+        if pending is None:
+            loop = asyncio.get_running_loop()
+            pending = asyncio.ensure_future(
+                loop.run_in_executor(self._readers, self._lookup, digest)
+            )
+            self._inflight[digest] = pending
+            pending.add_done_callback(lambda _: self._inflight.pop(digest, None))
+        found = await asyncio.shield(pending)
+        if found is not None:
+            self._touch(found[0])
+        return found
+
+    def _lookup(self, digest: str) -> Found | None:
+        with self._lock:
+            self.lookups += 1
+            self.lookup_threads.add(threading.current_thread().name)
         with Session(self.engine) as s:
             row = s.exec(select(ApiKey).where(ApiKey.hash == digest)).first()
-            if row is None or row.revoked or row.id is None:
-                return None
-            out: tuple[int, Role] = (row.id, row.role)  # type: ignore[assignment]
+            valid = row is not None and not row.revoked and row.id is not None
+            out: Found | None = (row.id, row.role) if valid else None  # type: ignore[union-attr,assignment]
+        now = self.clock()
         with self._lock:
-            self._cache[digest] = out
+            if out is None:
+                self._cache.pop(digest, None)
+                self._negative[digest] = now + self.negative_ttl_s
+                self._negative.move_to_end(digest)
+                while len(self._negative) > NEGATIVE_MAX:
+                    self._negative.popitem(last=False)
+            else:
+                self._cache[digest] = (out, now + self.cache_ttl_s)
         return out
+
+    def is_revoked_here(self, key_id: int) -> bool:
+        """Whether this store revoked `key_id` (no database: for streams that poll)."""
+        return key_id in self._revoked
 
     def _touch(self, key_id: int) -> None:
         """Note that `key_id` was used now: a database write unless one was made for it less
@@ -120,8 +201,9 @@ class KeyStore:
         self._writer.submit(lambda: None).result()
 
     def close(self) -> None:
-        """Finish the pending writes and stop the writer thread."""
+        """Finish the pending writes and stop the writer and lookup threads."""
         self._writer.shutdown(wait=True)
+        self._readers.shutdown(wait=True)
 
     def list(self) -> builtins.list[ApiKeyPublic]:
         """Every key (never the key itself), with when it was last used (to the minute)."""
@@ -141,7 +223,8 @@ class KeyStore:
             s.add(row)
             s.commit()
         with self._lock:
-            self._cache = {h: v for h, v in self._cache.items() if v[0] != key_id}
+            self._revoked.add(key_id)
+            self._cache = {h: v for h, v in self._cache.items() if v[0][0] != key_id}
 
     def has_admin(self) -> bool:
         with Session(self.engine) as s:

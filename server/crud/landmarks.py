@@ -5,6 +5,11 @@ on disk), writes an audit record (who, when, before/after) and then notifies the
 (the live site re-reads the map, the viewer redraws). Undo and redo per author:
 `server.crud.history` (`MapRepository.history`). A change that would leave the site without
 landmarks (deleting the last one, importing an empty map) needs `confirm=True`.
+
+Reads come from an in-memory snapshot of the table, rebuilt after each change (the server is
+the map's only writer; every change, undo and redo included, ends in `_notify`): listing
+20,000 landmarks, `/healthz`'s count and the localizer's `LandmarkMap` cost no query. An
+import is one multi-row INSERT in one transaction.
 """
 
 from __future__ import annotations
@@ -12,19 +17,22 @@ from __future__ import annotations
 import builtins
 import csv
 import io
+import json
 import logging
 import threading
 from collections.abc import Callable, Iterable
 from typing import Any
 
+import numpy as np
 from pydantic import ValidationError
-from sqlalchemy import Engine, delete
+from sqlalchemy import Engine, delete, insert
 from sqlmodel import Session, col, select
 
 from localizer.landmark_map import LandmarkMap
 from server.crud.history import MapHistory, drop_redo, landmark_record
 from server.errors import ConflictError, NotFoundError
 from server.models import (
+    DECIMAL_ID,
     AuditRecord,
     Landmark,
     LandmarkCreate,
@@ -54,6 +62,9 @@ class MapRepository:
         self.engine = engine
         self._listeners: list[MapListener] = []
         self._lock = threading.Lock()  # serialises writers (check-then-write)
+        self._revision = 0  # bumped after every committed change
+        self._snapshot: tuple[int, builtins.list[LandmarkPublic]] | None = None
+        self._map: tuple[int, LandmarkMap] | None = None
         self.history = MapHistory(engine, self._lock, self._notify)
         """Undo and redo of each author's own edits."""
 
@@ -67,6 +78,7 @@ class MapRepository:
             self._listeners.remove(listener)
 
     def _notify(self) -> None:
+        self._revision += 1
         snapshot = self.list()
         for listener in list(self._listeners):
             try:
@@ -76,9 +88,25 @@ class MapRepository:
 
     # -- reads -------------------------------------------------------------------------------
     def list(self) -> builtins.list[LandmarkPublic]:
-        """Every landmark, by ID."""
+        """Every landmark, by ID (a copy of the snapshot)."""
+        return builtins.list(self._current())
+
+    def count(self) -> int:
+        """How many landmarks the map holds."""
+        return len(self._current())
+
+    def _current(self) -> builtins.list[LandmarkPublic]:
+        revision, cached = self._revision, self._snapshot
+        if cached is not None and cached[0] == revision:
+            return cached[1]
+        table = Landmark.__table__  # type: ignore[attr-defined]
         with Session(self.engine) as s:
-            return [_public(r) for r in s.exec(select(Landmark).order_by(col(Landmark.id)))]
+            rows = s.connection().execute(table.select().order_by(table.c.id)).mappings().all()
+        # the rows were validated on the way in: no second validation of 20,000 records
+        out = [LandmarkPublic.model_construct(**row) for row in rows]
+        if self._revision == revision:
+            self._snapshot = (revision, out)
+        return out
 
     def get(self, landmark_id: int) -> LandmarkPublic:
         with Session(self.engine) as s:
@@ -88,8 +116,18 @@ class MapRepository:
             return _public(row)
 
     def landmark_map(self) -> LandmarkMap:
-        """The map as the localizer wants it."""
-        return LandmarkMap.from_records([lm.model_dump() for lm in self.list()])
+        """The map as the localizer wants it (built once per change of the map)."""
+        revision, cached = self._revision, self._map
+        if cached is not None and cached[0] == revision:
+            return cached[1]
+        lms = self._current()
+        out = LandmarkMap(
+            np.array([lm.id for lm in lms], dtype=np.int64),
+            np.array([(lm.x, lm.y, lm.z) for lm in lms], dtype=np.float64).reshape(-1, 3),
+        )
+        if self._revision == revision:
+            self._map = (revision, out)
+        return out
 
     def addresses(self) -> dict[int, str]:
         """Landmark ID -> radio address, for the landmarks that have one."""
@@ -211,20 +249,22 @@ class MapRepository:
                         f"map: landmarks {radios[lm.radio]} and {lm.id} share radio {lm.radio}"
                     )
                 radios[lm.radio] = lm.id
+        now = utcnow()
+        rows = [{**lm.model_dump(), "created_at": now, "updated_at": now} for lm in items]
         with self._lock, Session(self.engine) as s:
-            before = {"landmarks": [landmark_record(r) for r in s.exec(select(Landmark))]}
+            # the snapshot's records are `landmark_record`'s (LandmarkPublic as JSON)
+            before = {"landmarks": [lm.model_dump(mode="json") for lm in self._current()]}
             if not items and before["landmarks"] and not confirm:
                 raise ConflictError(
                     f"the new map has no landmarks: it would remove all "
                     f"{len(before['landmarks'])} and leave the site without landmarks; "
-                    "confirm it (confirm=true)"
+                    "confirm it (confirm=true, or allow_empty=true)"
                 )
             s.exec(delete(Landmark))
-            s.flush()
-            rows = [Landmark.model_validate(lm.model_dump()) for lm in items]
-            s.add_all(rows)
-            s.flush()
-            after = {"landmarks": [landmark_record(r) for r in rows]}
+            if rows:
+                s.connection().execute(insert(Landmark.__table__), rows)  # type: ignore[attr-defined]
+            stamp = now.isoformat()
+            after = {"landmarks": [{**r, "created_at": stamp, "updated_at": stamp} for r in rows]}
             action = "import" if items else "clear"
             s.add(AuditRecord(actor=actor, action=action, before=before, after=after))
             drop_redo(s, actor)
@@ -259,23 +299,99 @@ def parse_map_json(data: Any, *, source: str = "map.json") -> builtins.list[Land
         return MapDocument.model_validate(data).landmarks
     except ValidationError as exc:
         raise ValueError(f"{source}: {_first_error(exc)}") from None
+    except RecursionError:
+        raise ValueError(f"{source}: JSON nested too deeply") from None
+
+
+def parse_map_text(text: str, *, source: str = "map.json") -> builtins.list[LandmarkCreate]:
+    """Parse and validate map.json text; ValueError says what is wrong (not JSON, nested
+    too deeply, a bad landmark)."""
+    try:
+        data = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"{source}: body is not JSON: {exc}") from None
+    except RecursionError:
+        raise ValueError(f"{source}: JSON nested too deeply (more than ~900 levels)") from None
+    return parse_map_json(data, source=source)
+
+
+def decode_text(raw: bytes, *, source: str) -> str:
+    """UTF-8 text of an uploaded document, a leading byte-order mark (as spreadsheet
+    programs write it) dropped; ValueError for bytes that are not UTF-8."""
+    try:
+        return raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise ValueError(
+            f"{source}: body is not UTF-8 text (byte {exc.start} is {raw[exc.start]:#04x})"
+        ) from None
 
 
 def parse_map_csv(text: str, *, source: str = "map.csv") -> builtins.list[LandmarkCreate]:
-    """Parse the CSV export (`id,x,y,z,radio,locked,note`; radio, locked, note optional)."""
-    reader = csv.DictReader(io.StringIO(text))
-    if reader.fieldnames is None or not {"id", "x", "y", "z"} <= set(reader.fieldnames):
-        raise ValueError(f"{source}: header must name at least id,x,y,z")
-    items = []
-    for line, row in enumerate(reader, start=2):
-        rec: dict[str, Any] = {k: v for k, v in row.items() if k in CSV_FIELDS and v != ""}
-        if "locked" in rec:
-            rec["locked"] = str(rec["locked"]).strip().lower() in ("1", "true", "yes")
-        try:
-            items.append(LandmarkCreate.model_validate(rec))
-        except ValidationError as exc:
-            raise ValueError(f"{source} line {line}: {_first_error(exc)}") from None
+    """Parse the CSV export (`id,x,y,z,radio,locked,note`; radio, locked, note optional).
+
+    A leading byte-order mark is skipped. Raises ValueError naming the line and what is
+    wrong: an unknown column, a row with more fields than the header, a field over
+    `csv.field_size_limit()` characters, a line break inside an unquoted field, an ID that
+    is not a plain decimal integer, a bad value.
+    """
+    reader = csv.reader(io.StringIO(text.removeprefix("\ufeff")))
+    try:
+        header = next(reader, None)
+        if header is None or not {"id", "x", "y", "z"} <= set(header):
+            raise ValueError(f"{source}: header must name at least id,x,y,z")
+        unknown = [h for h in header if h not in CSV_FIELDS]
+        if unknown:
+            raise ValueError(
+                f"{source}: header: unknown column {unknown[0]!r} "
+                f"(the columns are {','.join(CSV_FIELDS)})"
+            )
+        items = []
+        for fields in reader:
+            line = reader.line_num
+            if not fields:
+                continue
+            if len(fields) > len(header):
+                raise ValueError(
+                    f"{source} line {line}: {len(fields)} fields, the header names "
+                    f"{len(header)} ({','.join(header)}): quote a value that holds a comma"
+                )
+            rec: dict[str, Any] = {k: v for k, v in zip(header, fields, strict=False) if v != ""}
+            if "id" in rec:
+                rec["id"] = _strict_id(rec["id"], f"{source} line {line}: id")
+            for key in ("x", "y", "z"):
+                if key in rec:
+                    rec[key] = _number(rec[key], f"{source} line {line}: {key}")
+            if "locked" in rec:
+                rec["locked"] = str(rec["locked"]).strip().lower() in ("1", "true", "yes")
+            try:
+                items.append(LandmarkCreate.model_validate(rec))
+            except ValidationError as exc:
+                raise ValueError(f"{source} line {line}: {_first_error(exc)}") from None
+    except csv.Error as exc:
+        raise ValueError(f"{source} line {reader.line_num}: {_csv_problem(exc)}") from None
     return items
+
+
+def _strict_id(text: str, where: str) -> int:
+    if not DECIMAL_ID.fullmatch(text):
+        raise ValueError(f"{where}: expected a plain decimal integer, got {text!r}")
+    return int(text)
+
+
+def _number(text: str, where: str) -> float:
+    try:
+        return float(text)
+    except ValueError:
+        raise ValueError(f"{where}: expected a number of metres, got {text!r}") from None
+
+
+def _csv_problem(exc: csv.Error) -> str:
+    text = str(exc)
+    if "field limit" in text:
+        return f"a field is longer than {csv.field_size_limit()} characters"
+    if "new-line" in text:
+        return "a line break (CR or LF) inside an unquoted field: quote the field"
+    return text
 
 
 def _first_error(exc: ValidationError) -> str:

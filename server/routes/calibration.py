@@ -5,7 +5,8 @@ from __future__ import annotations
 import asyncio
 from typing import Annotated, Any
 
-from fastapi import APIRouter, File, Form, UploadFile
+from fastapi import APIRouter, File, Form, Request, UploadFile
+from pydantic.json_schema import SkipJsonSchema
 
 from calibration.board import BoardSpec, parse_pattern
 from calibration.lens import LensCalibrationConfig, LensModel
@@ -13,6 +14,8 @@ from calibration.uploads import calibrate_from_uploads, mounting_kept
 from localizer.camera import camera_from_sensor
 from server.auth import Operator
 from server.deps import RobotName, ServicesDep
+from server.errors import UnavailableError
+from server.stream_guard import stopping
 
 router = APIRouter(prefix="/robots", tags=["calibration"])
 
@@ -22,6 +25,7 @@ MAX_FILE_BYTES = 20 * 1024 * 1024
 
 @router.post("/{name}/calibration/lens")
 async def calibrate_lens_upload(
+    request: Request,
     name: RobotName,
     services: ServicesDep,
     _: Operator,
@@ -29,8 +33,13 @@ async def calibrate_lens_upload(
     pattern: Annotated[str, Form(description="inner corners, columns x rows")] = "9x6",
     square_m: Annotated[float, Form(gt=0, le=1, description="square side, metres")] = 0.025,
     model: Annotated[LensModel, Form()] = "pinhole",
-    charuco_dictionary: Annotated[str | None, Form(description="e.g. DICT_5X5_100")] = None,
-    marker_m: Annotated[float | None, Form(gt=0, le=1)] = None,
+    charuco_dictionary: Annotated[
+        str | SkipJsonSchema[None],
+        Form(description="a ChArUco board's dictionary, e.g. DICT_5X5_100 (leave out: chessboard)"),
+    ] = None,
+    marker_m: Annotated[
+        float | SkipJsonSchema[None], Form(gt=0, le=1, description="ChArUco marker side, metres")
+    ] = None,
     min_views: Annotated[int, Form(ge=3, le=MAX_FILES)] = 5,
     store: Annotated[bool, Form(description="save the result with the robot")] = True,
 ) -> dict[str, Any]:
@@ -59,7 +68,14 @@ async def calibrate_lens_upload(
     old = (
         camera_from_sensor(record.camera, source=f"robot {name} camera") if record.camera else None
     )
+    halt = stopping(request.app)
+
+    def progress(done: int, total: int) -> None:  # on the worker thread, after each photo
+        if halt.is_set():
+            raise UnavailableError("the server is shutting down: calibration abandoned")
+
     options: dict[str, Any] = {
+        "progress": progress,
         "model": model,
         "board": board,
         "config": LensCalibrationConfig(min_views=min_views),

@@ -12,12 +12,13 @@ import math
 from typing import Annotated, Literal
 
 from fastapi import APIRouter, Query
-from pydantic import BaseModel, Field
+from pydantic import BaseModel, ConfigDict, Field
 
 from commissioning.types import Candidate
 from commissioning.wizard import WizardStatus
 from server.auth import Admin, Operator, Viewer
 from server.deps import ServicesDep
+from server.errors import ConflictError
 from server.models import MAX_LANDMARK_ID
 
 router = APIRouter(prefix="/commissioning", tags=["commissioning"])
@@ -42,7 +43,16 @@ class CandidatePublic(BaseModel):
 
 
 class WizardStart(BaseModel):
-    """What to identify with which robot's camera."""
+    """What to identify with which robot's camera (at least one landmark or radio)."""
+
+    model_config = ConfigDict(
+        json_schema_extra={
+            "anyOf": [
+                {"required": ["landmarks"], "properties": {"landmarks": {"minItems": 1}}},
+                {"required": ["radios"], "properties": {"radios": {"minItems": 1}}},
+            ]
+        }
+    )
 
     robot: str = Field(min_length=1, max_length=64, pattern=r"^[A-Za-z0-9_.-]+$")
     landmarks: list[Annotated[int, Field(ge=0, le=MAX_LANDMARK_ID)]] = Field(
@@ -225,10 +235,10 @@ def wizard_start(body: WizardStart, services: ServicesDep, who: Admin) -> Wizard
         if known is None:
             fresh = [x for x in c.to_identify([(radio, "")]) if x.radio == radio]
             if not fresh:
-                raise ValueError(f"radios: {radio} belongs to a landmark of the map")
+                raise ConflictError(f"radios: {radio} belongs to a landmark of the map")
             known = fresh[0]
         if known.landmark_id in taken:
-            raise ValueError(f"radios: {radio} would get landmark ID {known.landmark_id}, taken")
+            raise ConflictError(f"radios: {radio} would get landmark ID {known.landmark_id}, taken")
         taken.add(known.landmark_id)
         queue.append(known)
     return status_public(c.start_wizard(body.robot, queue, actor=who.actor))

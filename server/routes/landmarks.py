@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from fastapi import APIRouter, HTTPException, Query, Response, status
-from pydantic import BaseModel
+from pydantic import BaseModel, Field
 
 from localizer.events import LedsChanged
 from server.auth import Admin, Operator, Viewer
@@ -25,13 +25,20 @@ class LedState(BaseModel):
     lit: list[int]
 
 
+class BatteryReadingPublic(BaseModel):
+    t: str = Field(description="when it was read, UTC, ISO 8601")
+    supply_mv: int = Field(description="supply voltage, millivolts")
+
+
 class BatteryPublic(BaseModel):
     landmark_id: int
-    supply_mv: int | None
-    volts: float | None
-    percent: float | None
-    days_left: float | None
-    history: list[tuple[str, int]]
+    supply_mv: int | None = Field(description="latest reading, millivolts (null: never read)")
+    volts: float | None = Field(description="the same in volts (null: never read)")
+    percent: float | None = Field(description="rough charge, 0-100 % (null: never read)")
+    days_left: float | None = Field(
+        description="estimated days until the cut-off voltage (null: not enough readings)"
+    )
+    history: list[BatteryReadingPublic] = Field(description="readings, oldest first")
 
 
 class AuditPublic(BaseModel):
@@ -142,5 +149,5 @@ async def battery(
         volts=volts,
         percent=st.percent,
         days_left=st.days_left,
-        history=st.history,
+        history=[BatteryReadingPublic(t=t, supply_mv=mv) for t, mv in st.history],
     )

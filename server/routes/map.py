@@ -3,15 +3,14 @@
 from __future__ import annotations
 
 import asyncio
-import json
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
 from fastapi import APIRouter, Query, Request
 from fastapi.responses import PlainTextResponse
 from pydantic import BaseModel
 
 from server.auth import Admin, Viewer
-from server.crud.landmarks import parse_map_csv, parse_map_json
+from server.crud.landmarks import decode_text, parse_map_csv, parse_map_text
 from server.deps import ServicesDep
 from server.models import LandmarkCreate, MapDocument
 
@@ -22,7 +21,11 @@ class ImportResult(BaseModel):
     landmarks: int
 
 
-@router.get("", response_model=MapDocument)
+@router.get(
+    "",
+    response_model=MapDocument,
+    responses={200: {"content": {"text/csv": {"schema": {"type": "string"}}}}},
+)
 def export_map(
     services: ServicesDep, _: Viewer, format: Literal["json", "csv"] = Query("json")
 ) -> Any:
@@ -49,25 +52,25 @@ async def import_map(
     request: Request,
     services: ServicesDep,
     who: Admin,
-    confirm: bool = Query(False, description="required when the new map has no landmarks"),
+    allow_empty: Annotated[
+        bool, Query(description="accept a map without landmarks (empties the site)")
+    ] = False,
+    confirm: Annotated[bool, Query(description="the same as allow_empty")] = False,
 ) -> ImportResult:
     """Replace the whole map (one transaction, audited, one step of your undo): JSON body,
-    or CSV with `Content-Type: text/csv`. A map without landmarks needs `confirm=true`
-    (409 otherwise)."""
+    or CSV with `Content-Type: text/csv` (UTF-8, a byte-order mark allowed). A map without
+    landmarks is refused (409) unless `?allow_empty=true` (or `confirm=true`)."""
     raw = await request.body()
     ctype = request.headers.get("content-type", "application/json").split(";")[0].strip()
-    text = raw.decode("utf-8", errors="strict") if raw else ""
     items: list[LandmarkCreate]
     if ctype == "text/csv":
-        items = parse_map_csv(text, source="map (CSV body)")
+        text = decode_text(raw, source="map (CSV body)")
+        items = await asyncio.to_thread(parse_map_csv, text, source="map (CSV body)")
     else:
-        try:
-            data = json.loads(text)
-        except json.JSONDecodeError as exc:
-            raise ValueError(f"map: body is not JSON: {exc}") from None
-        items = parse_map_json(data, source="map")
+        text = decode_text(raw, source="map")
+        items = await asyncio.to_thread(parse_map_text, text, source="map")
     count = await asyncio.to_thread(
-        services.map.replace_all, items, actor=who.actor, confirm=confirm
+        services.map.replace_all, items, actor=who.actor, confirm=allow_empty or confirm
     )
     return ImportResult(landmarks=count)
 

@@ -5,7 +5,8 @@ Text messages are JSON:
 - `{"type": "spots", "pixels": [[c, r], ...], "intensities": [...], "areas": [...], "t_ns": 123}`
 Binary messages are frames: 8 bytes little-endian signed `t_ns` then a PNG or JPEG image
 (8-bit gray or colour, or 16-bit PNG), or a raw gray frame: `GRY8` (8-bit) or `GR16` (16-bit
-LE), uint32 LE width, uint32 LE height, then the pixels row-major.
+LE), uint32 LE width, uint32 LE height, then the pixels row-major. Frames are decoded off the
+event loop, at most 4096 x 4096 px (an encoded image's size is read from its header first).
 `t_ns` is on the server's site clock; omit it (or send 0 / null) to stamp on receipt. The
 server answers each frame or spots message with the resulting pose as JSON (as on
 `/poses/ws`), and a malformed message with `{"error": "<what is wrong>"}` (the connection
@@ -15,17 +16,18 @@ keeps its state and waits (no more poses until the robot reconnects).
 
 from __future__ import annotations
 
+import asyncio
 import json
 import struct
 from collections.abc import Callable
 from typing import Any
 
-import cv2
 import numpy as np
-from fastapi import APIRouter, WebSocket, WebSocketDisconnect, status
+from fastapi import APIRouter, WebSocket, WebSocketDisconnect
 
+from calibration.uploads import decode_image
 from localizer.events import FrameObserved, OdometryMeasured, SpotsObserved
-from server.auth import authenticate
+from server.auth import refuse_websocket, websocket_principal
 from server.errors import NotFoundError
 from server.services import SiteServices
 from server.site.robot import RobotRunner
@@ -141,7 +143,7 @@ def frame_from_bytes(clock_ns: Clock, data: bytes) -> FrameObserved:
     if payload[:4] in RAW_FORMATS:
         image = raw_frame(payload)
     else:
-        image = cv2.imdecode(np.frombuffer(payload, dtype=np.uint8), cv2.IMREAD_UNCHANGED)
+        image = decode_image("frame", payload, max_pixels=MAX_RAW_PIXELS)
         if image is None:
             raise ValueError(
                 f"frame: the {len(payload)} bytes after t_ns are neither a PNG/JPEG image nor "
@@ -153,20 +155,17 @@ def frame_from_bytes(clock_ns: Clock, data: bytes) -> FrameObserved:
 @router.websocket("/robots/{name}/ws")
 async def remote_robot(ws: WebSocket, name: str) -> None:
     """A remote robot's sensor stream (operator key)."""
-    principal = authenticate(ws)
-    if principal is None or not principal.allows("operator"):
-        await ws.close(code=status.WS_1008_POLICY_VIOLATION, reason="an operator key is required")
+    if await websocket_principal(ws, "operator") is None:
         return
     services: SiteServices = ws.app.state.services
     try:
         runner = services.robots.get(name)
     except NotFoundError as exc:
-        await ws.close(code=status.WS_1008_POLICY_VIOLATION, reason=str(exc))
+        await refuse_websocket(ws, str(exc))
         return
     source = None if services.live is None else services.live.remote(name)
     if runner.source != "remote" or source is None:
-        reason = f"robot {name!r} has source {runner.source!r}, not 'remote'"
-        await ws.close(code=status.WS_1008_POLICY_VIOLATION, reason=reason)
+        await refuse_websocket(ws, f"robot {name!r} has source {runner.source!r}, not 'remote'")
         return
     await ws.accept()
     services.events.emit("robot_connected", f"remote robot {name} connected", robot=name)
@@ -188,8 +187,9 @@ async def _serve(ws: WebSocket, clock_ns: Clock, runner: RobotRunner, source: Re
         if msg["type"] == "websocket.disconnect":
             return
         try:
-            if msg.get("bytes") is not None:
-                event: SensorEvent = frame_from_bytes(clock_ns, msg["bytes"])
+            if msg.get("bytes") is not None:  # decoded off the event loop
+                data = msg["bytes"]
+                event: SensorEvent = await asyncio.to_thread(frame_from_bytes, clock_ns, data)
             else:
                 event = event_from_text(clock_ns, msg.get("text") or "")
         except ValueError as exc:

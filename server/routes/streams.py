@@ -4,16 +4,18 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import json
 from collections.abc import AsyncIterator
 from typing import Annotated
 
-from fastapi import APIRouter, Query, WebSocket, WebSocketDisconnect, status
+from fastapi import APIRouter, Query, Request, WebSocket, WebSocketDisconnect, status
 from fastapi.responses import StreamingResponse
 from pydantic import BaseModel
 
-from server.auth import Viewer, authenticate
+from server.auth import Viewer, websocket_principal
 from server.deps import ServicesDep
 from server.fanout import FanoutClient, PoseFanout
+from server.stream_guard import KEY_REVOKED, stream_end
 
 router = APIRouter(tags=["streams"])
 SSE_HEARTBEAT_S = 15.0
@@ -46,16 +48,18 @@ async def poses_ws(ws: WebSocket, robot: RobotFilter = None) -> None:
     Each message is a JSON array of pose objects (the poses computed within a few
     milliseconds of each other); a client that falls behind loses the oldest messages
     (bounded queue, `irloc_ws_dropped_poses_total`). Auth: the `Authorization: Bearer`
-    header or `?token=`.
+    header or `?token=`. Closed with code 1008 and a reason when the key is refused or
+    revoked, 1001 or 1012 when the server shuts down.
     """
-    principal = authenticate(ws)
+    principal = await websocket_principal(ws, "viewer")
     if principal is None:
-        await ws.close(code=status.WS_1008_POLICY_VIOLATION, reason="a valid API key is required")
         return
     await ws.accept()
     fanout: PoseFanout = ws.app.state.pose_fanout
     client = fanout.add_client(robot, ws.app.state.services.settings.ws_queue)
     watcher = asyncio.create_task(_close_on_disconnect(ws, client))
+    guard = asyncio.create_task(stream_end(ws, principal))
+    guard.add_done_callback(lambda _: client.close())
     try:
         while (message := await client.get()) is not None:
             await ws.send_text(message)
@@ -63,9 +67,16 @@ async def poses_ws(ws: WebSocket, robot: RobotFilter = None) -> None:
         pass
     finally:
         fanout.remove_client(client)
-        watcher.cancel()
-        with contextlib.suppress(asyncio.CancelledError, Exception):
-            await watcher
+        for task in (watcher, guard):
+            task.cancel()
+            with contextlib.suppress(asyncio.CancelledError, Exception):
+                await task
+        if guard.done() and not guard.cancelled() and guard.exception() is None:
+            code = status.WS_1008_POLICY_VIOLATION
+            if guard.result() != KEY_REVOKED:
+                code = status.WS_1001_GOING_AWAY
+            with contextlib.suppress(Exception):
+                await ws.close(code=code, reason=guard.result())
 
 
 @router.get("/events")
@@ -78,28 +89,41 @@ def list_events(
 
 @router.get("/events/stream", response_class=StreamingResponse)
 async def event_stream(
+    request: Request,
     services: ServicesDep,
-    _: Viewer,
+    who: Viewer,
     limit: int | None = Query(None, ge=1, le=10_000, description="end after this many events"),
 ) -> StreamingResponse:
     """Server-sent events: `event: <kind>` with the event as JSON in `data:` (low_battery,
-    landmark_unreachable, robot_lost, map_changed, ...); a comment line every 15 s."""
+    landmark_unreachable, robot_lost, map_changed, ...); a comment line every 15 s. The
+    stream ends with `event: key_revoked` when the key is revoked and `event: shutdown` when
+    the server stops."""
     sub = services.events.bus.subscribe()
 
     async def stream() -> AsyncIterator[str]:
         sent = 0
+        guard = asyncio.create_task(stream_end(request, who))
         try:
             yield ": connected\n\n"
             while limit is None or sent < limit:
-                try:
-                    batch = await asyncio.wait_for(sub.get_batch(), SSE_HEARTBEAT_S)
-                except TimeoutError:
+                getter = asyncio.ensure_future(sub.get_batch())
+                done, _ = await asyncio.wait(
+                    {getter, guard}, timeout=SSE_HEARTBEAT_S, return_when=asyncio.FIRST_COMPLETED
+                )
+                if guard in done:
+                    getter.cancel()
+                    kind = "key_revoked" if guard.result() == KEY_REVOKED else "shutdown"
+                    yield f"event: {kind}\ndata: {json.dumps({'message': guard.result()})}\n\n"
+                    return
+                if getter not in done:
+                    getter.cancel()
                     yield ": heartbeat\n\n"
                     continue
-                for event in batch[: None if limit is None else limit - sent]:
+                for event in getter.result()[: None if limit is None else limit - sent]:
                     yield f"id: {event.id}\nevent: {event.kind}\ndata: {event.json()}\n\n"
                     sent += 1
         finally:
+            guard.cancel()
             sub.close()
 
     return StreamingResponse(

@@ -92,7 +92,7 @@ def start_survey(body: SurveyStart, services: ServicesDep, who: Admin) -> Survey
     """Record `robot` while the landmarks blink one at a time against the lit ceiling.
 
     409 while a survey drives or solves, or with fewer than two locked landmarks (the
-    anchors); 503 without a radio; 422 for an unknown robot.
+    anchors); 503 without a radio; 404 for an unknown robot.
     """
     return _public(services.survey.start(body.robot, actor=who.actor))
 

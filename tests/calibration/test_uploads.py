@@ -32,3 +32,24 @@ def test_undecodable_files_are_named() -> None:
     with pytest.raises(ValueError, match="no files uploaded"):
         calibrate_from_uploads([])
     assert decode_images([("ok.jpg", good)])[0].shape == (480, 640)
+
+
+def test_a_decompression_bomb_is_refused_from_its_header() -> None:
+    import resource
+    import time
+
+    from tests.calibration.bombs import png_bomb
+
+    bomb = png_bomb(20000, 20000)
+    good = (DATA / "left01.jpg").read_bytes()
+    rss0 = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss  # KiB
+    t0 = time.perf_counter()
+    with pytest.raises(ValueError, match=r"huge.png: 400 MP is more than 40 MP") as exc:
+        decode_images([("ok.jpg", good), ("huge.png", bomb)])
+    elapsed = time.perf_counter() - t0
+    assert elapsed < 0.2, elapsed
+    assert resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - rss0 < 50_000  # < 50 MB
+    assert "MAX" not in str(exc.value)
+    # a photo whose header says one thing is not decoded as another
+    with pytest.raises(ValueError, match="could not be decoded"):
+        decode_images([("fake.png", b"\x89PNG\r\n\x1a\n" + b"\0" * 40)])

@@ -322,3 +322,24 @@ def test_close_stops_reopening(tmp_path: Path) -> None:
             assert emu.counts["LocalAtCommand"] == 0
 
     asyncio.run(main())
+
+
+def test_a_lost_reply_while_opening_is_retried_at_once(tmp_path: Path) -> None:
+    async def main() -> tuple[list[TransportState], float, int]:
+        with XBeeEmulator(tmp_path / "ttyNOISY", remotes()) as emu:
+            emu.drop_local_replies = 1  # digi-xbee's first local AT command goes unanswered
+            transport = XBeeTransport(str(emu.port), config=CONFIG)
+            states: list[TransportState] = []
+            transport.on_state_change(states.append)
+            t0 = time.monotonic()
+            await transport.open()  # no TransportUnavailable: the open was retried
+            elapsed = time.monotonic() - t0
+            assert await transport.read_supply_mv(ADDR[1]) == 3100
+            await transport.close()
+            return states, elapsed, emu.counts["dropped_local"]
+
+    states, elapsed, dropped = asyncio.run(main())
+    assert dropped == 1
+    assert states == ["opening", "open", "closed"]  # never "reopening"
+    # digi-xbee itself probes AT command mode (guard times) after the lost reply: ~4 s of it
+    assert elapsed < 10.0, elapsed

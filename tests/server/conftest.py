@@ -14,6 +14,8 @@ with warnings.catch_warnings():
     warnings.simplefilter("ignore")
     from fastapi.testclient import TestClient
 
+from fastapi import FastAPI
+
 from server.main import create_app
 from server.services import SiteServices
 from server.settings import Settings
@@ -31,18 +33,28 @@ class Api:
         return {"Authorization": f"Bearer {self.keys[role]}"}
 
 
-def start_api(data_dir: Path, **settings: object) -> Iterator[Api]:
+def make_test_app(data_dir: Path, **settings: object) -> FastAPI:
+    """The app of a test: no viewer, no battery polls, `settings` on top."""
     conf = {"data_dir": data_dir, "viewer_enabled": False, "battery_interval_s": None}
     conf.update(settings)
-    app = create_app(Settings(**conf))  # type: ignore[arg-type]
+    return create_app(Settings(**conf))  # type: ignore[arg-type]
+
+
+def role_keys(services: SiteServices) -> dict[str, str]:
+    """The first admin key of a fresh data folder and a new key of each other role."""
+    admin = services.initial_admin_key
+    assert admin is not None, "expected a fresh data folder"
+    keys = {"admin": admin}
+    for role in ("operator", "viewer"):
+        keys[role], _ = services.keys.create(role, name=f"test {role}")
+    return keys
+
+
+def start_api(data_dir: Path, **settings: object) -> Iterator[Api]:
+    app = make_test_app(data_dir, **settings)
     with TestClient(app) as client:
         services: SiteServices = app.state.services
-        admin = services.initial_admin_key
-        assert admin is not None
-        keys = {"admin": admin}
-        for role in ("operator", "viewer"):
-            keys[role], _ = services.keys.create(role, name=f"test {role}")
-        yield Api(client, services, keys)
+        yield Api(client, services, role_keys(services))
 
 
 @pytest.fixture

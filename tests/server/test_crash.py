@@ -6,9 +6,7 @@ from __future__ import annotations
 import os
 import re
 import signal
-import socket
 import subprocess
-import sys
 import threading
 import time
 from pathlib import Path
@@ -16,62 +14,14 @@ from pathlib import Path
 import httpx
 import pytest
 
+from tests.server.served import free_port, serve
+
 pytestmark = pytest.mark.slow
-ROOT = Path(__file__).resolve().parents[2]
-
-
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
-
-
-def _serve(data_dir: Path, port: int) -> tuple[subprocess.Popen[str], list[str]]:
-    proc = subprocess.Popen(
-        [
-            sys.executable,
-            "-m",
-            "irloc",
-            "serve",
-            "--data-dir",
-            str(data_dir),
-            "--port",
-            str(port),
-            "--no-viewer",
-            "--log-level",
-            "warning",
-        ],
-        cwd=ROOT,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.STDOUT,
-        text=True,
-        env=dict(os.environ),
-    )
-    lines: list[str] = []
-
-    def pump() -> None:
-        assert proc.stdout is not None
-        for line in proc.stdout:
-            lines.append(line)
-
-    threading.Thread(target=pump, daemon=True).start()
-    url = f"http://127.0.0.1:{port}/healthz"
-    for _ in range(300):
-        try:
-            if httpx.get(url, timeout=1).status_code == 200:
-                return proc, lines
-        except httpx.HTTPError:
-            pass
-        if proc.poll() is not None:
-            break
-        time.sleep(0.1)
-    proc.kill()
-    raise AssertionError("irloc serve did not start:\n" + "".join(lines))
 
 
 def test_kill_9_loses_no_acknowledged_map_change(tmp_path: Path) -> None:
-    port = _free_port()
-    proc, lines = _serve(tmp_path, port)
+    port = free_port()
+    proc, lines = serve(tmp_path, port, "--log-level", "warning")
     base = f"http://127.0.0.1:{port}/api/v1"
     try:
         found = re.search(r"first admin API key .*: (\S+)", "".join(lines))
@@ -106,7 +56,7 @@ def test_kill_9_loses_no_acknowledged_map_change(tmp_path: Path) -> None:
     finally:
         if proc.poll() is None:
             proc.kill()
-    proc2, lines2 = _serve(tmp_path, port)
+    proc2, lines2 = serve(tmp_path, port, "--log-level", "warning")
     try:
         assert "first admin API key" not in "".join(lines2)
         ids = {lm["id"] for lm in httpx.get(f"{base}/landmarks", headers=h).json()}

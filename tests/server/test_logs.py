@@ -81,3 +81,36 @@ def test_site_events_are_logged_with_structured_fields(api: Api, restore_root: N
         ("WARNING", "robot_lost", "r1", None),
         ("INFO", "landmark_reachable", None, 7),
     ]
+
+
+KEY = "irloc_Zq3xW9vT1sR7pL0mN5kJ8hG2fD4aS6yU0iO9eC1bV3n"
+ACCESS_PATHS = [
+    f"/viewer/?token={KEY}",
+    f"/api/v1/poses/ws?robot=r1&token={KEY}",
+    f"/api/v1/events/stream?token={KEY}&limit=3",
+    f"/api/v1/robots/r1/ws?key={KEY}",
+]
+
+
+@pytest.mark.parametrize("fmt", ["text", "json"])
+def test_no_key_reaches_a_log_line(restore_root: None, fmt: str) -> None:
+    out = io.StringIO()
+    configure_logging("info", fmt, stream=out)  # type: ignore[arg-type]
+    access = logging.getLogger("uvicorn.access")
+    for path in ACCESS_PATHS:  # uvicorn's own access-line format and arguments
+        access.info('%s - "%s %s HTTP/%s" %d', "127.0.0.1:5000", "GET", path, "1.1", 200)
+    error = logging.getLogger("uvicorn.error")
+    error.info("%s - %s", "127.0.0.1:5000", f'"WebSocket /api/v1/poses/ws?token={KEY}" [accepted]')
+    logging.getLogger("server.x").warning("header", extra={"authorization": f"Bearer {KEY}"})
+    logging.getLogger("server.x").warning("Authorization: Bearer %s", KEY)
+    try:
+        raise ValueError(f"bad key {KEY}")
+    except ValueError:
+        logging.getLogger("server.x").exception("failed")
+    text = out.getvalue()
+    assert len(text.splitlines()) >= 8
+    assert KEY not in text and KEY[:20] not in text
+    assert text.count("token=[redacted]") == 4 and "key=[redacted]" in text
+    assert "/api/v1/poses/ws?robot=r1&token=[redacted]" in text
+    assert "&limit=3" in text  # the rest of the query is kept
+    assert "Bearer [redacted]" in text

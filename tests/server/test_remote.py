@@ -120,7 +120,7 @@ def test_malformed_messages_get_a_clear_error_and_the_connection_stays(
 @pytest.mark.parametrize(
     ("path", "role", "reason"),
     [
-        (WS, "viewer", "an operator key is required"),
+        (WS, "viewer", "this needs the operator role"),
         ("/api/v1/robots/nobody/ws", "operator", "'nobody' is not running"),
     ],
 )
@@ -147,3 +147,18 @@ def test_a_simulated_robot_refuses_remote_frames(site: Api) -> None:
         ws.receive_text()
     site.services.live.stop_robot(name)
     assert "has source 'sim', not 'remote'" in (exc.value.reason or "")
+
+
+def test_a_decompression_bomb_frame_is_refused_from_its_header(site: Api) -> None:
+    import struct
+    import time
+
+    from tests.calibration.bombs import png_bomb
+
+    bomb = struct.pack("<q", 0) + png_bomb(16000, 16000)
+    with site.client.websocket_connect(WS, headers=site.h("operator")) as ws:
+        t0 = time.perf_counter()
+        ws.send_bytes(bomb)
+        error = json.loads(ws.receive_text())["error"]
+        assert time.perf_counter() - t0 < 0.5
+    assert error.startswith("frame: 256 MP is more than 16.8 MP"), error

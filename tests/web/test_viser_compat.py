@@ -14,7 +14,7 @@ import websockets
 from websockets.typing import Subprotocol
 
 from tests.web.memsite import grid_site
-from web.roles import ANONYMOUS, Session
+from web.roles import Session
 from web.viewer import TICKET_PARAM, SiteViewer
 from web.viser_compat import ViserCompatError, check_viser, request_path
 
@@ -89,10 +89,55 @@ def test_the_ticket_in_the_websocket_url_gives_the_browser_its_role() -> None:
 
         connect_and_wait(viewer.port, f"/?{TICKET_PARAM}={ticket}", found)
         assert sessions == [admin]
-        # the ticket is spent: a second connection with it is read-only
-        sessions.clear()
-        connect_and_wait(viewer.port, f"/?{TICKET_PARAM}={ticket}", lambda: found() and
-                         any(s == ANONYMOUS for s in sessions))  # fmt: skip
-        assert ANONYMOUS in sessions
+    finally:
+        viewer.stop()
+
+
+def refused(port: int, path: str, origin: str | None = None) -> tuple[int, str, int]:
+    """Connect to viser directly as a browser would; (close code, reason, messages got)."""
+    import msgspec
+    from viser import _messages
+
+    cam = _messages.ViewerCameraMessage(
+        (1.0, 0.0, 0.0, 0.0), (0.0, -8.0, 6.0), 1.0, 0.01, 100.0, 800, 1280,
+        (3.0, 2.4, 1.0), (0.0, 0.0, 1.0),
+    )  # fmt: skip
+
+    async def run() -> tuple[int, str, int]:
+        got = 0
+        async with websockets.connect(
+            f"ws://127.0.0.1:{port}{path}", subprotocols=[SUBPROTOCOL], max_size=None,
+            origin=origin,  # type: ignore[arg-type]
+        ) as ws:  # fmt: skip
+            try:
+                await ws.send(msgspec.msgpack.encode(cam.as_serializable_dict()))
+                while True:
+                    await asyncio.wait_for(ws.recv(), 5)
+                    got += 1
+            except websockets.ConnectionClosed as exc:
+                assert exc.rcvd is not None
+                return exc.rcvd.code, exc.rcvd.reason, got
+
+    return asyncio.run(run())
+
+
+def test_viser_own_port_refuses_everyone_but_the_proxy() -> None:
+    viewer = SiteViewer(grid_site())
+    viewer.start()
+    try:
+        # another process on the host, no ticket: refused before any scene is sent
+        code, reason, got = refused(viewer.port, "/")
+        assert (code, got) == (1008, 0) and "/viewer/" in reason
+        # a spent or forged ticket: the same
+        ticket = viewer.issue_ticket(Session("admin", "viewer:key:7"))
+        assert refused(viewer.port, f"/?{TICKET_PARAM}=forged")[::2] == (1008, 0)
+        # a web page in a browser on the host carries an Origin: refused even with a ticket
+        code, _, got = refused(viewer.port, f"/?{TICKET_PARAM}={ticket}", "http://evil.example")
+        assert (code, got) == (1008, 0)
+        assert not any(viewer.session_of(cid) for cid in range(64))
+        # the proxy's way in (a live ticket, no Origin) still works, once
+        connect_and_wait(viewer.port, f"/?{TICKET_PARAM}={ticket}",
+                         lambda: any(viewer.session_of(c) for c in range(64)))  # fmt: skip
+        assert refused(viewer.port, f"/?{TICKET_PARAM}={ticket}")[::2] == (1008, 0)  # spent
     finally:
         viewer.stop()
