@@ -67,5 +67,9 @@ def test_live_recording_exports(
     assert "/groundtruth" not in counts
     assert counts.get("/irloc/pose", 0) == int(replayed.has_pose.sum())
     assert counts["/irloc/mode"] >= 1
-    assert counts["/landmarks"] == len(rec.leds)  # the start, then every LED change
+    start = (
+        min(rec.frames[0].t_ns, int(rec.odom_t_ns[0])) if len(rec.odom_t_ns) else rec.frames[0].t_ns
+    )
+    changes = [e for e in rec.leds if start < e.t_ns <= rec.frames[-1].t_ns]
+    assert counts["/landmarks"] == 1 + len(changes)  # the start, then every LED change
     assert counts["/odom"] == int(np.sum(rec.odom_t_ns <= rec.frames[-1].t_ns))
