@@ -33,8 +33,8 @@ import numpy as np
 from sim.survey_floor import SpotDrive, simulate_survey_spots, survey_floor_scenario
 from survey.blinks import BlinkConfig, blink_schedule
 from survey.bundle import BundleConfig, solve_survey
+from survey.ceiling import ceiling_points_world
 from survey.drive import SurveyDrive, survey_problem
-from survey.initial import ceiling_point
 from survey.result import SurveyResult
 from survey.survey_map import parse_survey_map
 
@@ -125,9 +125,11 @@ def wizard(drive: SpotDrive, anchors: list[int], rng: np.random.Generator) -> di
             px, ok = predict_pixels(drive.camera_true, T_world_body_from_pose(*pose), p[None, :])
             if ok[0] and np.linalg.norm(px[0] - [drive.camera.cu, drive.camera.cv]) < 150:
                 seen = pose + rng.normal(0.0, [0.005, 0.005, math.radians(0.05)])
-                q = ceiling_point(drive.camera, seen, px[0] + rng.normal(0, 0.15, 2), z_ceiling)
-                if q is not None:
-                    samples.append(q)
+                q, hit = ceiling_points_world(
+                    drive.camera, seen[None, :], px[:1] + rng.normal(0, 0.15, 2), z_ceiling
+                )
+                if hit[0]:
+                    samples.append(q[0])
             if len(samples) == 5:
                 break
         if samples:

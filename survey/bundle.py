@@ -37,7 +37,8 @@ from scipy.sparse.linalg import splu
 
 from localizer.camera import CameraModel, pixels_from_points_camera
 from localizer.geometry import transform_points
-from survey.initial import ceiling_point, initial_guess
+from survey.ceiling import ceiling_points_world
+from survey.initial import initial_guess
 from survey.observations import LabelledObservations
 from survey.odometry_chain import between, relative_motions, segment_lengths, wheel_intervals
 from survey.result import LandmarkEstimate, SurveyResult
@@ -343,11 +344,13 @@ def _name_by_geometry(
     points: dict[int, FloatArray] = {}
     order = np.argsort(obs.track[todo], kind="stable")
     tracks, starts = np.unique(obs.track[todo][order], return_index=True)
-    for tr, rows in zip(tracks.tolist(), np.split(todo[order], starts[1:]), strict=True):
-        lid = int(obs.landmark_id[rows[0]])
-        z = float(estimates[lid][2]) if lid in estimates else zc
-        qs = [ceiling_point(cam, poses[frame_key[r]], obs.pixels[r], z) for r in rows.tolist()]
-        found = np.array([q for q in qs if q is not None]).reshape(-1, 3)
+    heights = [
+        float(estimates[lid][2]) if lid in estimates else zc
+        for lid in obs.landmark_id[todo].tolist()
+    ]
+    qs, hit = ceiling_points_world(cam, poses[frame_key[todo]], obs.pixels[todo], heights)
+    for tr, rows in zip(tracks.tolist(), np.split(order, starts[1:]), strict=True):
+        found = qs[rows][hit[rows]]
         if len(found):
             points[int(tr)] = np.median(found, axis=0)
     named = 0

@@ -11,8 +11,9 @@ import math
 import numpy as np
 import numpy.typing as npt
 
-from localizer.camera import CameraModel, rays_from_pixels
+from localizer.camera import CameraModel
 from localizer.pose import solve_pose
+from survey.ceiling import ceiling_points_world
 from survey.odometry_chain import compose, dead_reckoning
 
 FloatArray = npt.NDArray[np.float64]
@@ -27,23 +28,6 @@ def invert_deltas(deltas: FloatArray) -> FloatArray:
     out[:, 1] = -(-s * deltas[:, 0] + c * deltas[:, 1])
     out[:, 2] = -deltas[:, 2]
     return out
-
-
-def ceiling_point(
-    camera: CameraModel, pose: FloatArray, pixel: FloatArray, z_m: float
-) -> FloatArray | None:
-    """Where a spot's ray from a body pose (x, y, theta) meets the plane z = z_m (world)."""
-    ray = rays_from_pixels(camera, pixel.reshape(1, 2))[0]
-    if not np.all(np.isfinite(ray)):
-        return None
-    b = camera.T_body_camera[:3, :3] @ ray
-    o = camera.T_body_camera[:3, 3]
-    if b[2] <= 1e-6:
-        return None
-    s = (z_m - o[2]) / b[2]
-    q = o + s * b
-    c, si = math.cos(pose[2]), math.sin(pose[2])
-    return np.array([pose[0] + c * q[0] - si * q[1], pose[1] + si * q[0] + c * q[1], z_m])
 
 
 def initial_guess(
@@ -108,13 +92,12 @@ def initial_guess(
         if pose is None:
             continue
         poses[k] = pose
-        for lid, p in zip(ids.tolist(), px, strict=True):
-            if lid in good:
-                continue
-            z = rough[lid][2] if lid in rough else ceiling_z_m
-            q = ceiling_point(camera, pose, p, z)
-            if q is None:
-                continue
+        new = [i for i, lid in enumerate(ids.tolist()) if lid not in good]
+        if not new:
+            continue
+        heights = [rough[lid][2] if lid in rough else ceiling_z_m for lid in ids[new].tolist()]
+        qs, hit = ceiling_points_world(camera, np.tile(pose, (len(new), 1)), px[new], heights)
+        for lid, q in zip(ids[new][hit].tolist(), qs[hit], strict=True):
             pts = points.setdefault(lid, [])
             pts.append(q)
             if len(pts) >= min_views:
@@ -150,13 +133,9 @@ def initial_guess(
             est[lid] = rough[lid]
         else:
             rows = np.flatnonzero(obs_id == lid)
-            found: list[FloatArray] = []
-            for r in rows.tolist():
-                q = ceiling_point(camera, poses[obs_key[r]], obs_px[r], ceiling_z_m)
-                if q is not None:
-                    found.append(q)
-            if found:
-                est[lid] = np.median(np.array(found), axis=0)
+            qs, hit = ceiling_points_world(camera, poses[obs_key[rows]], obs_px[rows], ceiling_z_m)
+            if hit.any():
+                est[lid] = np.median(qs[hit], axis=0)
     return poses, est
 
 
@@ -229,14 +208,9 @@ def _start_from_rough_fixes(
         )  # fmt: skip
         if fix is None:
             continue
-        # start = fix composed with the inverse of the dead-reckoned motion to keyframe k
-        th0 = fix.theta - dr[k, 2]
-        c, s = math.cos(th0), math.sin(th0)
-        starts.append(
-            np.array(
-                [fix.x - (c * dr[k, 0] - s * dr[k, 1]), fix.y - (s * dr[k, 0] + c * dr[k, 1]), th0]
-            )
-        )
+        # the start: the fix moved back by the dead-reckoned motion to keyframe k
+        fix_pose = np.array([[fix.x, fix.y, fix.theta]])
+        starts.append(compose(fix_pose, invert_deltas(dr[k : k + 1]))[0])
         if len(starts) >= 200:
             break
     if not starts:

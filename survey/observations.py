@@ -29,9 +29,10 @@ import numpy as np
 import numpy.typing as npt
 from scipy.optimize import linear_sum_assignment
 
-from localizer.camera import CameraModel, pixels_from_points_camera, rays_from_pixels
+from localizer.camera import CameraModel, pixels_from_points_camera
 from localizer.events import LedsChanged
 from localizer.geometry import transform_points
+from survey.ceiling import ceiling_points_body
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
@@ -136,12 +137,7 @@ def predict_pixels_after_motion(
     """
     if len(pixels) == 0:
         return np.zeros((0, 2)), np.zeros(0, dtype=bool)
-    rays = rays_from_pixels(camera, pixels) @ camera.T_body_camera[:3, :3].T
-    origin = camera.T_body_camera[:3, 3]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        s = (ceiling_z_m - origin[2]) / rays[:, 2]
-    ok = np.isfinite(s) & (s > 0)
-    p = origin + np.where(ok, s, 1.0)[:, None] * np.nan_to_num(rays)
+    p, ok = ceiling_points_body(camera, pixels, ceiling_z_m)
     c, si = math.cos(delta[2]), math.sin(delta[2])
     x, y = p[:, 0] - delta[0], p[:, 1] - delta[1]
     p_new = np.stack([c * x + si * y, -si * x + c * y, p[:, 2]], axis=1)
