@@ -6,8 +6,9 @@ reads a recording and writes a map (`irloc survey`).
 """
 
 from survey.blinks import BlinkConfig, blink_schedule
-from survey.bundle import BundleConfig, SurveyProblem, solve_survey
+from survey.bundle import solve_survey
 from survey.observations import LabelledObservations, TrackingConfig, label_spot_tracks
+from survey.problem import BundleConfig, SurveyProblem
 from survey.result import LandmarkEstimate, SurveyResult
 
 __all__ = [

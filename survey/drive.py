@@ -24,9 +24,9 @@ from localizer.robot import RobotGeometry, robot_from_yaml_dict
 from localizer.spots import DetectionConfig, detect_spots
 from recording import layout
 from recording.reader import read_frames, read_leds, read_odometry
-from survey.bundle import SurveyProblem
 from survey.observations import TrackingConfig, label_spot_tracks
 from survey.odometry_chain import relative_motions, wheel_intervals
+from survey.problem import SurveyProblem
 from survey.survey_map import SurveyLandmark, read_survey_map
 
 FloatArray = npt.NDArray[np.float64]
