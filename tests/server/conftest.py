@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import time
 import warnings
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -31,6 +33,25 @@ class Api:
 
     def h(self, role: str) -> dict[str, str]:
         return {"Authorization": f"Bearer {self.keys[role]}"}
+
+    def wait_for(
+        self,
+        path: str,
+        until: Callable[[dict[str, Any]], bool],
+        timeout_s: float,
+        *,
+        role: str = "admin",
+        every_s: float = 0.1,
+    ) -> dict[str, Any]:
+        """GET `path` until its JSON satisfies `until`; AssertionError with the last answer."""
+        deadline = time.monotonic() + timeout_s
+        st: dict[str, Any] = {}
+        while time.monotonic() < deadline:
+            st = self.client.get(path, headers=self.h(role)).json()
+            if until(st):
+                return st
+            time.sleep(every_s)
+        raise AssertionError(f"{path} did not get there in {timeout_s} s: {st}")
 
 
 def make_test_app(data_dir: Path, **settings: object) -> FastAPI:

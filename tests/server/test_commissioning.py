@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import time
 from collections.abc import Iterator
-from typing import Any
 
 import numpy as np
 import pytest
@@ -73,17 +72,6 @@ def test_bad_input_is_named(api: Api) -> None:
     assert r.status_code == 409 and "not running" in r.json()["detail"]
 
 
-def _wait(c: Any, h: dict[str, str], until: Any, timeout_s: float) -> dict[str, Any]:
-    deadline = time.monotonic() + timeout_s
-    st: dict[str, Any] = {}
-    while time.monotonic() < deadline:
-        st = c.get(W, headers=h).json()
-        if until(st):
-            return st
-        time.sleep(0.1)
-    raise AssertionError(f"wizard did not get there in {timeout_s} s: {st}")
-
-
 def _nearest(api: Api, robot: str, ids: list[int]) -> int:
     sim = api.services.sim
     assert sim is not None
@@ -123,7 +111,7 @@ def test_identification_on_the_live_site_keeps_the_other_robots_tracking(live: A
     assert r.status_code == 200, r.text
     again = c.post(W + "/start", json={"robot": "r1", "landmarks": [lid]}, headers=h)
     assert again.status_code == 409
-    st = _wait(c, h, lambda s: s["measurement"] is not None, 40)
+    st = live.wait_for(W, lambda s: s["measurement"] is not None, 40)
     time.sleep(2.0)  # it goes on measuring until confirmed
     st = c.get(W, headers=h).json()
     m = st["measurement"]
@@ -169,7 +157,7 @@ def test_a_radio_deleted_from_the_map_is_found_measured_and_saved_back(live: Api
     assert len(new) == 1 and "new radio" in new[0]["reason"], r.json()
     r = c.post(W + "/start", json={"robot": "r1", "radios": [address]}, headers=h)
     assert r.status_code == 200, r.text
-    st = _wait(c, h, lambda s: s["can_confirm"] or s["needs_accept_far"], 40)
+    st = live.wait_for(W, lambda s: s["can_confirm"] or s["needs_accept_far"], 40)
     assert st["can_confirm"], st  # inside the mapped area: plausible
     m = st["measurement"]
     np.testing.assert_allclose([m["x"], m["y"]], truth[:2], atol=0.05)

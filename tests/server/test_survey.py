@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import time
 from collections.abc import Iterator
-from typing import Any
 
 import numpy as np
 import pytest
@@ -20,17 +19,6 @@ ANCHORS = (107, 122)  # far apart on the demo's grid, both near r1's loop
 @pytest.fixture(scope="module")
 def live(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Api]:
     yield from start_api(tmp_path_factory.mktemp("survey"), seed=11)
-
-
-def _wait(c: Any, h: dict[str, str], until: Any, timeout_s: float) -> dict[str, Any]:
-    deadline = time.monotonic() + timeout_s
-    st: dict[str, Any] = {}
-    while time.monotonic() < deadline:
-        st = c.get(S, headers=h).json()
-        if until(st):
-            return st
-        time.sleep(0.5)
-    raise AssertionError(f"survey did not get there in {timeout_s} s: {st}")
 
 
 def test_roles_and_bad_input(api: Api) -> None:
@@ -70,13 +58,13 @@ def test_a_live_survey_places_the_grid_and_keeps_the_fleet_tracking(live: Api) -
     r = c.post(S + "/start", json={"robot": "r1"}, headers=h)
     assert r.status_code == 200 and r.json()["state"] == "driving", r.text
     assert c.post(S + "/start", json={"robot": "r1"}, headers=h).status_code == 409
-    time.sleep(40.0)  # r1 drives twice round the grid
+    time.sleep(60.0)  # r1 drives three times round the grid: every landmark blinks often
     poses = sub.drain()
     sub.close()
     r = c.post(S + "/stop", headers=h)
     assert r.status_code == 200 and r.json()["state"] == "solving", r.text
     assert r.json()["blinks"] > 60
-    st = _wait(c, h, lambda s: s["state"] in ("done", "failed"), 240)
+    st = live.wait_for(S, lambda s: s["state"] in ("done", "failed"), 240, every_s=0.5)
     assert st["state"] == "done", st
     for robot in ("r2", "r3"):  # blinking one landmark at a time blinds nobody
         modes = [p.mode for p in poses if p.robot == robot]
