@@ -269,8 +269,11 @@ class SiteViewer:
             return self._sessions.get(client_id)
 
     def _on_connect(self, client: viser.ClientHandle) -> None:
-        session = self._session_for(client)
-        if session is ANONYMOUS or self._has_origin(client):
+        # a web page (it sends an Origin) is refused before its ticket is looked at: it must
+        # not spend the proxy's one-time ticket (the connection layer's `_admit` and this
+        # callback race; either may see the connection first)
+        session = ANONYMOUS if self._has_origin(client) else self._session_for(client)
+        if session is ANONYMOUS:
             # viser's own port: only the proxy (a valid one-time ticket, no Origin header as a
             # browser would send) gets in; any other local process or web page is refused
             assert self.server is not None  # started
