@@ -10,6 +10,7 @@ from localizer.identification import IdentificationConfig
 from localizer.noise_model import PixelNoiseConfig
 from localizer.pose_filter import FilterConfig
 from localizer.relocalization import RelocalizationConfig
+from localizer.self_calibration import SelfCalibrationConfig
 from localizer.spots import DetectionConfig
 from localizer.tracking import TrackingConfig
 
@@ -89,3 +90,4 @@ class LocalizerConfig:
     filter: FilterConfig = field(default_factory=FilterConfig)
     relocalization: RelocalizationConfig = field(default_factory=RelocalizationConfig)
     noise: PixelNoiseConfig = field(default_factory=PixelNoiseConfig)
+    self_calibration: SelfCalibrationConfig = field(default_factory=SelfCalibrationConfig)

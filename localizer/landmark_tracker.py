@@ -81,6 +81,7 @@ class LandmarkTracker:
             height above the camera).
         max_angular_speed_rad_s: the robot's fastest turn.
         background: the last full frame's background (level, noise), counts; None before.
+        last_fused: the last fused fix's map rows, spot pixels and fix (self-calibration).
     """
 
     def __init__(
@@ -97,6 +98,7 @@ class LandmarkTracker:
             default_angular_speed(robot.max_speed, robot.wheel_base)
         )
         self.background: tuple[float, float] | None = None
+        self.last_fused: tuple[list[int], list[list[float]], PoseFix] | None = None
         self.set_map(landmark_map)
 
     def set_map(self, landmark_map: LandmarkMap) -> None:
@@ -349,6 +351,7 @@ class LandmarkTracker:
         if not filt.update_fix(fix, max_nis=fc.nis_gate) <= fc.nis_gate:
             return ()
         self.noise.observe(chi2, n)
+        self.last_fused = (rows, px, fix)
         return fix.landmark_ids
 
     def _off_image(

@@ -47,7 +47,8 @@ from localizer.identification import Identifier
 from localizer.landmark_map import LandmarkMap
 from localizer.landmark_tracker import LandmarkTracker
 from localizer.odometry_track import OdometryTrack
-from localizer.pose import PoseFix
+from localizer.online_calibration import OnlineCalibration
+from localizer.pose import PoseFix, solve_pose
 from localizer.pose_filter import PoseFilter
 from localizer.robot import RobotGeometry
 from localizer.spots import Spots
@@ -98,6 +99,8 @@ class Localizer:
             tuple[frozenset[int] | None, frozenset[int], LandmarkMap, npt.NDArray[np.int64]] | None
         ) = None
         self._tracker = LandmarkTracker(camera, robot, self.config, landmark_map)
+        sc = self.config.self_calibration
+        self.calibration = OnlineCalibration(camera, sc) if sc.enabled else None
         self.set_map(landmark_map)
 
     # -- public API ----------------------------------------------------------------------------
@@ -267,6 +270,8 @@ class Localizer:
         else:
             used = self._track(e, dt_frame)
             self._mode = "landmark" if used else "dead_reckoning"
+            if used and self.calibration is not None:
+                self._self_calibrate(t)
         self._commit = self._commit or bool(used)
         self._check_lost(t)
         out = self._output(t, used)
@@ -322,6 +327,29 @@ class Localizer:
             return ()
         self._reset_filter(fix.x, fix.y, fix.theta, fix.covariance, t_ns)
         return fix.landmark_ids
+
+    def _self_calibrate(self, t_ns: int) -> None:
+        """Feed the fused fix to the online self-calibration; when it hands back a corrected
+        camera, use it from now on, and move the pose to where this frame's spots put it
+        through the corrected camera (the filter's belief stays, read through the better
+        lens)."""
+        fused = self._tracker.last_fused
+        if self.calibration is None or fused is None or self._filter is None:
+            return
+        rows, px, fix = fused
+        P = self.map.positions[rows]
+        pose = (fix.x, fix.y, fix.theta)
+        update = self.calibration.observe(t_ns, px, P, pose, self._odometry.pose_at(t_ns))
+        if update is None:
+            return
+        sigma = [self._tracker.noise.sigma_px(u, v) for u, v in px]
+        moved = solve_pose(update.camera, px, P, initial=pose, pixel_sigma_px=sigma)
+        if moved is not None:
+            self._filter.shift(moved.x - fix.x, moved.y - fix.y,
+                               float(wrap_angle(moved.theta - fix.theta)))  # fmt: skip
+        self.camera = update.camera
+        self._tracker.camera = update.camera
+        self._tracker.set_map(self.map)  # scale, reach and the noise model of the new lens
 
     def _fix_from_sightings(self, t_ns: int) -> PoseFix | None:
         """First fix from identified landmarks, each carried by odometry to the frame time."""

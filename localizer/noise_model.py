@@ -55,8 +55,8 @@ class PixelNoiseConfig:
     distortion_rel: float = 0.05
     adapt: bool = True
     adapt_gain: float = 0.02
-    adapt_bounds: tuple[float, float] = (0.5, 3.0)
-    adapt_min_landmarks: int = 4
+    adapt_bounds: tuple[float, float] = (0.2, 3.0)
+    adapt_min_landmarks: int = 3
 
     def __post_init__(self) -> None:
         for name in ("centroid_sigma_px", "survey_sigma_m", "focal_rel", "principal_px",

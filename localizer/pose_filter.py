@@ -71,7 +71,7 @@ class FilterConfig:
     calibration_prior_sigma: float = 0.03
     estimate_calibration: bool = True
     calibration_bounds: tuple[float, float] = (0.8, 1.2)
-    output_time_constant_s: float = 0.2
+    output_time_constant_s: float = 0.05
     output_snap_m: float = 0.5
     output_settle_s: float = 1.0
     adapt_noise: bool = True
@@ -300,6 +300,15 @@ class PoseFilter:
         self._P[0][0] += var_xy_m2
         self._P[1][1] += var_xy_m2
         self._P[2][2] += var_theta_rad2
+
+    def shift(self, dx_m: float, dy_m: float, dtheta_rad: float) -> None:
+        """Move the pose estimate (and the output with it) by a known amount: the same fixes
+        read through a corrected camera calibration (`online_calibration`) put the robot
+        there. The covariance stays."""
+        X = self._X
+        X[0] += dx_m
+        X[1] += dy_m
+        X[2] = float(wrap_angle(X[2] + dtheta_rad))
 
     def snap_output(self) -> None:
         """Let the output take the estimate at once (no smoothing of the last correction):

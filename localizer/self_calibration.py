@@ -1,27 +1,36 @@
-"""Online self-calibration: the principal point, the first distortion term and the mounting
-yaw, estimated from the stream of fixes where the data make them observable.
+"""Self-calibration: the principal point, the first distortion terms, the focal scale and the
+mounting yaw, estimated from a window of fixes where the data make them observable.
 
 A window of frames, each with its matched spots (pixels), their landmarks (world points) and
-the raw odometry pose at the frame, is adjusted jointly (a small bundle adjustment,
-`scipy.optimize.least_squares` with a sparse Jacobian): the unknowns are the corrections
-c = (delta cu, delta cv, relative change of the first distortion coefficient, mounting yaw)
-and every frame's pose; the residuals are the reprojection errors over the pixel sigma, the
-odometry's relative motion between consecutive frames over its sigma, and a weak prior on c.
+the raw odometry pose at the frame, is adjusted jointly (a small bundle adjustment): the
+unknowns are the corrections
 
-What makes each correction observable (and so when it converges, see `converged`):
-- the first distortion term: landmarks over a range of image radii in the same frame (many
-  landmarks in view; a 3-landmark cluster at one radius leaves it to the prior);
+    c = (delta cu px, delta cv px, k1 relative, k2 relative, focal relative, mounting yaw rad)
+
+and every frame's body pose (x, y, theta); the residuals are the reprojection errors over the
+pixel sigma (Huber-weighted), the odometry's relative motion between consecutive frames over
+its sigma, and a prior on c (the calibration's own uncertainty, or online the estimate of the
+windows before). Gauss-Newton on the dense normal equations (6 + 3M unknowns): one OpenCV
+projection of every point per iteration gives the pixels and, from its Jacobian, their
+derivatives in the lens parameters and the camera-frame point; the pose derivatives follow by
+the chain rule.
+
+What makes each correction observable (and so when it converges, see `lens_converged`):
+- the radial terms and the focal scale: landmarks over a range of image radii in the same
+  frame (many landmarks in view; a 3-landmark cluster at one radius leaves them to the prior);
 - the principal point: a shift of it moves every spot almost alike, like a translation of
-  the body; what tells them apart is the distortion pattern around the true centre (a
-  strong wide lens shows it in one view) and turning in place (the translation it mimics
-  turns with the heading while odometry says the body stayed);
+  the body; what tells them apart is the distortion pattern around the true centre (a strong
+  wide lens shows it in one view) and turning in place (the translation it mimics turns with
+  the heading while odometry says the body stayed);
 - the mounting yaw: a yawed camera turns every fix's heading alike, invisible in one frame;
   driving straight, odometry says which way the body moved, and the fixes' track shows the
-  yaw between the two.
+  yaw between the two (as far as odometry's own heading drift lets it).
 
-The prior's standard deviations are the calibration's own uncertainty. `converged` holds,
-per correction, whether its posterior standard deviation fell below `converge_*` (a
-fraction of the prior): only those are applied (`apply_to`).
+Convergence: the lens terms are strongly correlated (k1, k2 and the focal scale trade off),
+so they are judged together by what they do to the image: the lens block has converged when
+the posterior's pixel standard deviation, averaged over the window's spots, is below
+`converge_fraction` of the prior's. The yaw has converged when its posterior standard
+deviation is below that fraction of its prior's. Only converged parts are applied.
 """
 
 from __future__ import annotations
@@ -31,73 +40,145 @@ import math
 from collections import deque
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
 import numpy.typing as npt
-from scipy.optimize import least_squares
-from scipy.sparse import lil_matrix
 
-from localizer.camera import CameraModel, predict_pixels
-from localizer.geometry import T_world_body_from_pose, wrap_angle
+from localizer.camera import CameraModel
+from localizer.geometry import wrap_angle
 
 FloatArray = npt.NDArray[np.float64]
 Pose = tuple[float, float, float]
-NAMES = ("cu_px", "cv_px", "k1_rel", "yaw_rad")
+Frame = tuple[FloatArray, FloatArray, Pose, Pose]
+NAMES = ("cu_px", "cv_px", "k1_rel", "k2_rel", "focal_rel", "yaw_rad")
+LENS = slice(0, 5)  # the lens block of c
+YAW = 5
 
 
 @dataclass(frozen=True)
 class SelfCalibrationConfig:
-    """Tuning of `SelfCalibration`.
+    """Tuning of `SelfCalibration` and of its online use (`online_calibration`).
 
     Attributes:
-        window_frames: frames adjusted together (the latest).
+        enabled: the localizer runs the online self-calibration (`LocalizerConfig`).
+        window_frames: frames adjusted together.
         min_landmarks: frames with fewer matched landmarks are not kept.
+        keep_every_s: online, a fix is kept at most this often, seconds (views far enough
+            apart that odometry between them says something; a window spans
+            `window_frames` x this).
+        max_keep_every_s: online, each candidate the gate turns down (the estimate has
+            stopped improving on the calibration in use) doubles that interval, up to this:
+            a settled calibration costs little.
         pixel_sigma_px: reprojection noise, pixels.
+        huber_sigmas: reprojection residuals beyond this many sigmas are down-weighted
+            (Huber), so a stray pair costs little.
+        iterations: Gauss-Newton iterations at most.
         odometry_sigma_m: noise of odometry's relative translation between two kept
             frames, metres (plus `odometry_sigma_frac` of the distance forward and
-            `odometry_lateral_frac` of it sideways: wheels slip little sideways).
+            `odometry_lateral_frac` of it sideways).
         odometry_sigma_frac: relative part of it, forward (wheel scale).
         odometry_lateral_frac: relative part of it, sideways.
-        odometry_sigma_rad: noise of its relative rotation, radians.
-        prior_sigma: prior standard deviations of (cu px, cv px, k1 relative, yaw rad).
-        converge_fraction: a correction has converged when its posterior standard
-            deviation is below this fraction of its prior's.
+        odometry_sigma_rad: noise of its relative rotation, radians, plus
+            `odometry_turn_frac` of the turn.
+        odometry_turn_frac: relative part of the rotation's noise.
+        odometry_curvature_sigma_rad_per_m: prior of odometry's systematic heading drift
+            per metre driven (unequal wheel radii), estimated with the window, rad/m:
+            without it that drift would pass for a mounting yaw.
+        odometry_turn_scale_sigma: prior of odometry's systematic turn scale error (a wrong
+            wheel base), estimated with the window.
+        prior_sigma: prior standard deviations of c (`NAMES` order: px, px, relative,
+            relative, relative, rad): the handed-over calibration's own uncertainty.
+        converge_fraction: a part has converged when its posterior standard deviation (the
+            lens block: in pixels) is below this fraction of its prior's.
+        max_prior_sigmas: a converged correction farther than this many prior standard
+            deviations from the handed-over calibration is implausible (a floor tilt or a
+            wrong map mimics it) and not applied.
+        min_improvement: online, a candidate calibration is applied only when it lowers the
+            reprojection chi-square of the next window's fixes (data it was not estimated
+            from) by at least this fraction against the calibration in use.
     """
 
-    window_frames: int = 40
+    enabled: bool = True
+    window_frames: int = 10
     min_landmarks: int = 3
+    keep_every_s: float = 0.1
+    max_keep_every_s: float = 2.0
     pixel_sigma_px: float = 0.5
+    huber_sigmas: float = 3.0
+    iterations: int = 8
     odometry_sigma_m: float = 0.0005
     odometry_sigma_frac: float = 0.01
     odometry_lateral_frac: float = 0.002
     odometry_sigma_rad: float = 0.002
-    prior_sigma: tuple[float, float, float, float] = (1.0, 1.0, 0.1, 0.02)
+    odometry_turn_frac: float = 0.005
+    odometry_curvature_sigma_rad_per_m: float = 0.05
+    odometry_turn_scale_sigma: float = 0.05
+    prior_sigma: tuple[float, float, float, float, float, float] = (
+        1.0, 1.0, 0.1, 0.1, 0.004, 0.02
+    )  # fmt: skip
     converge_fraction: float = 0.25
+    max_prior_sigmas: float = 3.0
+    min_improvement: float = 0.02
+
+    def __post_init__(self) -> None:
+        if self.window_frames < 2 or self.min_landmarks < 2:
+            raise ValueError(
+                "SelfCalibrationConfig: window_frames and min_landmarks must be >= 2, got "
+                f"{self.window_frames}, {self.min_landmarks}"
+            )
+        if len(self.prior_sigma) != len(NAMES) or not all(v > 0 for v in self.prior_sigma):
+            raise ValueError(
+                f"SelfCalibrationConfig: prior_sigma needs {len(NAMES)} positive values "
+                f"({', '.join(NAMES)}), got {self.prior_sigma}"
+            )
 
 
 @dataclass(frozen=True, eq=False)
 class CalibrationEstimate:
-    """The corrections (`NAMES` order), their covariance, and which have converged."""
+    """The corrections (`NAMES` order), their covariance, and which parts have converged.
+
+    Attributes:
+        correction: c, shape (6,).
+        covariance: its posterior covariance, shape (6, 6).
+        lens_converged: the lens block (cu, cv, k1, k2, focal) has converged.
+        yaw_converged: the mounting yaw has converged.
+        pixel_sigma_ratio: the lens block's posterior pixel sigma over its prior's.
+        frames: frames adjusted.
+    """
 
     correction: FloatArray
     covariance: FloatArray
-    converged: tuple[bool, bool, bool, bool]
+    lens_converged: bool
+    yaw_converged: bool
+    pixel_sigma_ratio: float
     frames: int
 
     @property
     def sigma(self) -> FloatArray:
         return np.sqrt(np.maximum(np.diag(self.covariance), 0.0))
 
+    @property
+    def converged(self) -> tuple[bool, ...]:
+        """Per correction (`NAMES` order)."""
+        return (self.lens_converged,) * 5 + (self.yaw_converged,)
+
 
 def corrected_camera(camera: CameraModel, c: npt.ArrayLike) -> CameraModel:
-    """`camera` with the corrections c = (dcu, dcv, k1 relative, yaw) applied."""
-    dcu, dcv, dk1, yaw = (float(v) for v in np.asarray(c, dtype=np.float64))
+    """`camera` with the corrections c (`NAMES` order) applied."""
+    dcu, dcv, dk1, dk2, df, yaw = (float(v) for v in np.asarray(c, dtype=np.float64))
     d = camera.distortion.copy()
-    d[0] = d[0] * (1.0 + dk1) if d[0] != 0 else dk1
+    d[0] *= 1.0 + dk1
+    d[1] *= 1.0 + dk2
     T = camera.T_body_camera.copy()
-    cz, sz = math.cos(yaw), math.sin(yaw)
-    T[:3, :3] = np.array([[cz, -sz, 0.0], [sz, cz, 0.0], [0.0, 0.0, 1.0]]) @ T[:3, :3]
-    return dataclasses.replace(camera, cu=camera.cu + dcu, cv=camera.cv + dcv, distortion=d,
+    T[:3, :3] = _rz(yaw) @ T[:3, :3]
+    return dataclasses.replace(camera, fu=camera.fu * (1.0 + df), fv=camera.fv * (1.0 + df),
+                               cu=camera.cu + dcu, cv=camera.cv + dcv, distortion=d,
                                T_body_camera=T)  # fmt: skip
+
+
+def _rz(a: float) -> FloatArray:
+    c, s = math.cos(a), math.sin(a)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
 
 def _relative(a: Pose, b: Pose) -> tuple[float, float, float]:
@@ -105,6 +186,68 @@ def _relative(a: Pose, b: Pose) -> tuple[float, float, float]:
     c, s = math.cos(a[2]), math.sin(a[2])
     dx, dy = b[0] - a[0], b[1] - a[1]
     return c * dx + s * dy, -s * dx + c * dy, float(wrap_angle(b[2] - a[2]))
+
+
+def project_with_jacobians(
+    camera: CameraModel,
+    c: FloatArray,
+    poses: FloatArray,
+    P: FloatArray,
+    frame: npt.NDArray[np.int64],
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Pixels of landmarks P seen from level body poses through the corrected camera, and
+    their derivatives.
+
+    Args:
+        camera: the handed-over camera; c: corrections (6,).
+        poses: body poses (M, 3); P: landmarks (N, 3); frame: each landmark's frame (N,).
+
+    Returns:
+        (pixels (N, 2), d pixel / d c (N, 2, 6), d pixel / d own pose (N, 2, 3)).
+    """
+    dcu, dcv, dk1, dk2, df, yaw = c.tolist()
+    fu, fv = camera.fu * (1.0 + df), camera.fv * (1.0 + df)
+    K = np.array([[fu, 0.0, camera.cu + dcu], [0.0, fv, camera.cv + dcv], [0.0, 0.0, 1.0]])
+    dist = camera.distortion.copy()
+    dist[0] *= 1.0 + dk1
+    dist[1] *= 1.0 + dk2
+    R_bc = _rz(yaw) @ camera.T_body_camera[:3, :3]
+    t_bc = camera.T_body_camera[:3, 3]
+    x, y, th = poses[frame, 0], poses[frame, 1], poses[frame, 2]
+    ct, st = np.cos(th), np.sin(th)
+    dx, dy = P[:, 0] - x, P[:, 1] - y
+    p_body = np.column_stack([ct * dx + st * dy, -st * dx + ct * dy, P[:, 2]]) - t_bc
+    p_cam = p_body @ R_bc  # R_bc^T p_body, row-wise
+    z3 = np.zeros(3)
+    obj = np.ascontiguousarray(p_cam.reshape(-1, 1, 3))
+    if camera.distortion_model == "equidistant":
+        px, J = cv2.fisheye.projectPoints(obj, z3, z3, K, dist)
+        jf, jc, jk, jp = J[:, 0:2], J[:, 2:4], J[:, 4:6], J[:, 11:14]
+    else:
+        px, J = cv2.projectPoints(obj, z3, z3, K, dist)
+        jp, jf, jc, jk = J[:, 3:6], J[:, 6:8], J[:, 8:10], J[:, 10:12]
+    n = len(P)
+    jp = jp.reshape(n, 2, 3)  # d pixel / d p_cam
+    d_c = np.zeros((n, 2, 6))
+    d_c[:, :, 0:2] = jc.reshape(n, 2, 2)
+    jk = jk.reshape(n, 2, 2)
+    d_c[:, :, 2] = jk[:, :, 0] * camera.distortion[0]
+    d_c[:, :, 3] = jk[:, :, 1] * camera.distortion[1]
+    jf = jf.reshape(n, 2, 2)
+    d_c[:, :, 4] = jf[:, :, 0] * camera.fu + jf[:, :, 1] * camera.fv
+    # yaw: p_cam = (Rz(yaw) R0)^T p_body, d/dyaw = R0^T Rz'(yaw)^T p_body
+    dRz = np.array([[-math.sin(yaw), -math.cos(yaw), 0.0], [math.cos(yaw), -math.sin(yaw), 0.0],
+                    [0.0, 0.0, 0.0]])  # fmt: skip
+    dp_yaw = p_body @ (dRz @ camera.T_body_camera[:3, :3])
+    d_c[:, :, 5] = np.einsum("nij,nj->ni", jp, dp_yaw)
+    # pose: p_body = Rz(-th) (P - t) - t_bc
+    d_body = np.zeros((n, 3, 3))  # d p_body / d (x, y, th)
+    d_body[:, 0, 0], d_body[:, 0, 1] = -ct, -st
+    d_body[:, 1, 0], d_body[:, 1, 1] = st, -ct
+    d_body[:, 0, 2] = -st * dx + ct * dy
+    d_body[:, 1, 2] = -ct * dx - st * dy
+    d_pose = np.einsum("nij,jk,nkl->nil", jp, R_bc.T, d_body)
+    return np.asarray(px, dtype=np.float64).reshape(n, 2), d_c, d_pose
 
 
 class SelfCalibration:
@@ -118,13 +261,16 @@ class SelfCalibration:
     def __init__(self, camera: CameraModel, config: SelfCalibrationConfig | None = None):
         self.camera = camera
         self.config = config or SelfCalibrationConfig()
-        self._frames: deque[tuple[FloatArray, FloatArray, Pose, Pose]] = deque(
-            maxlen=self.config.window_frames
-        )
+        self._frames: deque[Frame] = deque(maxlen=self.config.window_frames)
         self.estimate: CalibrationEstimate | None = None
 
     def __len__(self) -> int:
         return len(self._frames)
+
+    @property
+    def frames(self) -> list[Frame]:
+        """The collected frames: (pixels (N, 2), landmarks (N, 3), fixed pose, odometry pose)."""
+        return list(self._frames)
 
     def add(
         self, pixels: npt.ArrayLike, p_world: npt.ArrayLike, pose: Pose, odometry: Pose
@@ -135,72 +281,143 @@ class SelfCalibration:
         if len(px) < self.config.min_landmarks:
             return
         P = np.asarray(p_world, dtype=np.float64).reshape(-1, 3)
-        self._frames.append((px, P, tuple(pose), tuple(odometry)))  # type: ignore[arg-type]
+        a, b = tuple(map(float, pose)), tuple(map(float, odometry))
+        self._frames.append((px, P, (a[0], a[1], a[2]), (b[0], b[1], b[2])))
 
-    def solve(self) -> CalibrationEstimate | None:
-        """Adjust the window; None with fewer than two frames or when it fails."""
+    def clear(self) -> None:
+        """Forget the collected frames (the last estimate stays)."""
+        self._frames.clear()
+
+    def solve(
+        self, prior_mean: npt.ArrayLike | None = None, prior_covariance: npt.ArrayLike | None = None
+    ) -> CalibrationEstimate | None:
+        """Adjust the window; None with fewer than two frames or when it fails.
+
+        Args:
+            prior_mean: the corrections' prior mean, shape (6,) (default zeros: the
+                calibration handed over); online, the estimate of the windows before (a
+                recursive estimate over disjoint windows).
+            prior_covariance: its covariance, shape (6, 6) (default diag(prior_sigma^2)).
+        """
         frames = list(self._frames)
         M = len(frames)
         if M < 2:
             return None
         cfg = self.config
         prior = np.asarray(cfg.prior_sigma, dtype=np.float64)
-        n_px = [len(f[0]) for f in frames]
-        n_res = 2 * sum(n_px) + 3 * (M - 1) + 4
-        x0 = np.concatenate([np.zeros(4), np.array([f[2] for f in frames]).ravel()])
-        odo = [_relative(frames[i][3], frames[i + 1][3]) for i in range(M - 1)]
-
-        def residuals(x: FloatArray) -> FloatArray:
-            cam = corrected_camera(self.camera, x[:4])
-            out = []
-            for i, (px, P, _, _) in enumerate(frames):
-                pose = x[4 + 3 * i : 7 + 3 * i]
-                pred, ok = predict_pixels(cam, T_world_body_from_pose(*pose), P)
-                r = np.where(ok[:, None], pred - px, 0.0) / cfg.pixel_sigma_px
-                out.append(r.ravel())
-            for i, (f, l, t) in enumerate(odo):
-                a = x[4 + 3 * i : 7 + 3 * i]
-                b = x[7 + 3 * i : 10 + 3 * i]
-                rf, rl, rt = _relative((a[0], a[1], a[2]), (b[0], b[1], b[2]))
-                d = math.hypot(f, l)
-                s = cfg.odometry_sigma_m + cfg.odometry_sigma_frac * d
-                s_lat = cfg.odometry_sigma_m + cfg.odometry_lateral_frac * d
-                turn = float(wrap_angle(rt - t)) / cfg.odometry_sigma_rad
-                out.append(np.array([(rf - f) / s, (rl - l) / s_lat, turn]))
-            out.append(x[:4] / prior)
-            return np.concatenate(out)
-
-        sparsity = lil_matrix((n_res, 4 + 3 * M), dtype=np.int8)
-        row = 0
-        for i, n in enumerate(n_px):
-            sparsity[row : row + 2 * n, :4] = 1
-            sparsity[row : row + 2 * n, 4 + 3 * i : 7 + 3 * i] = 1
-            row += 2 * n
-        for i in range(M - 1):
-            sparsity[row : row + 3, 4 + 3 * i : 10 + 3 * i] = 1
-            row += 3
-        for k in range(4):
-            sparsity[row + k, k] = 1
+        mu = np.zeros(6) if prior_mean is None else np.asarray(prior_mean, dtype=np.float64)
+        C0 = np.diag(prior**2) if prior_covariance is None else np.asarray(prior_covariance, float)
         try:
-            sol = least_squares(residuals, x0, jac_sparsity=sparsity, x_scale="jac",
-                                method="trf", max_nfev=50)  # fmt: skip
-        except (ValueError, np.linalg.LinAlgError):
-            return None
-        J = sol.jac.toarray() if hasattr(sol.jac, "toarray") else np.asarray(sol.jac)
-        try:
-            cov_full = np.linalg.inv(J.T @ J)
+            W0 = np.linalg.inv(C0)
         except np.linalg.LinAlgError:
             return None
-        cov = cov_full[:4, :4]
-        sig = np.sqrt(np.maximum(np.diag(cov), 0.0))
-        conv = tuple(bool(s < cfg.converge_fraction * p) for s, p in zip(sig, prior, strict=True))
-        self.estimate = CalibrationEstimate(sol.x[:4].copy(), cov, conv, M)  # type: ignore[arg-type]
+        px = np.concatenate([f[0] for f in frames])
+        P = np.concatenate([f[1] for f in frames])
+        frame = np.concatenate([np.full(len(f[0]), i) for i, f in enumerate(frames)])
+        odo = np.array([_relative(frames[i][3], frames[i + 1][3]) for i in range(M - 1)])
+        d = np.hypot(odo[:, 0], odo[:, 1])
+        s_fwd = cfg.odometry_sigma_m + cfg.odometry_sigma_frac * d
+        s_lat = cfg.odometry_sigma_m + cfg.odometry_lateral_frac * d
+        s_rad = cfg.odometry_sigma_rad + cfg.odometry_turn_frac * np.abs(odo[:, 2])
+        w_odo = 1.0 / np.column_stack([s_fwd, s_lat, s_rad]) ** 2
+        # unknowns: c (6), odometry's curvature bias kappa (rad/m) and turn scale error
+        # beta (systematic: unequal wheel radii, a wrong wheel base), the poses (3 M)
+        n_c = 8
+        mu8 = np.concatenate([mu, [0.0, 0.0]])
+        W8 = np.zeros((n_c, n_c))
+        W8[:6, :6] = W0
+        W8[6, 6] = 1.0 / cfg.odometry_curvature_sigma_rad_per_m**2
+        W8[7, 7] = 1.0 / cfg.odometry_turn_scale_sigma**2
+        c = mu8.copy()
+        poses = np.array([f[2] for f in frames], dtype=np.float64)
+        n_u = n_c + 3 * M
+        H = np.zeros((n_u, n_u))
+        d_c = np.zeros((0, 2, 6))
+        rows = [np.flatnonzero(frame == i) for i in range(M)]
+        for _ in range(cfg.iterations):
+            pred, d_c, d_pose = project_with_jacobians(self.camera, c[:6], poses, P, frame)
+            r = pred - px  # (N, 2), pixels
+            e = np.hypot(r[:, 0], r[:, 1]) / cfg.pixel_sigma_px
+            k = cfg.huber_sigmas
+            w = np.where(e <= k, 1.0, k / np.maximum(e, 1e-12)) / cfg.pixel_sigma_px**2
+            H[:] = 0.0
+            g = np.zeros(n_u)
+            H[:n_c, :n_c] = W8
+            g[:n_c] = W8 @ (c - mu8)
+            H[:6, :6] += np.einsum("n,nij,nik->jk", w, d_c, d_c)
+            g[:6] += np.einsum("n,nij,ni->j", w, d_c, r)
+            cross = np.einsum("n,nij,nik->njk", w, d_c, d_pose)  # (N, 6, 3)
+            own = np.einsum("n,nij,nik->njk", w, d_pose, d_pose)  # (N, 3, 3)
+            gp = np.einsum("n,nij,ni->nj", w, d_pose, r)  # (N, 3)
+            for i, sel in enumerate(rows):
+                a = n_c + 3 * i
+                H[:6, a : a + 3] = cross[sel].sum(axis=0)
+                H[a : a + 3, :6] = H[:6, a : a + 3].T
+                H[a : a + 3, a : a + 3] = own[sel].sum(axis=0)
+                g[a : a + 3] = gp[sel].sum(axis=0)
+            kappa, beta = c[6], c[7]
+            for i in range(M - 1):  # odometry: the relative motion between consecutive frames
+                rel, Ja, Jb = _relative_jacobians(poses[i], poses[i + 1])
+                # what biased odometry reads for that motion: turn (1 + beta) + kappa d, the
+                # chord turned left by half the extra turn
+                extra = kappa * d[i] + beta * rel[2]
+                ro = np.array([rel[0], rel[1] + 0.5 * rel[0] * extra, rel[2] + extra]) - odo[i]
+                ro[2] = float(wrap_angle(ro[2]))
+                Jk = np.array([[0.0, 0.0], [0.5 * rel[0] * d[i], 0.5 * rel[0] * rel[2]],
+                               [d[i], rel[2]]])  # fmt: skip
+                Wd = np.diag(w_odo[i])
+                a, b = n_c + 3 * i, n_c + 3 + 3 * i
+                blocks = ((a, Ja), (b, Jb), (6, Jk))
+                for p, Jp in blocks:
+                    g[p : p + Jp.shape[1]] += Jp.T @ Wd @ ro
+                    for q, Jq in blocks:
+                        H[p : p + Jp.shape[1], q : q + Jq.shape[1]] += Jp.T @ Wd @ Jq
+            try:
+                step = -np.linalg.solve(H, g)
+            except np.linalg.LinAlgError:
+                return None
+            if not np.all(np.isfinite(step)):
+                return None
+            c = c + step[:n_c]
+            poses = poses + step[n_c:].reshape(M, 3)
+            if np.max(np.abs(step[:6]) / prior) < 1e-4:
+                break
+        try:
+            inv = np.linalg.inv(H)[:6, :6]
+        except np.linalg.LinAlgError:
+            return None
+        cov = np.asarray(0.5 * (inv + inv.T), dtype=np.float64)
+        ratio = _pixel_sigma_ratio(d_c, cov, np.diag(prior**2))
+        frac = cfg.converge_fraction
+        yaw_ok = bool(math.sqrt(max(cov[YAW, YAW], 0.0)) < frac * prior[YAW])
+        self.estimate = CalibrationEstimate(c[:6].copy(), cov, ratio < frac, yaw_ok, ratio, M)
         return self.estimate
 
     def apply_to(self, camera: CameraModel) -> CameraModel:
-        """`camera` with the converged corrections of the last `solve` applied."""
+        """`camera` with the converged parts of the last `solve` applied."""
         est = self.estimate
         if est is None:
             return camera
         c = np.where(np.array(est.converged), est.correction, 0.0)
         return corrected_camera(camera, c)
+
+
+def _relative_jacobians(a: FloatArray, b: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """`_relative(a, b)` and its Jacobians in a and b, shapes (3,), (3, 3), (3, 3)."""
+    c, s = math.cos(a[2]), math.sin(a[2])
+    dx, dy = b[0] - a[0], b[1] - a[1]
+    rel = np.array([c * dx + s * dy, -s * dx + c * dy, float(wrap_angle(b[2] - a[2]))])
+    Ja = np.array([[-c, -s, -s * dx + c * dy], [s, -c, -c * dx - s * dy], [0.0, 0.0, -1.0]])
+    Jb = np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])
+    return rel, Ja, Jb
+
+
+def _pixel_sigma_ratio(d_c: FloatArray, cov: FloatArray, prior_cov: FloatArray) -> float:
+    """The lens block's pixel standard deviation over the spots (d_c: d pixel / d c, shape
+    (N, 2, 6)), posterior over prior (RMS over spots and axes)."""
+    if len(d_c) == 0:
+        return math.inf
+    J = d_c[:, :, LENS].reshape(-1, 5)
+    post = float(np.mean(np.einsum("ij,jk,ik->i", J, cov[LENS, LENS], J)))
+    pri = float(np.mean(np.einsum("ij,jk,ik->i", J, prior_cov[LENS, LENS], J)))
+    return math.sqrt(max(post, 0.0) / pri) if pri > 0 else math.inf

@@ -182,7 +182,9 @@ def test_output_follows_a_correction_without_a_jump() -> None:
     for _ in range(5):
         filt.predict(0.0, 0.0, 0.02)
     halfway = filt.output_state[0]
-    assert 0.03 < halfway < 0.07  # 0.1 s of a 0.2 s time constant
+    tau = filt.config.output_time_constant_s
+    assert halfway == pytest.approx(0.1 * (1.0 - math.exp(-0.1 / tau)), abs=1e-3)  # after 0.1 s
+    assert 0.0 < halfway < 0.099
     for _ in range(100):
         filt.predict(0.0, 0.0, 0.02)
     assert filt.output_state[0] == pytest.approx(0.1, abs=1e-4)

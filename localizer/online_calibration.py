@@ -1,0 +1,178 @@
+"""Online self-calibration: when the localizer collects fixes, adjusts them, and applies a
+corrected calibration (the adjustment itself is `self_calibration.SelfCalibration`).
+
+The stream of fixes is cut into disjoint windows of `window_frames` fixes, one kept at most
+every `keep_every_s` and only with `min_landmarks` or more landmarks. Each full window is
+adjusted with the estimate of the windows before as its prior (a recursive estimate: the
+posterior of one window is the prior of the next), starting from the handed-over calibration
+and its own uncertainty. A correction is a *candidate* once
+
+1. it has converged: its posterior standard deviation is below `converge_fraction` of the
+   prior's (so it is applied only where the data make it observable: k1 with many
+   landmarks over a range of radii, the principal point with a strong lens or turning, the
+   mounting yaw only from driving), and
+2. it is plausible: within `max_prior_sigmas` prior standard deviations of the calibration
+   handed over (a floor tilt or a wrong map mimics a large principal-point shift).
+
+The gate that keeps it from ever making things worse: a candidate is applied only when it
+explains the *next* window's fixes, which it was not estimated from, better than the
+calibration in use: each of those frames is solved again with either camera and the
+reprojection chi-square must fall by `min_improvement` or more. Otherwise the calibration in
+use stays (and the candidate is dropped; the next window may propose it again). Each turned-
+down candidate doubles the interval between kept fixes (up to `max_keep_every_s`): once the
+estimate has settled, the self-calibration costs little.
+
+Pure: arrays and dataclasses in, a camera out; time arrives as an argument.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from localizer.camera import CameraModel
+from localizer.pose import solve_pose
+from localizer.self_calibration import (
+    LENS,
+    NAMES,
+    YAW,
+    CalibrationEstimate,
+    SelfCalibration,
+    SelfCalibrationConfig,
+    corrected_camera,
+)
+
+FloatArray = npt.NDArray[np.float64]
+Pose = tuple[float, float, float]
+_NS = 1e-9
+
+
+@dataclass(frozen=True, eq=False)
+class CalibrationUpdate:
+    """A corrected calibration to use from now on.
+
+    Attributes:
+        camera: the handed-over camera with `correction` applied.
+        correction: c in `self_calibration.NAMES` order, shape (6,).
+        chi2_ratio: the validation window's chi-square with it over with the calibration
+            in use before (below 1 - `min_improvement`).
+    """
+
+    camera: CameraModel
+    correction: FloatArray
+    chi2_ratio: float
+
+
+def reprojection_chi2(
+    camera: CameraModel,
+    frames: list[tuple[FloatArray, FloatArray, Pose, Pose]],
+    pixel_sigma_px: float,
+) -> float:
+    """Sum over frames of the pose fit's chi-square (squared reprojection errors over the
+    pixel variance), each frame solved again with `camera` from its pose; inf when one
+    frame does not solve."""
+    total = 0.0
+    for px, P, pose, _ in frames:
+        fix = solve_pose(camera, px, P, initial=pose, pixel_sigma_px=pixel_sigma_px)
+        if fix is None:
+            return float("inf")
+        total += fix.n_landmarks * (fix.residual_rms_px / pixel_sigma_px) ** 2
+    return total
+
+
+class OnlineCalibration:
+    """The online self-calibration's state (module docstring).
+
+    Args:
+        camera: the calibration handed over (corrections are relative to it).
+        config: tuning.
+
+    Attributes:
+        estimate: the recursive estimate after the last window (None before the first).
+        applied: the correction in use, shape (6,) (zeros: the handed-over calibration).
+        windows: windows adjusted so far.
+        rejected: candidates the validation gate turned down.
+    """
+
+    def __init__(self, camera: CameraModel, config: SelfCalibrationConfig) -> None:
+        self.camera = camera
+        self.config = config
+        self._window = SelfCalibration(camera, config)
+        prior = np.asarray(config.prior_sigma, dtype=np.float64)
+        self._mean = np.zeros(len(NAMES))
+        self._cov = np.diag(prior**2)
+        self.estimate: CalibrationEstimate | None = None
+        self.applied = np.zeros(len(NAMES))
+        self._candidate: FloatArray | None = None
+        self._t_kept: int | None = None
+        self.windows = 0
+        self.rejected = 0
+
+    @property
+    def camera_in_use(self) -> CameraModel:
+        """The handed-over camera with the applied correction."""
+        return corrected_camera(self.camera, self.applied) if self.applied.any() else self.camera
+
+    def observe(
+        self,
+        t_ns: int,
+        pixels: npt.ArrayLike,
+        p_world: npt.ArrayLike,
+        pose: Pose,
+        odometry: Pose,
+    ) -> CalibrationUpdate | None:
+        """One fused fix: its spots (N, 2), their landmarks (N, 3), the fixed pose and the raw
+        odometry pose at the frame. Returns a calibration to use from now on, or None."""
+        cfg = self.config
+        px = np.asarray(pixels, dtype=np.float64).reshape(-1, 2)
+        if len(px) < cfg.min_landmarks:
+            return None
+        every = min(cfg.keep_every_s * 2.0**self.rejected, cfg.max_keep_every_s)
+        if self._t_kept is not None and (t_ns - self._t_kept) * _NS < every:
+            return None
+        self._t_kept = t_ns
+        self._window.add(px, p_world, pose, odometry)
+        if len(self._window) < cfg.window_frames:
+            return None
+        frames = self._window.frames
+        update = self._validate(frames)
+        est = self._window.solve(self._mean, self._cov)
+        self._window.clear()
+        self.windows += 1
+        if est is not None and np.all(np.isfinite(est.covariance)):
+            self.estimate, self._mean, self._cov = est, est.correction, est.covariance
+            self._candidate = self._propose(est)
+        return update
+
+    def _propose(self, est: CalibrationEstimate) -> FloatArray | None:
+        """The converged, plausible part of the estimate, if it differs from the applied."""
+        prior = np.asarray(self.config.prior_sigma, dtype=np.float64)
+        plausible = np.abs(est.correction) <= self.config.max_prior_sigmas * prior
+        c = self.applied.copy()
+        if est.lens_converged and np.all(plausible[LENS]):
+            c[LENS] = est.correction[LENS]
+        if est.yaw_converged and plausible[YAW]:
+            c[YAW] = est.correction[YAW]
+        if np.all(np.abs(c - self.applied) < 0.5 * est.sigma):
+            return None  # within its own uncertainty of what is in use
+        return c
+
+    def _validate(
+        self, frames: list[tuple[FloatArray, FloatArray, Pose, Pose]]
+    ) -> CalibrationUpdate | None:
+        """Apply the candidate when it explains these (new) frames better (module docstring)."""
+        c, self._candidate = self._candidate, None
+        if c is None:
+            return None
+        sigma = self.config.pixel_sigma_px
+        now = reprojection_chi2(self.camera_in_use, frames, sigma)
+        cam = corrected_camera(self.camera, c)
+        new = reprojection_chi2(cam, frames, sigma)
+        ratio = new / now if now > 0 else float("inf")
+        if not ratio <= 1.0 - self.config.min_improvement:
+            self.rejected += 1
+            return None
+        self.applied = c
+        return CalibrationUpdate(cam, c.copy(), ratio)

@@ -1,0 +1,89 @@
+"""The online self-calibration's gate: a wrong calibration is corrected once the fixes show
+it, an exact one is left alone, and an implausible correction is never applied."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from localizer.camera import CameraModel, predict_pixels
+from localizer.geometry import T_world_body_from_pose
+from localizer.online_calibration import OnlineCalibration, reprojection_chi2
+from localizer.self_calibration import SelfCalibrationConfig, corrected_camera
+from tests.localizer.cases import grid_positions, strong_radtan_camera
+
+GRID = grid_positions(12, 8, 0.4, 2.5)
+Pose = tuple[float, float, float]
+
+
+def _path(n: int) -> list[Pose]:
+    """Back and forth under the grid, turning at the ends (0.1 s apart)."""
+    out = []
+    for k in range(n):
+        s = (k % 60) / 60
+        if s < 0.4:
+            out.append((0.8 + 6.0 * s, 1.4, 0.0))
+        elif s < 0.5:
+            out.append((3.2, 1.4, (s - 0.4) * 10 * math.pi))
+        elif s < 0.9:
+            out.append((3.2 - 6.0 * (s - 0.5), 1.4, math.pi))
+        else:
+            out.append((0.8, 1.4, math.pi + (s - 0.9) * 10 * math.pi))
+    return out
+
+
+def _stream(true: CameraModel, n: int, seed: int = 0):
+    rng = np.random.default_rng(seed)
+    for k, pose in enumerate(_path(n)):
+        px, ok = predict_pixels(true, T_world_body_from_pose(*pose), GRID)
+        px = px[ok] + rng.normal(0.0, 0.2, (int(ok.sum()), 2))
+        fix = (pose[0] + rng.normal(0, 0.003), pose[1] + rng.normal(0, 0.003), pose[2])
+        yield round(k * 0.1e9), px, GRID[ok], fix, pose
+
+
+def _feed(cal: OnlineCalibration, true: CameraModel, n: int) -> list:
+    updates = []
+    for t, px, P, fix, odo in _stream(true, n):
+        u = cal.observe(t, px, P, fix, odo)
+        if u is not None:
+            updates.append(u)
+    return updates
+
+
+def test_a_wrong_calibration_is_corrected_once_the_fixes_show_it() -> None:
+    nominal = strong_radtan_camera()
+    true = corrected_camera(nominal, [0.5, -0.45, 0.04, 0.04, 0.002, 0.0])
+    cal = OnlineCalibration(nominal, SelfCalibrationConfig())
+    updates = _feed(cal, true, 40)
+    assert updates, (cal.windows, cal.rejected)
+    first = updates[0]
+    assert first.chi2_ratio < 0.98
+    assert abs(first.correction[5]) < math.radians(0.05)  # no yaw in truth, none made up
+    fresh = [(px, P, fix, odo) for _, px, P, fix, odo in _stream(true, 15, seed=5)]
+    before = reprojection_chi2(nominal, fresh, 0.2)
+    after = reprojection_chi2(cal.camera_in_use, fresh, 0.2)
+    assert after < 0.2 * before, (after, before)
+    np.testing.assert_allclose([cal.camera_in_use.cu, cal.camera_in_use.cv],
+                               [true.cu, true.cv], atol=0.15)  # fmt: skip
+
+
+def test_an_exact_calibration_is_left_alone() -> None:
+    nominal = strong_radtan_camera()
+    cal = OnlineCalibration(nominal, SelfCalibrationConfig())
+    _feed(cal, nominal, 40)
+    assert cal.windows >= 3
+    fresh = [(px, P, fix, odo) for _, px, P, fix, odo in _stream(nominal, 15, seed=7)]
+    assert reprojection_chi2(cal.camera_in_use, fresh, 0.2) <= 1.01 * reprojection_chi2(
+        nominal, fresh, 0.2
+    )
+
+
+def test_an_implausible_principal_point_shift_is_never_applied() -> None:
+    # 5 px: what a floor tilted by 1 deg looks like to a 300 px lens, not a calibration error
+    nominal = strong_radtan_camera()
+    true = corrected_camera(nominal, [5.0, 0.0, 0.0, 0.0, 0.0, 0.0])
+    cal = OnlineCalibration(nominal, SelfCalibrationConfig())
+    _feed(cal, true, 40)
+    assert cal.windows >= 3
+    assert abs(cal.applied[0]) < 1e-12 and cal.camera_in_use.cu == nominal.cu
