@@ -337,6 +337,8 @@ class Localizer:
         if self.calibration is None or fused is None or self._filter is None:
             return
         rows, px, fix = fused
+        if not self.calibration.wants(t_ns, len(rows)):
+            return
         P = self.map.positions[rows]
         pose = (fix.x, fix.y, fix.theta)
         update = self.calibration.observe(t_ns, px, P, pose, self._odometry.pose_at(t_ns))

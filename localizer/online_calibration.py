@@ -115,6 +115,13 @@ class OnlineCalibration:
         """The handed-over camera with the applied correction."""
         return corrected_camera(self.camera, self.applied) if self.applied.any() else self.camera
 
+    def wants(self, t_ns: int, n_landmarks: int) -> bool:
+        """Whether a fix of `n_landmarks` at `t_ns` would be kept (a cheap test first)."""
+        if n_landmarks < self.config.min_landmarks:
+            return False
+        every = min(self.config.keep_every_s * 2.0**self.rejected, self.config.max_keep_every_s)
+        return self._t_kept is None or (t_ns - self._t_kept) * _NS >= every
+
     def observe(
         self,
         t_ns: int,
@@ -127,10 +134,7 @@ class OnlineCalibration:
         odometry pose at the frame. Returns a calibration to use from now on, or None."""
         cfg = self.config
         px = np.asarray(pixels, dtype=np.float64).reshape(-1, 2)
-        if len(px) < cfg.min_landmarks:
-            return None
-        every = min(cfg.keep_every_s * 2.0**self.rejected, cfg.max_keep_every_s)
-        if self._t_kept is not None and (t_ns - self._t_kept) * _NS < every:
+        if not self.wants(t_ns, len(px)):
             return None
         self._t_kept = t_ns
         self._window.add(px, p_world, pose, odometry)
