@@ -187,6 +187,8 @@ class Localizer:
         self._t_filter = max(self._t_filter, t_ns)
         self._commit = True
         self._rejections = 0
+        if self.calibration is not None:
+            self.calibration.break_track()
 
     def _advance(self, t_ns: int, v_left: float, v_right: float) -> PoseFilter | None:
         """Extrapolate odometry (raw, and a copy of the filter) from the last state time to
@@ -404,6 +406,8 @@ class Localizer:
         sigma = position_sigma_m(self._filter.covariance_rows)
         if sigma > fc.lost_sigma_m or self._rejections >= fc.lost_after_rejections:
             self._mode = "lost"
+            if self.calibration is not None:
+                self.calibration.break_track()
             self._start_identification()
             self._commit = True
             if sigma < fc.lost_sigma_m:

@@ -18,7 +18,11 @@ The gate that keeps it from ever making things worse: a candidate is applied onl
 explains the *next* window's fixes, which it was not estimated from, better than the
 calibration in use: each of those frames is solved again with either camera and the
 reprojection chi-square must fall by `min_improvement` or more. Otherwise the calibration in
-use stays (and the candidate is dropped; the next window may propose it again). Each turned-
+use stays (and the candidate is dropped; the next window may propose it again). A window whose
+fixes and odometry disagree (odometry chi-square per residual above `max_odometry_chi2`: a
+kidnap, wheel slip) is not used at all, and when the localizer loses its track (lost, a reset
+of the filter) the frames collected so far are dropped (`break_track`): odometry no longer
+links them to the next ones. Each turned-
 down candidate doubles the interval between kept fixes (up to `max_keep_every_s`): once the
 estimate has settled, the self-calibration costs little.
 
@@ -94,6 +98,7 @@ class OnlineCalibration:
         applied: the correction in use, shape (6,) (zeros: the handed-over calibration).
         windows: windows adjusted so far.
         rejected: candidates the validation gate turned down.
+        dropped: windows whose fixes and odometry disagreed (not used).
     """
 
     def __init__(self, camera: CameraModel, config: SelfCalibrationConfig) -> None:
@@ -109,6 +114,7 @@ class OnlineCalibration:
         self._t_kept: int | None = None
         self.windows = 0
         self.rejected = 0
+        self.dropped = 0
 
     @property
     def camera_in_use(self) -> CameraModel:
@@ -145,10 +151,20 @@ class OnlineCalibration:
         est = self._window.solve(self._mean, self._cov)
         self._window.clear()
         self.windows += 1
-        if est is not None and np.all(np.isfinite(est.covariance)):
+        if est is not None and est.odometry_chi2 > cfg.max_odometry_chi2:
+            self.dropped += 1  # fixes and odometry disagree (a kidnap, a slip): not used
+        elif est is not None and np.all(np.isfinite(est.covariance)):
             self.estimate, self._mean, self._cov = est, est.correction, est.covariance
             self._candidate = self._propose(est)
         return update
+
+    def break_track(self) -> None:
+        """The track of fixes is broken (lost, a kidnap, a reset): odometry no longer links
+        the frames collected so far to the next ones, so they are dropped (the estimate and
+        the calibration in use stay), and so is a candidate not yet validated."""
+        self._window.clear()
+        self._candidate = None
+        self._t_kept = None
 
     def _propose(self, est: CalibrationEstimate) -> FloatArray | None:
         """The converged, plausible part of the estimate, if it differs from the applied."""

@@ -29,8 +29,10 @@ What makes each correction observable (and so when it converges, see `lens_conve
 Convergence: the lens terms are strongly correlated (k1, k2 and the focal scale trade off),
 so they are judged together by what they do to the image: the lens block has converged when
 the posterior's pixel standard deviation, averaged over the window's spots, is below
-`converge_fraction` of the prior's. The yaw has converged when its posterior standard
-deviation is below that fraction of its prior's. Only converged parts are applied.
+`converge_fraction` of the prior's, and each coordinate of the principal point's own standard
+deviation is below that fraction of its prior's (a centre shift biases every fix alike). The
+yaw has converged when its posterior standard deviation is below that fraction of its
+prior's. Only converged parts are applied.
 """
 
 from __future__ import annotations
@@ -96,6 +98,9 @@ class SelfCalibrationConfig:
         min_improvement: online, a candidate calibration is applied only when it lowers the
             reprojection chi-square of the next window's fixes (data it was not estimated
             from) by at least this fraction against the calibration in use.
+        max_odometry_chi2: online, a window whose odometry residuals' chi-square per
+            residual exceeds this (fixes and odometry disagree: a kidnap, wheel slip) is
+            dropped: neither its estimate nor its frames are used.
     """
 
     enabled: bool = True
@@ -119,6 +124,7 @@ class SelfCalibrationConfig:
     converge_fraction: float = 0.25
     max_prior_sigmas: float = 3.0
     min_improvement: float = 0.02
+    max_odometry_chi2: float = 25.0
 
     def __post_init__(self) -> None:
         if self.window_frames < 2 or self.min_landmarks < 2:
@@ -143,6 +149,8 @@ class CalibrationEstimate:
         lens_converged: the lens block (cu, cv, k1, k2, focal) has converged.
         yaw_converged: the mounting yaw has converged.
         pixel_sigma_ratio: the lens block's posterior pixel sigma over its prior's.
+        odometry_chi2: the odometry residuals' chi-square per residual at the solution (about
+            1 or less when fixes and odometry agree; far more across a kidnap or a slip).
         frames: frames adjusted.
     """
 
@@ -152,6 +160,7 @@ class CalibrationEstimate:
     yaw_converged: bool
     pixel_sigma_ratio: float
     frames: int
+    odometry_chi2: float = 0.0
 
     @property
     def sigma(self) -> FloatArray:
@@ -389,8 +398,22 @@ class SelfCalibration:
         cov = np.asarray(0.5 * (inv + inv.T), dtype=np.float64)
         ratio = _pixel_sigma_ratio(d_c, cov, np.diag(prior**2))
         frac = cfg.converge_fraction
-        yaw_ok = bool(math.sqrt(max(cov[YAW, YAW], 0.0)) < frac * prior[YAW])
-        self.estimate = CalibrationEstimate(c[:6].copy(), cov, ratio < frac, yaw_ok, ratio, M)
+        sig = np.sqrt(np.maximum(np.diag(cov), 0.0))
+        # the block by its pixels, and the centre on its own: a centre shift biases every fix
+        # alike, so a poorly known one must not ride along with well-known radial terms
+        lens_ok = ratio < frac and bool(np.all(sig[:2] < frac * prior[:2]))
+        yaw_ok = bool(sig[YAW] < frac * prior[YAW])
+        odo_chi2 = 0.0
+        for i in range(M - 1):
+            rel, _, _ = _relative_jacobians(poses[i], poses[i + 1])
+            extra = c[6] * d[i] + c[7] * rel[2]
+            ro = np.array([rel[0], rel[1] + 0.5 * rel[0] * extra, rel[2] + extra]) - odo[i]
+            ro[2] = float(wrap_angle(ro[2]))
+            odo_chi2 += float(ro @ (w_odo[i] * ro))
+        odo_chi2 /= max(3 * (M - 1), 1)
+        self.estimate = CalibrationEstimate(
+            c[:6].copy(), cov, lens_ok, yaw_ok, ratio, M, odometry_chi2=odo_chi2
+        )
         return self.estimate
 
     def apply_to(self, camera: CameraModel) -> CameraModel:
