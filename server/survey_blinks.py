@@ -35,8 +35,8 @@ def blink_choice(
 
     Of the `candidates` (not yet identified, or not converged) that the surveying robot
     expects in view (`expected`; None while it has no pose: any candidate), those no other
-    robot uses or expects (`tracked_by_others`: darkening them would cost that robot a
-    landmark), the one blinked least so far (ties: lowest ID)."""
+    robot tracks (`tracked_by_others`: darkening them would cost that robot a landmark of
+    its fix), the one blinked least so far (ties: lowest ID)."""
     pending = set(candidates) - tracked_by_others
     near = sorted(pending if expected is None else pending & set(expected))
     if not near:
@@ -45,13 +45,14 @@ def blink_choice(
 
 
 def tracked_by_others(robots: Robots, robot: str) -> set[int]:
-    """The landmarks every robot but `robot` used or expected in view at its latest frame."""
+    """The landmarks every robot but `robot` tracks: those its latest fix used. (A landmark
+    another robot merely expects in view may go dark: its localizer hears of the switch
+    before it happens and leaves it out, as when robots identify themselves.)"""
     out: set[int] = set()
     for name in robots.names():
         pose = None if name == robot else robots.latest(name)
         if pose is not None:
             out.update(pose.landmark_ids)
-            out.update(pose.expected_ids)
     return out
 
 

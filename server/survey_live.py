@@ -42,7 +42,8 @@ class LiveSurveyConfig:
 
     Attributes:
         solve_every_s: a new live estimate is started this long after the previous one
-            began (or when it ends, if it took longer), seconds.
+            ended, or as long as the previous one took if that is longer (at most half a
+            core), seconds.
         converged_sigma_m: a landmark whose 1-sigma uncertainty is at or under this counts
             as converged (2 sigma within the survey's 1 cm target), metres; it is no longer
             blinked.

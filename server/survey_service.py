@@ -215,9 +215,11 @@ class LiveSurvey:
             self._count += 1
 
     def _estimate(self, drive: LiveDrive, anchors: list[int]) -> None:
-        """Solve the drive so far every `solve_every_s` until stopped."""
+        """Solve the drive so far every `solve_every_s` (or, when a solve took longer, as
+        long after it ended as it took) until stopped."""
         cfg = self.live
-        while not self._stop.wait(cfg.solve_every_s):
+        wait_s = cfg.solve_every_s
+        while not self._stop.wait(wait_s):
             began = time.monotonic()
             snap = drive.snapshot()
             if len(snap.frame_t_ns) < 2 or len(snap.odom_t_ns) == 0:
@@ -233,6 +235,8 @@ class LiveSurvey:
                 log.exception("survey: a live estimate failed")
                 continue
             route = self._suggest(result)
+            # at most half a core: the next solve waits at least as long as this one took
+            wait_s = max(cfg.solve_every_s, time.monotonic() - began)
             with self._lock:
                 if self._state != "driving" or self._stop.is_set():
                     return
@@ -243,6 +247,8 @@ class LiveSurvey:
                     f"estimate {self._estimates}: {len(result.landmarks)} landmarks placed "
                     f"({time.monotonic() - began:.1f} s to solve)"
                 )
+                if drive.dropped:
+                    self._message += f"; {drive.dropped} frames skipped (the server fell behind)"
 
     def _suggest(self, result: SurveyResult) -> tuple[tuple[float, float], ...]:
         """Waypoints over what `result` leaves uncertain (`survey.route.suggest_route`)."""

@@ -46,7 +46,7 @@ class RouteConfig:
     done_sigma_m: float = 0.005
     unseen_sigma_m: float = 0.3
     distance_scale_m: float = 2.0
-    max_waypoints: int = 40
+    max_waypoints: int = 12
 
     def __post_init__(self) -> None:
         for name in ("view_radius_m", "lane_spacing_m", "done_sigma_m", "distance_scale_m"):

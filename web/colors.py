@@ -57,4 +57,11 @@ SURVEY_STATE_COLORS: dict[str, RGB] = {  # the survey panel's estimates, by stat
     "flagged": (215, 40, 40),  # red: something looks wrong (moved, swapped radios)
     "unseen": (150, 150, 150),  # grey: never identified yet (drawn at its map position)
 }
+SURVEY_STATE_NAMES: dict[str, str] = {
+    "anchor": "anchor (locked, held)",
+    "converging": "converging",
+    "converged": "converged (1-sigma <= 5 mm)",
+    "flagged": "flagged (moved? radios swapped?)",
+    "unseen": "not identified yet (map position)",
+}
 ROUTE_COLOR: RGB = (190, 50, 200)  # the survey's suggested route, on the floor

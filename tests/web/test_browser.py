@@ -340,3 +340,91 @@ def test_api_docs_render_with_the_network_cut_off(browser: Any, live_site: LiveS
         assert all(u.endswith("/logo-mini.svg") for u in leaving), leaving
     finally:
         page.close()
+
+
+def live_api_wait(api: Any, until: Any, timeout_s: float) -> dict[str, Any]:
+    """GET the survey's status until `until(status)`; AssertionError with the last one."""
+    deadline = time.monotonic() + timeout_s
+    st: dict[str, Any] = {}
+    while time.monotonic() < deadline:
+        st = api.get("/commissioning/survey").json()
+        if until(st):
+            return st
+        time.sleep(0.5)
+    raise AssertionError(f"the survey did not get there in {timeout_s} s: {st}")
+
+
+def test_live_survey_from_the_panel_shows_estimates_and_accepts_one_landmark(
+    browser: Any, live_site: LiveSite
+) -> None:
+    """Through the survey panel's buttons on the live site: start with r1, the estimates
+    appear on the ceiling (the scene's /survey nodes), one landmark is accepted and the map
+    changed through the API, the survey is cancelled."""
+    import httpx
+
+    from server.models import LandmarkUpdate
+
+    services = live_site.services
+    api = httpx.Client(
+        base_url=f"{live_site.base}/api/v1",
+        headers={"Authorization": f"Bearer {live_site.admin_key}"},
+    )
+    robot = "r1"
+    # the anchors: two landmarks r1 sees now that no other robot tracks (the survey blinks
+    # only those, and needs both identified), locked as surveyed ones would be
+    deadline = time.monotonic() + 30
+    anchors: list[int] = []
+    while time.monotonic() < deadline and len(anchors) < 2:
+        pose = services.robots.latest(robot)
+        others: set[int] = set()
+        for name in services.robots.names():
+            p = services.robots.latest(name) if name != robot else None
+            others |= set() if p is None else set(p.landmark_ids)
+        anchors = [] if pose is None else [i for i in pose.expected_ids if i not in others][:2]
+        time.sleep(0.1)
+    assert len(anchors) == 2, "r1 sees no two landmarks of its own"
+    for lid in anchors:
+        services.map.update(lid, LandmarkUpdate(locked=True), actor="test")
+    page = open_viewer(browser, live_site, live_site.admin_key)
+    try:
+        page.get_by_role("tab", name="Commission").click()
+        page.get_by_role("button", name="Start survey").click()
+        live_api_wait(api, lambda s: s["estimates"] >= 1, 90.0)
+        page.get_by_text(re.compile(r"estimate \d+: \d+ landmarks placed")).wait_for(timeout=30_000)
+        page.wait_for_function(
+            "() => Object.keys(window.__viserMutable.nodeRefFromName)"
+            ".some(k => k === '/survey/converging' || k === '/survey/converged')",
+            timeout=30_000,
+        )
+        st = api.get("/commissioning/survey").json()
+        assert st["state"] == "driving" and st["estimates"] >= 1, st
+        assert {p["landmark_id"] for p in st["proposals"] if p["anchor"]} == set(anchors)
+        free = [p for p in st["proposals"] if p["state"] in ("converging", "converged")]
+        assert free, st
+        pick = min(free, key=lambda p: p["sigma_m"])
+        before = api.get(f"/landmarks/{pick['landmark_id']}").json()
+        time.sleep(1.0)  # software WebGL: a few frames
+        save_shot(page, "viewer-survey.png", doc=True)
+        field = page.locator(
+            "xpath=//label[normalize-space()='Survey landmark ID']/following::input[1]"
+        )
+        field.fill(str(pick["landmark_id"]))
+        field.press("Enter")
+        page.get_by_role("button", name="Accept this landmark").click()
+        page.get_by_text(f"accepted: {pick['landmark_id']}").wait_for(timeout=30_000)
+        after = api.get(f"/landmarks/{pick['landmark_id']}").json()
+        assert (after["x"], after["y"]) != (before["x"], before["y"])
+        truth = services.sim.world.landmarks[pick["landmark_id"]].p_true
+        err = np.hypot(after["x"] - truth[0], after["y"] - truth[1])
+        assert err < 3 * max(pick["sigma_m"], 0.005), (err, pick)
+        audit = services.map.audit(limit=1, landmark_id=pick["landmark_id"])
+        assert audit[0].actor.endswith("(survey)"), audit
+        page.get_by_role("button", name="Cancel survey").click()
+        page.get_by_text(re.compile("Lock two or more surveyed landmarks")).wait_for(timeout=30_000)
+        assert api.get("/commissioning/survey").json()["state"] == "idle"
+    finally:
+        services.survey.cancel(actor="test")
+        for lid in anchors:
+            services.map.update(lid, LandmarkUpdate(locked=False), actor="test")
+        page.close()
+        api.close()

@@ -26,12 +26,12 @@ def prop(lid: int, state: str, sigma: float, **kw: object) -> Proposal:
 
 
 def test_ellipse_ring_is_the_scaled_ellipse_with_a_floor() -> None:
-    ring = ellipse_ring((1.0, 2.0), (0.01, 0.005, math.pi / 2), 20.0, n=4)
-    # major 0.2 m along +y, minor 0.1 m along -x at a quarter turn
-    np.testing.assert_allclose(ring[0], [1.0, 2.2], atol=1e-12)
-    np.testing.assert_allclose(ring[1], [0.9, 2.0], atol=1e-12)
+    ring = ellipse_ring((1.0, 2.0), (0.02, 0.01, math.pi / 2), 20.0, n=4)
+    # major 0.4 m along +y, minor 0.2 m along -x at a quarter turn
+    np.testing.assert_allclose(ring[0], [1.0, 2.4], atol=1e-12)
+    np.testing.assert_allclose(ring[1], [0.8, 2.0], atol=1e-12)
     tiny = ellipse_ring((0.0, 0.0), (1e-4, 1e-4, 0.0), 1.0, n=8)
-    assert np.hypot(*tiny.T).max() == pytest.approx(0.06)  # never drawn smaller
+    assert np.hypot(*tiny.T).max() == pytest.approx(0.15)  # never drawn smaller
 
 
 def test_segments_by_state_and_the_progress_line() -> None:

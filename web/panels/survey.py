@@ -24,9 +24,9 @@ from web.services import LandmarkState, ViewerSite
 
 FloatArray = npt.NDArray[np.float64]
 
-MIN_RING_M = 0.06
+MIN_RING_M = 0.15
 """An ellipse is drawn at least this large (a converged one is millimetres across)."""
-UNSEEN_RING_M = 0.15
+UNSEEN_RING_M = 0.2
 ROUTE_Z_M = 0.03
 
 
@@ -188,13 +188,13 @@ class SurveyPanel:
         self.gui_table.content = proposals_table(st.proposals)
         segs = survey_segments(st, lms, float(self.gui_scale.value))
         for state, color in SURVEY_STATE_COLORS.items():
-            self._draw(state, segs[state], color, 0.02)
+            self._draw(state, segs[state], color, 0.06 if state != "unseen" else 0.04)
         route = np.zeros((0, 2, 3))
         if st.route and self.gui_route.value and driving:
             start = self._robot_xy(st.robot)
             pts = np.array([*([start] if start is not None else []), *st.route])
             route = polyline_segments(np.column_stack([pts, np.full(len(pts), ROUTE_Z_M)]))
-        self._draw("route", route, ROUTE_COLOR, 0.04)
+        self._draw("route", route, ROUTE_COLOR, 0.06)
 
     def _robot_xy(self, name: str | None) -> tuple[float, float] | None:
         for r in self.site.robots():
