@@ -30,18 +30,20 @@ def blink_choice(
     expected: Sequence[int] | None,
     tracked_by_others: set[int],
     blinked: dict[int, int],
+    first: set[int] | frozenset[int] = frozenset(),
 ) -> int | None:
     """The landmark to darken next, or None (blink nothing now).
 
     Of the `candidates` (not yet identified, or not converged) that the surveying robot
     expects in view (`expected`; None while it has no pose: any candidate), those no other
     robot tracks (`tracked_by_others`: darkening them would cost that robot a landmark of
-    its fix), the one blinked least so far (ties: lowest ID)."""
+    its fix), the one blinked least so far (ties: lowest ID); those in `first` (the anchors
+    not identified yet: nothing can be estimated before) before any other."""
     pending = set(candidates) - tracked_by_others
     near = sorted(pending if expected is None else pending & set(expected))
     if not near:
         return None
-    return min(near, key=lambda i: (blinked.get(i, 0), i))
+    return min(near, key=lambda i: (i not in first, blinked.get(i, 0), i))
 
 
 def tracked_by_others(robots: Robots, robot: str) -> set[int]:
@@ -65,6 +67,7 @@ class BlinkDriver:
         robot: the surveying robot.
         ids: every landmark of the map.
         settled: returns the landmarks that need no more blinks (identified and converged).
+        anchors: blinked first until identified.
         config: timing.
         on_blink: called once per dark window requested.
     """
@@ -78,8 +81,10 @@ class BlinkDriver:
         settled: Callable[[], set[int]],
         config: BlinkConfig,
         on_blink: Callable[[], None],
+        anchors: Sequence[int] = (),
     ) -> None:
         self.leds, self.robots, self.robot, self.ids = leds, robots, robot, list(ids)
+        self.anchors = frozenset(anchors)
         self.settled, self.config, self.on_blink = settled, config, on_blink
         self.blinked = dict.fromkeys(self.ids, 0)
 
@@ -90,7 +95,7 @@ class BlinkDriver:
         done = self.settled()
         return blink_choice(
             (i for i in self.ids if i not in done), expected,
-            tracked_by_others(self.robots, self.robot), self.blinked,
+            tracked_by_others(self.robots, self.robot), self.blinked, self.anchors - done,
         )  # fmt: skip
 
     def run(self, stop: threading.Event) -> None:

@@ -87,8 +87,8 @@ class SurveyStatus:
         robot: the surveying robot; recording: its recording folder.
         started_s: seconds since the drive started (None when idle).
         blinks: dark windows requested so far.
-        proposals: the estimate, landmark by landmark: the live one while driving, the
-            final one when done.
+        proposals: the estimate, landmark by landmark: the live one while driving (and
+            solving), the final one when done.
         accepted: landmarks whose proposal was written into the map.
         unseen: landmarks of the map the estimate could not place (yet).
         drive_s: robot time the estimate covers, seconds (0 before the first estimate).
@@ -182,13 +182,13 @@ class LiveSurvey:
             self._state, self._robot, self._t0, self._count = "driving", robot, time.monotonic(), 0
             self._message, self._result, self._accepted = "", None, []
             self._drive_s, self._estimates, self._route = 0.0, 0, ()
-            self._stop.clear()
+            self._stop = stop = threading.Event()  # this drive's: an old thread keeps its own
             blinker = BlinkDriver(self.leds, self.robots, robot, sorted(lm.id for lm in lms),
-                                  self._settled, self.blinks, self._counted)  # fmt: skip
+                                  self._settled, self.blinks, self._counted, anchors)  # fmt: skip
             self._threads = [
-                threading.Thread(target=blinker.run, args=(self._stop,), name="survey-blinks",
+                threading.Thread(target=blinker.run, args=(stop,), name="survey-blinks",
                                  daemon=True),
-                threading.Thread(target=self._estimate, args=(drive, anchors),
+                threading.Thread(target=self._estimate, args=(drive, anchors, stop),
                                  name="survey-live", daemon=True),
             ]  # fmt: skip
             for t in self._threads:
@@ -214,12 +214,12 @@ class LiveSurvey:
         with self._lock:
             self._count += 1
 
-    def _estimate(self, drive: LiveDrive, anchors: list[int]) -> None:
+    def _estimate(self, drive: LiveDrive, anchors: list[int], stop: threading.Event) -> None:
         """Solve the drive so far every `solve_every_s` (or, when a solve took longer, as
         long after it ended as it took) until stopped."""
         cfg = self.live
         wait_s = cfg.solve_every_s
-        while not self._stop.wait(wait_s):
+        while not stop.wait(wait_s):
             began = time.monotonic()
             snap = drive.snapshot()
             if len(snap.frame_t_ns) < 2 or len(snap.odom_t_ns) == 0:
@@ -228,7 +228,7 @@ class LiveSurvey:
                 result = solve_survey(survey_problem(snap, anchors), cfg.bundle)
             except ValueError as exc:  # e.g. an anchor not identified yet
                 with self._lock:
-                    if self._state == "driving":
+                    if self._state == "driving" and not stop.is_set():
                         self._message = "estimating: " + str(exc).removeprefix("survey: ")
                 continue
             except Exception:  # never let the live estimate end the drive
@@ -238,7 +238,7 @@ class LiveSurvey:
             # at most half a core: the next solve waits at least as long as this one took
             wait_s = max(cfg.solve_every_s, time.monotonic() - began)
             with self._lock:
-                if self._state != "driving" or self._stop.is_set():
+                if self._state != "driving" or stop.is_set():
                     return
                 self._result, self._route = result, route
                 self._drive_s = (int(snap.frame_t_ns[-1]) - int(snap.frame_t_ns[0])) / 1e9
@@ -274,7 +274,7 @@ class LiveSurvey:
     def _end_drive(self) -> None:
         """Stop blinking, estimating and the tap (the caller set the state)."""
         self._stop.set()
-        for t in self._threads:
+        for t in self._threads[:1]:  # the blinks end at once; a live solve ends by itself
             t.join(timeout=5.0)
         self._threads = []
         if self._tap is not None:
@@ -293,7 +293,7 @@ class LiveSurvey:
             if self._state != "driving" or self._robot is None:
                 raise ConflictError("no survey is driving")
             robot = self._robot
-            self._state, self._result, self._route = "solving", None, ()
+            self._state, self._route = "solving", ()  # the live estimate stays on show
             self._message = "solving the whole drive"
         self._end_drive()
         path = self.recordings.stop(robot) or self._recording
@@ -310,7 +310,9 @@ class LiveSurvey:
             result = solve_survey(problem, self.bundle)
         except ValueError as exc:
             with self._lock:
-                self._state, self._message = "failed", str(exc).removeprefix("survey: ")
+                if self._state == "solving":  # not cancelled meanwhile
+                    self._state, self._message = "failed", str(exc).removeprefix("survey: ")
+                    self._result = None
             log.warning("survey failed: %s", exc)
             return
         with self._lock:

@@ -110,6 +110,8 @@ def test_blink_choice_needs_in_view_and_untracked() -> None:
     assert blink_choice([1, 4], [2, 3], set(), blinked) is None  # nothing needed in view
     assert blink_choice([1, 4], None, set(), blinked) == 4  # no pose: any candidate
     assert blink_choice([1], [1], {1}, blinked) is None
+    # an anchor not identified yet goes first, however often it was blinked
+    assert blink_choice([1, 2, 3, 4], [1, 2, 3], set(), blinked, first={1}) == 1
 
 
 def test_live_drive_keeps_spots_wheels_and_led_states_in_time_order() -> None:

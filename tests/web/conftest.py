@@ -83,10 +83,10 @@ def nearest_landmarks(services: Any, robot: str, n: int) -> list[int]:
     return [int(lm.id) for lm in lms[:n]]
 
 
-def landmark_always_in_view(services: Any, robot: str) -> int:
-    """The reachable landmark nearest to the robot's whole patrol route (the largest
-    horizontal distance from the route is the smallest): in its camera's view wherever it
-    is when a slow step (a browser click) finally measures it."""
+def landmarks_along_route(services: Any, robot: str, n: int) -> list[int]:
+    """The `n` reachable landmarks nearest to the robot's whole patrol route (the largest
+    horizontal distance from the route is the smallest), best first: in its camera's view
+    wherever it is when a slow step (a browser click) finally measures them."""
     spec = next(r for r in services.sim.scenario.robots if r.name == robot)
     corners = [(float(spec.start[0]), float(spec.start[1]))]
     corners += [(float(st.x), float(st.y)) for st in spec.route.steps if hasattr(st, "x")]
@@ -98,7 +98,12 @@ def landmark_always_in_view(services: Any, robot: str) -> int:
     def worst(lm: Any) -> float:
         return float(np.max(np.hypot(route[:, 0] - lm.p_true[0], route[:, 1] - lm.p_true[1])))
 
-    return int(min(lms, key=worst).id)
+    return [int(lm.id) for lm in sorted(lms, key=worst)[:n]]
+
+
+def landmark_always_in_view(services: Any, robot: str) -> int:
+    """The landmark of `landmarks_along_route` that stays nearest the robot's route."""
+    return landmarks_along_route(services, robot, 1)[0]
 
 
 def wait_localized(

@@ -363,6 +363,7 @@ def test_live_survey_from_the_panel_shows_estimates_and_accepts_one_landmark(
     import httpx
 
     from server.models import LandmarkUpdate
+    from tests.web.conftest import landmarks_along_route
 
     services = live_site.services
     api = httpx.Client(
@@ -370,25 +371,28 @@ def test_live_survey_from_the_panel_shows_estimates_and_accepts_one_landmark(
         headers={"Authorization": f"Bearer {live_site.admin_key}"},
     )
     robot = "r1"
-    # the anchors: two landmarks r1 sees now that no other robot tracks (the survey blinks
-    # only those, and needs both identified), locked as surveyed ones would be
-    deadline = time.monotonic() + 30
     anchors: list[int] = []
-    while time.monotonic() < deadline and len(anchors) < 2:
-        pose = services.robots.latest(robot)
-        others: set[int] = set()
-        for name in services.robots.names():
-            p = services.robots.latest(name) if name != robot else None
-            others |= set() if p is None else set(p.landmark_ids)
-        anchors = [] if pose is None else [i for i in pose.expected_ids if i not in others][:2]
-        time.sleep(0.1)
-    assert len(anchors) == 2, "r1 sees no two landmarks of its own"
-    for lid in anchors:
-        services.map.update(lid, LandmarkUpdate(locked=True), actor="test")
     page = open_viewer(browser, live_site, live_site.admin_key)
     try:
         page.get_by_role("tab", name="Commission").click()
-        page.get_by_role("button", name="Start survey").click()
+        start = page.get_by_role("button", name="Start survey")
+        start.scroll_into_view_if_needed()
+        # the anchors: of the landmarks nearest r1's whole route (in its view wherever it is),
+        # two no other robot's fix uses now (the survey blinks only those, and needs both
+        # identified), locked as surveyed ones would be
+        near_route = landmarks_along_route(services, robot, 8)
+        deadline = time.monotonic() + 30
+        while time.monotonic() < deadline and len(anchors) < 2:
+            others: set[int] = set()
+            for name in services.robots.names():
+                p = services.robots.latest(name) if name != robot else None
+                others |= set() if p is None else set(p.landmark_ids)
+            anchors = [i for i in near_route if i not in others][:2]
+            time.sleep(0.1)
+        assert len(anchors) == 2, ("other robots use every landmark near r1's route", near_route)
+        for lid in anchors:
+            services.map.update(lid, LandmarkUpdate(locked=True), actor="test")
+        start.click()
         live_api_wait(api, lambda s: s["estimates"] >= 1, 90.0)
         page.get_by_text(re.compile(r"estimate \d+: \d+ landmarks placed")).wait_for(timeout=30_000)
         page.wait_for_function(

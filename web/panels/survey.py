@@ -137,7 +137,7 @@ class SurveyPanel:
             control.on_update(lambda _: self.refresh(force=True))
         self.scene = client.scene
         self._nodes: dict[str, viser.LineSegmentsHandle] = {}
-        self._shown: tuple[object, ...] | None = None
+        self._shown: tuple[tuple[object, ...], tuple[object, ...]] | None = None
         self.refresh()
 
     @property
@@ -169,14 +169,17 @@ class SurveyPanel:
             self._nodes.pop(name, None)
 
     def refresh(self, *, force: bool = False) -> None:
-        """Show the survey's state (cheap when unchanged); call at a few hertz."""
+        """Show the survey's state (cheap when unchanged); call at a few hertz. The scene
+        is redrawn only when the estimate, the route or the drawing options changed."""
         st = self.site.survey_status()
         lms = self.site.landmarks()
-        key = (st.state, st.estimates, st.accepted, st.blinks // 10, st.message,
-               len(st.proposals), st.route, len(lms))  # fmt: skip
-        if key == self._shown and not force:
+        text_key = (st.state, st.blinks, st.message, st.accepted, st.drive_s, len(lms))
+        scene_key = (st.state, st.estimates, st.accepted, st.proposals, st.route, len(lms),
+                     float(self.gui_scale.value), bool(self.gui_route.value))  # fmt: skip
+        if (text_key, scene_key) == self._shown and not force:
             return
-        self._shown = key
+        redraw = force or self._shown is None or scene_key != self._shown[1]
+        self._shown = (text_key, scene_key)
         driving = st.state == "driving"
         self.gui_start.disabled = st.state in ("driving", "solving")
         self.gui_stop.disabled = not driving
@@ -185,6 +188,8 @@ class SurveyPanel:
         self.gui_accept_one.disabled = not can_accept
         self.gui_accept_all.disabled = not can_accept
         self.gui_progress.content = progress_text(st, len(lms))
+        if not redraw:
+            return
         self.gui_table.content = proposals_table(st.proposals)
         segs = survey_segments(st, lms, float(self.gui_scale.value))
         for state, color in SURVEY_STATE_COLORS.items():
