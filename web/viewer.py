@@ -98,7 +98,6 @@ class _ClientPanels:
                 self.coverage = CoveragePanel(client, site, notify)
             with tabs.add_tab("Commission"):
                 self.wizard = WizardPanel(gui, site, session, notify)
-                self.survey = SurveyPanel(client, site, session, notify)
                 self.commission = CommissionPanel(client, site, session, notify)
                 repo = map_repository_of(viewer.services)
                 if repo is not None:
@@ -107,6 +106,8 @@ class _ClientPanels:
                 store = floorplan_store_of(viewer.services)
                 if store is not None:
                     self.floorplan = FloorPlanPanel(gui, store, bounds, notify)
+            with tabs.add_tab("Survey"):
+                self.survey = SurveyPanel(client, site, session, notify)
         else:
             self.monitor = MonitorPanel(gui, site, session, viewer.history, notify)
             self.coverage = CoveragePanel(client, site, notify)

@@ -105,7 +105,13 @@ def test_viewer_key_sees_but_cannot_edit(browser: Any, live_site: LiveSite) -> N
     try:
         page.get_by_text("signed in as viewer").wait_for(timeout=20_000)
         assert page.get_by_text("Commission", exact=True).count() == 0
-        for name in ("Relocalize", "Add landmark", "Start identification", "Nothing to undo"):
+        for name in (
+            "Relocalize",
+            "Add landmark",
+            "Start identification",
+            "Nothing to undo",
+            "Start survey",
+        ):
             assert page.get_by_role("button", name=name).count() == 0, name
         assert page.evaluate(f"() => {LANDMARKS_IN_SCENE}") == len(live_site.services.map.list())
     finally:
@@ -374,7 +380,7 @@ def test_live_survey_from_the_panel_shows_estimates_and_accepts_one_landmark(
     anchors: list[int] = []
     page = open_viewer(browser, live_site, live_site.admin_key)
     try:
-        page.get_by_role("tab", name="Commission").click()
+        page.get_by_role("tab", name="Survey").click()
         start = page.get_by_role("button", name="Start survey")
         start.scroll_into_view_if_needed()
         # the anchors: of the landmarks nearest r1's whole route (in its view wherever it is),

@@ -48,7 +48,7 @@ def test_segments_by_state_and_the_progress_line() -> None:
     assert np.all(segs["converging"][..., 2] == 2.5)
     assert np.ptp(segs["converging"][..., 0]) == pytest.approx(2 * 0.24, rel=1e-3)
     text = progress_text(st, 12)
-    assert "3 of 12 landmarks identified, 0 converged (1-sigma <= 5 mm), 1 flagged" in text
+    assert "3 of 12 landmarks placed, 0 converged (1-sigma <= 5 mm), 1 flagged" in text
     assert "robot time 12 s; 42 blinks" in text
 
 

@@ -71,7 +71,7 @@ def progress_text(status: SurveyStatus, n_map: int) -> str:
     head = f"**{status.state}** with {status.robot}"
     if status.state in ("driving", "done"):
         head += (
-            f": {placed} of {n_map} landmarks identified, {counts['converged']} converged "
+            f": {placed} of {n_map} landmarks placed, {counts['converged']} converged "
             f"(1-sigma <= {1000 * status.converged_sigma_m:.0f} mm), {counts['flagged']} flagged; "
             f"robot time {status.drive_s:.0f} s; {status.blinks} blinks"
         )
@@ -88,7 +88,7 @@ def proposals_table(proposals: Sequence[Proposal], limit: int = 60) -> str:
     if not proposals:
         return ""
     rows = sorted(proposals, key=lambda p: (p.state == "anchor", -p.sigma_m))
-    lines = ["| ID | state | 1-sigma mm | moved cm | views |", "|---|---|---|---|---|"]
+    lines = ["| ID | state | 1σ mm | moved cm | views |", "|---|---|---|---|---|"]
     for p in rows[:limit]:
         flag = f" ({'; '.join(p.flags)})" if p.flags else ""
         lines.append(
