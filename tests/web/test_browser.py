@@ -369,7 +369,7 @@ def test_live_survey_from_the_panel_shows_estimates_and_accepts_one_landmark(
     import httpx
 
     from server.models import LandmarkUpdate
-    from tests.web.conftest import landmarks_along_route
+    from tests.web.conftest import patrol_route
 
     services = live_site.services
     api = httpx.Client(
@@ -383,19 +383,21 @@ def test_live_survey_from_the_panel_shows_estimates_and_accepts_one_landmark(
         page.get_by_role("tab", name="Survey").click()
         start = page.get_by_role("button", name="Start survey")
         start.scroll_into_view_if_needed()
-        # the anchors: of the landmarks nearest r1's whole route (in its view wherever it is),
-        # two no other robot's fix uses now (the survey blinks only those, and needs both
-        # identified), locked as surveyed ones would be
-        near_route = landmarks_along_route(services, robot, 8)
-        deadline = time.monotonic() + 30
-        while time.monotonic() < deadline and len(anchors) < 2:
-            others: set[int] = set()
-            for name in services.robots.names():
-                p = services.robots.latest(name) if name != robot else None
-                others |= set() if p is None else set(p.landmark_ids)
-            anchors = [i for i in near_route if i not in others][:2]
-            time.sleep(0.1)
-        assert len(anchors) == 2, ("other robots use every landmark near r1's route", near_route)
+        # the anchors: of the landmarks r1's patrol passes under (within 0.7 m), the two
+        # farthest from the other robots' routes (the survey never darkens what another
+        # robot's fix uses, and needs both anchors identified: on the demo, two corners of
+        # the grid), locked as surveyed ones would be
+        world = services.sim.world
+
+        def distance(lid: int, name: str) -> float:
+            d = patrol_route(services, name) - world.landmarks[lid].p_true[:2]
+            return float(np.min(np.hypot(*d.T)))
+
+        others = [n for n in services.robots.names() if n != robot]
+        under = [
+            i for i, lm in world.landmarks.items() if lm.reachable and distance(i, robot) < 0.7
+        ]
+        anchors = sorted(under, key=lambda i: min(distance(i, n) for n in others))[-2:]
         for lid in anchors:
             services.map.update(lid, LandmarkUpdate(locked=True), actor="test")
         start.click()
