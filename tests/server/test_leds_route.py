@@ -10,11 +10,11 @@ import pytest
 from tests.server.conftest import Api, start_api
 
 
-@pytest.fixture
-def scheduled(tmp_path: Path) -> Iterator[Api]:
+@pytest.fixture(scope="module")
+def scheduled(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Api]:
     """The virtual site's world and radio under the LED schedule, without robots (so the
-    schedule lights nothing but what is pinned)."""
-    yield from start_api(tmp_path, led_policy="scheduled", sim_robots=False)
+    schedule lights nothing but what is pinned); one site for the module's tests."""
+    yield from start_api(tmp_path_factory.mktemp("leds"), led_policy="scheduled", sim_robots=False)
 
 
 def test_a_pinned_landmark_is_lit_with_its_reason_until_unpinned(scheduled: Api) -> None:
