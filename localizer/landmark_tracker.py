@@ -34,7 +34,7 @@ from localizer.handoff import (
 )
 from localizer.landmark_map import LandmarkMap
 from localizer.noise_model import PixelNoiseModel
-from localizer.pose import TILT_MIN_CHI2_DROP, PoseFix, solve_pose
+from localizer.pose import PoseFix, solve_pose
 from localizer.pose_filter import PoseFilter
 from localizer.relocalization import relocalize
 from localizer.robot import RobotGeometry
@@ -315,30 +315,33 @@ class LandmarkTracker:
         rows = [r for r, _ in pairs]
         px = [spot_px[s] for _, s in pairs]
         sig = [self.noise.sigma_px(u, v) for u, v in px]
-        # Outliers are found on a robust level fit: it has a residual per landmark, whereas
-        # a tilted fit can bend to an outlier (tilt and translation are nearly
-        # interchangeable) and hide it. The tilt is fitted to the inliers afterwards.
-        fix = self._solve(rows, px, sig, pose, robust=len(rows) >= 3, tilt=False)
+        fix = self._solve(rows, px, sig, pose, robust=len(rows) >= 3)
         if fix is None:
             return ()
         res = fix.residuals_px
-        keep = [i for i, (r, si) in enumerate(zip(res, sig, strict=True))
-                if r <= fc.outlier_sigma * si]  # fmt: skip
+        if res:
+            keep = [i for i, (r, si) in enumerate(zip(res, sig, strict=True))
+                    if r <= fc.outlier_sigma * si]  # fmt: skip
+            if len(keep) < len(rows):
+                if len(keep) < 2:
+                    return ()
+                rows, px, sig = (
+                    [rows[i] for i in keep],
+                    [px[i] for i in keep],
+                    [sig[i] for i in keep],
+                )
+                fix = self._solve(rows, px, sig, (fix.x, fix.y, fix.theta), robust=False)
+                if fix is None:
+                    return ()
+                res = fix.residuals_px
         # A spot at the image edge paired with a landmark the fixed pose puts outside the
         # image (a neighbour of the one that made it, during a fast turn): leave it out.
-        if len(keep) >= 2:
-            sub = [rows[i] for i in keep], [px[i] for i in keep]
-            edge = self._off_image(*sub, (fix.x, fix.y, fix.theta))
-            keep = [i for k, i in enumerate(keep) if k not in edge]
-        if len(keep) < 2:
-            return ()
-        if len(keep) < len(rows):
+        edge = self._off_image(rows, px, (fix.x, fix.y, fix.theta))
+        if edge:
+            keep = [i for i in range(len(rows)) if i not in edge]
+            if len(keep) < 2:
+                return ()
             rows, px, sig = [rows[i] for i in keep], [px[i] for i in keep], [sig[i] for i in keep]
-        # Solved again when landmarks were left out, or to test a tilt (`solve_pose` tries
-        # one only when the level chi-square exceeds the drop a tilt must achieve).
-        chi2_level = sum((res[i] / sig[k]) ** 2 for k, i in enumerate(keep))
-        tilt = fc.tilt_from_landmarks and len(rows) >= 3 and chi2_level > TILT_MIN_CHI2_DROP
-        if len(keep) < len(res) or tilt:
             fix = self._solve(rows, px, sig, (fix.x, fix.y, fix.theta), robust=False)
             if fix is None:
                 return ()
@@ -395,7 +398,6 @@ class LandmarkTracker:
         initial: tuple[float, float, float],
         *,
         robust: bool,
-        tilt: bool = True,
     ) -> PoseFix | None:
         fc = self.config.fusion
         return solve_pose(
@@ -403,7 +405,7 @@ class LandmarkTracker:
             px,
             self.map.positions[rows],
             initial=initial,
-            estimate_tilt=tilt and fc.tilt_from_landmarks and len(rows) >= 3,
+            estimate_tilt=fc.tilt_from_landmarks and len(rows) >= 3,
             tilt_sigma_rad=fc.tilt_sigma_rad,
             pixel_sigma_px=sig,
             landmark_ids=tuple(self._ids[r] for r in rows),

@@ -164,10 +164,6 @@ class PoseFix:
     residuals_px: tuple[float, ...] = ()
 
 
-TILT_MIN_CHI2_DROP = 9.21
-"""Default of `solve_pose`'s `tilt_min_chi2_drop`: the 99 % point of chi-square, 2 dof."""
-
-
 def solve_pose(
     camera: CameraModel,
     pixels: npt.ArrayLike,
@@ -180,7 +176,7 @@ def solve_pose(
     tilt_sigma_rad: float | None = None,
     loss: str | None = None,
     loss_scale: float = 2.0,
-    tilt_min_chi2_drop: float = TILT_MIN_CHI2_DROP,
+    tilt_min_chi2_drop: float = 9.21,
     min_separation_px: float = 2.0,
     max_iterations: int = 20,
 ) -> PoseFix | None:
