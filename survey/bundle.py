@@ -230,27 +230,30 @@ def _adjust(
     centre = np.array([cam.cu, cam.cv])
     T_cb = cam.T_camera_body
     t_bc = cam.T_body_camera[:3, 3]
-    k1 = float(cam.distortion[0])
+    k1, k2 = float(cam.distortion[0]), float(cam.distortion[1])
     cam_sig = np.array(
         [
             cfg.focal_sigma_rel, cfg.focal_sigma_rel, cfg.principal_sigma_px,
             cfg.principal_sigma_px,
             cfg.mount_yaw_sigma_rad, max(cfg.distortion_sigma_rel * abs(k1), 1e-4),
             cfg.mount_tilt_sigma_rad, cfg.mount_tilt_sigma_rad, cfg.mount_height_sigma_m,
+            max(cfg.distortion_sigma_rel * abs(k2), 1e-4),
         ]
     )  # fmt: skip
-    lens_cache: dict[float, CameraModel] = {0.0: cam}
+    lens_cache: dict[tuple[float, float], CameraModel] = {(0.0, 0.0): cam}
 
-    def lens(dk1: float) -> CameraModel:
-        """The camera with its first distortion coefficient changed by dk1 (cached)."""
-        if dk1 not in lens_cache:
+    def lens(dk1: float, dk2: float) -> CameraModel:
+        """The camera with its first two distortion coefficients changed (cached)."""
+        key = (dk1, dk2)
+        if key not in lens_cache:
             if len(lens_cache) > 8:
                 lens_cache.clear()
-                lens_cache[0.0] = cam
+                lens_cache[(0.0, 0.0)] = cam
             d = np.array(cam.distortion, dtype=np.float64)
             d[0] += dk1
-            lens_cache[dk1] = dataclasses.replace(cam, distortion=d)
-        return lens_cache[dk1]
+            d[1] += dk2
+            lens_cache[key] = dataclasses.replace(cam, distortion=d)
+        return lens_cache[key]
 
     sigma_px = cfg.pixel_sigma_px
 
@@ -271,7 +274,9 @@ def _adjust(
         cx, sx = math.cos(c[6]), math.sin(c[6])
         uy, uz = cx * uy + sx * uz, -sx * uy + cx * uz
         p_body = np.stack([ux + t_bc[0], uy + t_bc[1], uz + t_bc[2]], axis=1)
-        px, valid = pixels_from_points_camera(lens(float(c[5])), transform_points(T_cb, p_body))
+        px, valid = pixels_from_points_camera(
+            lens(float(c[5]), float(c[9])), transform_points(T_cb, p_body)
+        )
         px = centre + (1.0 + c[0:2]) * (px - centre) + c[2:4]
         return px, valid
 

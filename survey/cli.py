@@ -69,12 +69,12 @@ def table(result: SurveyResult) -> str:
             f"{e.rms_px:>6.2f}  {'; '.join(e.flags)}"
         )
     wl, wr, wb = result.wheel_calibration
-    dfu, dfv, du, dv, yaw, dk1, roll, pitch, dz = result.camera_correction
+    dfu, dfv, du, dv, yaw, dk1, roll, pitch, dz, dk2 = result.camera_correction
     lines.append(
         f"reprojection {result.rms_px:.2f} px RMS; wheels x{wl:.4f} / x{wr:.4f}, base "
         f"x{wb:.4f}; camera focal {100 * dfu:+.2f} / {100 * dfv:+.2f} %, "
         f"centre {du:+.2f} / {dv:+.2f} px, "
-        f"yaw {yaw * 57.29578:+.3f} deg, k1 {dk1:+.5f}, roll / pitch "
+        f"yaw {yaw * 57.29578:+.3f} deg, k1 / k2 {dk1:+.5f} / {dk2:+.5f}, roll / pitch "
         f"{1000 * roll:+.2f} / {1000 * pitch:+.2f} mrad, height {1000 * dz:+.1f} mm"
     )
     return "\n".join(lines)

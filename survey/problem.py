@@ -37,7 +37,7 @@ class BundleConfig:
         focal_sigma_rel, principal_sigma_px, mount_yaw_sigma_rad: its priors;
         mount_tilt_sigma_rad, mount_height_sigma_m: of the mounting's roll and pitch, and
             of its height (what the mounting calibration or a tape leaves);
-        distortion_sigma_rel: the first distortion coefficient's, relative to itself.
+        distortion_sigma_rel: the first two distortion coefficients', relative to each.
         max_iterations: Gauss-Newton steps of the final solve, at most.
         window_s: the drive is solved in windows from its start: this long, then twice as
             long, and so on, seconds.

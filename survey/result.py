@@ -75,7 +75,7 @@ class SurveyResult:
         wheel_calibration: (left scale, right scale, wheel-base scale), 1 = nominal.
         camera_correction: (fu scale - 1, fv scale - 1, cu offset px, cv offset px, mounting
             yaw rad, change of the first distortion coefficient k1, mounting roll rad, pitch
-            rad, camera height m); zeros when not self-calibrated.
+            rad, camera height m, change of k2); zeros when not self-calibrated.
         rms_px: reprojection RMS over all observations, pixels.
         sigma_scale: the spots' a-posteriori standard deviation of unit weight (their noise
             as the residuals show it, in units of `BundleConfig.pixel_sigma_px`): the factor
