@@ -1,26 +1,24 @@
 """The survey's estimator: a bundle adjustment of the drive and every landmark at once.
 
 Unknowns: the body pose (x, y, theta) at each keyframe, the position (x, y, z) of every
-landmark that is not an anchor, the wheels' calibration (left and right scale, wheel-base
-scale) and, with `self_calibrate`, a correction of the camera (focal scale, principal point,
-mounting yaw). Residuals, each divided by its standard deviation:
+landmark (the anchors too), the wheels' calibration (left and right scale, wheel-base
+scale) and, with `self_calibrate`, a correction of the camera (focal scales, principal
+point, k1 and k2, the mounting's yaw, roll, pitch and height). Residuals, each divided by
+its standard deviation:
 
 - each named spot: predicted minus measured pixel (`predict_pixels`, eq. 3 in 3-D, through the
   lens model), for the keyframe's pose and the landmark's position;
 - each keyframe interval: the motion between the two poses minus the motion the wheels
   measured (eqs. 5-6 with the calibrated wheels, `survey.odometry_chain`);
-- priors: a rough position from map.json (tape measure, floor plan), the wheels near nominal,
-  the camera correction near zero.
+- priors: an anchor's surveyed position (two or more anchors fix the map's frame, to their
+  survey's accuracy), a rough position from map.json (tape measure, floor plan), the wheels
+  near nominal, the camera correction near zero.
 
-The anchors (two or more landmarks held at their surveyed positions) fix the map's frame.
 `survey.sparse_lm` minimises the sum with a Huber loss (a spot that is not what its name
-says costs linearly, not quadratically): Levenberg-Marquardt on the sparse normal equations,
-the Jacobian by finite differences over groups of unknowns that share no residual. Each
-landmark's covariance is its block of the inverse information matrix, the poses and wheels
-eliminated by a Schur complement, scaled by the
-residuals' own variance and by how many of its views were really independent (neighbouring
-frames see a landmark through the same calibration error and carry one view's worth of
-information, not many).
+says costs linearly, not quadratically): Levenberg-Marquardt on the normal equations, each
+step by the Schur complement of the banded poses (`survey.normal_equations`), the Jacobian
+by finite differences over groups of unknowns that share no residual. The covariances
+(`survey.estimates`) weight the spots and the wheels by the noise their residuals show.
 """
 
 from __future__ import annotations
