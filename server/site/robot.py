@@ -99,6 +99,7 @@ class RobotRunner:
         self.on_mode_change: Callable[[str, Mode, Mode], None] | None = None
         self._mode: Mode = localizer.mode
         self._pending: deque[Event] = deque()
+        self._leds_in_force: LedsChanged | None = None  # the last LED state fed
 
     @property
     def mode(self) -> Mode:
@@ -136,6 +137,10 @@ class RobotRunner:
                     extra={"robot": self.name},
                 )
                 return
+            if isinstance(event, LedsChanged):
+                self._leds_in_force = event
+            if isinstance(event, FrameObserved):
+                self._record_pose(outputs)
             for out in outputs:
                 self._route(out)
             old, self._mode = self._mode, self.localizer.mode
@@ -172,11 +177,16 @@ class RobotRunner:
 
     # -- recording ---------------------------------------------------------------------------
     def start_recording(self, root: Path, landmark_records: list[dict[str, Any]]) -> None:
-        """Record this robot's frames, odometry and LED changes to a recording folder."""
+        """Record this robot's frames, odometry, LED changes and live poses to a recording
+        folder; leds.csv starts with the LED state in force (a replay then knows what was lit
+        before the first change)."""
         with self._lock:
             if self.recorder is not None:
                 raise ValueError(f"robot {self.name!r} is already recording")
-            self.recorder = RecordingWriter(root, self.camera, self.geometry, landmark_records)
+            rec = RecordingWriter(root, self.camera, self.geometry, landmark_records)
+            if self._leds_in_force is not None:
+                rec.add_leds(self._leds_in_force)
+            self.recorder = rec
 
     def stop_recording(self) -> Path | None:
         with self._lock:
@@ -185,6 +195,19 @@ class RobotRunner:
             return None
         rec.close()
         return Path(rec.root)
+
+    def _record_pose(self, outputs: list[Output]) -> None:
+        """The localizer's answer to a recorded frame, to live_poses.csv."""
+        rec = self.recorder
+        est = next((o for o in outputs if isinstance(o, PoseEstimate | NoPose)), None)
+        if rec is None or est is None:
+            return
+        try:
+            rec.add_pose(est)
+        except ValueError:
+            log.exception("robot %s: recording stopped", self.name, extra={"robot": self.name})
+            self.recorder = None
+            rec.close()
 
     def _record(self, event: Event) -> None:
         rec = self.recorder
