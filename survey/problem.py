@@ -50,7 +50,7 @@ class BundleConfig:
             estimate may take its name.
         name_exclusion_m: ... if no other landmark is this close (unnamed tracks).
         independent_view_m: views of a landmark closer than this (robot travel) count as one
-            for its covariance.
+            (`min_views`).
         flag_rms_px: a landmark whose residual RMS exceeds this is flagged (moved during the
             drive, or two landmarks answering to one name).
         flag_moved_m: a landmark this far from its given position is flagged (moved, or
