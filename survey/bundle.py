@@ -1,26 +1,24 @@
 """The survey's estimator: a bundle adjustment of the drive and every landmark at once.
 
 Unknowns: the body pose (x, y, theta) at each keyframe, the position (x, y, z) of every
-landmark that is not an anchor, the wheels' calibration (left and right scale, wheel-base
-scale) and, with `self_calibrate`, a correction of the camera (focal scale, principal point,
-mounting yaw). Residuals, each divided by its standard deviation:
+landmark (the anchors too), the wheels' calibration (left and right scale, wheel-base
+scale) and, with `self_calibrate`, a correction of the camera (focal scales, principal
+point, k1 and k2, the mounting's yaw, roll, pitch and height). Residuals, each divided by
+its standard deviation:
 
 - each named spot: predicted minus measured pixel (`predict_pixels`, eq. 3 in 3-D, through the
   lens model), for the keyframe's pose and the landmark's position;
 - each keyframe interval: the motion between the two poses minus the motion the wheels
   measured (eqs. 5-6 with the calibrated wheels, `survey.odometry_chain`);
-- priors: a rough position from map.json (tape measure, floor plan), the wheels near nominal,
-  the camera correction near zero.
+- priors: an anchor's surveyed position (two or more anchors fix the map's frame, to their
+  survey's accuracy), a rough position from map.json (tape measure, floor plan), the wheels
+  near nominal, the camera correction near zero.
 
-The anchors (two or more landmarks held at their surveyed positions) fix the map's frame.
 `survey.sparse_lm` minimises the sum with a Huber loss (a spot that is not what its name
-says costs linearly, not quadratically): Levenberg-Marquardt on the sparse normal equations,
-the Jacobian by finite differences over groups of unknowns that share no residual. Each
-landmark's covariance is its block of the inverse information matrix, the poses and wheels
-eliminated by a Schur complement, scaled by the
-residuals' own variance and by how many of its views were really independent (neighbouring
-frames see a landmark through the same calibration error and carry one view's worth of
-information, not many).
+says costs linearly, not quadratically): Levenberg-Marquardt on the normal equations, each
+step by the Schur complement of the banded poses (`survey.normal_equations`), the Jacobian
+by finite differences over groups of unknowns that share no residual. The covariances
+(`survey.estimates`) weight the spots and the wheels by the noise their residuals show.
 """
 
 from __future__ import annotations
@@ -31,6 +29,7 @@ from collections.abc import Callable
 
 import numpy as np
 import numpy.typing as npt
+from threadpoolctl import threadpool_limits
 
 from localizer.camera import CameraModel, pixels_from_points_camera
 from localizer.geometry import transform_points
@@ -104,6 +103,18 @@ def solve_survey(
     """
     cfg = config or BundleConfig()
     _check(problem)
+    # the dense parts are small (a few hundred unknowns): one BLAS thread does them fastest,
+    # and OpenBLAS's threads spinning on a busy machine made them fifty times slower
+    with threadpool_limits(limits=1, user_api="blas"):
+        return _solve(problem, cfg, ceiling_z_m, progress)
+
+
+def _solve(
+    problem: SurveyProblem,
+    cfg: BundleConfig,
+    ceiling_z_m: float | None,
+    progress: Callable[[int, int], None] | None,
+) -> SurveyResult:
     anchors = {int(k): np.asarray(v, dtype=np.float64) for k, v in problem.anchors.items()}
     zc = float(np.mean([p[2] for p in anchors.values()])) if ceiling_z_m is None else ceiling_z_m
     obs = problem.observations
@@ -179,7 +190,10 @@ def _adjust(
         pixel_sigma_px=cfg.pixel_sigma_px, prefix_poses=prefix_poses,
         prefix_landmarks=prefix_lms,
     )  # fmt: skip
-    free_ids = sorted(lid for lid in est0 if lid not in anchors)
+    # every landmark is an unknown, the anchors too: held near their surveyed positions by a
+    # prior as tight as their survey (`anchor_sigma_m`), so that their error is part of every
+    # landmark's covariance instead of being taken as exact
+    free_ids = sorted(est0)
     lay = Layout(len(keys), free_ids, cfg.self_calibrate)
     x0 = np.zeros(lay.n)
     x0[: lay.lm0] = poses0.reshape(-1)
@@ -190,10 +204,20 @@ def _adjust(
         x0[lay.wheel0 : lay.n] = previous.x[previous.lay.wheel0 : previous.lay.n]
 
     o_free = np.array([lay.free_index.get(int(i), -1) for i in o_id.tolist()], dtype=np.int64)
-    o_anchor = np.array([anchors.get(int(i), np.zeros(3)) for i in o_id.tolist()]).reshape(-1, 3)
-    is_free = o_free >= 0
-    rough_rows = np.array([lay.free_index[lid] for lid in free_ids if lid in rough], dtype=np.int64)
-    rough_pos = np.array([rough[lid] for lid in free_ids if lid in rough]).reshape(-1, 3)
+    placed = o_free >= 0  # a landmark whose rays never met the ceiling has no start: left out
+    rows, o_key, o_id, o_px, o_free = (
+        rows[placed],
+        o_key[placed],
+        o_id[placed],
+        o_px[placed],
+        o_free[placed],
+    )
+    held = {**{lid: (p, cfg.rough_sigma_m) for lid, p in rough.items()},
+            **{lid: (p, cfg.anchor_sigma_m) for lid, p in anchors.items()}}  # fmt: skip
+    prior_ids = [lid for lid in free_ids if lid in held]
+    rough_rows = np.array([lay.free_index[lid] for lid in prior_ids], dtype=np.int64)
+    rough_pos = np.array([held[lid][0] for lid in prior_ids]).reshape(-1, 3)
+    rough_sig = np.array([held[lid][1] for lid in prior_ids]).reshape(-1, 1)
     dist, turn = segment_lengths(wheels)
     sig_xy = np.sqrt(cfg.odom_sigma_floor_m**2 + cfg.odom_sigma_m_per_sqrt_m**2 * dist)
     sig_th = np.sqrt(
@@ -204,47 +228,53 @@ def _adjust(
     centre = np.array([cam.cu, cam.cv])
     T_cb = cam.T_camera_body
     t_bc = cam.T_body_camera[:3, 3]
-    k1 = float(cam.distortion[0])
+    k1, k2 = float(cam.distortion[0]), float(cam.distortion[1])
     cam_sig = np.array(
         [
             cfg.focal_sigma_rel, cfg.focal_sigma_rel, cfg.principal_sigma_px,
             cfg.principal_sigma_px,
             cfg.mount_yaw_sigma_rad, max(cfg.distortion_sigma_rel * abs(k1), 1e-4),
+            cfg.mount_tilt_sigma_rad, cfg.mount_tilt_sigma_rad, cfg.mount_height_sigma_m,
+            max(cfg.distortion_sigma_rel * abs(k2), 1e-4),
         ]
     )  # fmt: skip
-    lens_cache: dict[float, CameraModel] = {0.0: cam}
+    lens_cache: dict[tuple[float, float], CameraModel] = {(0.0, 0.0): cam}
 
-    def lens(dk1: float) -> CameraModel:
-        """The camera with its first distortion coefficient changed by dk1 (cached)."""
-        if dk1 not in lens_cache:
+    def lens(dk1: float, dk2: float) -> CameraModel:
+        """The camera with its first two distortion coefficients changed (cached)."""
+        key = (dk1, dk2)
+        if key not in lens_cache:
             if len(lens_cache) > 8:
                 lens_cache.clear()
-                lens_cache[0.0] = cam
+                lens_cache[(0.0, 0.0)] = cam
             d = np.array(cam.distortion, dtype=np.float64)
             d[0] += dk1
-            lens_cache[dk1] = dataclasses.replace(cam, distortion=d)
-        return lens_cache[dk1]
+            d[1] += dk2
+            lens_cache[key] = dataclasses.replace(cam, distortion=d)
+        return lens_cache[key]
 
     sigma_px = cfg.pixel_sigma_px
 
     def project(x: FloatArray) -> tuple[FloatArray, npt.NDArray[np.bool_]]:
         poses, lms, _, c = lay.split(x)
-        pw = (
-            np.where(is_free[:, None], lms[np.maximum(o_free, 0)], o_anchor)
-            if len(lms)
-            else o_anchor
-        )
+        pw = lms[o_free]
         pk = poses[o_key]
         co, si = np.cos(pk[:, 2]), np.sin(pk[:, 2])
         dx, dy = pw[:, 0] - pk[:, 0], pw[:, 1] - pk[:, 1]
         bx, by = co * dx + si * dy, -si * dx + co * dy
-        # the camera turned by c[4] about its own centre t on the body: p -> Rz(-yaw)(p - t) + t
-        c3, s3 = math.cos(c[4]), math.sin(c[4])
-        ux, uy = bx - t_bc[0], by - t_bc[1]
-        p_body = np.stack(
-            [c3 * ux + s3 * uy + t_bc[0], -s3 * ux + c3 * uy + t_bc[1], pw[:, 2]], axis=1
+        # the camera's mounting corrected: turned by yaw c[4], roll c[6], pitch c[7] about
+        # its own centre t and raised by c[8]: p -> Rx^T Ry^T Rz^T (p - t - dz) + t
+        ux, uy, uz = bx - t_bc[0], by - t_bc[1], pw[:, 2] - t_bc[2] - c[8]
+        cz, sz = math.cos(c[4]), math.sin(c[4])
+        ux, uy = cz * ux + sz * uy, -sz * ux + cz * uy
+        cy, sy = math.cos(c[7]), math.sin(c[7])
+        ux, uz = cy * ux - sy * uz, sy * ux + cy * uz
+        cx, sx = math.cos(c[6]), math.sin(c[6])
+        uy, uz = cx * uy + sx * uz, -sx * uy + cx * uz
+        p_body = np.stack([ux + t_bc[0], uy + t_bc[1], uz + t_bc[2]], axis=1)
+        px, valid = pixels_from_points_camera(
+            lens(float(c[5]), float(c[9])), transform_points(T_cb, p_body)
         )
-        px, valid = pixels_from_points_camera(lens(float(c[5])), transform_points(T_cb, p_body))
         px = centre + (1.0 + c[0:2]) * (px - centre) + c[2:4]
         return px, valid
 
@@ -259,7 +289,7 @@ def _adjust(
         r_xy = ((got[:, :2] - pred[:, :2]) / sig_xy[:, None]).reshape(-1)
         r_th = np.remainder(got[:, 2] - pred[:, 2] + math.pi, math.tau) - math.pi
         parts = [r_obs, r_xy, r_th / sig_th]
-        parts.append(((lms[rough_rows] - rough_pos) / cfg.rough_sigma_m).reshape(-1))
+        parts.append(((lms[rough_rows] - rough_pos) / rough_sig).reshape(-1))
         parts.append((w - 1.0) / cfg.wheel_scale_sigma)
         if lay.self_calibrate:
             parts.append(c / cam_sig)
@@ -268,7 +298,7 @@ def _adjust(
     S = sparsity(lay, o_key, o_free, len(rough_rows), rough_rows)
     res = levenberg_marquardt(
         residuals, x0, S, lay.groups(), lay.steps(), huber_k=cfg.huber_scale,
-        max_iterations=budget,
+        max_iterations=budget, n_banded=lay.lm0,
     )  # fmt: skip
     px, valid = project(res.x)
     err = np.linalg.norm(px - o_px, axis=1)

@@ -33,12 +33,21 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
     )  # fmt: skip
     p.add_argument("--out", type=Path, required=True, help="where to write the surveyed map")
     p.add_argument(
+        "--anchor-sigma-mm", type=float, default=1000 * BundleConfig.anchor_sigma_m,
+        metavar="MM",
+        help="how well the anchors were surveyed, 1 sigma per axis, mm (default %(default)s: "
+        "a total station); it is part of every landmark's sigma_m",
+    )  # fmt: skip
+    p.add_argument(
         "--allow-unseen", action="store_true",
         help="write the map even if some landmarks could not be surveyed (they keep what "
         "map.json gave them)",
     )  # fmt: skip
     p.add_argument("--quiet", action="store_true", help="no progress bar and no table")
-    return p.parse_args(argv)
+    args = p.parse_args(argv)
+    if not args.anchor_sigma_mm > 0:
+        p.error(f"--anchor-sigma-mm must be > 0, got {args.anchor_sigma_mm}")
+    return args
 
 
 def table(result: SurveyResult) -> str:
@@ -60,12 +69,13 @@ def table(result: SurveyResult) -> str:
             f"{e.rms_px:>6.2f}  {'; '.join(e.flags)}"
         )
     wl, wr, wb = result.wheel_calibration
-    dfu, dfv, du, dv, yaw, dk1 = result.camera_correction
+    dfu, dfv, du, dv, yaw, dk1, roll, pitch, dz, dk2 = result.camera_correction
     lines.append(
         f"reprojection {result.rms_px:.2f} px RMS; wheels x{wl:.4f} / x{wr:.4f}, base "
         f"x{wb:.4f}; camera focal {100 * dfu:+.2f} / {100 * dfv:+.2f} %, "
         f"centre {du:+.2f} / {dv:+.2f} px, "
-        f"yaw {yaw * 57.29578:+.3f} deg, k1 {dk1:+.5f}"
+        f"yaw {yaw * 57.29578:+.3f} deg, k1 / k2 {dk1:+.5f} / {dk2:+.5f}, roll / pitch "
+        f"{1000 * roll:+.2f} / {1000 * pitch:+.2f} mrad, height {1000 * dz:+.1f} mm"
     )
     return "\n".join(lines)
 
@@ -91,7 +101,8 @@ def main(argv: list[str] | None = None) -> int:
             windows.n = i
             windows.refresh()
 
-        result = solve_survey(problem, BundleConfig(), progress=solved)
+        config = BundleConfig(anchor_sigma_m=args.anchor_sigma_mm / 1000.0)
+        result = solve_survey(problem, config, progress=solved)
         windows.close()
     except ValueError as exc:
         print(f"{PROG}: {str(exc).removeprefix('survey: ')}", file=sys.stderr)

@@ -1,6 +1,6 @@
 """From a bundle adjustment's solution to the survey's result: each landmark's covariance
-(Schur complement of the information matrix, scaled for the residuals and for correlated
-views), its residuals and its flags. docs/survey.md."""
+(Schur complement of the information matrix, its observations weighted by the noise their
+residuals show), its residuals and its flags. docs/survey.md."""
 
 from __future__ import annotations
 
@@ -9,34 +9,59 @@ import math
 import numpy as np
 import numpy.typing as npt
 import scipy.sparse as sp
-from scipy.sparse.linalg import splu
 
-from survey.layout import Fit, Layout
+from survey.layout import Fit
+from survey.normal_equations import BandedSchur
 from survey.problem import BundleConfig, SurveyProblem
 from survey.result import LandmarkEstimate, SurveyResult
-from survey.sparse_lm import huber_weights
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
 
 
-def marginal_covariances(
-    J: sp.csr_matrix, weights: FloatArray, lay: Layout
-) -> tuple[FloatArray, FloatArray]:
-    """Covariance of the landmarks (3L, 3L) and of the camera correction, with the poses and
-    the wheels eliminated (Schur complement of the information matrix J^T W J)."""
-    Jw = sp.diags(np.sqrt(weights)) @ J
-    H = (Jw.T @ Jw).tocsc()
-    interest = np.r_[np.arange(lay.lm0, lay.wheel0), np.arange(lay.cam0, lay.n)]
-    nuisance = np.r_[np.arange(0, lay.lm0), np.arange(lay.wheel0, lay.cam0)]
-    H_nn = H[nuisance][:, nuisance].tocsc()
-    H_ni = H[nuisance][:, interest].toarray()
-    H_ii = H[interest][:, interest].toarray()
-    lu = splu(H_nn + sp.identity(len(nuisance), format="csc") * 1e-12)
-    schur = H_ii - H_ni.T @ lu.solve(H_ni)
-    cov = np.linalg.pinv(0.5 * (schur + schur.T))
-    k = 3 * len(lay.free_ids)
-    return cov[:k, :k], cov[k:, k:]
+def variance_factor(r: FloatArray, huber_k: float, redundancy: int) -> float:
+    """A group of residuals' a-posteriori variance of unit weight under the Huber loss:
+    sum psi(r)^2 / redundancy over the squared share of residuals inside the threshold
+    (Huber 1981, ch. 7: the M-estimator's asymptotic covariance is E[psi^2] / E[psi']^2
+    times the least-squares one)."""
+    if len(r) == 0:
+        return 1.0
+    psi = np.clip(r, -huber_k, huber_k)
+    inside = float(np.mean(np.abs(r) <= huber_k))
+    return float(np.sum(psi**2)) / max(redundancy, 1) / max(inside, 1e-3) ** 2
+
+
+def marginal_covariances(fit: Fit, huber_k: float) -> tuple[FloatArray, float]:
+    """Covariance of every unknown but the poses (the landmarks, anchors included, then the
+    wheels and the camera correction, all estimated, none held), and the spots' a-posteriori
+    standard deviation of unit weight.
+
+    The covariance is the inverse of the information matrix J^T W J (W: the Huber loss's
+    weights at the solution) with the poses eliminated by the Schur complement, each group
+    of observations (the spots, the wheels' intervals) weighted by its own variance factor
+    estimated from its residuals (`variance_factor`: a variance component estimate, with
+    the spots' redundancy taken as their rows minus all unknowns), the priors as stated
+    (their sigmas are what staff and the calibration say, not residuals). So no noise level
+    is assumed: `pixel_sigma_px` and the wheels' sigmas only shape the loss.
+    """
+    lay = fit.lay
+    r, J = fit.fun, sp.csr_matrix(fit.jac)
+    n = J.shape[1]
+    n_pix = 2 * len(fit.o_key)
+    n_odo = 3 * (lay.n_keys - 1)
+    # a spot whose landmark the solution put out of the lens's view is no measurement
+    valid = np.repeat(fit.valid, 2)
+    f_pix = variance_factor(r[:n_pix][valid], huber_k, int(valid.sum()) - n)
+    f_odo = variance_factor(r[n_pix : n_pix + n_odo], huber_k, n_odo)
+    a = np.abs(r)
+    w = np.where(a <= huber_k, 1.0, huber_k / np.maximum(a, 1e-300))
+    w[:n_pix] /= f_pix
+    w[n_pix : n_pix + n_odo] /= f_odo
+    H = (J.T @ sp.diags(w) @ J).tocsc()
+    d = H.diagonal()
+    H = H + sp.diags(1e-12 * np.where(d > 0, d, 1.0))
+    cov = BandedSchur(H, lay.lm0).reduced_covariance()
+    return cov, math.sqrt(f_pix)
 
 
 def independent_views(positions: FloatArray, spacing_m: float) -> int:
@@ -59,12 +84,7 @@ def survey_result(
 ) -> SurveyResult:
     lay = fit.lay
     poses, lms, w, c = lay.split(fit.x)
-    r = fit.fun
-    weights = huber_weights(r, cfg.huber_scale)
-    n_obs_rows = 2 * len(fit.o_key)
-    dof = max(n_obs_rows - 3 * len(lay.free_ids), 1)
-    scale2 = max(float(np.sum(weights[:n_obs_rows] * r[:n_obs_rows] ** 2) / dof), 1.0)
-    cov_lm, _ = marginal_covariances(fit.jac, weights, lay)
+    cov_all, s0 = marginal_covariances(fit, cfg.huber_scale)
     rough = {int(k): np.asarray(v) for k, v in problem.given.items() if v is not None}
     obs = problem.observations
     out: dict[int, LandmarkEstimate] = {}
@@ -76,12 +96,11 @@ def survey_result(
         max_px = float(np.max(e)) if len(e) else float("nan")
         given = anchors.get(lid, rough.get(lid))
         if lid in anchors:
-            pos, cov = anchors[lid], np.zeros((3, 3))
+            pos, cov = anchors[lid], np.eye(3) * cfg.anchor_sigma_m**2  # as surveyed
         else:
             i = lay.free_index[lid]
             pos = lms[i].copy()
-            correlated = max(len(rows) / max(views, 1), 1.0)
-            cov = cov_lm[3 * i : 3 * i + 3, 3 * i : 3 * i + 3] * scale2 * correlated
+            cov = cov_all[3 * i : 3 * i + 3, 3 * i : 3 * i + 3]
         flags: list[str] = []
         if rms_px > cfg.flag_rms_px:
             flags.append(
@@ -116,6 +135,6 @@ def survey_result(
     notes = (f"{len(rejected)} spot track(s) set aside as not explained by the solution",)
     return SurveyResult(
         out, unseen, fit.key_t, poses, (float(w[0]), float(w[1]), float(w[2])),
-        tuple(float(v) for v in c), rms, math.sqrt(scale2),  # type: ignore[arg-type]
+        tuple(float(v) for v in c), rms, s0,
         fit.nfev, fit.converged, notes,
     )  # fmt: skip

@@ -12,9 +12,11 @@ import scipy.sparse as sp
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
-N_CAMERA = 6
+N_CAMERA = 10
 """The camera correction: focal scales - 1 (fu, fv), principal point (du, dv) px, mounting
-yaw rad, and the change of the first distortion coefficient (k1)."""
+yaw rad, the change of the first distortion coefficient (k1), mounting roll and pitch rad
+(about the body's x and y axes through the camera), the camera's height change m, and the
+change of the second distortion coefficient (k2)."""
 
 
 class Layout:

@@ -30,10 +30,14 @@ class BundleConfig:
         odom_heading_sigma_rad_per_sqrt_m, odom_heading_sigma_rad_per_sqrt_rad,
         odom_heading_floor_rad: heading noise: sqrt(floor^2 + b^2 * distance + c^2 * turned).
         rough_sigma_m: standard deviation of a rough position from map.json, per axis.
+        anchor_sigma_m: standard deviation of an anchor's surveyed position, per axis (a
+            total station: about a millimetre).
         wheel_scale_sigma: prior standard deviation of each wheel calibration factor.
         self_calibrate: estimate the camera correction too.
         focal_sigma_rel, principal_sigma_px, mount_yaw_sigma_rad: its priors;
-        distortion_sigma_rel: the first distortion coefficient's, relative to itself.
+        mount_tilt_sigma_rad, mount_height_sigma_m: of the mounting's roll and pitch, and
+            of its height (what the mounting calibration or a tape leaves);
+        distortion_sigma_rel: the first two distortion coefficients', relative to each.
         max_iterations: Gauss-Newton steps of the final solve, at most.
         window_s: the drive is solved in windows from its start: this long, then twice as
             long, and so on, seconds.
@@ -46,7 +50,7 @@ class BundleConfig:
             estimate may take its name.
         name_exclusion_m: ... if no other landmark is this close (unnamed tracks).
         independent_view_m: views of a landmark closer than this (robot travel) count as one
-            for its covariance.
+            (`min_views`).
         flag_rms_px: a landmark whose residual RMS exceeds this is flagged (moved during the
             drive, or two landmarks answering to one name).
         flag_moved_m: a landmark this far from its given position is flagged (moved, or
@@ -64,11 +68,14 @@ class BundleConfig:
     odom_heading_sigma_rad_per_sqrt_rad: float = 0.02
     odom_heading_floor_rad: float = 0.001
     rough_sigma_m: float = 0.3
+    anchor_sigma_m: float = 0.001
     wheel_scale_sigma: float = 0.01
     self_calibrate: bool = True
     focal_sigma_rel: float = 0.002
     principal_sigma_px: float = 2.0
     mount_yaw_sigma_rad: float = math.radians(1.0)
+    mount_tilt_sigma_rad: float = 0.002
+    mount_height_sigma_m: float = 0.005
     distortion_sigma_rel: float = 0.1
     max_iterations: int = 30
     window_s: float = 30.0

@@ -74,9 +74,12 @@ class SurveyResult:
             (x, y, theta), shape (K, 3).
         wheel_calibration: (left scale, right scale, wheel-base scale), 1 = nominal.
         camera_correction: (fu scale - 1, fv scale - 1, cu offset px, cv offset px, mounting
-            yaw rad, change of the first distortion coefficient k1).
+            yaw rad, change of the first distortion coefficient k1, mounting roll rad, pitch
+            rad, camera height m, change of k2); zeros when not self-calibrated.
         rms_px: reprojection RMS over all observations, pixels.
-        sigma_scale: factor the covariances were scaled by (residuals and correlation).
+        sigma_scale: the spots' a-posteriori standard deviation of unit weight (their noise
+            as the residuals show it, in units of `BundleConfig.pixel_sigma_px`): the factor
+            their information was scaled by for the covariances.
         iterations: solver function evaluations; converged: the solver's own verdict.
     """
 
@@ -85,7 +88,7 @@ class SurveyResult:
     trajectory_t_ns: npt.NDArray[np.int64]
     trajectory: FloatArray
     wheel_calibration: tuple[float, float, float]
-    camera_correction: tuple[float, float, float, float, float, float]
+    camera_correction: tuple[float, ...]
     rms_px: float
     sigma_scale: float
     iterations: int

@@ -20,6 +20,8 @@ import numpy.typing as npt
 import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
+from survey.normal_equations import BandedSchur
+
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
 
@@ -48,33 +50,46 @@ def huber_cost(r: FloatArray, k: float) -> float:
     return float(np.sum(np.where(a <= k, a * a, 2.0 * k * a - k * k)))
 
 
+class GroupedJacobian:
+    """Forward-difference Jacobians of one sparsity pattern, one residual evaluation per group
+    of columns that share no row (the pattern's bookkeeping done once, not per Jacobian)."""
+
+    def __init__(self, sparsity: sp.spmatrix, groups: IntArray, steps: FloatArray) -> None:
+        S = sp.csc_matrix(sparsity)
+        S.sort_indices()
+        self.shape = S.shape
+        self.indptr, self.indices = S.indptr, S.indices
+        cols = np.repeat(np.arange(S.shape[1]), np.diff(S.indptr))
+        self.steps = np.asarray(steps, dtype=np.float64)
+        self.inv_step = 1.0 / self.steps[cols]
+        g_of = np.asarray(groups)[cols]
+        self.groups = [
+            (np.flatnonzero(groups == g), np.flatnonzero(g_of == g))
+            for g in np.unique(groups).tolist()
+        ]
+
+    def __call__(
+        self, fun: Callable[[FloatArray], FloatArray], x: FloatArray, r: FloatArray
+    ) -> sp.csr_matrix:
+        data = np.empty(len(self.indices))
+        for cols, nz in self.groups:
+            xp = x.copy()
+            xp[cols] += self.steps[cols]
+            diff = fun(xp) - r
+            data[nz] = diff[self.indices[nz]] * self.inv_step[nz]
+        return sp.csc_matrix((data, self.indices, self.indptr), shape=self.shape).tocsr()
+
+
 def grouped_jacobian(
     fun: Callable[[FloatArray], FloatArray],
     x: FloatArray,
     r: FloatArray,
-    sparsity: sp.csc_matrix,
+    sparsity: sp.spmatrix,
     groups: IntArray,
     steps: FloatArray,
 ) -> sp.csr_matrix:
     """Forward-difference Jacobian, one evaluation per group of columns that share no row."""
-    rows_all: list[IntArray] = []
-    cols_all: list[IntArray] = []
-    vals_all: list[FloatArray] = []
-    indptr, indices = sparsity.indptr, sparsity.indices
-    for g in np.unique(groups).tolist():
-        cols = np.flatnonzero(groups == g)
-        xp = x.copy()
-        xp[cols] += steps[cols]
-        diff = fun(xp) - r
-        for c in cols.tolist():
-            rows = indices[indptr[c] : indptr[c + 1]]
-            rows_all.append(rows)
-            cols_all.append(np.full(len(rows), c))
-            vals_all.append(diff[rows] / steps[c])
-    R = np.concatenate(rows_all)
-    C = np.concatenate(cols_all)
-    V = np.concatenate(vals_all)
-    return sp.csr_matrix((V, (R, C)), shape=(len(r), len(x)))
+    return GroupedJacobian(sparsity, groups, steps)(fun, x, r)
 
 
 def levenberg_marquardt(
@@ -87,6 +102,7 @@ def levenberg_marquardt(
     huber_k: float,
     max_iterations: int,
     rtol: float = 1e-7,
+    n_banded: int = 0,
     progress: Callable[[int, float], None] | None = None,
 ) -> LMResult:
     """Minimise sum rho(fun(x)_i) (Huber, threshold `huber_k`) from x0.
@@ -98,17 +114,20 @@ def levenberg_marquardt(
         steps: finite-difference step per unknown.
         max_iterations: Gauss-Newton steps at most.
         rtol: stop when a step lowers the cost by less than this fraction.
+        n_banded: the first this many unknowns form a banded block of the normal matrix
+            (poses along a trajectory): each step is then solved by its Schur complement
+            (`survey.normal_equations.BandedSchur`) instead of a sparse LU of the whole.
         progress: called with (iteration, cost) after each step.
     """
-    S = sp.csc_matrix(sparsity)
+    jacobian = GroupedJacobian(sparsity, groups, steps)
     x = np.array(x0, dtype=np.float64)
     r = fun(x)
     evaluations = 1
     cost = huber_cost(r, huber_k)
     lam = 1e-4
     converged = False
-    J = grouped_jacobian(fun, x, r, S, groups, steps)
-    evaluations += len(np.unique(groups))
+    J = jacobian(fun, x, r)
+    evaluations += len(jacobian.groups)
     it = 0
     for it in range(1, max_iterations + 1):
         w = huber_weights(r, huber_k)
@@ -121,8 +140,8 @@ def levenberg_marquardt(
         while lam < 1e10:
             A = (H + sp.diags(lam * d)).tocsc()
             try:
-                dx = -splu(A).solve(g)
-            except RuntimeError:  # singular: damp more
+                dx = -(BandedSchur(A, n_banded).solve(g) if n_banded else splu(A).solve(g))
+            except (RuntimeError, np.linalg.LinAlgError):  # singular: damp more
                 lam *= 10.0
                 continue
             x_new = x + dx
@@ -141,8 +160,8 @@ def levenberg_marquardt(
         if not improved:
             converged = True  # no descent left at any damping: a minimum
             break
-        J = grouped_jacobian(fun, x, r, S, groups, steps)
-        evaluations += len(np.unique(groups))
+        J = jacobian(fun, x, r)
+        evaluations += len(jacobian.groups)
         if rel < rtol:
             converged = True
             break
