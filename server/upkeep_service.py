@@ -201,7 +201,8 @@ class MapUpkeepService:
             self.map.update(
                 p.landmark_id, LandmarkUpdate(x=x, y=y, z=z), actor=actor + ACTOR_SUFFIX
             )
-            with self._lock:
+            with self._lock:  # the map's listener did this already, unless not started
+                self._on_map(self.map.list())
                 self._upkeep.accepted(p.landmark_id, p.sigma_m)
             done.append(p.landmark_id)
         return done
