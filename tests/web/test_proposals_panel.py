@@ -66,7 +66,7 @@ def test_the_panel_lists_accepts_and_rejects_as_the_api_does(
     done = panel.accept(None)
     assert 17 in done and 12 not in done
     new = np.array([repo.get(17).x, repo.get(17).y])
-    assert np.linalg.norm(new - (ceiling()[1][7][:2] + (0.03, -0.04))) < 0.005
+    assert np.linalg.norm(new - ceiling()[1][7][:2] - (0.03, -0.04)) < 0.005
     audit = repo.audit(5)
     assert audit[0].actor == "viewer:key:7 (map upkeep)"
     assert repo.get(12).x == old12
