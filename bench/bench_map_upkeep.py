@@ -40,10 +40,18 @@ class Errors:
 
     heading: list[float] = dataclasses.field(default_factory=list)
     position: list[float] = dataclasses.field(default_factory=list)
+    robot: list[str] = dataclasses.field(default_factory=list)
 
     def line(self) -> str:
-        h = np.degrees(np.abs(self.heading))
-        p = np.asarray(self.position) * 1000
+        out = [self._stats(np.ones(len(self.heading), dtype=bool))]
+        names = np.array(self.robot)
+        for name in sorted(set(self.robot)):
+            out.append(f"  {name}: {self._stats(names == name)}")
+        return "\n".join(out)
+
+    def _stats(self, keep: np.ndarray) -> str:
+        h = np.degrees(np.abs(np.asarray(self.heading)[keep]))
+        p = np.asarray(self.position)[keep] * 1000
         return (f"heading |err| mean {h.mean():.3f} deg, p95 {np.percentile(h, 95):.3f} deg; "
                 f"position mean {p.mean():.1f} mm, p95 {np.percentile(p, 95):.1f} mm "
                 f"({len(h)} frames)")  # fmt: skip
@@ -92,6 +100,7 @@ def patrol(
                 if out.mode == "landmark":
                     err.heading.append(math.remainder(out.theta - truth[2], math.tau))
                     err.position.append(math.hypot(out.x - truth[0], out.y - truth[1]))
+                    err.robot.append(s.robot)
                 assert isinstance(s.event, SpotsObserved)
                 on_frame(s.robot, out, s.event.pixels, (t_now - t0) / NS)
     return err
@@ -129,7 +138,7 @@ def main() -> None:
     first: dict[int, tuple[float, int, float]] = {}
     cameras = {name: site.camera(name) for name in site.robot_names}
     last_check = [0.0]
-    wall = time.perf_counter()
+    wall, cpu = time.perf_counter(), time.process_time()
 
     def on_frame(robot: str, pose: PoseEstimate, pixels: np.ndarray, t_s: float) -> None:
         upkeep.observe(robot, cameras[robot], pose, pixels)
@@ -148,7 +157,8 @@ def main() -> None:
 
     before = patrol(site, surveyed, args.minutes * 60, on_frame)
     sim_s = args.minutes * 60
-    print(f"{sim_s:.0f} s simulated in {time.perf_counter() - wall:.0f} s wall; "
+    print(f"{sim_s:.0f} s simulated in {time.perf_counter() - wall:.0f} s wall, "
+          f"{time.process_time() - cpu:.0f} s CPU; "
           f"{upkeep.frames} frames counted")  # fmt: skip
     false = [lid for lid in first if lid != args.landmark]
     print(f"moved landmark {args.landmark}: "
