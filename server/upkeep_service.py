@@ -30,6 +30,7 @@ import numpy.typing as npt
 from localizer.camera import CameraModel
 from localizer.events import FrameObserved, PoseEstimate
 from localizer.spots import DetectionConfig, detect_spots
+from server.errors import ConflictError
 from server.models import LandmarkPublic, LandmarkUpdate
 from survey.upkeep import MapProposal, MapUpkeep, UpkeepConfig
 
@@ -174,8 +175,8 @@ class MapUpkeepService:
         return UpkeepStatus(frames, seen, views)
 
     def _chosen(self, landmark_ids: Sequence[int] | None) -> list[ProposalView]:
-        """The proposals of `landmark_ids` (None: every unlocked one); ValueError naming the
-        IDs without a proposal."""
+        """The proposals of `landmark_ids` (None: every unlocked one); ConflictError naming
+        the IDs without a proposal (now)."""
         views = self.status().proposals
         by_id = {v.proposal.landmark_id: v for v in views}
         if landmark_ids is None:
@@ -183,7 +184,7 @@ class MapUpkeepService:
         missing = sorted({int(i) for i in landmark_ids} - set(by_id))
         if missing:
             have = ", ".join(str(i) for i in sorted(by_id)) or "none"
-            raise ValueError(
+            raise ConflictError(
                 f"landmarks: {', '.join(map(str, missing))} have no proposal "
                 f"(proposals now: {have}); nothing was changed"
             )
@@ -191,7 +192,7 @@ class MapUpkeepService:
 
     def accept(self, landmark_ids: Sequence[int] | None, *, actor: str) -> list[int]:
         """Write the proposed positions of `landmark_ids` (None: every proposal of an unlocked
-        landmark) into the map, audited and undoable; returns the IDs written. ValueError
+        landmark) into the map, audited and undoable; returns the IDs written. ConflictError
         (nothing written) when one has no proposal."""
         chosen = self._chosen(landmark_ids)
         done = []
@@ -209,7 +210,8 @@ class MapUpkeepService:
 
     def reject(self, landmark_ids: Sequence[int], *, actor: str) -> list[int]:
         """Drop the evidence behind the proposals of `landmark_ids` (the map is not changed);
-        ValueError (nothing dropped) when one has no proposal or none is given."""
+        ConflictError (nothing dropped) when one has no proposal, ValueError when none is
+        given."""
         if not landmark_ids:
             raise ValueError("landmarks: name at least one landmark whose proposal to reject")
         chosen = self._chosen(landmark_ids)

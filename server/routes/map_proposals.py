@@ -104,14 +104,14 @@ def list_map_proposals(services: ServicesDep, _: Viewer) -> MapUpkeepPublic:
 @router.post("/accept")
 def accept_map_proposals(body: ProposalsAccept, services: ServicesDep, who: Admin) -> ProposalsDone:
     """Write proposals into the map (audited as "<you> (map upkeep)", undoable with
-    `POST /map/undo`). 422 naming landmarks without a proposal (nothing written)."""
+    `POST /map/undo`). 409 naming landmarks without a proposal now (nothing written)."""
     done = services.upkeep.accept(body.landmarks, actor=who.actor)
     return ProposalsDone(done=done, status=status_public(services.upkeep.status()))
 
 
 @router.post("/reject")
 def reject_map_proposals(body: ProposalsReject, services: ServicesDep, who: Admin) -> ProposalsDone:
-    """Reject proposals: their landmarks' evidence is gathered afresh. 422 naming landmarks
-    without a proposal (nothing dropped)."""
+    """Reject proposals: their landmarks' evidence is gathered afresh. 409 naming landmarks
+    without a proposal now (nothing dropped)."""
     done = services.upkeep.reject(body.landmarks, actor=who.actor)
     return ProposalsDone(done=done, status=status_public(services.upkeep.status()))

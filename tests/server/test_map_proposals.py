@@ -39,7 +39,7 @@ def test_roles_and_bad_input(api: Api) -> None:
         )
     h = api.h("admin")
     r = c.post(P + "/accept", json={"landmarks": [5]}, headers=h)
-    assert r.status_code == 422 and "5 have no proposal" in r.json()["detail"], r.text
+    assert r.status_code == 409 and "5 have no proposal" in r.json()["detail"], r.text
     r = c.post(P + "/reject", json={"landmarks": []}, headers=h)
     assert r.status_code == 422 and "landmarks" in r.json()["detail"]
     r = c.post(P + "/accept", json={"landmarks": ["a"]}, headers=h)
@@ -63,7 +63,7 @@ def test_a_moved_landmark_is_proposed_accepted_audited_and_undone(api: Api) -> N
     # a bad ID among good ones: nothing is written
     before = c.get("/api/v1/landmarks/17", headers=h).json()
     r = c.post(P + "/accept", json={"landmarks": [17, 99]}, headers=h)
-    assert r.status_code == 422 and "99" in r.json()["detail"]
+    assert r.status_code == 409 and "99" in r.json()["detail"]
     assert c.get("/api/v1/landmarks/17", headers=h).json() == before
     r = c.post(P + "/accept", json={"landmarks": [17]}, headers=h)
     assert r.status_code == 200 and r.json()["done"] == [17], r.text

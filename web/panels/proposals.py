@@ -101,7 +101,7 @@ class ProposalsPanel:
         ids = None if landmark_id is None else [landmark_id]
         try:
             done = self.upkeep.accept(ids, actor=self.session.actor)
-        except (ValueError, KeyError) as exc:
+        except (ValueError, KeyError) as exc:  # ConflictError is a ValueError
             self.notify("Refused", str(exc))
             return []
         self.notify("Map proposals", f"accepted: {', '.join(map(str, done)) or 'none'}")
