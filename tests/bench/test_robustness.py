@@ -14,11 +14,12 @@ import pytest
 
 from bench.robustness import MATRIX_FILES, _row, comparison, load_matrix, site_truth
 from bench.robustness_score import FrameResult, score
+from irloc.simulated_recording import simulate_recording
 from localizer.camera import predict_pixels
 from recording.reader import read_groundtruth
 from recording.replay_cli import replay
 from sim.cameras import CALIBRATION_LEVELS
-from sim.offline import recording_site, simulate_recording
+from sim.offline import recording_site
 from sim.scenario import load_scenario
 
 MATRIX = Path(__file__).resolve().parents[2] / "bench" / "robustness"
