@@ -16,8 +16,6 @@ proposal leaves them out, naming one accepts it. docs/survey.md ("Keeping the ma
 
 from __future__ import annotations
 
-import asyncio
-import contextlib
 import logging
 import threading
 from collections.abc import Callable, Sequence
@@ -32,10 +30,10 @@ from localizer.events import FrameObserved, PoseEstimate
 from localizer.spots import DetectionConfig, detect_spots
 from server.errors import ConflictError
 from server.models import LandmarkPublic, LandmarkUpdate
+from server.pose_pump import PosePump
 from survey.upkeep import MapProposal, MapUpkeep, UpkeepConfig
 
 if TYPE_CHECKING:  # the facades are handed in (server.services); typing only
-    from pubsub.bus import Subscription
     from server.crud.landmarks import MapRepository
     from server.facades import Robots
     from server.poses import PoseUpdate
@@ -94,37 +92,23 @@ class MapUpkeepService:
         self._emit = emit
         self._upkeep = MapUpkeep(config)
         self._lock = threading.RLock()
-        self._sub: Subscription[PoseUpdate] | None = None
-        self._task: asyncio.Task[None] | None = None
-        self.failures = 0
+        self._pump = PosePump(robots, self.take, batch_s=batch_s, name="map upkeep")
 
     # -- lifecycle ------------------------------------------------------------------------------
     def start(self) -> None:
         """Subscribe to the map and the poses (on the server's loop)."""
         self._on_map(self.map.list())
         self.map.add_listener(self._on_map)
-        self._sub = self.robots.subscribe_poses(maxsize=4096)
-        self._task = asyncio.get_running_loop().create_task(self._pump(self._sub))
+        self._pump.start()
 
     async def stop(self) -> None:
         self.map.remove_listener(self._on_map)
-        if self._sub is not None:
-            self._sub.close()
-        if self._task is not None:
-            self._task.cancel()
-            with contextlib.suppress(asyncio.CancelledError, Exception):
-                await self._task
+        await self._pump.stop()
 
-    async def _pump(self, sub: Subscription[PoseUpdate]) -> None:
-        while not sub.closed:
-            batch = await sub.get_batch()
-            if batch:
-                try:
-                    await asyncio.to_thread(self.take, batch)
-                except Exception:  # keep the upkeep alive; the site may be restarting
-                    self.failures += 1
-                    log.exception("map upkeep: pose batch failed")
-            await asyncio.sleep(self.batch_s)
+    @property
+    def failures(self) -> int:
+        """Pose batches that failed (logged)."""
+        return self._pump.failures
 
     # -- inputs ---------------------------------------------------------------------------------
     def _on_map(self, landmarks: list[LandmarkPublic]) -> None:
