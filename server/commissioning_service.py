@@ -13,9 +13,7 @@ actor. docs/commissioning.md.
 
 from __future__ import annotations
 
-import asyncio
 import concurrent.futures
-import contextlib
 import logging
 import statistics
 import threading
@@ -56,12 +54,12 @@ from commissioning.wizard import (
 )
 from localizer.events import FrameObserved, LedRequest, LedsChanged
 from localizer.spots import DetectionConfig, detect_spots
-from pubsub.bus import Subscription
 from rf_gateway.errors import RfGatewayError
 from server.crud import MapRepository
 from server.errors import ConflictError, NotFoundError, UnavailableError
 from server.facades import LedsAndRadio, Robots
 from server.models import LandmarkCreate, LandmarkPublic, LandmarkUpdate
+from server.pose_pump import PosePump
 from server.poses import PoseUpdate
 
 log = logging.getLogger(__name__)
@@ -99,10 +97,8 @@ class Commissioning:
         self._wizard = IdentificationWizard(wizard)
         self._lock = threading.RLock()
         self._actor = "wizard"
-        self._sub: Subscription[PoseUpdate] | None = None
-        self._task: asyncio.Task[None] | None = None
+        self._pump = PosePump(robots, self._take, batch_s=batch_s, name="commissioning")
         self._listening = False
-        self.failures = 0
 
     # -- lifecycle ----------------------------------------------------------------------------
     def start(self) -> None:
@@ -110,31 +106,19 @@ class Commissioning:
         self._on_map(self.map.list())
         self.map.add_listener(self._on_map)
         self._listening = self.leds.add_listener(self._on_leds)
-        self._sub = self.robots.subscribe_poses(maxsize=4096)
-        self._task = asyncio.get_running_loop().create_task(self._pump(self._sub))
+        self._pump.start()
 
     async def stop(self) -> None:
         """Abandon a running identification (the site relights every LED when it stops)."""
         self.map.remove_listener(self._on_map)
         if self._listening:
             self.leds.remove_listener(self._on_leds)
-        if self._sub is not None:
-            self._sub.close()
-        if self._task is not None:
-            self._task.cancel()
-            with contextlib.suppress(asyncio.CancelledError, Exception):
-                await self._task
+        await self._pump.stop()
 
-    async def _pump(self, sub: Subscription[PoseUpdate]) -> None:
-        while not sub.closed:
-            batch = await sub.get_batch()
-            if batch:
-                try:
-                    await asyncio.to_thread(self._take, batch)
-                except Exception:  # keep commissioning alive; the site may be restarting
-                    self.failures += 1
-                    log.exception("commissioning: pose batch failed")
-            await asyncio.sleep(self.batch_s)
+    @property
+    def failures(self) -> int:
+        """Pose batches that failed (logged)."""
+        return self._pump.failures
 
     # -- inputs -------------------------------------------------------------------------------
     def _on_map(self, landmarks: list[LandmarkPublic]) -> None:

@@ -43,6 +43,7 @@ from server.routes import (
     landmarks,
     leds,
     map,
+    map_proposals,
     remote,
     robots,
     streams,
@@ -150,7 +151,7 @@ def create_app(settings: Settings | None = None, viewer: ViewerApp | None = None
     api = APIRouter(prefix=API_PREFIX, dependencies=[Depends(refuse_unknown_query)])
     for module in (
         landmarks, map, history, floorplan, robots, calibration, remote, admin, streams,
-        commissioning, survey, leds,
+        commissioning, survey, leds, map_proposals,
     ):  # fmt: skip
         api.include_router(module.router)
     api.add_api_route(

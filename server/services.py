@@ -33,6 +33,7 @@ from server.poses import PoseUpdate
 from server.settings import Settings
 from server.site.builder import LiveSiteRunner
 from server.survey_service import LiveSurvey
+from server.upkeep_service import MapUpkeepService
 
 if TYPE_CHECKING:
     from sim.live import LiveSite
@@ -55,7 +56,8 @@ class SiteServices:
     Attributes:
         settings, engine; map (MapRepository), keys (KeyStore), robot_store (RobotStore),
         log (EventLog); robots (Robots); leds (LedsAndRadio); recordings (Recordings);
-        commissioning (Commissioning); poses (Bus[PoseUpdate]); events (EventHub, whose
+        commissioning (Commissioning); survey (LiveSurvey); upkeep (MapUpkeepService, the
+        map's proposals from the robots' views); poses (Bus[PoseUpdate]); events (EventHub, whose
         `bus` is a Bus[SiteEvent]); live (the LiveSiteRunner, None when stopped or
         disabled); clock_ns (the site clock); initial_admin_key (str once, on first start).
     """
@@ -77,6 +79,7 @@ class SiteServices:
         self.recordings = Recordings(settings.recordings_dir, self.robots, self.map)
         self.commissioning = Commissioning(self.map, self.robots, self.leds, self.submit)
         self.survey = LiveSurvey(self.map, self.robots, self.leds, self.recordings)
+        self.upkeep = MapUpkeepService(self.map, self.robots, emit=self.events.emit)
         self.live: LiveSiteRunner | None = None
         self.loop: asyncio.AbstractEventLoop | None = None
         self.map.add_listener(self._on_map_changed)
@@ -122,10 +125,12 @@ class SiteServices:
             )
             await self.live.start()
         self.commissioning.start()
+        self.upkeep.start()
 
     async def stop(self) -> None:
         """Stop commissioning and the site (LEDs left all on), then close the database."""
         await self.commissioning.stop()
+        await self.upkeep.stop()
         self.survey.cancel()
         if self.live is not None:
             await self.live.stop()

@@ -31,6 +31,7 @@ from web.panels.commission import CommissionPanel
 from web.panels.coverage import CoveragePanel
 from web.panels.history import HistoryPanel, map_repository_of
 from web.panels.monitor import MonitorPanel, UncertaintyHistory
+from web.panels.proposals import ProposalsPanel, map_upkeep_of
 from web.panels.survey import SurveyPanel
 from web.panels.view import ViewPanel
 from web.panels.wizard import WizardPanel
@@ -91,6 +92,7 @@ class _ClientPanels:
         self.survey: SurveyPanel | None = None
         self.commission: CommissionPanel | None = None
         self.history: HistoryPanel | None = None
+        self.proposals: ProposalsPanel | None = None
         if session.can_commission:
             tabs = gui.add_tab_group()
             with tabs.add_tab("Monitor"):
@@ -102,6 +104,9 @@ class _ClientPanels:
                 repo = map_repository_of(viewer.services)
                 if repo is not None:
                     self.history = HistoryPanel(gui, repo, session, notify)
+                upkeep = map_upkeep_of(viewer.services)
+                if upkeep is not None:
+                    self.proposals = ProposalsPanel(gui, upkeep, session, notify)
                 self.calibration = CalibrationPanel(gui, site, session, notify)
                 store = floorplan_store_of(viewer.services)
                 if store is not None:
@@ -344,6 +349,8 @@ class SiteViewer:
                         p.survey.refresh()
                     if p.history is not None:
                         p.history.refresh()
+                    if p.proposals is not None:
+                        p.proposals.refresh()
                 except Exception:  # its browser went away mid-update
                     log.debug("viewer: dropping the panels of client %s", cid, exc_info=True)
                     with self._lock:

@@ -47,13 +47,23 @@ def landmark_from_record(rec: dict[str, Any]) -> Landmark:
     return Landmark.model_validate(out)
 
 
+SOURCES = (" (survey)", " (map upkeep)")
+"""Suffixes naming what a user's edit came from (`key:3 (survey)`: key 3 accepted a survey's
+proposal); the edit is still theirs to undo."""
+
+
 def owner_of(actor: str) -> str:
-    """The author behind an audit actor: `viewer:key:3` and `key:3` are the same key."""
-    return actor.removeprefix(VIEWER_PREFIX)
+    """The author behind an audit actor: `viewer:key:3`, `key:3` and `key:3 (survey)` are
+    the same key."""
+    owner = actor.removeprefix(VIEWER_PREFIX)
+    for suffix in SOURCES:
+        owner = owner.removesuffix(suffix)
+    return owner
 
 
 def _actors(owner: str) -> list[str]:
-    return [owner, VIEWER_PREFIX + owner]
+    plain = [owner, VIEWER_PREFIX + owner]
+    return plain + [a + suffix for a in plain for suffix in SOURCES]
 
 
 def _content(rec: dict[str, Any] | None) -> dict[str, Any] | None:
