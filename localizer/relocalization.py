@@ -5,32 +5,39 @@ trusted to pair spots with landmarks) and cannot, or need not, blink LEDs, the s
 frame are matched to the map as a whole:
 
 1. every spot's ray is intersected with the ceiling (the map's median landmark height) in the
-   body frame (`handoff.ceiling_points_body`);
-2. *hypotheses*: a pair of spots near the image centre (the most accurate, least distorted)
-   whose ceiling distance matches the map distance of a pair of landmarks, in either order,
-   gives a planar pose (2D rigid registration of two points, eqs. 1-2); hypotheses outside
-   the prior's gate are dropped;
-3. *scoring by every spot*: each hypothesis carries all the frame's ceiling points into the
-   world; a spot is an inlier when a landmark lies within a tolerance that grows with its
-   distance from the camera (a wrong ceiling height moves far points most). The score is a
-   log-likelihood ratio: `inlier_log_lr` per inlier minus half the prior's squared
-   Mahalanobis distance; each hypothesis, refit to its inliers, also loses `miss_log_lr`
-   for every lit landmark they place well inside the image (`miss_margin_px` from its edge) with no
-   spot near it (a grid shifted by one spacing explains the same spots, but puts a row of
-   landmarks where the image shows none);
+   body frame (`handoff.ceiling_points_body`; `frame_view`);
+2. *hypotheses* (`seed_hypotheses`): a pair of spots near the image centre (the most
+   accurate, least distorted) whose ceiling distance matches the map distance of a pair of
+   landmarks, in either order, gives a planar pose (2D rigid registration of two points,
+   eqs. 1-2); hypotheses outside the prior's gate are dropped, duplicates merged;
+3. *scoring by every spot* (`frame_log_lr`): each hypothesis carries all the frame's ceiling
+   points into the world; a spot is an inlier when a landmark lies within a tolerance that
+   grows with its distance from the camera (a wrong ceiling height moves far points most).
+   Each hypothesis is refit to its inliers (a pose from two points leaves the heading rough)
+   and scored by a log-likelihood ratio: `inlier_log_lr` per inlier minus `miss_log_lr` for
+   every lit landmark it places well inside the image (`miss_margin_px` from its edge, within
+   the radius spots are seen at all) with no spot near it: *negative evidence* (a grid shifted
+   by one spacing explains the same spots, but puts a row of landmarks where the image shows
+   none); `relocalize` adds the prior's log density (minus half the squared Mahalanobis
+   distance);
 4. the best hypothesis is accepted only when it is *unambiguous*: enough inliers, and every
    distinct hypothesis (farther than `distinct_m` or `distinct_rad`) scores at least
    `margin` lower. On a regular grid one spacing apart scores the same from the spots alone:
    only the prior can separate them, and when it cannot the answer is "no fix" (stay lost)
    rather than a guess.
 
-The accepted hypothesis returns its (map row, spot) pairs, to be solved and fused as any fix.
+`relocalize` decides on one frame; `hypothesis_set.HypothesisSet` keeps the hypotheses alive
+over frames while the robot drives on (each carried by the odometry and scored by every
+frame), so an ambiguity resolves as soon as the grid's edge, a gap or a dead landmark comes
+into view. The accepted hypothesis returns its (map row, spot) pairs, to be solved and fused
+as any fix.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 import numpy.typing as npt
@@ -41,6 +48,7 @@ from localizer.geometry import wrap_angle
 from localizer.handoff import ceiling_points_body
 
 FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.int64]
 
 
 @dataclass(frozen=True)
@@ -73,6 +81,27 @@ class RelocalizationConfig:
             (small: a dead LED or a person also hides one).
         miss_margin_px: only landmarks predicted this far inside the image count.
         miss_radius_px: a landmark is missing when no spot lies within this of it, pixels.
+
+    Over frames (`hypothesis_set.HypothesisSet`, while lost):
+        score_every_s: the live hypotheses are scored at most this often, seconds (they are
+            carried by the odometry every frame).
+        frame_clip: one frame lowers a hypothesis's score by at most this against the
+            frame's best (log-likelihood; one frame spoiled by a person or a glint never
+            decides alone).
+        prune_below: hypotheses this far below the best are refuted: no longer scored,
+            only remembered with the evidence against them (log-likelihood; more than
+            `frame_clip`: no single frame refutes).
+        max_live: at most this many hypotheses are scored (the best; the others are
+            remembered as the refuted are).
+        max_retired: at most this many poses no longer scored are remembered.
+        sustain_frames: the best must lead every distinct one by `margin` on this many
+            scored frames in a row before it is accepted.
+        reseed_after_frames: when the best explains too few of the spots (under
+            `min_inliers` / `min_inlier_fraction`) on this many scored frames in a row, the
+            set has died (the robot was carried off again, or never among them): it is
+            seeded afresh from the next frame.
+        birth_every_s: this often new hypotheses are seeded from the current frame and
+            join the set `margin` below the best (they must earn their lead), seconds.
     """
 
     every_s: float = 0.2
@@ -94,6 +123,14 @@ class RelocalizationConfig:
     miss_log_lr: float = 1.5
     miss_margin_px: float = 25.0
     miss_radius_px: float = 12.0
+    score_every_s: float = 0.2
+    frame_clip: float = 15.0
+    prune_below: float = 40.0
+    max_live: int = 300
+    max_retired: int = 5000
+    sustain_frames: int = 3
+    reseed_after_frames: int = 3
+    birth_every_s: float = 1.0
 
 
 @dataclass(frozen=True)
@@ -190,18 +227,34 @@ def missing_landmarks(
     hyps: FloatArray,
     spot_tree: cKDTree,
     config: RelocalizationConfig,
+    *,
+    reach_m: float | None = None,
 ) -> FloatArray:
     """Per hypothesis, the landmarks it predicts well inside the image with no spot near
-    (all hypotheses projected in one call)."""
+    (all hypotheses projected in one call): negative evidence.
+
+    Args:
+        reach_m: when given, only the landmarks within this of each hypothesis's camera
+            (horizontally) are projected (those farther out lie beyond the farthest spot).
+
+    Returns:
+        The count per hypothesis, shape (H,).
+    """
     H, N = len(hyps), len(positions)
     c, s = np.cos(hyps[:, 2]), np.sin(hyps[:, 2])
     dx = positions[None, :, 0] - hyps[:, 0, None]
     dy = positions[None, :, 1] - hyps[:, 1, None]
-    body = np.stack([c[:, None] * dx + s[:, None] * dy, -s[:, None] * dx + c[:, None] * dy,
-                     np.broadcast_to(positions[None, :, 2], (H, N))], axis=-1)  # fmt: skip
+    bx, by = c[:, None] * dx + s[:, None] * dy, -s[:, None] * dx + c[:, None] * dy  # (H, N)
+    if reach_m is None:
+        h, rows = np.nonzero(np.ones((H, N), dtype=bool))
+    else:
+        cb = camera.T_body_camera[:2, 3]
+        h, rows = np.nonzero(np.hypot(bx - cb[0], by - cb[1]) <= reach_m)
+    if not len(h):
+        return np.zeros(H)
+    body = np.column_stack([bx[h, rows], by[h, rows], positions[rows, 2]])
     T = camera.T_camera_body
-    p_cam = body.reshape(-1, 3) @ T[:3, :3].T + T[:3, 3]
-    px, valid = pixels_from_points_camera(camera, p_cam)
+    px, valid = pixels_from_points_camera(camera, body @ T[:3, :3].T + T[:3, 3])
     m = config.miss_margin_px
     inner = valid & (px[:, 0] >= m) & (px[:, 0] <= camera.width - 1 - m)
     inner &= (px[:, 1] >= m) & (px[:, 1] <= camera.height - 1 - m)
@@ -209,18 +262,17 @@ def missing_landmarks(
     spots = spot_tree.data
     r_seen = float(np.max(np.hypot(spots[:, 0] - camera.cu, spots[:, 1] - camera.cv)))
     inner &= np.hypot(px[:, 0] - camera.cu, px[:, 1] - camera.cv) <= r_seen - m
-    miss = np.zeros(H * N, dtype=bool)
+    miss = np.zeros(len(h), dtype=bool)
     if np.any(inner):
         dist, _ = spot_tree.query(px[inner])
         miss[np.nonzero(inner)[0]] = dist > config.miss_radius_px
-    out: FloatArray = miss.reshape(H, N).sum(axis=1).astype(np.float64)
+    out: FloatArray = np.bincount(h, weights=miss, minlength=H).astype(np.float64)
     return out
 
 
 def refine_hypotheses(
-    hyps: FloatArray, q: FloatArray, P: FloatArray, nearest: npt.NDArray[np.int64],
-    inl: npt.NDArray[np.int64],
-) -> FloatArray:  # fmt: skip
+    hyps: FloatArray, q: FloatArray, P: FloatArray, nearest: IntArray, inl: IntArray
+) -> FloatArray:
     """Each hypothesis refit to its inliers (weighted 2D rigid registration, all at once):
     a pose from two points leaves the heading rough."""
     w = inl.astype(np.float64)
@@ -246,6 +298,196 @@ def refine_hypotheses(
     return out
 
 
+class FrameView(NamedTuple):
+    """One frame's spots prepared for scoring hypotheses against a map (`frame_view`).
+
+    Attributes:
+        positions: the landmarks, shape (N, 3).
+        pixels: the spots, shape (S, 2).
+        q: their ceiling points, body frame, shape (S, 2) (far off where a ray misses).
+        radial_m: each ceiling point's horizontal distance from the camera, metres, (S,).
+        sub: the spots scored (the `score_spots` nearest the image centre), indices.
+        anchors: the spots forming hypothesis pairs (the `anchor_spots` nearest the centre).
+        landmark_tree: k-d tree of the landmarks' (x, y).
+        spot_tree: k-d tree of the spots' pixels.
+    """
+
+    positions: FloatArray
+    pixels: FloatArray
+    q: FloatArray
+    radial_m: FloatArray
+    sub: IntArray
+    anchors: list[int]
+    landmark_tree: cKDTree
+    spot_tree: cKDTree
+
+
+def frame_view(
+    camera: CameraModel, positions: FloatArray, spot_pixels: FloatArray,
+    config: RelocalizationConfig,
+) -> FrameView | None:  # fmt: skip
+    """The frame's spots as ceiling points (see `FrameView`); None with fewer than two
+    usable spots or landmarks."""
+    S = len(spot_pixels)
+    if S < 2 or len(positions) < 2:
+        return None
+    z = float(np.median(positions[:, 2]))
+    q = ceiling_points_body(camera, spot_pixels, np.full(S, z))
+    ok = np.all(np.isfinite(q), axis=1)
+    if np.count_nonzero(ok) < 2:
+        return None
+    r_px = np.hypot(spot_pixels[:, 0] - camera.cu, spot_pixels[:, 1] - camera.cv)
+    order = [int(i) for i in np.argsort(r_px, kind="stable") if ok[i]]
+    cam_xy = camera.T_body_camera[:2, 3]
+    radial_m = np.where(ok, np.hypot(q[:, 0] - cam_xy[0], q[:, 1] - cam_xy[1]), 0.0)
+    return FrameView(
+        positions, spot_pixels, np.where(ok[:, None], q, 1e6), radial_m,
+        np.array(order[: config.score_spots], dtype=np.int64), order[: config.anchor_spots],
+        cKDTree(positions[:, :2]), cKDTree(spot_pixels),
+    )  # fmt: skip
+
+
+def inliers_needed(view: FrameView, config: RelocalizationConfig) -> float:
+    """Fewest inliers a hypothesis needs to explain the frame (`min_inliers`, and
+    `min_inlier_fraction` of the scored spots)."""
+    return max(config.min_inliers, config.min_inlier_fraction * len(view.sub))
+
+
+def prior_mahalanobis2(
+    hyps: FloatArray, prior: tuple[float, float, float], prior_covariance: FloatArray
+) -> FloatArray:
+    """Squared Mahalanobis distance of each hypothesis (H, 3) from the prior, heading
+    wrapped; +inf for all when the covariance is singular."""
+    try:
+        info = np.linalg.inv(np.asarray(prior_covariance, dtype=np.float64))
+    except np.linalg.LinAlgError:
+        return np.full(len(hyps), math.inf)
+    d = hyps - np.asarray(prior, dtype=np.float64)
+    d[:, 2] = wrap_angle(d[:, 2])
+    out: FloatArray = np.einsum("hi,ij,hj->h", d, info, d)
+    return out
+
+
+def unique_hypotheses(hyps: FloatArray, rank: FloatArray, config: RelocalizationConfig) -> IntArray:
+    """Indices of one hypothesis per pose cell (`distinct_m`, `distinct_rad`), the one of
+    highest `rank` in each, best first."""
+    order = np.argsort(-rank, kind="stable")
+    cell = np.column_stack([
+        np.round(hyps[order, 0] / config.distinct_m), np.round(hyps[order, 1] / config.distinct_m),
+        np.round(wrap_angle(hyps[order, 2]) / config.distinct_rad),
+    ])  # fmt: skip
+    _, first = np.unique(cell, axis=0, return_index=True)
+    out: IntArray = order[np.sort(first)]
+    return out
+
+
+def seed_hypotheses(
+    view: FrameView,
+    prior: tuple[float, float, float],
+    prior_covariance: FloatArray,
+    config: RelocalizationConfig,
+) -> tuple[FloatArray, FloatArray]:
+    """Hypotheses from the frame's anchor pairs within the prior's gate, one per pose,
+    at most `max_hypotheses` (the nearest the prior).
+
+    Returns:
+        (poses shape (H, 3), their squared Mahalanobis distances from the prior (H,)).
+    """
+    hyps = hypotheses_from_anchor_pairs(view.q, view.anchors, view.positions[:, :2], config)
+    m2 = prior_mahalanobis2(hyps, prior, prior_covariance)
+    gate = m2 <= config.prior_gate_chi2
+    hyps, m2 = hyps[gate], m2[gate]
+    keep = unique_hypotheses(hyps, -m2, config)[: config.max_hypotheses]
+    return hyps[keep], m2[keep]
+
+
+def frame_log_lr(
+    camera: CameraModel,
+    view: FrameView,
+    hyps: FloatArray,
+    config: RelocalizationConfig,
+    *,
+    offset: FloatArray | None = None,
+    cutoff: float = math.inf,
+    refits: int = 2,
+) -> tuple[FloatArray, FloatArray, FloatArray, npt.NDArray[np.bool_]]:
+    """Each hypothesis's log-likelihood ratio on one frame (step 3 of the module docstring):
+    refit to its inliers, `inlier_log_lr` per inlier minus `miss_log_lr` per missing
+    landmark, plus `offset`.
+
+    The missing landmarks (the costly part) are counted best first, in chunks of
+    `rescore_chunk`, until no hypothesis left can come within `cutoff` of the best (misses
+    only lower a score: those left keep their inlier score as an upper bound).
+
+    Args:
+        hyps: poses, shape (H, 3).
+        offset: added to each score (the prior's log density), shape (H,).
+        cutoff: log-likelihood below the best past which scores need not be exact.
+        refits: refits to the inliers before scoring (2 for poses from two points; 0 for
+            poses refit on an earlier frame: scored as they are, then refit for the next).
+
+    Returns:
+        (refined poses (H, 3), scores (H,), inlier counts (H,), done: whether the score is
+        exact (H,)).
+    """
+    H = len(hyps)
+    q, radial = view.q[view.sub], view.radial_m[view.sub]
+    P, tree = view.positions[:, :2], view.landmark_tree
+    off = np.zeros(H) if offset is None else offset
+    reach = float(np.max(radial)) + 0.3  # beyond the farthest spot, nothing counts
+    counts, nearest, inl = score_hypotheses(hyps, q, radial, tree, config)
+    if refits > 0:
+        hyps = refine_hypotheses(hyps, q, P, nearest, inl)
+        counts, nearest, inl = score_hypotheses(hyps, q, radial, tree, config)
+    score = config.inlier_log_lr * counts + off
+    done = np.zeros(H, dtype=bool)
+    ranked = np.argsort(-score, kind="stable")
+    chunk = config.rescore_chunk if math.isfinite(cutoff) else max(H, 1)
+    for k in range(0, H, chunk):
+        idx = ranked[k : k + chunk]
+        best_now = float(np.max(score[done])) if np.any(done) else -math.inf
+        if score[idx[0]] < best_now - cutoff:
+            break
+        if refits > 1:
+            hyps[idx] = refine_hypotheses(hyps[idx], q, P, nearest[idx], inl[idx])
+            counts[idx] = score_hypotheses(hyps[idx], q, radial, tree, config)[0]
+        misses = missing_landmarks(
+            camera, view.positions, hyps[idx], view.spot_tree, config, reach_m=reach
+        )
+        score[idx] = config.inlier_log_lr * counts[idx] + off[idx] - config.miss_log_lr * misses
+        done[idx] = True
+    if refits == 0:
+        hyps = refine_hypotheses(hyps, q, P, nearest, inl)
+    return hyps, score, counts, done
+
+
+def distinct_second(
+    hyps: FloatArray, score: FloatArray, best: int, config: RelocalizationConfig
+) -> float:
+    """The best score among the hypotheses distinct from `hyps[best]` (farther than
+    `distinct_m` or turned by more than `distinct_rad`); -inf when there is none."""
+    bx, by, bt = hyps[best]
+    far = (np.hypot(hyps[:, 0] - bx, hyps[:, 1] - by) > config.distinct_m) | (
+        np.abs(wrap_angle(hyps[:, 2] - bt)) > config.distinct_rad
+    )
+    return float(np.max(score[far])) if np.any(far) else -math.inf
+
+
+def inlier_pairs(
+    view: FrameView, pose: FloatArray, config: RelocalizationConfig
+) -> list[tuple[int, int]]:
+    """(landmark row, spot index) of every spot the pose explains, one spot per landmark
+    (the nearest of the spots that chose it), sorted by row."""
+    _, nearest, inl = score_hypotheses(
+        np.asarray(pose, dtype=np.float64).reshape(1, 3), view.q, view.radial_m,
+        view.landmark_tree, config,
+    )  # fmt: skip
+    pairs: dict[int, int] = {}
+    for j in np.nonzero(inl[0])[0]:
+        pairs.setdefault(int(nearest[0, j]), int(j))
+    return sorted(pairs.items())
+
+
 def relocalize(
     camera: CameraModel,
     positions: FloatArray,
@@ -254,7 +496,8 @@ def relocalize(
     prior_covariance: FloatArray,
     config: RelocalizationConfig,
 ) -> Relocalization:
-    """Map-consistent data association over pose hypotheses (see the module docstring).
+    """Map-consistent data association over pose hypotheses, one frame (see the module
+    docstring).
 
     Args:
         positions: landmark positions (of the lit ones only, when LEDs are known dark),
@@ -266,84 +509,20 @@ def relocalize(
     Returns:
         The outcome; `pairs` is empty unless accepted.
     """
-    S, N = len(spot_pixels), len(positions)
-    if S < 2 or N < 2:
+    view = frame_view(camera, positions, spot_pixels, config)
+    if view is None:
         return _NONE
-    z = float(np.median(positions[:, 2]))
-    q = ceiling_points_body(camera, spot_pixels, np.full(S, z))
-    ok = np.all(np.isfinite(q), axis=1)
-    if np.count_nonzero(ok) < 2:
-        return _NONE
-    centre = np.array([camera.cu, camera.cv])
-    r_px = np.hypot(*(spot_pixels - centre).T)
-    order_all = [int(i) for i in np.argsort(r_px) if ok[i]]
-    anchors = order_all[: config.anchor_spots]
-    P = positions[:, :2]
-    hyps = hypotheses_from_anchor_pairs(q, anchors, P, config)
+    hyps, m2 = seed_hypotheses(view, prior, prior_covariance, config)
     if len(hyps) == 0:
         return _NONE
-    try:
-        info = np.linalg.inv(np.asarray(prior_covariance, dtype=np.float64))
-    except np.linalg.LinAlgError:
-        return _NONE
-    d = hyps - np.asarray(prior)
-    d[:, 2] = wrap_angle(d[:, 2])
-    m2 = np.einsum("hi,ij,hj->h", d, info, d)
-    gate = m2 <= config.prior_gate_chi2
-    hyps, m2 = hyps[gate], m2[gate]
-    if len(hyps) == 0:
-        return _NONE
-    # one hypothesis per pose (the anchor pairs find the same one several times)
-    order = np.argsort(m2, kind="stable")[: config.max_hypotheses]
-    cell = np.column_stack([
-        np.round(hyps[order, 0] / config.distinct_m), np.round(hyps[order, 1] / config.distinct_m),
-        np.round(wrap_angle(hyps[order, 2]) / config.distinct_rad),
-    ])  # fmt: skip
-    _, first = np.unique(cell, axis=0, return_index=True)
-    keep = order[np.sort(first)]
-    hyps, m2 = hyps[keep], m2[keep]
-    qv = np.where(ok[:, None], q, 1e6)  # spots without a ceiling point match nothing
-    cam_xy = camera.T_body_camera[:2, 3]
-    radial_m = np.where(ok, np.hypot(*(q - cam_xy).T), 0.0)
-    sub = np.array(order_all[: config.score_spots])
-    tree = cKDTree(P)
-    counts, nearest, inl = score_hypotheses(hyps, qv[sub], radial_m[sub], tree, config)
-    score = config.inlier_log_lr * counts - 0.5 * m2
-    # Rescore with the missing landmarks, best first, until no other can come within the
-    # margin (misses only lower a score: the rest keep theirs as an upper bound).
-    spot_tree = cKDTree(spot_pixels)
-    done = np.zeros(len(hyps), dtype=bool)
-    ranked = np.argsort(-score, kind="stable")
-    chunk = config.rescore_chunk
-    for k in range(0, len(ranked), chunk):
-        idx = ranked[k : k + chunk]
-        best_now = float(np.max(score[done])) if np.any(done) else -math.inf
-        if score[idx[0]] < best_now - config.margin:
-            break
-        hyps[idx] = refine_hypotheses(hyps[idx], qv[sub], P, nearest[idx], inl[idx])
-        score[idx] -= config.miss_log_lr * missing_landmarks(
-            camera, positions, hyps[idx], spot_tree, config
-        )
-        done[idx] = True
-    best = int(np.argmax(np.where(done, score, -math.inf)))
-    bx, by, bt = hyps[best]
-    far = (np.hypot(hyps[:, 0] - bx, hyps[:, 1] - by) > config.distinct_m) | (
-        np.abs(wrap_angle(hyps[:, 2] - bt)) > config.distinct_rad
+    hyps, score, counts, done = frame_log_lr(
+        camera, view, hyps, config, offset=-0.5 * m2, cutoff=config.margin
     )
-    second = float(np.max(score[far])) if np.any(far) else -math.inf
-    pose = (float(bx), float(by), float(bt))
+    best = int(np.argmax(np.where(done, score, -math.inf)))
+    second = distinct_second(hyps, score, best, config)
+    pose = (float(hyps[best, 0]), float(hyps[best, 1]), float(hyps[best, 2]))
     out = Relocalization(pose, [], float(score[best]), second, len(hyps))
-    n_in = int(counts[best])
-    if n_in < max(config.min_inliers, config.min_inlier_fraction * len(sub)):
+    if counts[best] < inliers_needed(view, config) or score[best] - second < config.margin:
         return out
-    if score[best] - second < config.margin:
-        return out
-    _, nearest_all, inl_all = score_hypotheses(hyps[best : best + 1], qv, radial_m, tree, config)
-    nearest, inl = nearest_all, inl_all
-    best = 0
-    # one spot per landmark: the nearest of the spots that chose it
-    pairs: dict[int, int] = {}
-    for j in np.nonzero(inl[best])[0]:
-        row = int(nearest[best, j])
-        pairs.setdefault(row, int(j))
-    return Relocalization(pose, sorted(pairs.items()), out.score, second, len(hyps))
+    pairs = inlier_pairs(view, hyps[best], config)
+    return Relocalization(pose, pairs, out.score, second, len(hyps))

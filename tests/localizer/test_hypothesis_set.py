@@ -1,0 +1,142 @@
+"""Recovery from `lost` without LEDs: hypotheses scored by every spot and by the landmarks a
+hypothesis predicts where no spot is, carried by the odometry, and accepted only when
+unambiguous (`localizer/relocalization.py`, `localizer/hypothesis_set.py`)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from localizer.camera import T_body_camera_upward, predict_pixels
+from localizer.geometry import T_world_body_from_pose, wrap_angle
+from localizer.hypothesis_set import HypothesisSet, compose_odometry
+from localizer.relocalization import RelocalizationConfig, frame_log_lr, frame_view
+from tests.localizer.cases import fisheye_camera, grid_positions
+
+CAM = fisheye_camera(T_body_camera_upward(height=0.3))
+CFG = RelocalizationConfig()
+SEEN_M = 1.0  # spots farther than this (horizontally) fade below the threshold
+
+
+def _spots(positions, pose, rng=None, seen_m=SEEN_M):
+    """The landmarks' pixels from a pose, those within `seen_m` of it (a fading view)."""
+    near = np.hypot(positions[:, 0] - pose[0], positions[:, 1] - pose[1]) <= seen_m
+    px, ok = predict_pixels(CAM, T_world_body_from_pose(*pose), positions[near])
+    px = px[ok]
+    return px if rng is None else px + rng.normal(0.0, 0.3, px.shape)
+
+
+def _hall(gap: bool):
+    """16 x 10 landmarks 40 cm apart (a 6.0 x 3.6 m hall); with `gap`, the four under a
+    skylight (columns 12-13, rows 6-7, centre (5.0, 2.6)) are missing: the grid is no
+    longer symmetric."""
+    P = grid_positions(16, 10, 0.4)
+    if gap:
+        c, r = np.round(P[:, 0] / 0.4), np.round(P[:, 1] / 0.4)
+        P = P[~(np.isin(c, (12, 13)) & np.isin(r, (6, 7)))]
+    return P
+
+
+def test_odometry_moves_each_hypothesis_in_its_own_frame() -> None:
+    hyps = np.array([[1.0, 2.0, math.pi / 2], [0.0, 0.0, 0.0]])
+    # 1 m forward and a 0.5 rad turn, in an odometry frame turned by 90 deg
+    moved = compose_odometry(hyps, (5.0, 5.0, math.pi / 2), (5.0, 6.0, math.pi / 2 + 0.5))
+    np.testing.assert_allclose(moved, [[1.0, 3.0, math.pi / 2 + 0.5], [1.0, 0.0, 0.5]],
+                               atol=1e-12)  # fmt: skip
+    back = compose_odometry(moved, (5.0, 6.0, math.pi / 2 + 0.5), (5.0, 5.0, math.pi / 2))
+    np.testing.assert_allclose(back, hyps, atol=1e-12)
+
+
+def test_every_spot_counts_for_a_hypothesis_and_every_missing_landmark_against() -> None:
+    # 6 x 3 landmarks, the robot near the left edge: all 18 in view.
+    P = grid_positions(6, 3, 0.4)
+    truth = (0.4, 0.4, 0.3)
+    view = frame_view(CAM, P, _spots(P, truth, seen_m=10.0), CFG)
+    assert view is not None and len(view.pixels) == 18
+    hyps = np.array([truth, (0.8, 0.4, 0.3), (0.0, 0.4, 0.3)])
+    _, score, inliers, done = frame_log_lr(CAM, view, hyps, CFG)
+    assert np.all(done)
+    # the truth: 18 inliers. One spacing to the right: the right column's 3 spots match
+    # nothing, and the left column is predicted where the image shows none (3 misses).
+    # One spacing to the left: 3 spots match nothing; the right column it predicts lies
+    # farther out than any spot is seen, so it is not held against it.
+    np.testing.assert_array_equal(inliers, [18, 15, 15])
+    lr_in, lr_miss = CFG.inlier_log_lr, CFG.miss_log_lr
+    np.testing.assert_allclose(score, [18 * lr_in, 15 * lr_in - 3 * lr_miss, 15 * lr_in])
+
+
+def _drive(hs, P, start, heading, speed, seconds, prior, rng):
+    """Drive straight from `start`; odometry exact but in its own frame. Returns
+    [(t_s, true pose, outcome)] per frame (10 Hz)."""
+    out = []
+    odo_offset = np.array([2.0, -1.0, 0.7])
+    for k in range(int(seconds * 10) + 1):
+        t = k / 10
+        pose = (start[0] + speed * t * math.cos(heading),
+                start[1] + speed * t * math.sin(heading), heading)  # fmt: skip
+        co, so = math.cos(odo_offset[2]), math.sin(odo_offset[2])
+        odo = (odo_offset[0] + co * pose[0] - so * pose[1],
+               odo_offset[1] + so * pose[0] + co * pose[1],
+               float(wrap_angle(pose[2] + odo_offset[2])))  # fmt: skip
+        r = hs.update(int(t * 1e9), odo, CAM, P, _spots(P, pose, rng), *prior)
+        out.append((t, pose, r))
+    return out
+
+
+PRIOR = ((3.0, 1.8, 0.0), np.diag([2.5**2, 2.5**2, math.pi**2]))  # anywhere in the hall
+START = (2.6, 1.8)  # mid-hall: nothing but the regular grid in view
+
+
+def test_a_symmetric_grid_stays_ambiguous_however_far_it_drives() -> None:
+    hs = HypothesisSet(CFG)
+    run = _drive(hs, _hall(gap=False), START, 0.3, 0.6, 4.0, PRIOR, np.random.default_rng(2))
+    assert not any(r.accepted for _, _, r in run)
+    # the truth and its twin turned by half a turn about the hall's centre (3.0, 1.8)
+    # explain every view of the drive alike: both are among the best, within the margin
+    pose = run[-1][1]
+    last = [r for _, _, r in run if r.pose is not None][-1]  # the last frame scored
+    twin = (6.0 - pose[0], 3.6 - pose[1])
+    top = hs.poses[hs.log_lr >= np.max(hs.log_lr) - CFG.margin]
+    for p in (pose, twin):
+        assert np.min(np.hypot(top[:, 0] - p[0], top[:, 1] - p[1])) < 0.03
+    assert last.score - last.second < CFG.margin
+
+
+def test_driving_on_until_the_gap_comes_into_view_resolves_it() -> None:
+    P = _hall(gap=True)
+    hs = HypothesisSet(CFG)
+    run = _drive(hs, P, START, 0.3, 0.6, 5.5, PRIOR, np.random.default_rng(3))
+    accepted = [(t, pose, r) for t, pose, r in run if r.accepted]
+    assert accepted, "never accepted"
+    for _, pose, r in accepted:  # never a wrong fix
+        assert r.pose is not None
+        assert math.hypot(r.pose[0] - pose[0], r.pose[1] - pose[1]) < 0.02
+        assert abs(wrap_angle(r.pose[2] - pose[2])) < 0.01
+    # not before the skylight (5.0, 2.6) is in view (the hall's edges never are)
+    t_first, pose, r = accepted[0]
+    assert math.hypot(5.0 - pose[0], 2.6 - pose[1]) < SEEN_M + 0.6 and t_first > 1.0
+    assert len(r.pairs) >= CFG.min_inlier_fraction * len(_spots(P, pose))
+
+
+def test_a_late_comer_as_good_as_the_best_blocks_the_acceptance() -> None:
+    P = _hall(gap=False)
+    truth = (2.6, 1.8, 0.3)
+    wrong = (3.0, 1.8, 0.3)  # one spacing off: mid-hall it explains every spot as well
+    tight = ((wrong[0], wrong[1], wrong[2]), np.diag([0.05**2, 0.05**2, 0.05**2]))
+    rng = np.random.default_rng(4)
+
+    def frames(hs, prior, k0, n):
+        return [hs.update(int(k * 0.2e9), (0.0, 0.0, 0.0), CAM, P, _spots(P, truth, rng), *prior)
+                for k in range(k0, k0 + n)]  # fmt: skip
+
+    # A prior that only allows the wrong pose: it is taken (the prior is the evidence).
+    hs = HypothesisSet(CFG)
+    assert frames(hs, tight, 0, 4)[-1].accepted
+    # Seeded under that prior, then the prior widens (driven far since): the truth and the
+    # other copies join the set as good as the best, and nothing is accepted.
+    hs = HypothesisSet(CFG)
+    frames(hs, tight, 0, 1)
+    outcomes = frames(hs, PRIOR, 1, 10)
+    assert not any(r.accepted for r in outcomes)
+    assert np.min(np.hypot(hs.poses[:, 0] - truth[0], hs.poses[:, 1] - truth[1])) < 0.03
