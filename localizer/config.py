@@ -43,8 +43,8 @@ class FusionConfig:
         lost_after_rejections: this many consecutive frames with spots seen while 2+
             landmarks are predicted in view but no accepted fix (observations that disagree
             with the map) make the localizer lost.
-        min_matched_fraction: a tracking fix must match at least this share of the lit
-            landmarks predicted in view (a kidnapped robot, carried off, still sees a few
+        min_matched_fraction: a tracking fix must keep at least this share of the
+            landmarks of the last fused one (a kidnapped robot, carried off, still sees a few
             spots fall into some windows by chance; such a fix is not fused).
         initial_sigma_m: position standard deviation of `set_initial_pose`, metres.
         initial_sigma_rad: heading standard deviation of `set_initial_pose`, radians.

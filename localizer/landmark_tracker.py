@@ -82,6 +82,8 @@ class LandmarkTracker:
             height above the camera).
         max_angular_speed_rad_s: the robot's fastest turn.
         background: the last full frame's background (level, noise), counts; None before.
+        last_matched: landmarks in the last fused tracking fix (the owner zeroes it when it
+            resets the pose another way).
     """
 
     def __init__(
@@ -98,6 +100,7 @@ class LandmarkTracker:
             default_angular_speed(robot.max_speed, robot.wheel_base)
         )
         self.background: tuple[float, float] | None = None
+        self.last_matched = 0
         self.set_map(landmark_map)
 
     def set_map(self, landmark_map: LandmarkMap) -> None:
@@ -227,8 +230,8 @@ class LandmarkTracker:
             rows = pred.row_list
             pairs = [(rows[k], s) for k, s in bottleneck_assignment(d, gates)]
         # A robot lifted and carried off still sees a few spots fall into some windows by
-        # chance: a fix of a small share of the landmarks in view is not taken (kidnap).
-        need = 0.0 if reacquire else self.config.fusion.min_matched_fraction * len(pred)
+        # chance: a fix of a small share of the landmarks last matched is not taken (kidnap).
+        need = 0.0 if reacquire else self.config.fusion.min_matched_fraction * self.last_matched
         used = self._fuse(filt, pairs, spot_px, pose, need) if len(pairs) >= 2 else ()
         return TrackResult(used, unexplained=not used and len(pred) >= 2, expected=expected)
 
@@ -370,6 +373,7 @@ class LandmarkTracker:
         if not filt.update_fix(fix, max_nis=fc.nis_gate) <= fc.nis_gate:
             return ()
         self.noise.observe(chi2, n)
+        self.last_matched = n
         return fix.landmark_ids
 
     def _off_image(

@@ -191,6 +191,7 @@ class Localizer:
         self._commit = True
         self._rejections = 0
         self._hypotheses.clear()
+        self._tracker.last_matched = 0
 
     def _advance(self, t_ns: int, v_left: float, v_right: float) -> PoseFilter | None:
         """Extrapolate odometry (raw, and a copy of the filter) from the last state time to
