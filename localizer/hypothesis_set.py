@@ -10,7 +10,7 @@ the localizer is lost:
   pairs, within the prior's gate), each scored by that frame plus the prior's log density;
 - *carried* by the odometry's relative motion every frame (`compose_odometry`, eqs. 5-6 as
   the raw dead reckoning integrated them);
-- *scored* by every frame (at most every `score_every_s`): `relocalization.frame_log_lr`,
+- *scored* by every frame (at most every `score_every_s`): `hypothesis_scoring.frame_log_lr`,
   every spot for it, every landmark it predicts well inside the image with no spot there
   against it (negative evidence), refit to its inliers (odometry drift never accumulates);
   one frame lowers a hypothesis by at most `frame_clip` against that frame's best. The sum is
@@ -39,15 +39,17 @@ from scipy.spatial import cKDTree
 
 from localizer.camera import CameraModel
 from localizer.geometry import wrap_angle
-from localizer.relocalization import (
+from localizer.hypothesis_scoring import (
     FrameView,
-    Relocalization,
-    RelocalizationConfig,
-    distinct_second,
     frame_log_lr,
     frame_view,
     inlier_pairs,
     inliers_needed,
+)
+from localizer.relocalization import (
+    Relocalization,
+    RelocalizationConfig,
+    distinct_second,
     seed_hypotheses,
     unique_hypotheses,
 )
@@ -183,8 +185,10 @@ class HypothesisSet:
         if len(self.poses):
             self.poses, frame, counts, _ = frame_log_lr(camera, view, self.poses, c, refits=0)
             self._add_frame(frame)
-        if not len(self.poses) or self._t_born is None or (
-            (t_ns - self._t_born) * _NS >= c.birth_every_s
+        if (
+            not len(self.poses)
+            or self._t_born is None
+            or ((t_ns - self._t_born) * _NS >= c.birth_every_s)
         ):
             self.seeded += not len(self.poses)
             frame, counts = self._births(seed, frame, counts)
@@ -265,12 +269,12 @@ class HypothesisSet:
         else:
             # before this frame: the best's sum (this frame's increment taken out again)
             L_before = float(np.max(self.log_lr - np.clip(frame - f_live, -clip, 0.0)))
-            L_base = np.minimum(
-                L_before, same_pose_min(hyps, self.retired, self.retired_lr, c)
-            )
+            L_base = np.minimum(L_before, same_pose_min(hyps, self.retired, self.retired_lr, c))
             # this frame against the best of all, the newborns included
-            self.log_lr = self.log_lr + np.clip(frame - f_all, -clip, 0.0) - np.clip(
-                frame - f_live, -clip, 0.0
+            self.log_lr = (
+                self.log_lr
+                + np.clip(frame - f_all, -clip, 0.0)
+                - np.clip(frame - f_live, -clip, 0.0)
             )
         joins = done & (n_in >= inliers_needed(seed.view, c)) & (score >= f_all - clip)
         L = L_base + np.clip(score - f_all, -clip, 0.0)

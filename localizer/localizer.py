@@ -317,17 +317,20 @@ class Localizer:
         return result.used
 
     def _relocalize(self, t_ns: int, spots: Spots) -> tuple[int, ...]:
-        """Re-localization without LEDs: while lost, the hypothesis set carried over frames
-        (seeded around where it got lost, within the distance odometry has driven since);
-        with a prior, one frame around the filter's pose, every `every_s`."""
+        """Re-localization without LEDs: while lost (or identifying from a prior), the
+        hypothesis set carried over frames (seeded around where it got lost, within the
+        distance odometry has driven since; or around the prior); after long dead
+        reckoning, one frame around the filter's pose, every `every_s`."""
         if self._filter is None or self._changing:
             return ()
         cand = None if self._lit is None else self._lit_rows()
-        if self._mode == "lost":
-            x, y, th, sigma0, var_th, odo0 = self._lost_at
+        if self._mode in ("lost", "identifying"):
             odo = self._odometry.pose
-            sigma = sigma0 + math.hypot(odo[0] - odo0[0], odo[1] - odo0[1])
-            prior = ((x, y, th), np.diag([sigma**2, sigma**2, var_th]))
+            prior = None  # identifying with a prior: the filter's pose and covariance
+            if self._mode == "lost":
+                x, y, th, sigma0, var_th, odo0 = self._lost_at
+                sigma = sigma0 + math.hypot(odo[0] - odo0[0], odo[1] - odo0[1])
+                prior = ((x, y, th), np.diag([sigma**2, sigma**2, var_th]))
             fix = self._tracker.relocalize(
                 self._filter, spots, cand, prior=prior,
                 hypotheses=self._hypotheses, t_ns=t_ns, odometry_pose=odo,

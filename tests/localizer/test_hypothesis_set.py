@@ -1,6 +1,7 @@
 """Recovery from `lost` without LEDs: hypotheses scored by every spot and by the landmarks a
 hypothesis predicts where no spot is, carried by the odometry, and accepted only when
-unambiguous (`localizer/relocalization.py`, `localizer/hypothesis_set.py`)."""
+unambiguous (`localizer/hypothesis_scoring.py`, `localizer/relocalization.py`,
+`localizer/hypothesis_set.py`)."""
 
 from __future__ import annotations
 
@@ -9,9 +10,15 @@ import math
 import numpy as np
 
 from localizer.camera import T_body_camera_upward, predict_pixels
+from localizer.config import FusionConfig, LocalizerConfig
+from localizer.events import OdometryMeasured, PoseEstimate, SpotsObserved
 from localizer.geometry import T_world_body_from_pose, wrap_angle
+from localizer.hypothesis_scoring import frame_log_lr, frame_view
 from localizer.hypothesis_set import HypothesisSet, compose_odometry
-from localizer.relocalization import RelocalizationConfig, frame_log_lr, frame_view
+from localizer.landmark_map import LandmarkMap
+from localizer.localizer import Localizer
+from localizer.relocalization import RelocalizationConfig
+from localizer.robot import RobotGeometry
 from tests.localizer.cases import fisheye_camera, grid_positions
 
 CAM = fisheye_camera(T_body_camera_upward(height=0.3))
@@ -140,3 +147,56 @@ def test_a_late_comer_as_good_as_the_best_blocks_the_acceptance() -> None:
     outcomes = frames(hs, PRIOR, 1, 10)
     assert not any(r.accepted for r in outcomes)
     assert np.min(np.hypot(hs.poses[:, 0] - truth[0], hs.poses[:, 1] - truth[1])) < 0.03
+
+
+def test_a_kidnapped_robot_is_not_fused_while_carried_and_is_found_again_driving_on() -> None:
+    """The Localizer end to end (no LED control, a 15 Hz camera): tracking, lifted and
+    carried 2.5 m and turned (odometry still), put down, driving on towards the skylight."""
+    P = _hall(gap=True)
+    # told where it starts; lost after 1 s of frames no fix explains
+    start = FusionConfig(initial_sigma_m=0.05, initial_sigma_rad=0.05, lost_after_rejections=15)
+    robot = RobotGeometry(wheel_base=0.36, max_speed=1.0)
+    lm = LandmarkMap(np.arange(1, len(P) + 1), P)
+    loc = Localizer(CAM, lm, robot, LocalizerConfig(fusion=start))
+    A, B, v = (1.2, 1.2, -1.2), (3.6, 2.0, 0.3), 0.6
+
+    def truth(t: float) -> tuple[tuple[float, float, float], float, float]:
+        """(pose, lift m, wheel speed m/s) at t."""
+        if t < 1.0:
+            return A, 0.0, 0.0
+        if t < 2.0:  # carried
+            u = t - 1.0
+            pose = (A[0] + u * (B[0] - A[0]), A[1] + u * (B[1] - A[1]), A[2] + u * (B[2] - A[2]))
+            return pose, 0.3 * math.sin(math.pi * u), 0.0
+        d = v * max(t - 2.3, 0.0)
+        pose = (B[0] + d * math.cos(B[2]), B[1] + d * math.sin(B[2]), B[2])
+        return pose, 0.0, v if t > 2.3 else 0.0
+
+    loc.set_initial_pose(*A, 0)
+    rng = np.random.default_rng(5)
+    events: list[tuple[int, int]] = [(k * 20_000_000, 0) for k in range(1, 6 * 50)]  # odometry
+    events += [(k * 66_666_667, 1) for k in range(1, 6 * 15)]  # frames
+    out = []
+    for t_ns, kind in sorted(events):
+        pose, lift, speed = truth(t_ns * 1e-9)
+        if kind == 0:
+            loc.handle(OdometryMeasured(t_ns, speed, speed))
+            continue
+        T = T_world_body_from_pose(*pose)
+        T[2, 3] = lift
+        near = np.hypot(P[:, 0] - pose[0], P[:, 1] - pose[1]) <= SEEN_M
+        px, ok = predict_pixels(CAM, T, P[near])
+        px = px[ok] + rng.normal(0.0, 0.3, (int(ok.sum()), 2))
+        est = loc.handle(SpotsObserved(t_ns, px, np.ones(len(px)), np.full(len(px), 9.0)))[0]
+        assert isinstance(est, PoseEstimate)
+        out.append((t_ns * 1e-9, est.mode, math.hypot(est.x - pose[0], est.y - pose[1])))
+    # never a wrong fix: every landmark frame within 3 cm of the truth
+    assert max(e for _, mode, e in out if mode == "landmark") < 0.03
+    # picked up at 1.0 s: not fused from the next frames on, lost within 1.2 s
+    assert not any(mode == "landmark" for t, mode, _ in out if 1.1 < t < 2.0)
+    t_lost = next(t for t, mode, _ in out if mode == "lost")
+    assert 1.5 < t_lost < 2.3
+    # put down at 2.0 s: back (for good) within 4 s, after 2.4 m of driving
+    t_back = next(t for t, mode, _ in out if t > 2.0 and mode == "landmark")
+    assert t_back < 6.0
+    assert all(mode == "landmark" for t, mode, _ in out if t > t_back + 0.5)
