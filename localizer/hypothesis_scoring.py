@@ -61,6 +61,7 @@ def missing_landmarks(
     config: RelocalizationConfig,
     *,
     reach_m: float | None = None,
+    counted: npt.NDArray[np.bool_] | None = None,
 ) -> FloatArray:
     """Per hypothesis, the landmarks it predicts well inside the image with no spot near
     (all hypotheses projected in one call): negative evidence.
@@ -68,6 +69,9 @@ def missing_landmarks(
     Args:
         reach_m: when given, only the landmarks within this of each hypothesis's camera
             (horizontally) are projected (those farther out lie beyond the farthest spot).
+        counted: (H, N) whether each landmark has already counted as missing against each
+            hypothesis (on an earlier frame): those are not counted again, and the new ones
+            are marked (updated in place). A dead LED is the same evidence on every frame.
 
     Returns:
         The count per hypothesis, shape (H,).
@@ -98,6 +102,9 @@ def missing_landmarks(
     if np.any(inner):
         dist, _ = spot_tree.query(px[inner])
         miss[np.nonzero(inner)[0]] = dist > config.miss_radius_px
+    if counted is not None:
+        miss &= ~counted[h, rows]
+        counted[h[miss], rows[miss]] = True
     out: FloatArray = np.bincount(h, weights=miss, minlength=H).astype(np.float64)
     return out
 
@@ -194,6 +201,7 @@ def frame_log_lr(
     offset: FloatArray | None = None,
     cutoff: float = math.inf,
     refits: int = 2,
+    counted: npt.NDArray[np.bool_] | None = None,
 ) -> tuple[FloatArray, FloatArray, FloatArray, npt.NDArray[np.bool_]]:
     """Each hypothesis's log-likelihood ratio on one frame (step 3 of the module docstring):
     refit to its inliers, `inlier_log_lr` per inlier minus `miss_log_lr` per missing
@@ -209,6 +217,8 @@ def frame_log_lr(
         cutoff: log-likelihood below the best past which scores need not be exact.
         refits: refits to the inliers before scoring (2 for poses from two points; 0 for
             poses refit on an earlier frame: scored as they are, then refit for the next).
+        counted: the landmarks already counted as missing, per hypothesis, (H, N)
+            (`missing_landmarks`; updated in place).
 
     Returns:
         (refined poses (H, 3), scores (H,), inlier counts (H,), done: whether the score is
@@ -235,9 +245,12 @@ def frame_log_lr(
         if refits > 1:
             hyps[idx] = refine_hypotheses(hyps[idx], q, P, nearest[idx], inl[idx])
             counts[idx] = score_hypotheses(hyps[idx], q, radial, tree, config)[0]
+        sub = None if counted is None else counted[idx]
         misses = missing_landmarks(
-            camera, view.positions, hyps[idx], view.spot_tree, config, reach_m=reach
+            camera, view.positions, hyps[idx], view.spot_tree, config, reach_m=reach, counted=sub
         )
+        if counted is not None and sub is not None:
+            counted[idx] = sub
         score[idx] = config.inlier_log_lr * counts[idx] + off[idx] - config.miss_log_lr * misses
         done[idx] = True
     if refits == 0:

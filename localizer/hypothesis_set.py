@@ -73,16 +73,19 @@ def same_pose_min(
     hyps: FloatArray, others: FloatArray, values: FloatArray, config: RelocalizationConfig
 ) -> FloatArray:
     """For each hypothesis (H, 3), the smallest of `values` (K,) over the `others` (K, 3)
-    that are the same pose (within `distinct_m` and `distinct_rad`); +inf where none is."""
-    out = np.full(len(hyps), math.inf)
+    that are the same pose (within `distinct_m` and `distinct_rad`; the nearest 16 looked
+    at); +inf where none is."""
     if not len(hyps) or not len(others):
-        return out
-    tree = cKDTree(others[:, :2])
-    for i, cand in enumerate(tree.query_ball_point(hyps[:, :2], config.distinct_m)):
-        if cand:
-            same = np.abs(wrap_angle(others[cand, 2] - hyps[i, 2])) <= config.distinct_rad
-            if np.any(same):
-                out[i] = float(np.min(values[cand][same]))
+        return np.full(len(hyps), math.inf)
+    k = min(16, len(others))
+    dist, idx = cKDTree(others[:, :2]).query(
+        hyps[:, :2], k=k, distance_upper_bound=config.distinct_m
+    )
+    dist, idx = dist.reshape(len(hyps), k), idx.reshape(len(hyps), k)
+    near = np.isfinite(dist)
+    safe = np.where(near, idx, 0)
+    near &= np.abs(wrap_angle(others[safe, 2] - hyps[:, 2, None])) <= config.distinct_rad
+    out: FloatArray = np.min(np.where(near, values[safe], math.inf), axis=1)
     return out
 
 
@@ -141,6 +144,7 @@ class HypothesisSet:
         self.log_lr: FloatArray = np.zeros(0)
         self.retired: FloatArray = np.zeros((0, 3))
         self.retired_lr: FloatArray = np.zeros(0)
+        self._counted = np.zeros((0, 0), dtype=bool)  # (H, N): misses counted already
         self.sustained = 0
         self._unhealthy = 0
         self._odometry: Pose | None = None
@@ -182,8 +186,12 @@ class HypothesisSet:
             return self._fail()
         seed = Seed(camera, view, prior, prior_covariance)
         frame, counts = np.zeros(0), np.zeros(0)
+        if self._counted.shape != (len(self.poses), len(positions)):
+            self._counted = np.zeros((len(self.poses), len(positions)), dtype=bool)
         if len(self.poses):
-            self.poses, frame, counts, _ = frame_log_lr(camera, view, self.poses, c, refits=0)
+            self.poses, frame, counts, _ = frame_log_lr(
+                camera, view, self.poses, c, refits=0, counted=self._counted
+            )
             self._add_frame(frame)
         if (
             not len(self.poses)
@@ -259,9 +267,11 @@ class HypothesisSet:
         if not len(hyps):
             return frame, counts
         clip = c.frame_clip
+        counted = np.zeros((len(hyps), len(seed.view.positions)), dtype=bool)
         hyps, score, n_in, done = frame_log_lr(
-            seed.camera, seed.view, hyps, c, offset=-0.5 * m2 if first else None, cutoff=clip
-        )
+            seed.camera, seed.view, hyps, c, offset=-0.5 * m2 if first else None, cutoff=clip,
+            counted=counted,
+        )  # fmt: skip
         f_live = float(np.max(frame)) if len(frame) else -math.inf
         f_all = max(f_live, float(np.max(score[done])) if np.any(done) else -math.inf)
         if first:
@@ -280,6 +290,10 @@ class HypothesisSet:
         L = L_base + np.clip(score - f_all, -clip, 0.0)
         self.poses = np.vstack([self.poses, hyps[joins]])
         self.log_lr = np.concatenate([self.log_lr, L[joins]])
+        self._counted = np.vstack([self._counted, counted[joins]])
+        if np.any(joins) and len(self.retired):  # alive again: no longer retired
+            back = np.isfinite(same_pose_min(self.retired, hyps[joins], L[joins], c))
+            self.retired, self.retired_lr = self.retired[~back], self.retired_lr[~back]
         self._retire(hyps[~joins], L_base[~joins] - clip)
         return np.concatenate([frame, score[joins]]), np.concatenate([counts, n_in[joins]])
 
@@ -299,9 +313,15 @@ class HypothesisSet:
         keep = self.log_lr >= float(np.max(self.log_lr)) - c.prune_below
         self._retire(self.poses[~keep], self.log_lr[~keep])
         self.poses, self.log_lr = self.poses[keep], self.log_lr[keep]
+        self._counted = self._counted[keep]
         order = unique_hypotheses(self.poses, self.log_lr, c)
         self._retire(self.poses[order[c.max_live :]], self.log_lr[order[c.max_live :]])
-        self.poses, self.log_lr = self.poses[order[: c.max_live]], self.log_lr[order[: c.max_live]]
+        order = order[: c.max_live]
+        self.poses, self.log_lr, self._counted = (
+            self.poses[order],
+            self.log_lr[order],
+            self._counted[order],
+        )
 
     def _fail(self) -> Relocalization:
         """The best explains too little of this frame: after `reseed_after_frames` such

@@ -259,7 +259,8 @@ class LandmarkTracker:
         # only the landmarks that could be in view of a pose within the prior's gate
         reach = self._reach + math.sqrt(rc.prior_gate_chi2) * position_sigma_m(cov)
         P = self.map.positions[rows]
-        rows = rows[np.hypot(P[:, 0] - pose[0], P[:, 1] - pose[1]) <= reach]
+        if hypotheses is None:  # (the set keeps per-landmark evidence: the same rows always)
+            rows = rows[np.hypot(P[:, 0] - pose[0], P[:, 1] - pose[1]) <= reach]
         if len(rows) < 2:
             return None
         positions = self.map.positions[rows]
