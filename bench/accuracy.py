@@ -39,12 +39,12 @@ if str(ROOT) not in sys.path:
 import localizer.first_fix as first_fix_module  # noqa: E402
 import localizer.landmark_tracker as tracker_module  # noqa: E402
 import localizer.localizer as localizer_module  # noqa: E402
+from irloc.simulate_cli import main as simulate_main  # noqa: E402
 from localizer.camera import CameraModel, predict_pixels  # noqa: E402
 from localizer.pose import PoseFix  # noqa: E402
 from recording.reader import read_groundtruth  # noqa: E402
 from recording.replay_cli import main as replay_main  # noqa: E402
 from recording.scoring import error_stats, read_poses  # noqa: E402
-from sim.cli import main as simulate_main  # noqa: E402
 from sim.offline import recording_site  # noqa: E402
 from sim.scenario import load_scenario  # noqa: E402
 

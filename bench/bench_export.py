@@ -26,9 +26,9 @@ if str(ROOT) not in sys.path:
 
 from export.cli import export_recording  # noqa: E402
 from export.report import write_report  # noqa: E402
+from irloc.simulate_cli import main as simulate_main  # noqa: E402
 from recording.reader import read_recording  # noqa: E402
 from recording.replay_cli import replay  # noqa: E402
-from sim.cli import main as simulate_main  # noqa: E402
 
 
 def _timed(fn: Callable[[], object]) -> tuple[float, float]:

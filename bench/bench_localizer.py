@@ -48,6 +48,7 @@ ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
+from irloc.simulate_cli import main as simulate_main  # noqa: E402
 from localizer.events import FrameObserved, OdometryMeasured  # noqa: E402
 from localizer.geometry import T_world_body_from_pose  # noqa: E402
 from localizer.landmark_map import LandmarkMap  # noqa: E402
@@ -59,7 +60,6 @@ from recording.replay_cli import decode_threads, replay  # noqa: E402
 from recording.scoring import PAPER, SEC_V_LABELS, SETTLE_S, read_poses, sec_v  # noqa: E402
 from sim.build import build_robot, build_world, seed_generators  # noqa: E402
 from sim.cameras import wide_angle_camera  # noqa: E402
-from sim.cli import main as simulate_main  # noqa: E402
 from sim.render import render_frame  # noqa: E402
 from sim.scenario import load_scenario  # noqa: E402
 

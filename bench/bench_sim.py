@@ -19,10 +19,10 @@ import time
 
 import numpy as np
 
+from irloc.simulated_recording import simulate_recording
 from localizer.geometry import T_world_body_from_pose
 from sim.cameras import LENSES, wide_angle_camera
 from sim.live import LiveSite
-from sim.offline import simulate_recording
 from sim.render import RenderConfig, render_frame
 from sim.scenario import load_scenario
 

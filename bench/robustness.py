@@ -4,8 +4,9 @@ Each run of the matrix (`bench/robustness/matrix.yaml`, and the held-out runs in
 `bench/robustness/held_out/matrix.yaml`) names a scenario file and the factor levels it
 covers (lens, calibration error, mounting, layout, motion, disturbances). A run is either
 
-- `replay`: the scenario is simulated to a recording (`sim.offline.simulate_recording`,
-  cached in the work folder), localized exactly as `irloc replay` does it
+- `replay`: the scenario is simulated to a recording
+  (`irloc.simulated_recording.simulate_recording`, cached in the work folder), localized
+  exactly as `irloc replay` does it
   (`recording.replay_cli.replay`: the LEDs are what the recording says, no LED control), or
 - `leds`: the live site loop with LED control (`bench/robustness_live.py`: the live site,
   the RF gateway on the simulated radio and the server's LED coordinator, on a virtual
@@ -43,12 +44,13 @@ if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
 from bench.robustness_score import FrameResult, Score, SiteTruth, score  # noqa: E402
+from irloc.simulated_recording import simulate_recording  # noqa: E402
 from recording.reader import read_groundtruth  # noqa: E402
 from recording.replay_cli import replay  # noqa: E402
 from sim.build import RobotRig  # noqa: E402
 from sim.cameras import CALIBRATION_LEVELS, LENSES, Lens  # noqa: E402
 from sim.fields import Node  # noqa: E402
-from sim.offline import recording_site, simulate_recording  # noqa: E402
+from sim.offline import recording_site  # noqa: E402
 from sim.scenario import Scenario, load_scenario  # noqa: E402
 from sim.world import World  # noqa: E402
 

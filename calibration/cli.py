@@ -1,7 +1,7 @@
 """`irloc calibrate`: calibrate the lens from board photos and write the EuRoC sensor.yaml.
 
     irloc calibrate photos/*.jpg --pattern 9x6 --square 0.025 --model fisheye --out sensor.yaml
-    irloc calibrate mounting RECORDING --out sensor.yaml      (see calibration.mounting_cli)
+    irloc calibrate mounting RECORDING --out sensor.yaml      (see irloc.calibrate_mounting)
 
 Nothing is written unless the calibration succeeds; errors are one line on stderr and a
 non-zero exit status.
@@ -132,10 +132,6 @@ def run(args: argparse.Namespace) -> str:
 
 def main(argv: list[str]) -> int:
     """Entry point of `irloc calibrate`; returns the exit status."""
-    if argv[:1] == ["mounting"]:
-        from calibration.mounting_cli import main as mounting_main
-
-        return mounting_main(argv[1:])
     parser = build_parser()
     try:
         args = parser.parse_args(argv)

@@ -1,8 +1,10 @@
 """`irloc export REC --mcap OUT.mcap [--profile foxglove|ros2]`: a recording as MCAP.
 
 REC is any recording folder: one written by `irloc simulate`, or one the server recorded
-from a live robot (`<data dir>/recordings/<robot>-<time>/`). The localizer runs over it (as
-`irloc replay` does) and everything is written to one MCAP file: `--profile foxglove`
+from a live robot (`<data dir>/recordings/<robot>-<time>/`). The poses are the ones the
+robot's localizer gave live when the recording holds them (`live_poses.csv`, `--poses live`),
+else the localizer runs over it as `irloc replay` does (`--poses replay`); everything is
+written to one MCAP file: `--profile foxglove`
 (default) with Foxglove's schemas, `--profile ros2` as a rosbag2 with ROS 2 messages in
 CDR. The file is written under a temporary name and renamed when complete; errors are one
 line on stderr and a non-zero exit status.
@@ -19,20 +21,24 @@ from export.content import export_content
 from export.foxglove_mcap import write_foxglove
 from export.ros2_mcap import write_ros2
 from export.topics import PROFILES, Profile
+from recording.localize import PoseSource
 from recording.reader import RecordingError, read_recording
 
 PROG = "irloc export"
 
 
-def export_recording(root: Path, out: Path, profile: Profile = "foxglove") -> dict[str, int]:
-    """Write the MCAP of a recording; returns the message count per topic.
+def export_recording(
+    root: Path, out: Path, profile: Profile = "foxglove", poses: PoseSource | None = None
+) -> dict[str, int]:
+    """Write the MCAP of a recording; returns the message count per topic. `poses`: `replay`
+    or `live` (None: `live` when the recording has them, `recording.localize.localized`).
 
     Raises:
         RecordingError: a malformed recording (file and line named).
         OSError: the output cannot be written.
     """
     rec = read_recording(root)
-    content = export_content(rec)
+    content = export_content(rec, poses=poses)
     out.parent.mkdir(parents=True, exist_ok=True)
     if profile == "ros2":
         return write_ros2(content, out)
@@ -56,11 +62,18 @@ def main(argv: list[str] | None = None) -> int:
         default="foxglove",
         help="foxglove: Foxglove schemas (default); ros2: ROS 2 messages (rosbag2 in MCAP)",
     )
+    parser.add_argument(
+        "--poses",
+        choices=("live", "replay"),
+        default=None,
+        help="live: what the robot's localizer gave (a live recording's live_poses.csv); "
+        "replay: run the localizer over the recording; default live when recorded",
+    )
     parser.add_argument("--quiet", action="store_true", help="no summary")
     args = parser.parse_args(argv)
     start = time.perf_counter()
     try:
-        counts = export_recording(args.recording, args.mcap, args.profile)
+        counts = export_recording(args.recording, args.mcap, args.profile, args.poses)
     except RecordingError as exc:
         print(f"{PROG}: {exc}", file=sys.stderr)
         return 1

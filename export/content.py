@@ -30,7 +30,7 @@ from localizer.geometry import (
 from localizer.odometry import integrate_odometry
 from localizer.spots import DetectionConfig, detect_spots
 from recording.layout import GROUNDTRUTH_FILE
-from recording.localize import localize
+from recording.localize import PoseSource, localized
 from recording.reader import Recording, read_groundtruth
 
 FloatArray = npt.NDArray[np.float64]
@@ -213,18 +213,23 @@ def export_content(
     rec: Recording,
     *,
     detection: DetectionConfig | None = None,
+    poses: PoseSource | None = None,
 ) -> ExportContent:
-    """The content of `rec` (frames localized lazily, while the writer iterates)."""
+    """The content of `rec` (frames localized lazily, while the writer iterates); `poses`:
+    `replay` or `live` (`recording.localize.localized`; None: `live` when the recording has
+    them)."""
     odometry = integrate_wheel_odometry(rec)
     truth = read_groundtruth(rec.root) if (rec.root / GROUNDTRUTH_FILE).is_file() else None
     return ExportContent(
-        rec, odometry, truth, _frames(rec, odometry, detection or DetectionConfig())
+        rec, odometry, truth, _frames(rec, odometry, detection or DetectionConfig(), poses)
     )
 
 
-def _frames(rec: Recording, odometry: Odometry, cfg: DetectionConfig) -> Iterator[FrameContent]:
+def _frames(
+    rec: Recording, odometry: Odometry, cfg: DetectionConfig, poses: PoseSource | None
+) -> Iterator[FrameContent]:
     lm = rec.landmark_map
-    for done in localize(rec):
+    for done in localized(rec, poses):
         est = done.estimate
         spots = np.zeros((0, 2)) if done.image is None else detect_spots(done.image, cfg).pixels
         odom = odometry.at(done.entry.t_ns)

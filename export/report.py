@@ -22,7 +22,7 @@ import numpy.typing as npt
 from export import report_plots as plots
 from localizer.events import NoPose, PoseEstimate
 from recording.layout import GROUNDTRUTH_FILE
-from recording.localize import localize
+from recording.localize import PoseSource, has_live_poses, localized
 from recording.reader import Recording, read_groundtruth_file, read_recording
 from recording.scoring import (
     PAPER,
@@ -53,6 +53,8 @@ class ReportData:
         result: the Sec. V scoring (None without truth).
         stats: `error_stats` (None without truth).
         jitters: per parked stop (t0, t1, jitter m, jitter rad).
+        poses: where the poses come from: `replay` (the localizer run over the recording) or
+            `live` (what the robot's localizer gave, `live_poses.csv`; no CPU times then).
     """
 
     recording: Recording
@@ -63,15 +65,24 @@ class ReportData:
     result: SecV | None
     stats: dict[str, float] | None
     jitters: list[tuple[int, int, float, float]]
+    poses: PoseSource = "replay"
 
 
-def collect(root: Path, truth: Path | None = None, *, use_truth: bool = True) -> ReportData:
-    """Localize the recording and score it.
+def collect(
+    root: Path,
+    truth: Path | None = None,
+    *,
+    use_truth: bool = True,
+    poses: PoseSource | None = None,
+) -> ReportData:
+    """Localize the recording (or read its live poses) and score it.
 
     Args:
         root: the recording folder.
         truth: a ground-truth CSV; default `groundtruth.csv` beside the recording if present.
         use_truth: False ignores any ground truth.
+        poses: `replay` or `live` (`recording.localize.localized`); None: `live` when the
+            recording has them.
 
     Raises:
         RecordingError: a malformed recording or ground-truth file.
@@ -82,9 +93,11 @@ def collect(root: Path, truth: Path | None = None, *, use_truth: bool = True) ->
     gt = read_groundtruth_file(truth) if (truth is not None and use_truth) else None
     estimates: list[PoseEstimate | NoPose] = []
     cpu: list[float] = []
-    for done in localize(rec):
+    source: PoseSource = poses or ("live" if has_live_poses(rec) else "replay")
+    for done in localized(rec, source):
         estimates.append(done.estimate)
-        cpu.append(done.cpu_s)
+        if source == "replay":
+            cpu.append(done.cpu_s)
     track = track_from_estimates(estimates)
     result = stats = None
     if gt is not None:
@@ -95,7 +108,15 @@ def collect(root: Path, truth: Path | None = None, *, use_truth: bool = True) ->
     else:
         jitters = jitter_while_parked(track, odometry_stops(rec.odom_t_ns, rec.odom_v))
     return ReportData(
-        rec, track, np.array(cpu), gt, truth if gt is not None else None, result, stats, jitters
+        rec,
+        track,
+        np.array(cpu),
+        gt,
+        truth if gt is not None else None,
+        result,
+        stats,
+        jitters,
+        source,
     )
 
 
@@ -126,6 +147,12 @@ def _facts(data: ReportData) -> list[tuple[str, str]]:
     facts = [
         ("recording", str(rec.root)),
         ("frames", f"{len(t)} over {span:.1f} s"),
+        (
+            "poses",
+            "live: what the robot's localizer gave (live_poses.csv)"
+            if data.poses == "live"
+            else "replay: the localizer run over the recording",
+        ),
         ("camera", f"{cam.width}x{cam.height}, {cam.distortion_model}, {cam.rate_hz:g} Hz"),
         ("landmarks in the map", str(len(rec.landmark_map.ids))),
         ("frames with a pose", f"{100 * float(track.has_pose.mean()) if len(t) else 0:.1f} %"),
@@ -140,6 +167,8 @@ def _facts(data: ReportData) -> list[tuple[str, str]]:
             "per-frame time",
             f"median {np.median(ms):.2f} ms, p99 {np.percentile(ms, 99):.2f} ms"
             if len(ms)
+            else "- (not recorded live)"
+            if data.poses == "live"
             else "-",
         ),
         ("ground truth", str(data.truth_source) if data.truth_source else "none"),
@@ -256,9 +285,11 @@ error while turning on the spot, jitter while parked. Produced by <code>irloc re
 """
 
 
-def write_report(root: Path, out: Path, truth: Path | None = None) -> ReportData:
+def write_report(
+    root: Path, out: Path, truth: Path | None = None, *, poses: PoseSource | None = None
+) -> ReportData:
     """Collect, render and write the report (via a temporary file, then renamed)."""
-    data = collect(root, truth)
+    data = collect(root, truth, poses=poses)
     text = render_html(data)
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = out.with_name(f".{out.name}.part")

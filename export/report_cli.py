@@ -32,11 +32,18 @@ def main(argv: list[str] | None = None) -> int:
         help="ground truth CSV (timestamp_ns,x,y,theta); default groundtruth.csv beside the "
         "recording, when there is one",
     )
+    parser.add_argument(
+        "--poses",
+        choices=("live", "replay"),
+        default=None,
+        help="live: what the robot's localizer gave (a live recording's live_poses.csv); "
+        "replay: run the localizer over the recording; default live when recorded",
+    )
     parser.add_argument("--quiet", action="store_true", help="print nothing on success")
     args = parser.parse_args(argv)
     start = time.perf_counter()
     try:
-        data = write_report(args.recording, args.out, args.truth)
+        data = write_report(args.recording, args.out, args.truth, poses=args.poses)
     except RecordingError as exc:
         print(f"{PROG}: {exc}", file=sys.stderr)
         return 1

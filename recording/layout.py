@@ -12,6 +12,7 @@ FRAMES_DIR = "cam0/data"
 ODOMETRY_FILE = "odom0/data.csv"
 LEDS_FILE = "leds.csv"
 GROUNDTRUTH_FILE = "groundtruth.csv"
+LIVE_POSES_FILE = "live_poses.csv"
 
 FRAMES_HEADER = "#timestamp [ns],filename"
 ODOMETRY_HEADER = "#timestamp [ns],v_left [m/s],v_right [m/s]"

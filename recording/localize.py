@@ -1,5 +1,6 @@
 """Run the localizer over a recording, one result per listed frame (`irloc replay`,
-`irloc export`, `irloc report`).
+`irloc export`, `irloc report`), or read what the robot's localizer gave live (a live
+recording's `live_poses.csv`).
 
 Odometry, LED changes and decoded frames go to `localizer.Localizer` in time order (its LED
 requests are ignored: the LED states come from `leds.csv`). PNGs are decoded ahead on a
@@ -18,6 +19,7 @@ from collections.abc import Iterator
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Literal
 
 import cv2
 import numpy as np
@@ -26,9 +28,13 @@ import numpy.typing as npt
 from localizer.config import LocalizerConfig
 from localizer.events import FrameObserved, NoPose, PoseEstimate
 from localizer.localizer import Localizer
-from recording.reader import FrameEntry, Recording, iter_timeline
+from recording.layout import LIVE_POSES_FILE
+from recording.poses_file import estimates_from_track
+from recording.reader import FrameEntry, Recording, RecordingError, iter_timeline
+from recording.scoring import read_poses
 
 ImageU8 = npt.NDArray[np.uint8]
+PoseSource = Literal["replay", "live"]
 
 _SWITCH_INTERVAL_S = 0.0005  # GIL hand-over while replaying (CPython's default: 0.005)
 
@@ -91,12 +97,28 @@ def localize(
         sys.setswitchinterval(switch)
 
 
+def _decoded(
+    frames: list[FrameEntry], pool: ThreadPoolExecutor, depth: int
+) -> Iterator[ImageU8 | None]:
+    """The listed frames decoded `depth` ahead on `pool`, in order."""
+    ahead: deque[Future[ImageU8 | None]] = deque()
+    queued = iter(frames)
+    while True:
+        while len(ahead) < depth:
+            nxt = next(queued, None)
+            if nxt is None:
+                break
+            ahead.append(pool.submit(decode_frame, nxt.path))
+        if not ahead:
+            return
+        yield ahead.popleft().result()
+
+
 def _run(
     rec: Recording, loc: Localizer, pool: ThreadPoolExecutor, depth: int
 ) -> Iterator[Localized]:
     """The loop: frames decoded `depth` ahead on `pool`, in order."""
-    ahead: deque[Future[ImageU8 | None]] = deque()
-    queued = iter(rec.frames)
+    images = _decoded(rec.frames, pool, depth)
     cpu_ns = 0
     for item in iter_timeline(rec):
         if not isinstance(item, FrameEntry):
@@ -104,12 +126,7 @@ def _run(
             loc.handle(item)
             cpu_ns += time.thread_time_ns() - t0
             continue
-        while len(ahead) < depth:
-            nxt = next(queued, None)
-            if nxt is None:
-                break
-            ahead.append(pool.submit(decode_frame, nxt.path))
-        image = ahead.popleft().result()
+        image = next(images)
         t0 = time.thread_time_ns()
         if image is None:
             est: PoseEstimate | NoPose = loc.skip_frame(item.t_ns)
@@ -119,3 +136,54 @@ def _run(
         cpu_ns += time.thread_time_ns() - t0
         yield Localized(item, est, image, cpu_ns * 1e-9)
         cpu_ns = 0
+
+
+def has_live_poses(rec: Recording) -> bool:
+    """Whether the recording holds the live localizer's poses (a live recording's
+    `live_poses.csv`)."""
+    return (rec.root / LIVE_POSES_FILE).is_file()
+
+
+def live_poses(rec: Recording, *, threads: int | None = None) -> Iterator[Localized]:
+    """What the robot's localizer gave live for every listed frame (`live_poses.csv`), the
+    frames decoded as `localize` decodes them; a frame without a row there (recorded after
+    the localizer's last answer) is `NoPose(lost)`; `cpu_s` is 0 (not recorded).
+
+    Raises:
+        RecordingError: a malformed `live_poses.csv` (file and line named).
+    """
+    path = rec.root / LIVE_POSES_FILE
+    try:
+        rows = estimates_from_track(read_poses(path), source=str(path))
+    except (OSError, ValueError) as exc:
+        what = str(exc).removeprefix(f"{path}").lstrip(":")
+        raise RecordingError(path, None, what.strip() or type(exc).__name__) from None
+    by_time = {e.t_ns: e for e in rows}
+    workers = threads or decode_threads()
+    with ThreadPoolExecutor(max_workers=workers, thread_name_prefix="png") as pool:
+        images = _decoded(rec.frames, pool, 2 * workers + 2)
+        for entry, image in zip(rec.frames, images, strict=True):
+            est = by_time.get(entry.t_ns) or NoPose(entry.t_ns, "lost")
+            yield Localized(entry, est, image, 0.0)
+
+
+def localized(
+    rec: Recording, poses: PoseSource | None = None, *, threads: int | None = None
+) -> Iterator[Localized]:
+    """The poses of every listed frame from `poses`: `replay` runs the localizer over the
+    recording (`localize`), `live` reads what the robot's localizer gave (`live_poses`);
+    None: `live` when the recording has them, else `replay`.
+
+    Raises:
+        RecordingError: `live` asked of a recording without live poses, or a malformed file.
+    """
+    source = poses or ("live" if has_live_poses(rec) else "replay")
+    if source == "live":
+        if not has_live_poses(rec):
+            raise RecordingError(
+                rec.root / LIVE_POSES_FILE,
+                None,
+                "missing: only live recordings hold the live poses (use the replay's)",
+            )
+        return live_poses(rec, threads=threads)
+    return localize(rec, threads=threads)

@@ -28,24 +28,12 @@ from localizer.config import LocalizerConfig
 from localizer.events import NoPose, PoseEstimate
 from recording.layout import GROUNDTRUTH_FILE
 from recording.localize import decode_threads, localize
+from recording.poses_file import HEADER, format_row
 from recording.reader import RecordingError, read_groundtruth_file, read_recording
 from recording.scoring import error_stats, sec_v, sec_v_table, track_from_estimates
 
 __all__ = ["HEADER", "decode_threads", "format_row", "main", "replay", "truth_summary"]
-HEADER = "timestamp_ns,x,y,theta,mode,cov_xx,cov_yy,cov_tt,landmarks"
 PROG = "irloc replay"
-
-
-def format_row(est: PoseEstimate | NoPose) -> str:
-    """One CSV row of the output."""
-    if isinstance(est, NoPose):
-        return f"{est.t_ns},,,,{est.mode},,,,"
-    c = est.covariance
-    ids = " ".join(str(i) for i in est.landmark_ids)
-    return (
-        f"{est.t_ns},{est.x:.6f},{est.y:.6f},{est.theta:.7f},{est.mode},"
-        f"{c[0, 0]:.3e},{c[1, 1]:.3e},{c[2, 2]:.3e},{ids}"
-    )
 
 
 def replay(

@@ -21,10 +21,10 @@ import numpy.typing as npt
 import yaml
 
 from localizer.camera import CameraModel, sensor_from_camera
-from localizer.events import LedsChanged
+from localizer.events import LedsChanged, NoPose, PoseEstimate
 from localizer.landmark_map import LandmarkMap
 from localizer.robot import RobotGeometry
-from recording import layout
+from recording import layout, poses_file
 
 
 def _number(v: float) -> str:
@@ -112,6 +112,7 @@ class RecordingWriter:
         self._odometry = _CsvFile(self.root / layout.ODOMETRY_FILE, layout.ODOMETRY_HEADER)
         self._leds = _CsvFile(self.root / layout.LEDS_FILE, layout.LEDS_HEADER)
         self._groundtruth = _CsvFile(self.root / layout.GROUNDTRUTH_FILE, layout.GROUNDTRUTH_HEADER)
+        self._live_poses = _CsvFile(self.root / layout.LIVE_POSES_FILE, poses_file.HEADER)
         for f in (self._frames, self._odometry, self._leds):
             f.open_empty()
 
@@ -167,6 +168,12 @@ class RecordingWriter:
         """Add the true body pose at `t_ns` to groundtruth.csv (simulated recordings)."""
         self._groundtruth.write(t_ns, [_number(x), _number(y), _number(theta)])
 
+    def add_pose(self, estimate: PoseEstimate | NoPose) -> None:
+        """Add the live localizer's output for a recorded frame to live_poses.csv (live
+        recordings: what the robot believed, beside what a replay would give)."""
+        t, *fields = poses_file.format_row(estimate).split(",")
+        self._live_poses.write(int(t), fields)
+
     def close(self) -> None:
         """Finish writing the PNGs, flush and close every file; idempotent.
 
@@ -178,7 +185,7 @@ class RecordingWriter:
                 self._pending.popleft().result()
         finally:
             self._pool.shutdown(wait=True)
-        for f in (self._frames, self._odometry, self._leds, self._groundtruth):
+        for f in (self._frames, self._odometry, self._leds, self._groundtruth, self._live_poses):
             f.close()
 
     def __enter__(self) -> RecordingWriter:

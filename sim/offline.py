@@ -1,4 +1,7 @@
-"""Simulate one robot of a scenario offline and write a recording plus its ground truth.
+"""Simulate one robot of a scenario offline into a recording sink, with its ground truth.
+
+The sink is anything with the writer's four `add_*` methods (`RecordingSink`): `sim` does
+not import `recording`; `irloc.simulated_recording` hands it a `recording.RecordingWriter`.
 
 The recording starts as a live start-up would (Sec. III-A): all LEDs dark, then one landmark
 at a time lit, nearest the robot first, for a few frames each, until two have been seen; then
@@ -8,16 +11,18 @@ every LED. The robot stands still during this sweep and sets off once all LEDs a
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from contextlib import AbstractContextManager
 from dataclasses import dataclass
-from pathlib import Path
+from typing import Protocol
 
 import numpy as np
+import numpy.typing as npt
 
-from localizer.camera import predict_pixels
+from localizer.camera import CameraModel, predict_pixels
 from localizer.events import LedsChanged, OdometryMeasured
 from localizer.geometry import T_world_body_from_pose
-from recording.writer import RecordingWriter
+from localizer.robot import RobotGeometry
 from sim.build import RobotRig, build_robot, build_world, seed_generators
 from sim.cameras import Lens
 from sim.live import render_view
@@ -26,6 +31,23 @@ from sim.scenario import Scenario
 from sim.world import World
 
 NS = 1_000_000_000
+
+
+class RecordingSink(Protocol):
+    """Where a simulated drive goes: `recording.RecordingWriter` is one."""
+
+    def add_frame(self, t_ns: int, image: npt.NDArray[np.uint8], /) -> object: ...
+    def add_odometry(self, t_ns: int, v_left: float, v_right: float, /) -> None: ...
+    def add_leds(self, event: LedsChanged, /) -> None: ...
+    def add_groundtruth(self, t_ns: int, x: float, y: float, theta: float, /) -> None: ...
+
+
+# Opens the sink of one recording from what its header holds: the camera handed over (the
+# nominal calibration), the robot's geometry and the surveyed landmark records.
+OpenSink = Callable[
+    [CameraModel, RobotGeometry, Iterable[Mapping[str, object]]],
+    AbstractContextManager[RecordingSink],
+]
 
 
 @dataclass(frozen=True)
@@ -97,7 +119,7 @@ def sweep_schedule(
 
 def simulate_recording(
     scenario: Scenario,
-    out_dir: Path | str,
+    open_sink: OpenSink,
     *,
     seed: int | None = None,
     duration_s: float | None = None,
@@ -107,11 +129,11 @@ def simulate_recording(
     led_program: Callable[[int], Sequence[LedsChanged]] | None = None,
     progress: Callable[[float], None] | None = None,
 ) -> SimulationSummary:
-    """Write a recording (and groundtruth.csv) of one robot of a scenario.
+    """Simulate one robot of a scenario into a recording sink, ground truth included.
 
     Args:
         scenario: the site.
-        out_dir: the recording folder (created).
+        open_sink: opens the sink (`irloc.simulated_recording` writes a recording folder).
         seed: overrides the scenario's seed.
         duration_s: recording length from the start of the sweep (default: the scenario's).
         lens: overrides every camera's lens.
@@ -132,7 +154,7 @@ def simulate_recording(
         leds += [c for c in led_program(drive_ns) if c.t_ns > leds[-1].t_ns]
     rig.robot.paused_until_ns = drive_ns
     frames = odometry = 0
-    with RecordingWriter(out_dir, rig.camera_nominal, rig.geometry, world.landmark_records()) as w:
+    with open_sink(rig.camera_nominal, rig.geometry, world.landmark_records()) as w:
         pending = list(leds)
         t_ns = 0
         while t_ns < end_ns:
@@ -181,7 +203,7 @@ def recording_site(
 
 
 def _write_frame(
-    writer: RecordingWriter,
+    writer: RecordingSink,
     world: World,
     rig: RobotRig,
     item: FramePose,

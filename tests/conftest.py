@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from sim.cli import main as simulate
+from irloc.simulate_cli import main as simulate
 
 
 @pytest.fixture(scope="session")

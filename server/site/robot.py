@@ -96,9 +96,11 @@ class RobotRunner:
         self.poses = 0
         self.errors = 0
         self.recorder: RecordingWriter | None = None
+        self._taps: tuple[Callable[[Event], None], ...] = ()
         self.on_mode_change: Callable[[str, Mode, Mode], None] | None = None
         self._mode: Mode = localizer.mode
         self._pending: deque[Event] = deque()
+        self._leds_in_force: LedsChanged | None = None  # the last LED state fed
 
     @property
     def mode(self) -> Mode:
@@ -125,6 +127,8 @@ class RobotRunner:
             if isinstance(event, FrameObserved | SpotsObserved):
                 self.recent.append(event)
             self._record(event)
+            for tap in self._taps:
+                tap(event)
             try:
                 outputs = self.localizer.handle(event)
             except Exception:
@@ -136,6 +140,10 @@ class RobotRunner:
                     extra={"robot": self.name},
                 )
                 return
+            if isinstance(event, LedsChanged):
+                self._leds_in_force = event
+            if isinstance(event, FrameObserved):
+                self._record_pose(outputs)
             for out in outputs:
                 self._route(out)
             old, self._mode = self._mode, self.localizer.mode
@@ -170,13 +178,28 @@ class RobotRunner:
         with self._lock:
             self.localizer.set_map(landmark_map)
 
-    # -- recording ---------------------------------------------------------------------------
+    # -- taps and recording ------------------------------------------------------------------
+    def add_tap(self, tap: Callable[[Event], None]) -> None:
+        """Hand every event fed to the localizer (in time order, LED changes included) to
+        `tap` too, on the feeding thread: it must return at once (the live survey queues)."""
+        with self._lock:
+            self._taps = (*self._taps, tap)
+
+    def remove_tap(self, tap: Callable[[Event], None]) -> None:
+        with self._lock:
+            self._taps = tuple(t for t in self._taps if t is not tap)
+
     def start_recording(self, root: Path, landmark_records: list[dict[str, Any]]) -> None:
-        """Record this robot's frames, odometry and LED changes to a recording folder."""
+        """Record this robot's frames, odometry, LED changes and live poses to a recording
+        folder; leds.csv starts with the LED state in force (a replay then knows what was lit
+        before the first change)."""
         with self._lock:
             if self.recorder is not None:
                 raise ValueError(f"robot {self.name!r} is already recording")
-            self.recorder = RecordingWriter(root, self.camera, self.geometry, landmark_records)
+            rec = RecordingWriter(root, self.camera, self.geometry, landmark_records)
+            if self._leds_in_force is not None:
+                rec.add_leds(self._leds_in_force)
+            self.recorder = rec
 
     def stop_recording(self) -> Path | None:
         with self._lock:
@@ -185,6 +208,19 @@ class RobotRunner:
             return None
         rec.close()
         return Path(rec.root)
+
+    def _record_pose(self, outputs: list[Output]) -> None:
+        """The localizer's answer to a recorded frame, to live_poses.csv."""
+        rec = self.recorder
+        est = next((o for o in outputs if isinstance(o, PoseEstimate | NoPose)), None)
+        if rec is None or est is None:
+            return
+        try:
+            rec.add_pose(est)
+        except ValueError:
+            log.exception("robot %s: recording stopped", self.name, extra={"robot": self.name})
+            self.recorder = None
+            rec.close()
 
     def _record(self, event: Event) -> None:
         rec = self.recorder

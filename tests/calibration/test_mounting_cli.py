@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 import yaml
 
-from calibration.cli import main
+from irloc.calibrate_cli import main
 from localizer.camera import T_body_camera_upward, camera_from_sensor
 from localizer.events import LedsChanged
 from localizer.geometry import T_world_body_from_pose

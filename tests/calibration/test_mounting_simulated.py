@@ -12,10 +12,10 @@ import numpy as np
 import pytest
 import yaml
 
-from calibration.mounting_cli import main as mounting_main
+from irloc.calibrate_mounting import main as mounting_main
+from irloc.simulate_cli import main as simulate_main
 from localizer.camera import camera_from_sensor
 from sim.build import build_robot, seed_generators
-from sim.cli import main as simulate_main
 from sim.scenario import load_scenario
 
 LANDMARKS = {

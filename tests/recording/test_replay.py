@@ -153,8 +153,8 @@ def test_missing_recording_folder(tmp_path: Path, capsys: pytest.CaptureFixture[
 
 @pytest.mark.slow
 def test_replay_of_a_simulated_scenario_end_to_end(tmp_path: Path) -> None:
+    from irloc.simulate_cli import main as simulate
     from recording.reader import read_groundtruth
-    from sim.cli import main as simulate
 
     rec = tmp_path / "hostile"
     assert simulate(["hostile", str(rec), "--duration", "6", "--quiet"]) == 0

@@ -5,9 +5,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from irloc.simulate_cli import main
 from localizer.events import LedsChanged
 from recording.reader import iter_timeline, read_groundtruth, read_recording
-from sim.cli import main
 
 
 def test_simulate_writes_a_recording_that_reads_back(tmp_path: Path) -> None:

@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sim.offline import simulate_recording
+from irloc.simulated_recording import simulate_recording
 from sim.survey_floor import survey_floor_scenario
 from survey.blinks import BlinkConfig, blink_schedule
 from survey.cli import main

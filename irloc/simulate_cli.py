@@ -6,8 +6,8 @@ import argparse
 import sys
 from pathlib import Path
 
+from irloc.simulated_recording import simulate_recording
 from sim.cameras import CALIBRATION_LEVELS, LENSES
-from sim.offline import simulate_recording
 from sim.scenario import SCENARIOS, load_scenario
 
 
