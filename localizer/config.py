@@ -44,6 +44,9 @@ class FusionConfig:
         lost_after_rejections: this many consecutive frames with spots seen while 2+
             landmarks are predicted in view but no accepted fix (observations that disagree
             with the map) make the localizer lost.
+        min_matched_fraction: a tracking fix must keep at least this share of the
+            landmarks of the last fused one (a kidnapped robot, carried off, still sees a few
+            spots fall into some windows by chance; such a fix is not fused).
         initial_sigma_m: position standard deviation of `set_initial_pose`, metres.
         initial_sigma_rad: heading standard deviation of `set_initial_pose`, radians.
         full_frame_every_s: in landmark or dead-reckoning mode with no tracked landmark,
@@ -70,6 +73,7 @@ class FusionConfig:
     lost_sigma_m: float = 1.0
     lost_sigma_rad: float = math.pi
     lost_after_rejections: int = 30
+    min_matched_fraction: float = 0.25
     initial_sigma_m: float = 0.5
     initial_sigma_rad: float = 0.3
     full_frame_every_s: float = 0.0

@@ -32,6 +32,7 @@ from localizer.handoff import (
     predict_landmarks,
     visible_radius_m,
 )
+from localizer.hypothesis_set import HypothesisSet
 from localizer.landmark_map import LandmarkMap
 from localizer.noise_model import PixelNoiseModel
 from localizer.pose import PoseFix, solve_pose
@@ -83,6 +84,8 @@ class LandmarkTracker:
         max_angular_speed_rad_s: the robot's fastest turn.
         background: the last full frame's background (level, noise), counts; None before.
         last_fused: the last fused fix's map rows, spot pixels and fix (self-calibration).
+        last_matched: landmarks in the last fused tracking fix (the owner zeroes it when it
+            resets the pose another way).
     """
 
     def __init__(
@@ -100,6 +103,7 @@ class LandmarkTracker:
         )
         self.background: tuple[float, float] | None = None
         self.last_fused: tuple[list[int], list[list[float]], PoseFix] | None = None
+        self.last_matched = 0
         self.set_map(landmark_map)
 
     def set_map(self, landmark_map: LandmarkMap) -> None:
@@ -234,7 +238,10 @@ class LandmarkTracker:
                 tc.ambiguity_log_ratio,
             )
             pairs = [(rows[k], s) for k, s in sure]
-        used = self._fuse(filt, pairs, spot_px, pose) if len(pairs) >= 2 else ()
+        # A robot lifted and carried off still sees a few spots fall into some windows by
+        # chance: a fix of a small share of the landmarks last matched is not taken (kidnap).
+        need = 0.0 if reacquire else self.config.fusion.min_matched_fraction * self.last_matched
+        used = self._fuse(filt, pairs, spot_px, pose, need) if len(pairs) >= 2 else ()
         return TrackResult(used, unexplained=not used and len(pred) >= 2, expected=expected)
 
     def relocalize(
@@ -242,22 +249,36 @@ class LandmarkTracker:
         filt: PoseFilter,
         spots: Spots,
         candidates: npt.NDArray[np.int64] | None,
+        *,
+        prior: tuple[tuple[float, float, float], FloatArray] | None = None,
+        hypotheses: HypothesisSet | None = None,
+        t_ns: int = 0,
+        odometry_pose: tuple[float, float, float] = (0.0, 0.0, 0.0),
     ) -> PoseFix | None:
-        """Re-localization without LEDs (`relocalization.relocalize`) around the filter's
-        pose and covariance: the fix of the one unambiguous hypothesis, or None."""
+        """Re-localization without LEDs around a prior (default: the filter's pose and
+        covariance): one frame (`relocalization.relocalize`), or, given `hypotheses`, the
+        set carried over frames (`HypothesisSet.update` with the frame's time and raw
+        odometry pose). Returns the fix of the one unambiguous hypothesis, or None."""
         rows = np.arange(len(self.map.positions)) if candidates is None else candidates
         if len(rows) < 2 or len(spots) < 2:
             return None
-        pose = filt.pose
-        cov = filt.covariance + np.diag([1e-4, 1e-4, 1e-4])
-        # only the landmarks that could be in view of a pose within the prior
-        reach = self._reach + 3.0 * position_sigma_m(cov)
+        pose, cov = prior if prior is not None else (filt.pose, filt.covariance)
+        cov = cov + np.diag([1e-4, 1e-4, 1e-4])
+        rc = self.config.relocalization
+        # only the landmarks that could be in view of a pose within the prior's gate
+        reach = self._reach + math.sqrt(rc.prior_gate_chi2) * position_sigma_m(cov)
         P = self.map.positions[rows]
-        rows = rows[np.hypot(P[:, 0] - pose[0], P[:, 1] - pose[1]) <= reach]
+        if hypotheses is None:  # (the set keeps per-landmark evidence: the same rows always)
+            rows = rows[np.hypot(P[:, 0] - pose[0], P[:, 1] - pose[1]) <= reach]
         if len(rows) < 2:
             return None
-        rc = self.config.relocalization
-        found = relocalize(self.camera, self.map.positions[rows], spots.pixels, pose, cov, rc)
+        positions = self.map.positions[rows]
+        if hypotheses is None:
+            found = relocalize(self.camera, positions, spots.pixels, pose, cov, rc)
+        else:
+            found = hypotheses.update(
+                t_ns, odometry_pose, self.camera, positions, spots.pixels, pose, cov
+            )
         if not found.accepted or found.pose is None:
             return None
         pairs = [(int(rows[r]), s) for r, s in found.pairs]
@@ -305,8 +326,10 @@ class LandmarkTracker:
         pairs: list[tuple[int, int]],
         spot_px: list[list[float]],
         pose: tuple[float, float, float],
+        need: float = 0.0,
     ) -> tuple[int, ...]:
-        """Solve the pose from matched (map row, spot) pairs; fuse it when consistent.
+        """Solve the pose from matched (map row, spot) pairs; fuse it when consistent and
+        when at least `need` landmarks are left in it.
 
         Robust: with 3+ landmarks the solve uses `FusionConfig.robust_loss`; a landmark whose
         residual then exceeds `outlier_sigma` of its own pixel sigma is left out and the rest
@@ -349,6 +372,8 @@ class LandmarkTracker:
                 return ()
             res = fix.residuals_px
         n = len(rows)
+        if n < need:
+            return ()
         if res:
             chi2 = sum((r / si) ** 2 for r, si in zip(res, sig, strict=True))
         else:  # (a tilted fit: its RMS against the mean sigma)
@@ -359,6 +384,7 @@ class LandmarkTracker:
             return ()
         self.noise.observe(chi2, n)
         self.last_fused = (rows, px, fix)
+        self.last_matched = n
         return fix.landmark_ids
 
     def _off_image(

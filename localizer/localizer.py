@@ -43,6 +43,7 @@ from localizer.events import (
 from localizer.first_fix import first_fix
 from localizer.geometry import wrap_angle
 from localizer.handoff import position_sigma_m
+from localizer.hypothesis_set import HypothesisSet
 from localizer.identification import Identifier
 from localizer.landmark_map import LandmarkMap
 from localizer.landmark_tracker import LandmarkTracker
@@ -90,6 +91,11 @@ class Localizer:
         self._t_filter = 0  # time of the filter's state (the last sample or fused frame)
         self._commit = False  # this frame's filter is kept (a fix, a reset)
         self._t_relocalized: int | None = None  # the last re-localization attempt
+        self._hypotheses = HypothesisSet(self.config.relocalization)  # kept alive while lost
+        # where it got lost: pose, position sigma (m), heading variance, raw odometry pose
+        self._lost_at: tuple[float, float, float, float, float, tuple[float, float, float]] = (
+            0.0, 0.0, 0.0, 0.0, 0.0, (0.0, 0.0, 0.0)
+        )  # fmt: skip
         self._t_frame: int | None = None
         self._expected: tuple[int, ...] = ()  # lit landmarks predicted in view, this frame
         self._rejections = 0  # frames in a row whose spots no fused fix explained
@@ -189,6 +195,8 @@ class Localizer:
         self._rejections = 0
         if self.calibration is not None:
             self.calibration.break_track()
+        self._hypotheses.clear()
+        self._tracker.last_matched = 0
 
     def _advance(self, t_ns: int, v_left: float, v_right: float) -> PoseFilter | None:
         """Extrapolate odometry (raw, and a copy of the filter) from the last state time to
@@ -316,15 +324,30 @@ class Localizer:
         return result.used
 
     def _relocalize(self, t_ns: int, spots: Spots) -> tuple[int, ...]:
-        """Re-localization without LEDs around the filter's pose (lost, or a prior)."""
+        """Re-localization without LEDs: while lost (or identifying from a prior), the
+        hypothesis set carried over frames (seeded around where it got lost, within the
+        distance odometry has driven since; or around the prior); after long dead
+        reckoning, one frame around the filter's pose, every `every_s`."""
         if self._filter is None or self._changing:
             return ()
-        every = self.config.relocalization.every_s
-        if self._t_relocalized is not None and (t_ns - self._t_relocalized) * _NS < every:
-            return ()
-        self._t_relocalized = t_ns
         cand = None if self._lit is None else self._lit_rows()
-        fix = self._tracker.relocalize(self._filter, spots, cand)
+        if self._mode in ("lost", "identifying"):
+            odo = self._odometry.pose
+            prior = None  # identifying with a prior: the filter's pose and covariance
+            if self._mode == "lost":
+                x, y, th, sigma0, var_th, odo0 = self._lost_at
+                sigma = sigma0 + math.hypot(odo[0] - odo0[0], odo[1] - odo0[1])
+                prior = ((x, y, th), np.diag([sigma**2, sigma**2, var_th]))
+            fix = self._tracker.relocalize(
+                self._filter, spots, cand, prior=prior,
+                hypotheses=self._hypotheses, t_ns=t_ns, odometry_pose=odo,
+            )  # fmt: skip
+        else:
+            every = self.config.relocalization.every_s
+            if self._t_relocalized is not None and (t_ns - self._t_relocalized) * _NS < every:
+                return ()
+            self._t_relocalized = t_ns
+            fix = self._tracker.relocalize(self._filter, spots, cand)
         if fix is None:
             return ()
         self._reset_filter(fix.x, fix.y, fix.theta, fix.covariance, t_ns)
@@ -420,6 +443,11 @@ class Localizer:
                 cov[:2, 2] = cov[2, :2] = 0.0
                 cov[2, 2] = max(float(cov[2, 2]), fc.lost_sigma_rad**2)
                 self._filter.reset(x, y, th, cov)
+            x, y, th = (float(v) for v in self._filter.state)
+            var_th = float(self._filter.covariance[2, 2])
+            sigma0 = max(position_sigma_m(self._filter.covariance_rows), fc.lost_sigma_m)
+            self._lost_at = (x, y, th, sigma0, var_th, self._odometry.pose)
+            self._hypotheses.clear()
 
     def _start_identification(self) -> None:
         ids = self.map.ids.tolist()

@@ -5,26 +5,33 @@ trusted to pair spots with landmarks) and cannot, or need not, blink LEDs, the s
 frame are matched to the map as a whole:
 
 1. every spot's ray is intersected with the ceiling (the map's median landmark height) in the
-   body frame (`handoff.ceiling_points_body`);
-2. *hypotheses*: a pair of spots near the image centre (the most accurate, least distorted)
-   whose ceiling distance matches the map distance of a pair of landmarks, in either order,
-   gives a planar pose (2D rigid registration of two points, eqs. 1-2); hypotheses outside
-   the prior's gate are dropped;
-3. *scoring by every spot*: each hypothesis carries all the frame's ceiling points into the
-   world; a spot is an inlier when a landmark lies within a tolerance that grows with its
-   distance from the camera (a wrong ceiling height moves far points most). The score is a
-   log-likelihood ratio: `inlier_log_lr` per inlier minus half the prior's squared
-   Mahalanobis distance; each hypothesis, refit to its inliers, also loses `miss_log_lr`
-   for every lit landmark they place well inside the image (`miss_margin_px` from its edge) with no
-   spot near it (a grid shifted by one spacing explains the same spots, but puts a row of
-   landmarks where the image shows none);
+   body frame (`handoff.ceiling_points_body`; `hypothesis_scoring.frame_view`);
+2. *hypotheses* (`seed_hypotheses`): a pair of spots near the image centre (the most
+   accurate, least distorted) whose ceiling distance matches the map distance of a pair of
+   landmarks, in either order, gives a planar pose (2D rigid registration of two points,
+   eqs. 1-2); hypotheses outside the prior's gate are dropped, duplicates merged;
+3. *scoring by every spot* (`hypothesis_scoring.frame_log_lr`): each hypothesis carries all
+   the frame's ceiling points into the world; a spot is an inlier when a landmark lies
+   within a tolerance that grows with its distance from the camera (a wrong ceiling height
+   moves far points most).
+   Each hypothesis is refit to its inliers (a pose from two points leaves the heading rough)
+   and scored by a log-likelihood ratio: `inlier_log_lr` per inlier minus `miss_log_lr` for
+   every lit landmark it places well inside the image (`miss_margin_px` from its edge, within
+   the radius spots are seen at all) with no spot near it: *negative evidence* (a grid shifted
+   by one spacing explains the same spots, but puts a row of landmarks where the image shows
+   none); `relocalize` adds the prior's log density (minus half the squared Mahalanobis
+   distance);
 4. the best hypothesis is accepted only when it is *unambiguous*: enough inliers, and every
    distinct hypothesis (farther than `distinct_m` or `distinct_rad`) scores at least
    `margin` lower. On a regular grid one spacing apart scores the same from the spots alone:
    only the prior can separate them, and when it cannot the answer is "no fix" (stay lost)
    rather than a guess.
 
-The accepted hypothesis returns its (map row, spot) pairs, to be solved and fused as any fix.
+`relocalize` decides on one frame; `hypothesis_set.HypothesisSet` keeps the hypotheses alive
+over frames while the robot drives on (each carried by the odometry and scored by every
+frame), so an ambiguity resolves as soon as the grid's edge, a gap or a dead landmark comes
+into view. The accepted hypothesis returns its (map row, spot) pairs, to be solved and fused
+as any fix.
 """
 
 from __future__ import annotations
@@ -34,13 +41,19 @@ from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
-from scipy.spatial import cKDTree
 
-from localizer.camera import CameraModel, pixels_from_points_camera
+from localizer.camera import CameraModel
 from localizer.geometry import wrap_angle
-from localizer.handoff import ceiling_points_body
+from localizer.hypothesis_scoring import (
+    FrameView,
+    frame_log_lr,
+    frame_view,
+    inlier_pairs,
+    inliers_needed,
+)
 
 FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.int64]
 
 
 @dataclass(frozen=True)
@@ -73,6 +86,27 @@ class RelocalizationConfig:
             (small: a dead LED or a person also hides one).
         miss_margin_px: only landmarks predicted this far inside the image count.
         miss_radius_px: a landmark is missing when no spot lies within this of it, pixels.
+
+    Over frames (`hypothesis_set.HypothesisSet`, while lost):
+        score_every_s: the live hypotheses are scored at most this often, seconds (they are
+            carried by the odometry every frame).
+        frame_clip: one frame lowers a hypothesis's score by at most this against the
+            frame's best (log-likelihood; one frame spoiled by a person or a glint never
+            decides alone).
+        prune_below: hypotheses this far below the best are refuted: no longer scored,
+            only remembered with the evidence against them (log-likelihood; more than
+            `frame_clip`: no single frame refutes).
+        max_live: at most this many hypotheses are scored (the best; the others are
+            remembered as the refuted are).
+        max_retired: at most this many poses no longer scored are remembered.
+        sustain_frames: the best must lead every distinct one by `margin` on this many
+            scored frames in a row before it is accepted.
+        reseed_after_frames: when the best explains too few of the spots (under
+            `min_inliers` / `min_inlier_fraction`) on this many scored frames in a row, the
+            set has died (the robot was carried off again, or never among them): it is
+            seeded afresh from the next frame.
+        birth_every_s: this often new hypotheses are seeded from the current frame and
+            join the set `margin` below the best (they must earn their lead), seconds.
     """
 
     every_s: float = 0.2
@@ -94,6 +128,14 @@ class RelocalizationConfig:
     miss_log_lr: float = 1.5
     miss_margin_px: float = 25.0
     miss_radius_px: float = 12.0
+    score_every_s: float = 0.2
+    frame_clip: float = 15.0
+    prune_below: float = 40.0
+    max_live: int = 300
+    max_retired: int = 5000
+    sustain_frames: int = 3
+    reseed_after_frames: int = 3
+    birth_every_s: float = 1.0
 
 
 @dataclass(frozen=True)
@@ -161,89 +203,64 @@ def hypotheses_from_anchor_pairs(
     return np.vstack(out) if out else np.zeros((0, 3))
 
 
-def score_hypotheses(
-    hyps: FloatArray,
-    q: FloatArray,
-    radial_m: FloatArray,
-    tree: cKDTree,
+def prior_mahalanobis2(
+    hyps: FloatArray, prior: tuple[float, float, float], prior_covariance: FloatArray
+) -> FloatArray:
+    """Squared Mahalanobis distance of each hypothesis (H, 3) from the prior, heading
+    wrapped; +inf for all when the covariance is singular."""
+    try:
+        info = np.linalg.inv(np.asarray(prior_covariance, dtype=np.float64))
+    except np.linalg.LinAlgError:
+        return np.full(len(hyps), math.inf)
+    d = hyps - np.asarray(prior, dtype=np.float64)
+    d[:, 2] = wrap_angle(d[:, 2])
+    out: FloatArray = np.einsum("hi,ij,hj->h", d, info, d)
+    return out
+
+
+def unique_hypotheses(hyps: FloatArray, rank: FloatArray, config: RelocalizationConfig) -> IntArray:
+    """Indices of one hypothesis per pose cell (`distinct_m`, `distinct_rad`), the one of
+    highest `rank` in each, best first."""
+    order = np.argsort(-rank, kind="stable")
+    cell = np.column_stack([
+        np.round(hyps[order, 0] / config.distinct_m), np.round(hyps[order, 1] / config.distinct_m),
+        np.round(wrap_angle(hyps[order, 2]) / config.distinct_rad),
+    ])  # fmt: skip
+    _, first = np.unique(cell, axis=0, return_index=True)
+    out: IntArray = order[np.sort(first)]
+    return out
+
+
+def seed_hypotheses(
+    view: FrameView,
+    prior: tuple[float, float, float],
+    prior_covariance: FloatArray,
     config: RelocalizationConfig,
-) -> tuple[FloatArray, npt.NDArray[np.int64], npt.NDArray[np.int64]]:
-    """Inliers of each hypothesis: every spot's ceiling point carried into the world and
-    matched to its nearest landmark.
+) -> tuple[FloatArray, FloatArray]:
+    """Hypotheses from the frame's anchor pairs within the prior's gate, one per pose,
+    at most `max_hypotheses` (the nearest the prior).
 
     Returns:
-        (inlier counts shape (H,), nearest landmark row per (hypothesis, spot) shape (H, S),
-        inlier mask as 0/1 shape (H, S)).
+        (poses shape (H, 3), their squared Mahalanobis distances from the prior (H,)).
     """
-    c, s = np.cos(hyps[:, 2]), np.sin(hyps[:, 2])
-    wx = hyps[:, 0, None] + c[:, None] * q[None, :, 0] - s[:, None] * q[None, :, 1]
-    wy = hyps[:, 1, None] + s[:, None] * q[None, :, 0] + c[:, None] * q[None, :, 1]
-    dist, nearest = tree.query(np.column_stack([wx.ravel(), wy.ravel()]))
-    tol = config.inlier_tolerance_m + config.inlier_tolerance_per_m * radial_m
-    inl = (dist.reshape(wx.shape) <= tol[None, :]).astype(np.int64)
-    return inl.sum(axis=1).astype(np.float64), nearest.reshape(wx.shape), inl
+    hyps = hypotheses_from_anchor_pairs(view.q, view.anchors, view.positions[:, :2], config)
+    m2 = prior_mahalanobis2(hyps, prior, prior_covariance)
+    gate = m2 <= config.prior_gate_chi2
+    hyps, m2 = hyps[gate], m2[gate]
+    keep = unique_hypotheses(hyps, -m2, config)[: config.max_hypotheses]
+    return hyps[keep], m2[keep]
 
 
-def missing_landmarks(
-    camera: CameraModel,
-    positions: FloatArray,
-    hyps: FloatArray,
-    spot_tree: cKDTree,
-    config: RelocalizationConfig,
-) -> FloatArray:
-    """Per hypothesis, the landmarks it predicts well inside the image with no spot near
-    (all hypotheses projected in one call)."""
-    H, N = len(hyps), len(positions)
-    c, s = np.cos(hyps[:, 2]), np.sin(hyps[:, 2])
-    dx = positions[None, :, 0] - hyps[:, 0, None]
-    dy = positions[None, :, 1] - hyps[:, 1, None]
-    body = np.stack([c[:, None] * dx + s[:, None] * dy, -s[:, None] * dx + c[:, None] * dy,
-                     np.broadcast_to(positions[None, :, 2], (H, N))], axis=-1)  # fmt: skip
-    T = camera.T_camera_body
-    p_cam = body.reshape(-1, 3) @ T[:3, :3].T + T[:3, 3]
-    px, valid = pixels_from_points_camera(camera, p_cam)
-    m = config.miss_margin_px
-    inner = valid & (px[:, 0] >= m) & (px[:, 0] <= camera.width - 1 - m)
-    inner &= (px[:, 1] >= m) & (px[:, 1] <= camera.height - 1 - m)
-    # only as far out as spots are seen at all (far spots fade below the threshold)
-    spots = spot_tree.data
-    r_seen = float(np.max(np.hypot(spots[:, 0] - camera.cu, spots[:, 1] - camera.cv)))
-    inner &= np.hypot(px[:, 0] - camera.cu, px[:, 1] - camera.cv) <= r_seen - m
-    miss = np.zeros(H * N, dtype=bool)
-    if np.any(inner):
-        dist, _ = spot_tree.query(px[inner])
-        miss[np.nonzero(inner)[0]] = dist > config.miss_radius_px
-    out: FloatArray = miss.reshape(H, N).sum(axis=1).astype(np.float64)
-    return out
-
-
-def refine_hypotheses(
-    hyps: FloatArray, q: FloatArray, P: FloatArray, nearest: npt.NDArray[np.int64],
-    inl: npt.NDArray[np.int64],
-) -> FloatArray:  # fmt: skip
-    """Each hypothesis refit to its inliers (weighted 2D rigid registration, all at once):
-    a pose from two points leaves the heading rough."""
-    w = inl.astype(np.float64)
-    n = w.sum(axis=1)
-    ok = n >= 3
-    if not np.any(ok):
-        return hyps
-    w, nearest = w[ok], nearest[ok]
-    n = n[ok][:, None]
-    Pm = P[nearest]  # (H, S, 2)
-    qc = (w[..., None] * q[None]).sum(axis=1) / n
-    pc = (w[..., None] * Pm).sum(axis=1) / n
-    a = q[None] - qc[:, None]
-    b = Pm - pc[:, None]
-    dot = (w * (a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1])).sum(axis=1)
-    cross = (w * (a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0])).sum(axis=1)
-    th = np.arctan2(cross, dot)
-    c, s = np.cos(th), np.sin(th)
-    out = hyps.copy()
-    out[ok, 0] = pc[:, 0] - (c * qc[:, 0] - s * qc[:, 1])
-    out[ok, 1] = pc[:, 1] - (s * qc[:, 0] + c * qc[:, 1])
-    out[ok, 2] = wrap_angle(th)
-    return out
+def distinct_second(
+    hyps: FloatArray, score: FloatArray, best: int, config: RelocalizationConfig
+) -> float:
+    """The best score among the hypotheses distinct from `hyps[best]` (farther than
+    `distinct_m` or turned by more than `distinct_rad`); -inf when there is none."""
+    bx, by, bt = hyps[best]
+    far = (np.hypot(hyps[:, 0] - bx, hyps[:, 1] - by) > config.distinct_m) | (
+        np.abs(wrap_angle(hyps[:, 2] - bt)) > config.distinct_rad
+    )
+    return float(np.max(score[far])) if np.any(far) else -math.inf
 
 
 def relocalize(
@@ -254,7 +271,8 @@ def relocalize(
     prior_covariance: FloatArray,
     config: RelocalizationConfig,
 ) -> Relocalization:
-    """Map-consistent data association over pose hypotheses (see the module docstring).
+    """Map-consistent data association over pose hypotheses, one frame (see the module
+    docstring).
 
     Args:
         positions: landmark positions (of the lit ones only, when LEDs are known dark),
@@ -266,84 +284,20 @@ def relocalize(
     Returns:
         The outcome; `pairs` is empty unless accepted.
     """
-    S, N = len(spot_pixels), len(positions)
-    if S < 2 or N < 2:
+    view = frame_view(camera, positions, spot_pixels, config)
+    if view is None:
         return _NONE
-    z = float(np.median(positions[:, 2]))
-    q = ceiling_points_body(camera, spot_pixels, np.full(S, z))
-    ok = np.all(np.isfinite(q), axis=1)
-    if np.count_nonzero(ok) < 2:
-        return _NONE
-    centre = np.array([camera.cu, camera.cv])
-    r_px = np.hypot(*(spot_pixels - centre).T)
-    order_all = [int(i) for i in np.argsort(r_px) if ok[i]]
-    anchors = order_all[: config.anchor_spots]
-    P = positions[:, :2]
-    hyps = hypotheses_from_anchor_pairs(q, anchors, P, config)
+    hyps, m2 = seed_hypotheses(view, prior, prior_covariance, config)
     if len(hyps) == 0:
         return _NONE
-    try:
-        info = np.linalg.inv(np.asarray(prior_covariance, dtype=np.float64))
-    except np.linalg.LinAlgError:
-        return _NONE
-    d = hyps - np.asarray(prior)
-    d[:, 2] = wrap_angle(d[:, 2])
-    m2 = np.einsum("hi,ij,hj->h", d, info, d)
-    gate = m2 <= config.prior_gate_chi2
-    hyps, m2 = hyps[gate], m2[gate]
-    if len(hyps) == 0:
-        return _NONE
-    # one hypothesis per pose (the anchor pairs find the same one several times)
-    order = np.argsort(m2, kind="stable")[: config.max_hypotheses]
-    cell = np.column_stack([
-        np.round(hyps[order, 0] / config.distinct_m), np.round(hyps[order, 1] / config.distinct_m),
-        np.round(wrap_angle(hyps[order, 2]) / config.distinct_rad),
-    ])  # fmt: skip
-    _, first = np.unique(cell, axis=0, return_index=True)
-    keep = order[np.sort(first)]
-    hyps, m2 = hyps[keep], m2[keep]
-    qv = np.where(ok[:, None], q, 1e6)  # spots without a ceiling point match nothing
-    cam_xy = camera.T_body_camera[:2, 3]
-    radial_m = np.where(ok, np.hypot(*(q - cam_xy).T), 0.0)
-    sub = np.array(order_all[: config.score_spots])
-    tree = cKDTree(P)
-    counts, nearest, inl = score_hypotheses(hyps, qv[sub], radial_m[sub], tree, config)
-    score = config.inlier_log_lr * counts - 0.5 * m2
-    # Rescore with the missing landmarks, best first, until no other can come within the
-    # margin (misses only lower a score: the rest keep theirs as an upper bound).
-    spot_tree = cKDTree(spot_pixels)
-    done = np.zeros(len(hyps), dtype=bool)
-    ranked = np.argsort(-score, kind="stable")
-    chunk = config.rescore_chunk
-    for k in range(0, len(ranked), chunk):
-        idx = ranked[k : k + chunk]
-        best_now = float(np.max(score[done])) if np.any(done) else -math.inf
-        if score[idx[0]] < best_now - config.margin:
-            break
-        hyps[idx] = refine_hypotheses(hyps[idx], qv[sub], P, nearest[idx], inl[idx])
-        score[idx] -= config.miss_log_lr * missing_landmarks(
-            camera, positions, hyps[idx], spot_tree, config
-        )
-        done[idx] = True
-    best = int(np.argmax(np.where(done, score, -math.inf)))
-    bx, by, bt = hyps[best]
-    far = (np.hypot(hyps[:, 0] - bx, hyps[:, 1] - by) > config.distinct_m) | (
-        np.abs(wrap_angle(hyps[:, 2] - bt)) > config.distinct_rad
+    hyps, score, counts, done = frame_log_lr(
+        camera, view, hyps, config, offset=-0.5 * m2, cutoff=config.margin
     )
-    second = float(np.max(score[far])) if np.any(far) else -math.inf
-    pose = (float(bx), float(by), float(bt))
+    best = int(np.argmax(np.where(done, score, -math.inf)))
+    second = distinct_second(hyps, score, best, config)
+    pose = (float(hyps[best, 0]), float(hyps[best, 1]), float(hyps[best, 2]))
     out = Relocalization(pose, [], float(score[best]), second, len(hyps))
-    n_in = int(counts[best])
-    if n_in < max(config.min_inliers, config.min_inlier_fraction * len(sub)):
+    if counts[best] < inliers_needed(view, config) or score[best] - second < config.margin:
         return out
-    if score[best] - second < config.margin:
-        return out
-    _, nearest_all, inl_all = score_hypotheses(hyps[best : best + 1], qv, radial_m, tree, config)
-    nearest, inl = nearest_all, inl_all
-    best = 0
-    # one spot per landmark: the nearest of the spots that chose it
-    pairs: dict[int, int] = {}
-    for j in np.nonzero(inl[best])[0]:
-        row = int(nearest[best, j])
-        pairs.setdefault(row, int(j))
-    return Relocalization(pose, sorted(pairs.items()), out.score, second, len(hyps))
+    pairs = inlier_pairs(view, hyps[best], config)
+    return Relocalization(pose, pairs, out.score, second, len(hyps))
