@@ -14,6 +14,7 @@ without a full-frame pass.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from typing import NamedTuple
 
@@ -255,9 +256,11 @@ class LandmarkTracker:
         fc = self.config.fusion
         px = spots.pixels[[s for _, s in pairs]].tolist()
         sig = [self.noise.sigma_px(u, v) for u, v in px]
-        fix = self._solve([r for r, _ in pairs], px, sig, found.pose, robust=True)
+        rows_used = [r for r, _ in pairs]
+        fix = self._solve(rows_used, px, sig, found.pose, robust=True)
         if fix is None or fix.n_landmarks < 2:
             return None
+        fix = self._with_calibration(fix, rows_used, px, sig)
         res = fix.residuals_px or (fix.residual_rms_px,) * len(sig)
         inliers = sum(1 for r, si in zip(res, sig, strict=True) if r <= fc.outlier_sigma * si)
         if inliers < max(2, 0.8 * len(sig)):
@@ -339,6 +342,7 @@ class LandmarkTracker:
             if fix is None:
                 return ()
             res = fix.residuals_px
+        fix = self._with_calibration(fix, rows, px, sig)
         n = len(rows)
         if res:
             chi2 = sum((r / si) ** 2 for r, si in zip(res, sig, strict=True))
@@ -350,6 +354,21 @@ class LandmarkTracker:
             return ()
         self.noise.observe(chi2, n)
         return fix.landmark_ids
+
+    def _with_calibration(
+        self, fix: PoseFix, rows: list[int], px: list[list[float]], sig: list[float]
+    ) -> PoseFix:
+        """The fix with its covariance made honest about the calibration: the independent
+        noise part and the calibration's consider term (`noise_model`,
+        `calibration_consider`), which does not shrink with the number of landmarks. (A
+        tilted fit keeps its own covariance, plus the calibration's term.)"""
+        pose = (fix.x, fix.y, fix.theta)
+        parts = self.noise.fix_covariance(px, self.map.positions[rows], pose, sig)
+        if parts is None:
+            return fix
+        noise, calibration = parts
+        cov = (noise if fix.residuals_px else fix.covariance) + calibration
+        return dataclasses.replace(fix, covariance=cov)
 
     def _off_image(
         self, rows: list[int], px: list[list[float]], pose: tuple[float, float, float]

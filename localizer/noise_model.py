@@ -12,6 +12,13 @@ Three independent parts, added in quadrature, per landmark:
   same ray (`calibration_sigma_table`). It grows with the radius, steeply for a strong
   radial-tangential lens: a few pixels at the edge of a wide lens is normal.
 
+The first two are independent from landmark to landmark; the calibration's error is not (it
+distorts the whole image alike), so a fix's covariance carries it as a consider term
+(`calibration_consider`, `PixelNoiseModel.fix_covariance`) that does not shrink with the
+number of landmarks. The per-spot sigma here (all three parts) stays the weight of the fit and
+the scale of the per-spot outlier and chi-square tests: a residual still holds the
+calibration's systematic displacement of its spot (less what the pose absorbs).
+
 The defaults are a prior. `PixelNoiseModel.observe` adapts one common scale factor online
 from the fixes' normalised residuals (chi-square over its degrees of freedom, which is 1 on
 average when the model is right), within `adapt_bounds`.
@@ -26,6 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from localizer.calibration_consider import CalibrationConsider
 from localizer.camera import CameraModel, normalized_from_pixels, pixels_from_points_camera
 
 FloatArray = npt.NDArray[np.float64]
@@ -136,6 +144,32 @@ class PixelNoiseModel:
         self._step = float(radii[1] - radii[0]) if len(radii) > 1 else 1.0
         self._table = [math.sqrt(base2 + c * c) for c in cal.tolist()]
         self._cu, self._cv = camera.cu, camera.cv
+        self._base = math.sqrt(base2)
+        self.consider = CalibrationConsider.for_camera(
+            camera,
+            focal_rel=config.focal_rel,
+            principal_px=config.principal_px,
+            distortion_rel=config.distortion_rel,
+        )
+
+    @property
+    def independent_sigma_px(self) -> float:
+        """The part of a spot's sigma independent from landmark to landmark (centroid and
+        survey), per axis, pixels."""
+        return self.factor * self._base
+
+    def fix_covariance(
+        self,
+        pixels: list[list[float]],
+        p_world: FloatArray,
+        pose: tuple[float, float, float],
+        weight_sigma_px: list[float],
+    ) -> tuple[FloatArray, FloatArray] | None:
+        """A level fix's covariance as (independent noise part, calibration part), each (3, 3):
+        `CalibrationConsider.covariance` for a fit weighted by `weight_sigma_px`."""
+        return self.consider.covariance(
+            pixels, p_world, pose, weight_sigma_px, self.independent_sigma_px, self.factor
+        )
 
     def sigma_px(self, u: float, v: float) -> float:
         """The standard deviation of a spot at pixel (u, v), per axis, pixels."""
