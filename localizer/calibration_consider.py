@@ -9,9 +9,12 @@ covariance Sigma_cal, the weighted least-squares fix over the landmarks' pixels 
     Sigma_fix = (J^T W J)^-1 + A Sigma_cal A^T,    A = (J^T W J)^-1 J^T W J_cal,
 
 J = d pixel / d pose (x, y, theta) and J_cal = d pixel / d c, both stacked over the
-landmarks (2N rows), W the independent per-spot weights (centroid and survey noise). The
-first term shrinks like 1/N; the second does not (for a dense grid it is most of the fix's
-error, and it changes with the view, so it is what makes fixes during a turn disagree).
+landmarks (2N rows), W the fit's per-spot weights 1 / sigma_i^2. The first term shrinks like
+1/N; the second does not (for a dense grid it is most of the fix's error, and it changes with
+the view, so it is what makes fixes during a turn disagree). The localizer weighs with
+`noise_model`'s per-spot sigmas, which also hold the calibration's per-spot part in
+quadrature: that keeps the first term honest for two landmarks (where unmodelled spot errors
+are what it covers) and costs little where the second dominates.
 
 What can be, is cached per camera on a grid over the image and interpolated at each spot
 (`CalibrationConsider`):
@@ -223,8 +226,7 @@ class CalibrationConsider:
         pixels: npt.ArrayLike,
         p_world: npt.ArrayLike,
         pose: tuple[float, float, float],
-        weight_sigma_px: npt.ArrayLike,
-        noise_sigma_px: npt.ArrayLike,
+        sigma_px: npt.ArrayLike,
         calibration_scale: float = 1.0,
     ) -> tuple[FloatArray, FloatArray] | None:
         """A level fix's covariance in two parts (`consider_covariance`).
@@ -233,12 +235,11 @@ class CalibrationConsider:
             pixels: the spots, shape (N, 2), pixels.
             p_world: their landmarks, shape (N, 3), metres.
             pose: the fix (x, y, theta).
-            weight_sigma_px: the per-spot sigmas the fix was weighted with, shape (N,).
-            noise_sigma_px: each spot's independent noise (centroid and survey), shape (N,).
+            sigma_px: the per-spot sigmas of the fit (its weights), shape (N,) or a scalar.
             calibration_scale: multiplies the calibration's standard deviations.
 
         Returns:
-            (noise part, calibration part), each shape (3, 3) in (x, y, theta), SI units;
+            ((J^T W J)^-1, A Sigma_cal A^T), each shape (3, 3) in (x, y, theta), SI units;
             None with fewer than two landmarks, a landmark not above the camera or a
             singular geometry.
         """
@@ -247,11 +248,9 @@ class CalibrationConsider:
         if len(px) < 2 or np.any(P[:, 2] - self.camera.T_body_camera[2, 3] <= 1e-6):
             return None
         J, J_cal = self.jacobians(px, P, pose)
-        n = len(px)
-        w = 1.0 / np.square(np.broadcast_to(np.asarray(weight_sigma_px, dtype=np.float64), (n,)))
-        var = np.square(np.broadcast_to(np.asarray(noise_sigma_px, dtype=np.float64), (n,)))
+        sig = np.broadcast_to(np.asarray(sigma_px, dtype=np.float64), (len(px),))
         Sigma_cal = np.diag(np.square(calibration_scale * self.sigmas))
         try:
-            return consider_covariance(J, w, J_cal, Sigma_cal, var)
+            return consider_covariance(J, 1.0 / np.square(sig), J_cal, Sigma_cal)
         except np.linalg.LinAlgError:
             return None

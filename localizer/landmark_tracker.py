@@ -50,6 +50,7 @@ from localizer.tracking import (
 
 FloatArray = npt.NDArray[np.float64]
 Frame = FrameObserved | SpotsObserved
+Pose3 = tuple[float, float, float]
 
 
 class TrackResult(NamedTuple):
@@ -112,6 +113,7 @@ class LandmarkTracker:
         self.noise = PixelNoiseModel(self.camera, self.config.noise, self.scale_px_per_m)
         if old is not None:
             self.noise.factor = old.factor  # what the residuals taught so far
+        self._consider_cache: dict[tuple[int, ...], tuple[Pose3, FloatArray]] = {}
 
     def full_spots(self, e: Frame) -> Spots:
         """The spots of the whole frame (remembering its background for the windows)."""
@@ -358,17 +360,24 @@ class LandmarkTracker:
     def _with_calibration(
         self, fix: PoseFix, rows: list[int], px: list[list[float]], sig: list[float]
     ) -> PoseFix:
-        """The fix with its covariance made honest about the calibration: the independent
-        noise part and the calibration's consider term (`noise_model`,
-        `calibration_consider`), which does not shrink with the number of landmarks. (A
-        tilted fit keeps its own covariance, plus the calibration's term.)"""
+        """The fix with the calibration's consider term added to its covariance
+        (`calibration_consider`): the part of the calibration's error that is common to
+        every landmark and does not shrink with their number. It changes smoothly with the
+        view: computed again when the landmarks change or the pose has moved by
+        `PixelNoiseConfig.consider_reuse_m` / `consider_reuse_rad`."""
         pose = (fix.x, fix.y, fix.theta)
-        parts = self.noise.fix_covariance(px, self.map.positions[rows], pose, sig)
-        if parts is None:
-            return fix
-        noise, calibration = parts
-        cov = (noise if fix.residuals_px else fix.covariance) + calibration
-        return dataclasses.replace(fix, covariance=cov)
+        cached = self._consider_cache.get(fix.landmark_ids)
+        nc = self.config.noise
+        if cached is None or (
+            math.hypot(pose[0] - cached[0][0], pose[1] - cached[0][1]) > nc.consider_reuse_m
+            or abs(pose[2] - cached[0][2]) > nc.consider_reuse_rad
+        ):
+            term = self.noise.calibration_covariance(px, self.map.positions[rows], pose, sig)
+            if term is None:
+                return fix
+            cached = (pose, term)
+            self._consider_cache = {fix.landmark_ids: cached}
+        return dataclasses.replace(fix, covariance=fix.covariance + cached[1])
 
     def _off_image(
         self, rows: list[int], px: list[list[float]], pose: tuple[float, float, float]

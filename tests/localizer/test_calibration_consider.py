@@ -79,7 +79,7 @@ def test_covers_the_pose_error_a_calibration_error_causes(lens: str, mounting: s
             assert fix is not None
             e = np.array([fix.x, fix.y, fix.theta]) - POSE
             outer += np.outer(e, e)
-        parts = cc.covariance(px, P, POSE, np.full(len(px), 0.5), np.full(len(px), 0.5))
+        parts = cc.covariance(px, P, POSE, np.full(len(px), 0.5))
         assert parts is not None
         noise, cal = parts
         np.testing.assert_allclose(np.sqrt(np.diag(cal)), np.sqrt(np.diag(outer)), rtol=0.15)
@@ -98,7 +98,7 @@ def test_covers_the_pose_error_a_calibration_error_causes(lens: str, mounting: s
 def test_degenerate_geometry_is_none() -> None:
     cam = make_camera("equidistant", "upward")
     cc = CalibrationConsider.for_camera(cam, focal_rel=0.002, principal_px=0.6, distortion_rel=0.05)
-    one = cc.covariance([[300.0, 200.0]], [[1.0, 2.0, 2.7]], POSE, [0.5], [0.5])
+    one = cc.covariance([[300.0, 200.0]], [[1.0, 2.0, 2.7]], POSE, [0.5])
     below = cc.covariance([[300.0, 200.0], [340.0, 200.0]], [[1, 2, -1.0], [1.2, 2, -1.0]],
-                          POSE, [0.5, 0.5], [0.5, 0.5])  # fmt: skip
+                          POSE, [0.5, 0.5])  # fmt: skip
     assert one is None and below is None
