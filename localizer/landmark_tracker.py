@@ -24,6 +24,7 @@ import numpy.typing as npt
 from localizer.camera import CameraModel
 from localizer.config import LocalizerConfig
 from localizer.events import FrameObserved, SpotsObserved
+from localizer.geometry import wrap_angle
 from localizer.handoff import (
     Prediction,
     consistent_hypotheses,
@@ -363,21 +364,25 @@ class LandmarkTracker:
         """The fix with the calibration's consider term added to its covariance
         (`calibration_consider`): the part of the calibration's error that is common to
         every landmark and does not shrink with their number. It changes smoothly with the
-        view: computed again when the landmarks change or the pose has moved by
-        `PixelNoiseConfig.consider_reuse_m` / `consider_reuse_rad`."""
+        view and turns with the camera: for the same landmarks it is reused, turned by the
+        change of heading, until the pose has moved `PixelNoiseConfig.consider_reuse_m` or
+        `consider_reuse_rad`."""
         pose = (fix.x, fix.y, fix.theta)
         cached = self._consider_cache.get(fix.landmark_ids)
         nc = self.config.noise
+        turn = 0.0 if cached is None else float(wrap_angle(pose[2] - cached[0][2]))
         if cached is None or (
             math.hypot(pose[0] - cached[0][0], pose[1] - cached[0][1]) > nc.consider_reuse_m
-            or abs(pose[2] - cached[0][2]) > nc.consider_reuse_rad
+            or abs(turn) > nc.consider_reuse_rad
         ):
             term = self.noise.calibration_covariance(px, self.map.positions[rows], pose, sig)
             if term is None:
                 return fix
-            cached = (pose, term)
+            cached, turn = (pose, term), 0.0
             self._consider_cache = {fix.landmark_ids: cached}
-        return dataclasses.replace(fix, covariance=fix.covariance + cached[1])
+        c, s = math.cos(turn), math.sin(turn)
+        R = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+        return dataclasses.replace(fix, covariance=fix.covariance + R @ cached[1] @ R.T)
 
     def _off_image(
         self, rows: list[int], px: list[list[float]], pose: tuple[float, float, float]

@@ -57,8 +57,9 @@ class PixelNoiseConfig:
         adapt_bounds: the scale factor stays within these.
         adapt_min_landmarks: fixes from fewer landmarks do not adapt it (too few degrees of
             freedom to tell noise from a pose error).
-        consider_reuse_m, consider_reuse_rad: a fix's calibration term (`fix_covariance`) is
-            reused for the same landmarks until the pose has moved this far, metres / radians.
+        consider_reuse_m, consider_reuse_rad: a fix's calibration term
+            (`calibration_covariance`) is reused for the same landmarks (turned with the
+            heading) until the pose has moved this far, metres / radians.
     """
 
     centroid_sigma_px: float = 0.5
@@ -70,8 +71,8 @@ class PixelNoiseConfig:
     adapt_gain: float = 0.02
     adapt_bounds: tuple[float, float] = (0.5, 3.0)
     adapt_min_landmarks: int = 4
-    consider_reuse_m: float = 0.02
-    consider_reuse_rad: float = 0.02
+    consider_reuse_m: float = 0.05
+    consider_reuse_rad: float = 0.1
 
     def __post_init__(self) -> None:
         for name in ("centroid_sigma_px", "survey_sigma_m", "focal_rel", "principal_px",
