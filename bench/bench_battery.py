@@ -47,7 +47,13 @@ if str(ROOT) not in sys.path:
 
 from bench.virtual_site import SiteRun, parked, robot_stats, run_site, run_virtual  # noqa: E402
 from server.settings import Settings  # noqa: E402
-from sim.energy import DutyCycle, RadioSleep, combine_duty, predict_life_days  # noqa: E402
+from sim.energy import (  # noqa: E402
+    DutyCycle,
+    LandmarkEnergy,
+    RadioSleep,
+    combine_duty,
+    predict_life_days,
+)
 from sim.scenario import load_scenario  # noqa: E402
 
 SHIFT_H, IDLE_H = 8.0, 16.0
@@ -67,15 +73,49 @@ class Row:
     robots: dict[str, dict[str, float]]
     wall_s: float
     warmup_s: float
+    mean_ma: dict[str, float]
+    worst_ma: dict[str, float]
+    worst_id: int
 
 
 def duties(run: SiteRun) -> dict[int, DutyCycle]:
-    """Per landmark: measured LED duty and commands per second."""
+    """Per landmark: measured LED duty, commands per second and the radio's mean current
+    (what its radio did: asleep, waking, receiving and answering, awake after commands)."""
     out = {}
     for lid in run.landmark_ids:
-        on_s, messages = run.energy.get(lid, (0.0, 0))
-        out[lid] = DutyCycle(on_s / run.seconds, messages / run.seconds)
+        e = run.energy.get(lid, LandmarkEnergy())
+        out[lid] = DutyCycle(e.led_on_s / run.seconds, e.messages / run.seconds, e.radio_ma)
     return out
+
+
+TERMS = ("led", "idle", "wake", "message")
+
+
+def breakdown(run: SiteRun) -> dict[int, dict[str, float]]:
+    """Per landmark: mean current of each term over the run, mA (LED; radio asleep or
+    listening idle; cyclic wake-ups; commands and the awake time after them), and the
+    radio's awake and transmit shares."""
+    out = {}
+    for lid in run.landmark_ids:
+        e = run.energy.get(lid, LandmarkEnergy())
+        t_h = max(e.time_s, 1e-9) / 3600.0
+        out[lid] = {
+            "led": e.led_mah / t_h, "idle": e.idle_mah / t_h, "wake": e.wake_mah / t_h,
+            "message": e.message_mah / t_h, "awake": e.awake_s / max(e.time_s, 1e-9),
+            "tx": e.tx_s / max(e.time_s, 1e-9),
+        }  # fmt: skip
+    return out
+
+
+def day_breakdown(shift: SiteRun, idle: SiteRun, lids: list[int]) -> dict[str, float]:
+    """The day's mean current by term (8 h shift + 16 h idle), over `lids`, mA (and the
+    median landmark's awake and transmit shares)."""
+    b_s, b_i = breakdown(shift), breakdown(idle)
+    day = {
+        k: float(np.mean([(SHIFT_H * b_s[i][k] + IDLE_H * b_i[i][k]) / 24 for i in lids]))
+        for k in (*TERMS, "awake", "tx")
+    }
+    return day
 
 
 def measure(site: str, config: str, args: argparse.Namespace) -> Row:
@@ -98,13 +138,17 @@ def measure(site: str, config: str, args: argparse.Namespace) -> Row:
     wall = time.perf_counter() - t0
     d_shift, d_idle = duties(shift), duties(idle)
     sleep = None if sleep_s is None else RadioSleep(sleep_s)
-    lives = [
-        predict_life_days(
+    counted = [
+        lid for lid in shift.landmark_ids if shift.capacity_mah.get(lid, 0.0) >= STANDARD_MAH
+    ]
+    life = {
+        lid: predict_life_days(
             combine_duty([(SHIFT_H, d_shift[lid]), (IDLE_H, d_idle[lid])]), sleep=sleep
         )
-        for lid in shift.landmark_ids
-        if shift.capacity_mah.get(lid, 0.0) >= STANDARD_MAH
-    ]
+        for lid in counted
+    }
+    lives = list(life.values())
+    worst_id = min(life, key=life.__getitem__)
     n = len(shift.landmark_ids)
     robots = {name: robot_stats(shift, name) for name in sorted(shift.poses)}
     for name, stats in robots.items():  # the first fix of a cold start (server restart)
@@ -114,6 +158,7 @@ def measure(site: str, config: str, args: argparse.Namespace) -> Row:
         float(np.median(lives)), float(np.min(lives)),
         float(np.mean(shift.lit_samples)) / n, float(np.mean(idle.lit_samples)) / n,
         shift.commands / shift.seconds, robots, wall, args.warmup_s,
+        day_breakdown(shift, idle, counted), day_breakdown(shift, idle, [worst_id]), worst_id,
     )  # fmt: skip
 
 
@@ -134,6 +179,22 @@ def print_rows(rows: list[Row]) -> None:
             f"| {100 * r.lit_fraction:.1f} | {100 * r.idle_lit_fraction:.1f} "
             f"| {r.commands_per_s:.2f} | {robots} | {r.wall_s:.0f} |"
         )
+    print(
+        "\nwhere the charge goes, the day's mean current in mA (8 h shift + 16 h idle; "
+        "mean landmark, and the worst one): LED | radio asleep / listening | cyclic wake-ups "
+        "| commands + awake after them | total (radio awake %, transmitting %)"
+    )
+    print("\n| site | config | landmarks | LED | asleep/idle | wake-ups | commands | total "
+          "| awake % | tx % |")  # fmt: skip
+    print("|---|---|---|---|---|---|---|---|---|---|")
+    for r in rows:
+        for label, m in (("mean", r.mean_ma), (f"worst ({r.worst_id})", r.worst_ma)):
+            total = sum(m[k] for k in TERMS)
+            print(
+                f"| {r.site} | {r.config} | {label} | {m['led']:.2f} | {m['idle']:.3f} "
+                f"| {m['wake']:.3f} | {m['message']:.3f} | {total:.2f} "
+                f"| {100 * m['awake']:.2f} | {100 * m['tx']:.3f} |"
+            )
 
 
 def check_targets(rows: list[Row]) -> bool:

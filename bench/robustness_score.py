@@ -10,7 +10,8 @@ the scorer works whatever the localizer does inside:
 - frames in each mode;
 - **wrong-ID frames**: a frame whose output names a landmark that is not the one truly at
   that spot. Each named landmark is projected from the surveyed map through the nominal
-  camera at the estimated pose (where the fit put that landmark's spot); the true IR source
+  camera at the estimated planar pose, with the body's true tilt and lift (where the fit put
+  that landmark's spot); the true IR source
   nearest to that pixel (every lit-able landmark and glint, through the true camera at the
   true pose) must be that landmark;
 - **gross frames**: a `landmark`-mode pose more than `GROSS_POSITION_M` or
@@ -112,8 +113,14 @@ def wrong_ids(
     if not ids:
         return unknown
     p_map = np.array([truth.surveyed[i] for i in ids])
-    claimed, ok = _pixels(truth.camera_nominal, T_world_body_from_pose(*pose_est), p_map)
-    seen, valid = _pixels(truth.camera_true, truth.T_world_body(*pose_true), truth.sources)
+    # The localizer outputs a planar pose; the body's tilt and lift (a floor bump, a tilted
+    # floor) are the floor's. The claimed pixels take them from the truth, so a body tilted
+    # by a bump (5 deg moves a spot ~20 px) does not put a landmark the localizer named
+    # correctly onto a glint beside it.
+    T_true = truth.T_world_body(*pose_true)
+    T_tilt = np.linalg.inv(T_world_body_from_pose(*pose_true)) @ T_true
+    claimed, ok = _pixels(truth.camera_nominal, T_world_body_from_pose(*pose_est) @ T_tilt, p_map)
+    seen, valid = _pixels(truth.camera_true, T_true, truth.sources)
     seen[~valid] = np.inf
     out = unknown
     for lid, (u, v), inside in zip(ids, claimed, ok, strict=True):

@@ -34,6 +34,7 @@ from server.poses import PoseUpdate
 from server.settings import Settings
 from server.site.leds import LedCoordinator
 from server.site.robot import RobotRunner, make_localizer
+from sim.energy import LandmarkEnergy
 from sim.live import LiveSite
 from sim.routes import Route, Wait
 from sim.scenario import Scenario, load_scenario
@@ -91,7 +92,7 @@ class SiteRun:
         lit_samples: number of lit landmarks at each 0.25 s sample.
         commands: radio commands the gateway sent.
         seconds: virtual time measured (from `measure_from_s`).
-        energy: per landmark (LED on-seconds, messages) over the run.
+        energy: per landmark, what it did and drew over the run (`sim.energy`).
         landmark_ids: the site's landmarks.
         scheduler: the scheduler, if any (its books).
     """
@@ -100,7 +101,7 @@ class SiteRun:
     lit_samples: list[int] = field(default_factory=list)
     commands: int = 0
     seconds: float = 0.0
-    energy: dict[int, tuple[float, int]] = field(default_factory=dict)
+    energy: dict[int, LandmarkEnergy] = field(default_factory=dict)
     landmark_ids: list[int] = field(default_factory=list)
     scheduler: LedScheduler | None = None
     capacity_mah: dict[int, float] = field(default_factory=dict)
@@ -119,12 +120,14 @@ async def run_site(
     measure_from_s: float = 0.0,
     known_poses: bool = False,
     on_step: Callable[[float, LiveSite], None] | None = None,
+    routes: bool = True,
 ) -> SiteRun:
     """Run a site for `seconds` of virtual time with the settings' LED policy and radios.
 
     Energy, lit samples and radio commands are counted from `measure_from_s` on (poses from
     the start). `known_poses`: each robot starts with its pose known to within a few
-    centimetres (as at the end of a shift) instead of a cold start."""
+    centimetres (as at the end of a shift) instead of a cold start. `routes`: the scheduler
+    knows each robot's route (the next waypoints, as a fleet manager would)."""
     loop = asyncio.get_running_loop()
     sc = load_scenario(scenario) if isinstance(scenario, str) else scenario
 
@@ -171,8 +174,9 @@ async def run_site(
     positions = np.asarray(lmap.positions, dtype=np.float64)
     if settings.led_policy == "scheduled":
         run.scheduler = make_scheduler(
-            lambda: (ids, positions), lambda: list(runners.values()), leds, clock_ns, settings
-        )
+            lambda: (ids, positions), lambda: list(runners.values()), leds, clock_ns, settings,
+            routes=site.planned_route if routes else None,
+        )  # fmt: skip
     t0 = loop.time()
     run.t0_ns, run.measure_from_s = clock_ns(), measure_from_s
     site.step(clock_ns())
@@ -198,9 +202,7 @@ async def run_site(
     run.seconds = loop.time() - t0 - measure_from_s
     run.commands = gateway.stats.commands - commands0
     if site.world.energy is not None:
-        run.energy = {
-            lid: (e.led_on_s, e.messages) for lid, e in site.world.energy.landmarks.items()
-        }
+        run.energy = {lid: dataclasses.replace(e) for lid, e in site.world.energy.landmarks.items()}
     if run.scheduler is not None:
         await run.scheduler.stop()
     await leds.stop()

@@ -47,6 +47,7 @@ from localizer.tracking import (
     default_angular_speed,
     motion_bound_px,
     scale_px_per_m,
+    unambiguous_pairs,
 )
 
 FloatArray = npt.NDArray[np.float64]
@@ -228,7 +229,13 @@ class LandmarkTracker:
         else:
             d = [[math.hypot(u - a, v - b) for a, b in spot_px] for u, v in px]
             rows = pred.row_list
-            pairs = [(rows[k], s) for k, s in bottleneck_assignment(d, gates)]
+            sure, _ = unambiguous_pairs(
+                d,
+                bottleneck_assignment(d, gates),
+                [g / tc.sigma_gate for g in gates],
+                tc.ambiguity_log_ratio,
+            )
+            pairs = [(rows[k], s) for k, s in sure]
         used = self._fuse(filt, pairs, spot_px, pose) if len(pairs) >= 2 else ()
         return TrackResult(used, unexplained=not used and len(pred) >= 2, expected=expected)
 

@@ -42,6 +42,11 @@ class TrackingConfig:
         edge_check_px: a matched spot this close to the image border is checked after the
             fix: its landmark must project inside the image, near it, at the fixed pose.
         border_px: and at least this far inside the image, pixels.
+        ambiguity_log_ratio: a landmark's spot is taken only when every other spot that no
+            landmark claims within its gate is less likely by this much (natural log of the
+            likelihood ratio, the displacement taken as Gaussian with a standard deviation of
+            gate / sigma_gate): an unmapped source (a glint, a lamp) beside a landmark leaves
+            that landmark out of the fix instead of being taken for it (4.6: 100:1).
     """
 
     min_half_size_px: float = 6.0
@@ -52,12 +57,17 @@ class TrackingConfig:
     speed_change_sigma: float = 0.5
     edge_check_px: float = 40.0
     border_px: float = 3.0
+    ambiguity_log_ratio: float = 4.6
 
     def __post_init__(self) -> None:
         if not 0 < self.min_half_size_px <= self.max_half_size_px:
             raise ValueError("TrackingConfig: need 0 < min_half_size_px <= max_half_size_px")
         if self.sigma_gate <= 0 or not 0 <= self.odometry_speed_fraction <= 1:
             raise ValueError("TrackingConfig: sigma_gate > 0, odometry_speed_fraction in [0, 1]")
+        if self.ambiguity_log_ratio < 0:
+            raise ValueError(
+                f"TrackingConfig.ambiguity_log_ratio must be >= 0, got {self.ambiguity_log_ratio}"
+            )
 
 
 @overload
@@ -186,6 +196,44 @@ def bottleneck_assignment(
     big = 1e9
     rows, cols = linear_sum_assignment(np.where(ok, c, big))
     return sorted((int(r), int(k)) for r, k in zip(rows, cols, strict=True) if ok[r, k])
+
+
+def unambiguous_pairs(
+    cost: list[list[float]],
+    pairs: list[tuple[int, int]],
+    sigma_px: list[float],
+    log_ratio: float,
+) -> tuple[list[tuple[int, int]], list[int]]:
+    """Split an assignment into the pairs whose spot is clearly the landmark's and the rest.
+
+    A pair (k, s) is ambiguous when a spot j that no pair uses lies nearly as close to
+    landmark k's prediction: with the displacement Gaussian (standard deviation sigma_k), the
+    log likelihood ratio of s over j, (d_kj^2 - d_ks^2) / (2 sigma_k^2), is below `log_ratio`.
+    Spots taken by other landmarks are explained and never rivals (a dense grid's neighbours).
+
+    Args:
+        cost: displacement of spot j from landmark k's prediction, pixels, K x S.
+        pairs: (k, s) of an assignment (`bottleneck_assignment`).
+        sigma_px: per landmark, the standard deviation of its displacement, pixels, K.
+        log_ratio: the least log likelihood ratio of the taken spot over any rival.
+
+    Returns:
+        (the unambiguous pairs, the rows k left out as ambiguous).
+    """
+    taken = {s for _, s in pairs}
+    free = [j for j in range(len(cost[0]) if cost else 0) if j not in taken]
+    if not free:  # the usual frame: every spot is a landmark's
+        return pairs, []
+    keep: list[tuple[int, int]] = []
+    left: list[int] = []
+    for k, s in pairs:
+        row = cost[k]
+        bound = row[s] * row[s] + 2.0 * log_ratio * sigma_px[k] * sigma_px[k]
+        if any(row[j] * row[j] < bound for j in free):
+            left.append(k)
+        else:
+            keep.append((k, s))
+    return keep, left
 
 
 def _matching_size(allowed: npt.NDArray[np.bool_]) -> int:

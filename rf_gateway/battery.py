@@ -31,6 +31,10 @@ class BatteryConfig:
         history_len: readings kept per landmark.
         fit_window_days: only readings this recent enter the trend fit.
         min_fit_span_days: no estimate before the history spans this long.
+        first_read_s: the first scheduled read starts this long after the start-up sweep
+            has lit every LED, seconds (with sleeping radios each read holds one of the
+            coordinator's few in-flight slots up to a sleep period: not while robots
+            identify after a start).
     """
 
     interval_s: float | None = 3600.0
@@ -40,6 +44,7 @@ class BatteryConfig:
     history_len: int = 2000
     fit_window_days: float = 30.0
     min_fit_span_days: float = 0.5
+    first_read_s: float = 0.0
 
 
 @dataclass(frozen=True)

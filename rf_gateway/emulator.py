@@ -55,6 +55,7 @@ class EmulatedRemote:
         late_replies: the next this many replies come `late_delay_s` late (a reply crossing
             the host's retry).
         pins: DIO configuration values by command ("D4" -> 5 means output high).
+        settings: sleep settings written (`ST`, `SP`, `SM`, `SN` -> value).
         applied: every parameter write applied, as (command, value) in order.
     """
 
@@ -69,6 +70,7 @@ class EmulatedRemote:
     late_replies: int = 0
     late_delay_s: float = 0.5
     pins: dict[str, int] = field(default_factory=dict)
+    settings: dict[str, int] = field(default_factory=dict)
     applied: list[tuple[str, int]] = field(default_factory=list)
 
     @property
@@ -349,6 +351,14 @@ class XBeeEmulator:
                     remote.applied.append((cmd, frame.parameter[-1]))
                 return STATUS_OK, b""
             return STATUS_OK, bytes((remote.pins.get(cmd, 0),))
+        if cmd in ("ST", "SP", "SM", "SN"):  # sleep settings: recorded, not modelled
+            if frame.parameter:
+                value = int.from_bytes(frame.parameter, "big")
+                with self._lock:
+                    remote.settings[cmd] = value
+                    remote.applied.append((cmd, value))
+                return STATUS_OK, b""
+            return STATUS_OK, remote.settings.get(cmd, 0).to_bytes(2, "big")
         if cmd in ("AC", "WR"):
             return STATUS_OK, b""
         return STATUS_INVALID_COMMAND, b""

@@ -35,6 +35,7 @@ from rf_gateway.errors import (
     LandmarkUnreachableError,
     RadioTimeout,
     RemoteCommandError,
+    RfGatewayError,
     TransportUnavailable,
     UnknownLandmarkError,
 )
@@ -401,6 +402,32 @@ class Gateway:
             event = LandmarkUnreachable(self.clock_ns(), lid, self._addresses[lid], tries)
             self._events_hub.publish(event)
 
+    # -- sleep ---------------------------------------------------------------------------------
+    async def set_awake_time(
+        self, landmark_ids: Iterable[int], seconds: float, *, priority: Priority = Priority.IDENTIFY
+    ) -> frozenset[int]:
+        """Set how long each landmark stays awake after a message (XBee `ST`): a long
+        window keeps sleeping landmarks polling every `poll_interval_s` (commands reach them
+        within it instead of up to a sleep period) while robots identify; the usual `ST`
+        lets them sleep again. Returns the landmarks that confirmed (a failure marks a
+        landmark unreachable as any command does; nothing is raised for it)."""
+        ids = sorted(int(i) for i in landmark_ids)
+        for lid in ids:
+            self.address_of(lid)  # UnknownLandmarkError before anything is sent
+
+        async def one(lid: int) -> int:
+            address = self._addresses[lid]
+            send = partial(self.transport.set_awake_time, address, seconds)
+            await self._command(lid, priority, send)
+            self.wake.set_wake_s(lid, seconds, asyncio.get_running_loop().time())
+            return lid
+
+        results = await asyncio.gather(*(one(lid) for lid in ids), return_exceptions=True)
+        for r in results:
+            if isinstance(r, BaseException) and not isinstance(r, RfGatewayError):
+                raise r
+        return frozenset(r for r in results if isinstance(r, int))
+
     # -- battery and discovery ----------------------------------------------------------------
     async def battery(self, landmark_id: int) -> BatteryReading:
         """Read one landmark's supply now (battery-poll priority), record it, tell the
@@ -423,6 +450,11 @@ class Gateway:
         return await read_all(self.battery, sorted(self._addresses), self.config.max_in_flight)
 
     async def _battery_loop(self) -> None:
+        if self.config.light_all_on_start:
+            async with self._sweep_lock:  # after the start-up sweep
+                pass
+        if self.config.battery.first_read_s > 0:
+            await asyncio.sleep(self.config.battery.first_read_s)
         while self.config.battery.interval_s is not None:
             await self.poll_batteries()
             await asyncio.sleep(self.config.battery.interval_s)

@@ -16,6 +16,8 @@ class SimRadioLike(Protocol):
 
     async def read_supply_mv(self, address: str) -> int | None: ...
 
+    async def set_awake_time(self, address: str, seconds: float) -> bool: ...
+
     async def discover(self) -> list[tuple[str, str]]: ...
 
 
@@ -60,6 +62,18 @@ class SimTransport(StateReporter):
         self._check_open()
         try:
             ok = await asyncio.wait_for(self.radio.set_pin(address, high), self.command_timeout_s)
+        except TimeoutError:
+            raise RadioTimeout(address) from None
+        if not ok:
+            raise RadioTimeout(address, f"radio {address} did not acknowledge")
+
+    async def set_awake_time(self, address: str, seconds: float) -> None:
+        address = normalize_address(address)
+        self._check_open()
+        try:
+            ok = await asyncio.wait_for(
+                self.radio.set_awake_time(address, seconds), self.command_timeout_s
+            )
         except TimeoutError:
             raise RadioTimeout(address) from None
         if not ok:

@@ -120,6 +120,11 @@ class Transport(Protocol):
         """The landmark's supply voltage in millivolts (remote `%V`); raises as `set_pin`."""
         ...
 
+    async def set_awake_time(self, address: str, seconds: float) -> None:
+        """Set how long a sleeping landmark stays awake after each message (remote `ST`,
+        milliseconds, applied at once, not saved); raises as `set_pin`."""
+        ...
+
     async def discover(self) -> list[DiscoveredRadio]:
         """Every radio that answers node discovery (the coordinator excluded)."""
         ...

@@ -23,6 +23,12 @@ class WakeTracker:
         self.sleep = sleep
         self._phase: dict[int, float] = {}
         self._awake_until: dict[int, float] = {}
+        self._wake_s: dict[int, float] = {}
+
+    def set_wake_s(self, landmark_id: int, wake_s: float, now_s: float) -> None:
+        """The landmark's `ST` was set to `wake_s` by a command answered at `now_s`."""
+        self._wake_s[landmark_id] = wake_s
+        self._awake_until[landmark_id] = now_s + wake_s
 
     def send_delay_s(self, landmark_id: int, now_s: float) -> float:
         """How long to wait before sending a command to the landmark (0: send now)."""
@@ -43,7 +49,7 @@ class WakeTracker:
             return
         if answered_s - sent_s > sl.poll_interval_s + 2 * sl.air_s:
             self._phase[landmark_id] = (answered_s - sl.air_s / 2) % sl.period_s
-        self._awake_until[landmark_id] = answered_s + sl.wake_s
+        self._awake_until[landmark_id] = answered_s + self._wake_s.get(landmark_id, sl.wake_s)
 
     def forget(self, landmark_id: int) -> None:
         """No answer (timeout): the landmark's timing is no longer known."""

@@ -261,6 +261,16 @@ class XBeeTransport(StateReporter):
             return
         await self._remote_call(address, lambda r: r.set_parameter(self.pin, value))
 
+    async def set_awake_time(self, address: str, seconds: float) -> None:
+        ms = round(seconds * 1000.0)
+        if not 1 <= ms <= 0xFFFE:
+            raise ValueError(f"set_awake_time: ST is 1 .. 65534 ms, got {seconds} s")
+        value = bytearray(ms.to_bytes(2, "big"))
+        if self.config.pipelined:
+            await self._pipelined(address, "ST", bytes(value))
+            return
+        await self._remote_call(address, lambda r: r.set_parameter("ST", value))
+
     async def read_supply_mv(self, address: str) -> int:
         if self.config.pipelined:
             reply = await self._pipelined(address, "%V", b"")

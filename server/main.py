@@ -41,6 +41,7 @@ from server.routes import (
     floorplan,
     history,
     landmarks,
+    leds,
     map,
     remote,
     robots,
@@ -149,7 +150,7 @@ def create_app(settings: Settings | None = None, viewer: ViewerApp | None = None
     api = APIRouter(prefix=API_PREFIX, dependencies=[Depends(refuse_unknown_query)])
     for module in (
         landmarks, map, history, floorplan, robots, calibration, remote, admin, streams,
-        commissioning, survey,
+        commissioning, survey, leds,
     ):  # fmt: skip
         api.include_router(module.router)
     api.add_api_route(

@@ -130,8 +130,9 @@ class Battery:
         return led_current_ma(self.config, self.supply_v(True))
 
     def draw(self, mah: float) -> None:
-        """Take `mah` of charge (an energy model's account of what the landmark did)."""
-        self.drawn_mah = min(self.drawn_mah + max(mah, 0.0), self.config.capacity_mah)
+        """Take `mah` of charge (an energy model's account of what the landmark did; a
+        negative amount returns charge taken too early, e.g. awake time cut short)."""
+        self.drawn_mah = min(max(self.drawn_mah + mah, 0.0), self.config.capacity_mah)
 
     def advance(self, dt_s: float, led_on: bool) -> None:
         """Draw the load's charge for `dt_s` seconds (LED and `idle_current_ma`)."""

@@ -106,20 +106,34 @@ class LandmarkEnergy:
         time_s: time accounted, seconds.
         led_on_s: time with the LED lit, seconds.
         awake_s: time with the radio awake, seconds.
+        tx_s: of `awake_s`, the time transmitting (polls and answers), seconds.
         messages: commands received and answered.
         led_mah, radio_mah: charge drawn by the LED and by the radio, mAh.
+        idle_mah: of `radio_mah`, asleep or (awake radios) listening with nothing to do, mAh.
+        wake_mah: of `radio_mah`, the cyclic wake-ups that found nothing (poll, wait), mAh.
+        message_mah: of `radio_mah`, receiving and answering commands and staying awake
+            `ST` after them, mAh.
     """
 
     time_s: float = 0.0
     led_on_s: float = 0.0
     awake_s: float = 0.0
+    tx_s: float = 0.0
     messages: int = 0
     led_mah: float = 0.0
     radio_mah: float = 0.0
+    idle_mah: float = 0.0
+    wake_mah: float = 0.0
+    message_mah: float = 0.0
 
     @property
     def led_duty(self) -> float:
         return self.led_on_s / self.time_s if self.time_s > 0 else 0.0
+
+    @property
+    def radio_ma(self) -> float:
+        """Mean radio current over the time accounted (sleep, wake-ups, commands), mA."""
+        return self.radio_mah * 3600.0 / self.time_s if self.time_s > 0 else 0.0
 
 
 @dataclass
@@ -148,21 +162,34 @@ class EnergyLedger:
         if led_ma > 0:
             e.led_on_s += dt_s
             e.led_mah += led_ma * dt_s / 3600.0
-        e.awake_s += dt_s * awake_fraction(self.power, self.sleep)
+        awake = dt_s * awake_fraction(self.power, self.sleep)
+        e.awake_s += awake
         radio = self.radio_ma() * dt_s / 3600.0
         e.radio_mah += radio
+        if self.sleep is None:
+            e.idle_mah += radio
+        else:
+            idle = ((dt_s - awake) * self.power.sleep_ma + dt_s * self.power.mcu_ma) / 3600.0
+            e.idle_mah += idle
+            e.wake_mah += radio - idle
+            e.tx_s += dt_s / self.sleep.period_s * self.power.poll_tx_s
         return radio
 
     def message(self, landmark_id: int, extra_awake_s: float = 0.0) -> float:
         """Account one command received and answered, and `extra_awake_s` more of staying
-        awake after it (`RadioSleep.wake_s`); returns the charge, mAh."""
+        awake after it (`RadioSleep.wake_s`; negative: awake time already counted that a
+        shorter `ST` cut off); returns the charge, mAh."""
         e = self.landmarks.setdefault(landmark_id, LandmarkEnergy())
         e.messages += 1
         q = self.power.charge_per_message_mah()
+        e.tx_s += self.power.message_tx_s
         if self.sleep is not None:
             e.awake_s += self.power.message_s + extra_awake_s
             q += extra_awake_s * self.sleep.awake_ma(self.power) / 3600.0
+            polls = extra_awake_s / self.sleep.poll_interval_s
+            e.tx_s += polls * self.power.poll_tx_s
         e.radio_mah += q
+        e.message_mah += q
         return q
 
     def reset(self) -> None:
@@ -177,10 +204,15 @@ class DutyCycle:
     Attributes:
         led_duty: share of the time the LED is lit, 0..1.
         messages_per_s: commands received per second, averaged over the day.
+        radio_ma: the radio's mean current as measured (`LandmarkEnergy.radio_ma`: sleep,
+            wake-ups, commands and the awake time after them as they happened), mA; None:
+            modelled from `messages_per_s` (each command keeps the radio awake a whole
+            `ST`, no overlap).
     """
 
     led_duty: float
     messages_per_s: float = 0.0
+    radio_ma: float | None = None
 
 
 def combine_duty(parts: list[tuple[float, DutyCycle]]) -> DutyCycle:
@@ -188,9 +220,16 @@ def combine_duty(parts: list[tuple[float, DutyCycle]]) -> DutyCycle:
     hours = sum(h for h, _ in parts)
     if hours <= 0:
         raise ValueError("combine_duty: the parts must add up to a positive time")
+    measured = [d.radio_ma for _, d in parts]
+    radio = (
+        None
+        if any(m is None for m in measured)
+        else sum(h * (d.radio_ma or 0.0) for h, d in parts) / hours
+    )
     return DutyCycle(
         sum(h * d.led_duty for h, d in parts) / hours,
         sum(h * d.messages_per_s for h, d in parts) / hours,
+        radio,
     )
 
 
@@ -209,7 +248,7 @@ def predict_life_days(
     Integrates dt = dQ / I(Q) over the discharge curve from `charge` (1 = fresh cells) to
     the brown-out voltage, with I = LED current at the present voltage x `led_duty` (times
     `led_scale`, for an LED current other than the resistor's) + the radio's mean current +
-    the messages' charge rate.
+    the messages' charge rate (or the measured `duty.radio_ma` in place of both).
 
     Returns:
         days (inf when nothing draws any current).
@@ -221,6 +260,8 @@ def predict_life_days(
     if sleep is not None:  # each message keeps it awake up to `wake_s` (no overlap assumed)
         per_msg_mah += sleep.wake_s * sleep.awake_ma(pw) / 3600.0
     msg_ma = duty.messages_per_s * per_msg_mah * 3600.0
+    if duty.radio_ma is not None:
+        radio_ma, msg_ma = duty.radio_ma, 0.0
     drawn0 = 1.0 - charge
     days = 0.0
     df = (1.0 - drawn0) / steps

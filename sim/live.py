@@ -130,6 +130,11 @@ class LiveSite:
         """The robot's true (x, y, theta) at the last stepped time."""
         return self.rig(name).robot.pose_at(self._t_local_ns)
 
+    def planned_route(self, name: str, count: int = 4) -> tuple[tuple[float, float], ...]:
+        """The next points of the robot's route, (x, y) metres (as its fleet manager would
+        know them; empty when it is not following waypoints)."""
+        return self.rig(name).robot.follower.upcoming(count)
+
     def true_pose_at(self, name: str, t_ns: int) -> tuple[float, float, float] | None:
         """The robot's true (x, y, theta) when it took its frame stamped `t_ns` (one of the
         last `truth_history` frames), or None."""

@@ -68,6 +68,7 @@ class SimRadio:
             world.energy.sleep = sleep
         self.messages = 0
         self._awake_until: dict[int, float] = {}
+        self._wake_s: dict[int, float] = {}  # per landmark `ST` set over the air
 
     @property
     def sleep_period_s(self) -> float:
@@ -85,20 +86,32 @@ class SimRadio:
             return (phase - now_s) % self.sleep.poll_interval_s
         return (phase - now_s) % self.sleep.period_s
 
-    def _delivered(self, landmark_id: int, now_s: float) -> None:
-        """Account a delivered command and keep the radio awake `wake_s` after it."""
+    def wake_s(self, landmark_id: int) -> float:
+        """The landmark's time awake after a message (`ST`), seconds (0: awake radios)."""
+        if self.sleep is None:
+            return 0.0
+        return self._wake_s.get(landmark_id, self.sleep.wake_s)
+
+    def _delivered(self, landmark_id: int, now_s: float, new_wake_s: float | None = None) -> None:
+        """Account a delivered command and keep the radio awake `wake_s` after it (a command
+        setting `ST` restarts the timer with `new_wake_s`)."""
         extra = 0.0
         if self.sleep is not None:
-            until = now_s + self.sleep.wake_s
-            extra = max(until - max(self._awake_until.get(landmark_id, now_s), now_s), 0.0)
-            self._awake_until[landmark_id] = max(until, self._awake_until.get(landmark_id, 0.0))
+            before = self._awake_until.get(landmark_id, now_s)
+            if new_wake_s is not None:
+                self._wake_s[landmark_id] = new_wake_s
+            until = now_s + self.wake_s(landmark_id)
+            extra = max(until - max(before, now_s), 0.0)
+            if new_wake_s is not None and until < before:  # a shorter ST: asleep earlier
+                extra = until - before  # the awake time charged beyond it is refunded
+            self._awake_until[landmark_id] = until if new_wake_s is not None else max(until, before)
         self.messages += 1
         self.world.radio_message(landmark_id, extra)
 
     def _lost(self) -> bool:
         return bool(self.rng.random() < self.loss)
 
-    async def _exchange(self, address: str) -> SimLandmark | None:
+    async def _exchange(self, address: str, new_wake_s: float | None = None) -> SimLandmark | None:
         """Deliver one command: the landmark if it arrived; None after a timeout otherwise.
 
         The command's effect is applied by the caller between delivery and the answer.
@@ -111,7 +124,7 @@ class SimRadio:
             await asyncio.sleep(wait + self.timeout_s)  # from when it would have arrived
             return None
         await asyncio.sleep(wait + latency / 2)
-        self._delivered(lm.id, loop.time())
+        self._delivered(lm.id, loop.time(), new_wake_s)
         return lm
 
     async def _answer(self, latency_started: float) -> bool:
@@ -141,6 +154,16 @@ class SimRadio:
             return None
         mv = round(lm.battery.supply_v(lm.led_on) * 1000.0)
         return mv if await self._answer(self.latency_s[0] / 2) else None
+
+    async def set_awake_time(self, address: str, seconds: float) -> bool:
+        """Set a landmark's time awake after each message (XBee `ST`, applied at once, so
+        it already holds after this command); True when acknowledged."""
+        if not 0.0 <= seconds <= 65.0:
+            raise ValueError(f"set_awake_time: ST 0 .. 65 s, got {seconds}")
+        lm = await self._exchange(address, float(seconds))
+        if lm is None:
+            return False
+        return await self._answer(self.latency_s[0] / 2)
 
     async def discover(self) -> list[tuple[str, str]]:
         """(address, node identifier) of every landmark that answers a node discovery."""

@@ -115,6 +115,29 @@ class RouteFollower:
     def finished(self) -> bool:
         return self._index >= len(self.route.steps)
 
+    def upcoming(self, count: int = 4) -> tuple[tuple[float, float], ...]:
+        """The next `count` points the route drives to, (x, y) in metres, from the step
+        under way (what a fleet manager's order holds: the nodes still to be reached)."""
+        steps = self.route.steps
+        if not steps or count <= 0:
+            return ()
+        out: list[tuple[float, float]] = []
+        index = self._index
+        for _ in range(len(steps)):
+            if index >= len(steps):
+                if not self.route.loop:
+                    break
+                index = 0
+            step = steps[index]
+            if isinstance(step, Goto):
+                out.append((step.x, step.y))
+                if len(out) >= count:
+                    break
+            elif isinstance(step, Kidnap | Drive):
+                break  # not a route a fleet manager plans
+            index += 1
+        return tuple(out)
+
     def carrying(self, t_s: float) -> tuple[Kidnap, float] | None:
         """The kidnap under way at `t_s` and the share of its carry done (0..1), or None."""
         if self.finished or self._step_started_s is None:

@@ -215,7 +215,8 @@ class World:
 
     def radio_message(self, landmark_id: int, extra_awake_s: float = 0.0) -> None:
         """A command reached the landmark and it answered (and stays awake `extra_awake_s`
-        longer than it would have): account the radio's charge."""
+        longer than it would have; negative: shorter, after a shorter `ST`): account the
+        radio's charge."""
         if self.energy is not None:
             with self._lock:
                 q = self.energy.message(landmark_id, extra_awake_s)

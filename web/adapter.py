@@ -28,6 +28,7 @@ from server.facades import BatteryStatus
 from server.led_schedule.status import site_energy
 from server.models import LandmarkCreate, LandmarkPublic, LandmarkUpdate
 from server.services import SiteServices
+from server.survey_service import SurveyStatus
 from web.panels.monitor import local_time_text
 from web.services import (
     CameraView,
@@ -251,3 +252,20 @@ class SiteAdapter:
 
     def wizard_cancel(self, *, actor: str) -> None:
         self.services.commissioning.cancel(actor=actor)
+
+    # -- the live survey (the server's: `services.survey`) -----------------------------------
+    def survey_status(self) -> SurveyStatus:
+        return self.services.survey.status()
+
+    def survey_start(self, robot: str, *, actor: str) -> None:
+        self.services.survey.start(robot, actor=actor)
+
+    def survey_stop(self, *, actor: str) -> None:
+        self.services.survey.stop(actor=actor)
+
+    def survey_cancel(self, *, actor: str) -> None:
+        self.services.survey.cancel(actor=actor)
+
+    def survey_accept(self, landmark_ids: Sequence[int] | None, *, actor: str) -> None:
+        ids = None if landmark_ids is None else list(landmark_ids)
+        self.services.survey.accept(ids, actor=actor)

@@ -38,10 +38,10 @@ def sort_landmarks(landmarks: Sequence[LandmarkState], key: SortKey) -> list[Lan
 
 
 def battery_table(landmarks: Sequence[LandmarkState], key: SortKey = "low first") -> str:
-    """Markdown table: id, volts, days left (model at the current schedule; the voltage
-    trend's in brackets), duty, lit and why, and LOW when it dims within a week."""
+    """Markdown table: id, volts, days left ("days": the model at the current schedule; the
+    voltage trend's in brackets), duty, lit and why, and LOW when it dims within a week."""
     rows = [
-        "| id | volts | days left | duty | lit | why |",
+        "| id | volts | days | duty | lit | why |",
         "|---|---|---|---|---|---|",
     ]
     for lm in sort_landmarks(landmarks, key):
@@ -49,7 +49,7 @@ def battery_table(landmarks: Sequence[LandmarkState], key: SortKey = "low first"
         days = "-" if lm.model_days is None else f"{lm.model_days:.0f}"
         if lm.days_left is not None:
             days += f" ({lm.days_left:.0f})"
-        duty = "-" if lm.duty is None else f"{100 * lm.duty:.0f} %"
+        duty = "-" if lm.duty is None else f"{100 * lm.duty:.0f}%"  # no space: no wrap
         flags = (" **LOW**" if lm.low else "") + ("" if lm.reachable else " (unreachable)")
         why = lm.lit_reason or ("" if lm.lit else "dark")
         rows.append(

@@ -48,3 +48,20 @@ def landmark_color(percent: float | None, *, reachable: bool = True, doubted: bo
     if doubted:
         return DOUBTED_COLOR
     return battery_color(percent)
+
+
+SURVEY_STATE_COLORS: dict[str, RGB] = {  # the survey panel's estimates, by state
+    "anchor": (40, 110, 230),  # blue: locked, held at its surveyed position
+    "converging": (235, 160, 20),  # amber: placed, still uncertain
+    "converged": (40, 170, 70),  # green: 1-sigma within the target
+    "flagged": (215, 40, 40),  # red: something looks wrong (moved, swapped radios)
+    "unseen": (150, 150, 150),  # grey: never identified yet (drawn at its map position)
+}
+SURVEY_STATE_NAMES: dict[str, str] = {
+    "anchor": "anchor (locked, held)",
+    "converging": "converging",
+    "converged": "converged (1-sigma <= 5 mm)",
+    "flagged": "flagged (moved? radios swapped?)",
+    "unseen": "not identified yet (map position)",
+}
+ROUTE_COLOR: RGB = (190, 50, 200)  # the survey's suggested route, on the floor

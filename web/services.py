@@ -19,6 +19,7 @@ from commissioning.types import Candidate
 from commissioning.wizard import WizardStatus
 from localizer.camera import CameraModel
 from localizer.events import PoseEstimate
+from server.survey_service import SurveyStatus
 
 __all__ = [
     "CameraView",
@@ -216,3 +217,24 @@ class ViewerSite(Protocol):
     def wizard_switch_anyway(self, *, actor: str) -> None: ...
 
     def wizard_cancel(self, *, actor: str) -> None: ...
+
+    # -- the site's live survey (`server.survey_service.LiveSurvey`, run by the server) ------
+    def survey_status(self) -> SurveyStatus:
+        """Where the survey is: its live estimate, route, or final proposals."""
+        ...
+
+    def survey_start(self, robot: str, *, actor: str) -> None:
+        """Start surveying with `robot` (ValueError/KeyError/RuntimeError: why not)."""
+        ...
+
+    def survey_stop(self, *, actor: str) -> None:
+        """End the drive and solve it."""
+        ...
+
+    def survey_cancel(self, *, actor: str) -> None:
+        """Drop the survey; nothing is written."""
+        ...
+
+    def survey_accept(self, landmark_ids: Sequence[int] | None, *, actor: str) -> None:
+        """Write these landmarks' estimates into the map (None: every unflagged one)."""
+        ...

@@ -31,6 +31,7 @@ from web.panels.commission import CommissionPanel
 from web.panels.coverage import CoveragePanel
 from web.panels.history import HistoryPanel, map_repository_of
 from web.panels.monitor import MonitorPanel, UncertaintyHistory
+from web.panels.survey import SurveyPanel
 from web.panels.view import ViewPanel
 from web.panels.wizard import WizardPanel
 from web.roles import ANONYMOUS, TICKET_PARAM, Session
@@ -87,6 +88,7 @@ class _ClientPanels:
         self.view = ViewPanel(client, bounds, ceiling_z, [r.name for r in site.robots()])
         self.monitor: MonitorPanel
         self.wizard: WizardPanel | None = None
+        self.survey: SurveyPanel | None = None
         self.commission: CommissionPanel | None = None
         self.history: HistoryPanel | None = None
         if session.can_commission:
@@ -104,6 +106,8 @@ class _ClientPanels:
                 store = floorplan_store_of(viewer.services)
                 if store is not None:
                     self.floorplan = FloorPlanPanel(gui, store, bounds, notify)
+            with tabs.add_tab("Survey"):
+                self.survey = SurveyPanel(client, site, session, notify)
         else:
             self.monitor = MonitorPanel(gui, site, session, viewer.history, notify)
             self.coverage = CoveragePanel(client, site, notify)
@@ -336,6 +340,8 @@ class SiteViewer:
                     p.coverage.refresh(lms)
                     if p.wizard is not None:
                         p.wizard.refresh()
+                    if p.survey is not None:
+                        p.survey.refresh()
                     if p.history is not None:
                         p.history.refresh()
                 except Exception:  # its browser went away mid-update

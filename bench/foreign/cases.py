@@ -99,6 +99,7 @@ class Case:
     read_noise: float = 2.5
     drop_frames: float = 0.0
     glints: tuple[tuple[float, float, float], ...] = ()  # (u / width, v / height, counts)
+    epoch_ns: int = 0  # the clock's origin: EuRoC's recordings count from 1970
     led_power: FloatArray = field(default_factory=lambda: np.ones(400))
 
 
@@ -128,6 +129,7 @@ CASES: dict[str, Case] = {
         mount_yaw_rad=math.pi / 2,
         mount_offset_m=(0.12, 0.0),
         spot_sigma_px=1.3,
+        drop_frames=0.03,
         first_id=1,
     ),
     # an irregular ~1 m ceiling at 3.6 m, a square at 1.6 m/s with 90 deg turns at 2 rad/s
@@ -141,6 +143,7 @@ CASES: dict[str, Case] = {
         odom_hz=50.0,
         spot_peak=300.0,
         mount_yaw_rad=-2.3,
+        epoch_ns=1_403_636_579_763_555_584,
         first_id=1000,
     ),
     # the paper's bed: three landmarks 1.2 m apart, a narrow pinhole lens, 10 deg steps
@@ -159,6 +162,7 @@ CASES: dict[str, Case] = {
         mount_offset_m=(0.0, 0.0),
         mount_tilt_rad=(0.003, -0.002),
         survey_sigma_m=0.0,
+        epoch_ns=1_764_547_200_000_000_000,
         first_id=1,
     ),
 }

@@ -275,20 +275,20 @@ def generate(case: Case, out: Path, seconds: float, seed: int) -> None:
     for k in range(step, len(motion.t), step):
         mean = motion.wheels[k - step + 1 : k + 1].mean(axis=0)
         meas = mean / scale + rng.normal(0, case.odom_noise, 2) * np.maximum(np.abs(mean), 0.02)
-        odo_lines.append(f"{round(motion.t[k] * NS)},{meas[0]:.6f},{meas[1]:.6f}")
+        odo_lines.append(f"{case.epoch_ns + round(motion.t[k] * NS)},{meas[0]:.6f},{meas[1]:.6f}")
     (out / "odom0" / "data.csv").write_text("\n".join(odo_lines) + "\n")
 
     # LEDs: dark, then the nearest landmarks one at a time, then all (the start-up sweep)
     near = np.argsort(np.hypot(p_map[:, 0] - case.start[0], p_map[:, 1] - case.start[1]))[:8]
     frame_dt = 1.0 / case.rate_hz
-    led_lines = ["#timestamp [ns],on", "0,none"]
+    led_lines = ["#timestamp [ns],on", f"{case.epoch_ns},none"]
     lit_state: list[tuple[float, set[int] | None]] = [(0.0, set())]
     t_led = 0.2
     for j in near:
-        led_lines.append(f"{round(t_led * NS)},{int(ids[j])}")
+        led_lines.append(f"{case.epoch_ns + round(t_led * NS)},{int(ids[j])}")
         lit_state.append((t_led, {int(ids[j])}))
         t_led += 3 * frame_dt
-    led_lines.append(f"{round(t_led * NS)},all")
+    led_lines.append(f"{case.epoch_ns + round(t_led * NS)},all")
     lit_state.append((t_led, None))
     (out / "leds.csv").write_text("\n".join(led_lines) + "\n")
 
@@ -297,7 +297,7 @@ def generate(case: Case, out: Path, seconds: float, seed: int) -> None:
     n_sub = 5
     t_frame = frame_dt * 0.5
     while t_frame < seconds - case.exposure_s:
-        t_ns = round(t_frame * NS)
+        t_ns = case.epoch_ns + round(t_frame * NS)
         state = [s for t0, s in lit_state if t0 <= t_frame][-1]
         lit = np.ones(len(ids), bool) if state is None else np.isin(ids, list(state))
         samples, ok = [], np.ones(len(ids), bool)

@@ -12,6 +12,7 @@ a wrong identification or a wrong pair). Recordings are cached in the work folde
 from __future__ import annotations
 
 import argparse
+import hashlib
 import io
 import shutil
 import sys
@@ -30,11 +31,16 @@ from recording.reader import read_groundtruth
 from recording.replay_cli import replay
 from recording.scoring import error_stats, errors, track_from_estimates
 
+HERE = Path(__file__).resolve().parent
+
 
 def run_case(name: str, work: Path, seconds: float | None, seed: int) -> dict[str, float]:
     case = CASES[name]
     dur = seconds or case.seconds
-    rec = work / f"{name}-s{seed}-{dur:g}"
+    code = hashlib.sha256(
+        b"".join((HERE / f).read_bytes() for f in ("generate.py", "cases.py"))
+    ).hexdigest()[:10]
+    rec = work / f"{name}-s{seed}-{dur:g}-{code}"
     if not (rec / "groundtruth.csv").is_file():
         shutil.rmtree(rec, ignore_errors=True)
         tmp = rec.with_name(rec.name + ".part")

@@ -72,6 +72,14 @@ class ScheduleConfig:
         spread_m: a landmark this far from the chosen ones counts as well spread, metres.
         wear_weight: how much wear (lit hours) counts against a landmark in metres of spread.
         ceiling_m: height of the landmarks above the floor for the view's scale, metres.
+        centre_weight: how much a landmark's distance from the image centre (as a share of
+            the half diagonal) counts against it in the cover (edge spots are faint and
+            leave the view first).
+        keep_seen: a lit landmark in a tracking robot's view now is not darkened until the
+            robot has `per_robot` others in view that are confirmed lit and chosen (a robot
+            whose old landmarks go dark while the new ones are still being switched, their
+            state unknown for up to a sleep period with sleeping radios, has nothing to
+            track and drifts into a wrong fix).
     """
 
     per_robot: int = 3
@@ -82,11 +90,13 @@ class ScheduleConfig:
     max_sigma_m: float = 0.5
     parked_after_s: float = 20.0
     parked_speed_mps: float = 0.02
-    hold_s: float = 1.0
+    hold_s: float = 0.3
     max_switches: int = 40
     spread_m: float = 1.2
     wear_weight: float = 0.2
     ceiling_m: float = 2.5
+    centre_weight: float = 0.4
+    keep_seen: bool = True
 
     def __post_init__(self) -> None:
         if self.per_robot < 1 or self.sample_s <= 0 or self.horizon_s < 0:
@@ -135,12 +145,15 @@ class LedPlan:
         reasons: landmark ID -> why it is lit.
         wanted: what would be lit without the command budget.
         deferred: changes left for a later plan (budget).
+        planned: chosen for a robot's later view, to be lit by a later plan (not before
+            the command must leave: `latency_s` ahead of need).
     """
 
     lit: frozenset[int]
     reasons: dict[int, str] = field(default_factory=dict)
     wanted: frozenset[int] = frozenset()
     deferred: int = 0
+    planned: frozenset[int] = frozenset()
 
 
 def position_sigma(covariance: FloatArray | None) -> float:
@@ -306,11 +319,12 @@ def _choose(
 
 
 def _cover(
+    camera: CameraModel,
     views: list[tuple[float, npt.NDArray[np.int64], FloatArray]],
     chosen: set[int],
     ids: Sequence[int],
     xy: FloatArray,
-    lit_now: frozenset[int],
+    keep: frozenset[int],
     wear_h: Mapping[int, float],
     config: ScheduleConfig,
 ) -> list[tuple[int, float]]:
@@ -318,6 +332,7 @@ def _cover(
     add, with the first sample time each serves, so that each sample has `per_robot`."""
     have = {k for k in range(len(ids)) if ids[k] in chosen}
     need = [min(config.per_robot, len(cand)) for _, cand, _ in views]
+    half_diag = 0.5 * math.hypot(camera.width, camera.height)
     sets = [set(int(k) for k in cand) for _, cand, _ in views]
     added: list[tuple[int, float]] = []
     while True:
@@ -339,13 +354,13 @@ def _cover(
                 spread = min(d, config.spread_m) / config.spread_m
             else:
                 spread = 1.0
-            centre = float(views[j0][2][k]) if k in sets[j0] else 1e3
+            centre = float(views[j0][2][k]) / half_diag if k in sets[j0] else 1.0
             score = (
                 serves
                 + 2.0 * spread
-                + (0.5 if ids[k] in lit_now else 0.0)
+                + (0.5 if ids[k] in keep else 0.0)
                 - config.wear_weight * wear_h.get(ids[k], 0.0)
-                - 1e-3 * min(centre, 1e3)
+                - config.centre_weight * min(centre, 1.0)
             )
             if score > best_score:
                 best, best_score = k, score
@@ -364,6 +379,7 @@ def plan_leds(
     wear_h: Mapping[int, float],
     pinned: Mapping[int, str] | None = None,
     config: ScheduleConfig | None = None,
+    confirmed: frozenset[int] | None = None,
 ) -> LedPlan:
     """The LEDs to light now (see the module docstring).
 
@@ -374,6 +390,7 @@ def plan_leds(
         last_chosen_s: per landmark, seconds since a plan last chose it (absent: never).
         wear_h: per landmark, hours lit so far (wear to spread).
         pinned: landmarks others need lit (identification, the survey) -> why.
+        confirmed: the landmarks confirmed lit and not being switched (None: `lit_now`).
     """
     cfg = config or ScheduleConfig()
     ids = [int(i) for i in landmark_ids]
@@ -391,6 +408,8 @@ def plan_leds(
         if lid in ids:
             want(lid, f"pinned: {why}", 0.0)
     parked: list[RobotState] = []
+    planned: set[int] = set()
+    keep = lit_now | frozenset(k for k, s in last_chosen_s.items() if s < cfg.hold_s)
     for robot in sorted(robots, key=lambda r: r.name):
         if not _usable_pose(robot, cfg):
             for lid in _neighbourhood(robot, ids, xy, cfg):
@@ -413,8 +432,12 @@ def plan_leds(
                 seen, centre = in_view(robot.camera, pose, P, 0.0, cfg.ceiling_m)
                 cand = np.flatnonzero(seen)
             views.append((t, cand, centre))
-        for lid, t in _cover(views, set(reasons), ids, xy, lit_now, wear_h, cfg):
-            want(lid, f"{'view' if t <= cfg.latency_s else 'ahead'} {robot.name}", t)
+        cover = _cover(robot.camera, views, set(reasons) | planned, ids, xy, keep, wear_h, cfg)
+        for lid, t in cover:
+            if t <= cfg.latency_s + cfg.sample_s:  # its command must leave now
+                want(lid, f"{'view' if t <= cfg.sample_s else 'ahead'} {robot.name}", t)
+            else:  # chosen, lit by a later plan (it keeps the choice: `keep`)
+                planned.add(lid)
         for t, cand, _ in views:
             for k in cand:
                 if ids[k] in reasons:
@@ -432,6 +455,21 @@ def plan_leds(
             cand, centre, set(reasons), cfg.per_robot, ids, xy, lit_now, wear_h, cfg
         ):
             want(lid, f"view {robot.name} (parked, others lit in its view)", 0.0)
+    if cfg.keep_seen:
+        sure = lit_now if confirmed is None else confirmed
+        for robot in robots:
+            if robot.pose is None or robot.mode not in ("landmark", "dead_reckoning"):
+                continue
+            if any(robot is p for p in parked):  # standing: its pose does not need them
+                continue
+            seen, _ = in_view(robot.camera, robot.pose, P, 0.0, cfg.ceiling_m)
+            seen_ids = [ids[int(k)] for k in np.flatnonzero(seen)]
+            usable = [i for i in seen_ids if i in sure and i in reasons]
+            if len(usable) >= cfg.per_robot:
+                continue
+            for lid in seen_ids:
+                if lid in lit_now and lid not in reasons:
+                    reasons[lid] = f"seen {robot.name} (until its new ones are lit)"
     wanted = set(reasons)
     identifying = any(r.mode in ("identifying", "lost") for r in robots)
     for lid in lit_now:
@@ -449,10 +487,11 @@ def plan_leds(
         lit.discard(lid)
     deferred = max(len(on) - budget, 0) + max(len(off) - max(budget - len(on), 0), 0)
     for lid in lit:
-        reasons.setdefault(lid, "held")
+        reasons.setdefault(lid, "darkening deferred (radio budget)")
     return LedPlan(
         frozenset(lit),
         {i: reasons[i] for i in sorted(lit)},
         frozenset(wanted),
         deferred,
+        frozenset(planned - wanted),
     )

@@ -14,7 +14,7 @@ import asyncio
 import contextlib
 import logging
 import math
-from collections.abc import Callable, Iterable
+from collections.abc import Awaitable, Callable, Iterable
 from dataclasses import dataclass
 from typing import Protocol
 
@@ -25,6 +25,7 @@ from localizer.camera import CameraModel
 from localizer.events import LedsChanged, Mode
 from localizer.geometry import wrap_angle
 from server.led_schedule.policy import LedPlan, RobotState, ScheduleConfig, plan_leds
+from server.led_schedule.wake_window import WakeWindow
 from server.poses import PoseUpdate
 
 log = logging.getLogger(__name__)
@@ -63,6 +64,13 @@ class LedScheduler:
         config: the policy's tuning.
         period_s: time between plans, seconds.
         on_plan: called with each plan whose lit set differs from the previous one.
+        set_awake: sets every landmark's time awake after a message (`ST`, seconds; the
+            gateway's `set_awake_time`), for the wake window while robots identify (None:
+            awake radios, no window).
+        wake_window: when to raise and lower it.
+        routes: robot name -> the points it drives to next (x, y), as its fleet manager
+            knows them (the sim's routes, VDA 5050 order nodes); None or empty: unknown, its
+            motion is extrapolated from its speed and turn rate.
     """
 
     def __init__(
@@ -76,6 +84,9 @@ class LedScheduler:
         config: ScheduleConfig | None = None,
         period_s: float = 0.25,
         on_plan: Callable[[LedPlan], None] | None = None,
+        set_awake: Callable[[float], Awaitable[object]] | None = None,
+        wake_window: WakeWindow | None = None,
+        routes: Callable[[str], tuple[tuple[float, float], ...]] | None = None,
     ) -> None:
         self.config = config or ScheduleConfig()
         self.period_s = period_s
@@ -95,13 +106,35 @@ class LedScheduler:
         self._motion: dict[str, _Motion] = {}
         self._pinned: dict[int, tuple[str, int]] = {}
         self._task: asyncio.Task[None] | None = None
+        self._set_awake = set_awake
+        self.wake_window = wake_window if set_awake is not None else None
+        self._awake_task: asyncio.Task[None] | None = None
+        self._routes = routes
 
     # -- what others need ----------------------------------------------------------------
     def pin(self, landmark_ids: Iterable[int], reason: str, duration_s: float) -> None:
-        """Keep landmarks lit for `duration_s` (the survey, a staff member's check)."""
+        """Keep landmarks lit for `duration_s` (the survey, a staff member's check); the
+        next plan lights them (`POST /leds/pin`)."""
         until = self._clock_ns() + round(duration_s * 1e9)
         for lid in landmark_ids:
             self._pinned[int(lid)] = (reason, until)
+
+    def unpin(self, landmark_id: int) -> bool:
+        """End a landmark's pin; False when it had none."""
+        return self._pinned.pop(int(landmark_id), None) is not None
+
+    def pins(self) -> list[tuple[int, str, float]]:
+        """(landmark ID, reason, seconds left) of every pin still running."""
+        now = self._clock_ns()
+        return [
+            (lid, reason, (until - now) * _NS)
+            for lid, (reason, until) in sorted(self._pinned.items())
+            if until > now
+        ]
+
+    def landmark_ids(self) -> list[int]:
+        """The landmarks the schedule controls."""
+        return list(self._landmarks()[0])
 
     # -- the books -----------------------------------------------------------------------
     def lit_ids(self) -> frozenset[int]:
@@ -125,6 +158,28 @@ class LedScheduler:
     def duty(self, landmark_id: int) -> float:
         """Share of the time this landmark was lit since the scheduler started."""
         return self.lit_s.get(landmark_id, 0.0) / self.accounted_s if self.accounted_s > 0 else 0.0
+
+    def _heading(self) -> frozenset[int]:
+        """What is lit once the commands in flight land: the confirmed state, with each
+        landmark being switched counted as the last plan switched it (a plan must not
+        spend its command budget again on a change already on its way, nor undo it)."""
+        state = self._lit_now()
+        ids = frozenset(self._landmarks()[0])
+        if state is None:
+            return ids
+        confirmed = state.lit_among(ids) - state.changing
+        moving = state.changing & ids
+        if self.plan is None:
+            return confirmed | moving
+        return confirmed | (moving & self.plan.lit)
+
+    def _confirmed(self) -> frozenset[int] | None:
+        """The landmarks confirmed lit and not being switched (None before the first)."""
+        state = self._lit_now()
+        if state is None:
+            return None
+        ids = frozenset(self._landmarks()[0])
+        return state.lit_among(ids) - state.changing
 
     def _account(self, t_ns: int) -> frozenset[int]:
         state = self._lit_now()
@@ -165,15 +220,17 @@ class LedScheduler:
                 m.still_since_ns = m.t_ns
             m.t_ns, m.pose = upd.t_ns, pose
         still = 0.0 if m.still_since_ns is None else (t_ns - m.still_since_ns) * _NS
+        route = () if self._routes is None else self._routes(runner.name)
         return RobotState(
             runner.name, runner.camera, vmax, runner.mode, pose,
             covariance=upd.covariance, pose_age_s=max((t_ns - upd.t_ns) * _NS, 0.0),
-            v=m.v, omega=m.omega, still_s=still,
+            v=m.v, omega=m.omega, still_s=still, route=route,
         )  # fmt: skip
 
     def step(self, t_ns: int) -> LedPlan:
         """Account the time since the last step and plan (call every `period_s`)."""
-        lit = self._account(t_ns)
+        self._account(t_ns)
+        lit = self._heading()
         ids, positions = self._landmarks()
         self._pinned = {k: v for k, v in self._pinned.items() if v[1] > t_ns}
         robots = [self._robot_state(r, t_ns) for r in self._runners()]
@@ -186,9 +243,11 @@ class LedScheduler:
             wear_h={k: v / 3600.0 for k, v in self.lit_s.items()},
             pinned={k: v[0] for k, v in self._pinned.items()},
             config=self.config,
+            confirmed=self._confirmed(),
         )
-        for lid in plan.wanted:
+        for lid in plan.wanted | plan.planned:
             self._chosen_ns[lid] = t_ns
+        self._update_wake_window(robots, t_ns)
         changed = self.plan is None or plan.lit != self.plan.lit
         self.plan = plan
         self.plans += 1
@@ -196,11 +255,37 @@ class LedScheduler:
             self.on_plan(plan)
         return plan
 
+    def _update_wake_window(self, robots: list[RobotState], t_ns: int) -> None:
+        window = self.wake_window
+        if window is None or self._set_awake is None:
+            return
+        identifying = any(r.pose is None or r.mode in ("identifying", "lost") for r in robots)
+        wake_s = window.update(t_ns * _NS, identifying=identifying)
+        if wake_s is None:
+            return
+        previous, set_awake = self._awake_task, self._set_awake
+
+        async def apply() -> None:
+            if previous is not None:  # in order: the latest `ST` lands last
+                with contextlib.suppress(Exception, asyncio.CancelledError):
+                    await previous
+            try:
+                await set_awake(wake_s)
+            except Exception:
+                log.exception("setting the landmarks' time awake (ST) failed")
+
+        self._awake_task = asyncio.get_running_loop().create_task(apply())
+
     # -- running -------------------------------------------------------------------------
     def start(self) -> None:
         self._task = asyncio.get_running_loop().create_task(self._run())
 
     async def stop(self) -> None:
+        if self._awake_task is not None:
+            self._awake_task.cancel()
+            with contextlib.suppress(asyncio.CancelledError, Exception):
+                await self._awake_task
+            self._awake_task = None
         if self._task is not None:
             self._task.cancel()
             with contextlib.suppress(asyncio.CancelledError):

@@ -11,8 +11,10 @@ import numpy as np
 from localizer.config import LocalizerConfig
 from rf_gateway.battery import BatteryConfig
 from rf_gateway.config import GatewayConfig, SleepConfig
+from rf_gateway.scheduler import Priority
 from server.led_schedule.policy import ScheduleConfig
 from server.led_schedule.runtime import LedScheduler
+from server.led_schedule.wake_window import WakeWindow, WakeWindowConfig
 from server.settings import Settings
 
 if TYPE_CHECKING:
@@ -22,6 +24,11 @@ if TYPE_CHECKING:
 
 AIR_LATENCY_S = 0.05
 """A command's time on the air to an awake radio and back (docs/rf_gateway.md), seconds."""
+
+
+FIRST_BATTERY_READ_S = 30.0
+"""With sleeping radios the first battery reads wait this long after the start-up sweep
+(robots identify meanwhile, and every read holds a radio slot up to a sleep period), s."""
 
 
 def wake_latency_s(settings: Settings) -> float:
@@ -51,18 +58,34 @@ def localizer_config(settings: Settings) -> LocalizerConfig:
 def schedule_config(settings: Settings, period_s: float) -> ScheduleConfig:
     """The policy's tuning: decisions act after one plan period plus the wake latency, and
     a plan changes at most what the radio delivers in one period (`max_in_flight` commands
-    per command latency: the awake air time, or half a sleep period on average)."""
+    per command latency: the awake air time; with sleeping radios the gateway takes a slot
+    `lead_s` before a landmark's known wake-up, so a command holds it `lead_s` + the air
+    time + half a poll interval)."""
     gw = gateway_config(settings)
-    per_command_s = AIR_LATENCY_S + (settings.radio_sleep_period_s or 0.0) / 2
+    per_command_s = AIR_LATENCY_S
+    if gw.sleep is not None:
+        per_command_s = gw.sleep.lead_s + gw.sleep.air_s + gw.sleep.poll_interval_s / 2
     budget = max(round(gw.max_in_flight * period_s / per_command_s), 2)
     return ScheduleConfig(latency_s=period_s + wake_latency_s(settings), max_switches=budget)
+
+
+def wake_window(settings: Settings) -> WakeWindow | None:
+    """The wake window of sleeping radios while robots identify (None: awake radios)."""
+    if settings.radio_sleep_period_s is None:
+        return None
+    return WakeWindow(
+        WakeWindowConfig(normal_wake_s=SleepConfig(settings.radio_sleep_period_s).wake_s)
+    )
 
 
 def gateway_config(settings: Settings) -> GatewayConfig:
     """The gateway's tuning for this site: its battery polls, the landmarks' sleep."""
     sleep = settings.radio_sleep_period_s
     return GatewayConfig(
-        battery=BatteryConfig(interval_s=settings.battery_interval_s),
+        battery=BatteryConfig(
+            interval_s=settings.battery_interval_s,
+            first_read_s=0.0 if sleep is None else FIRST_BATTERY_READ_S,
+        ),
         sleep=None if sleep is None else SleepConfig(sleep),
     )
 
@@ -94,9 +117,11 @@ def attach_scheduler(
     settings: Settings,
     *,
     period_s: float = 0.25,
+    routes: Callable[[str], tuple[tuple[float, float], ...]] | None = None,
 ) -> LedScheduler:
     """Build and start the scheduler of a site whose `led_policy` is `scheduled`: the map's
-    landmarks that the coordinator's gateway controls, the live robots."""
+    landmarks that the coordinator's gateway controls, the live robots (and their routes
+    where the fleet knows them)."""
     gateway = coordinator.gateway
     cache: dict[str, Any] = {}
     map.add_listener(lambda _landmarks: cache.clear())
@@ -112,7 +137,9 @@ def attach_scheduler(
         value: tuple[list[int], np.ndarray[Any, np.dtype[np.float64]]] = cache["value"]
         return value
 
-    return make_scheduler(landmarks, runners, coordinator, clock_ns, settings, period_s=period_s)
+    return make_scheduler(
+        landmarks, runners, coordinator, clock_ns, settings, period_s=period_s, routes=routes
+    )
 
 
 def make_scheduler(
@@ -123,6 +150,7 @@ def make_scheduler(
     settings: Settings,
     *,
     period_s: float = 0.25,
+    routes: Callable[[str], tuple[tuple[float, float], ...]] | None = None,
 ) -> LedScheduler:
     """A started scheduler whose plans become the coordinator's normal state."""
     by_name: dict[str, float] = {}
@@ -132,15 +160,26 @@ def make_scheduler(
             by_name.update({r.name: float(r.geometry.max_speed) for r in runners()})
         return by_name.get(name, 1.0)
 
+    gateway = coordinator.gateway
+    window = wake_window(settings)
+
+    async def set_awake(seconds: float) -> object:
+        normal = window is not None and seconds <= window.config.normal_wake_s
+        priority = Priority.HOUSEKEEPING if normal else Priority.IDENTIFY
+        return await gateway.set_awake_time(gateway.landmarks, seconds, priority=priority)
+
     scheduler = LedScheduler(
         landmarks,
         runners,
         max_speed,
-        lambda: coordinator.gateway.leds,
+        lambda: gateway.leds,
         clock_ns,
         config=schedule_config(settings, period_s),
         period_s=period_s,
         on_plan=lambda plan: coordinator.renormal(),
+        set_awake=None if window is None else set_awake,
+        wake_window=window,
+        routes=routes,
     )
     coordinator.normal = scheduler.lit_ids
     scheduler.start()

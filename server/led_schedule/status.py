@@ -26,6 +26,11 @@ DIM_BRIGHTNESS = 0.6
 fall under the detection threshold at the edge of the view)."""
 WARN_DAYS = 7.0
 """A landmark is flagged this many days (at the current schedule) before its LED dims."""
+MIN_DUTY_S = 3600.0
+"""The duty measured over less than this (a fresh start: every LED lit while the robots
+identify) does not flag a landmark; only its voltage near the dimming point does, s."""
+NEAR_DIM_MV = 150
+"""Within this much of the dimming voltage a landmark is flagged whatever the duty, mV."""
 
 
 def dim_supply_v(battery: BatteryConfig | None = None) -> float:
@@ -58,7 +63,8 @@ class LandmarkEnergy:
         days_left: days until its radio browns out at that duty, from the measured voltage
             (None: never read).
         days_to_dim: days until its LED dims at that duty (None: never read).
-        low: flagged (dims within `WARN_DAYS`, or already dim).
+        low: flagged (dims within `WARN_DAYS` at the duty so far, once that duty has been
+            measured for `MIN_DUTY_S`, or its voltage is within `NEAR_DIM_MV` of dimming).
     """
 
     landmark_id: int
@@ -122,7 +128,9 @@ class EnergyStatus:
             d, m = round(duty.led_duty, 3), round(duty.messages_per_s, 4)
             left = _days(d, m, charge, period, dim=False)
             to_dim = _days(d, m, charge, period, dim=True)
-        low = to_dim is not None and to_dim < WARN_DAYS
+        settled = self.scheduler is None or self.scheduler.accounted_s >= MIN_DUTY_S
+        near_dim = mv is not None and mv <= dim_supply_v() * 1000.0 + NEAR_DIM_MV
+        low = to_dim is not None and to_dim < WARN_DAYS and (settled or near_dim)
         return LandmarkEnergy(landmark_id, lit, reason, duty.led_duty, left, to_dim, low)
 
     def lit_fraction(self) -> float:

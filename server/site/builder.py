@@ -257,11 +257,20 @@ class LiveSiteRunner:
         self.leds.start()
         if self.settings.led_policy == "scheduled":
             self.scheduler = attach_scheduler(
-                self.map, self.robots.runners, self.leds, self.clock_ns, self.settings
-            )
+                self.map, self.robots.runners, self.leds, self.clock_ns, self.settings,
+                routes=self._routes,
+            )  # fmt: skip
         self.led_facade.attach(self.gateway, self.leds)
         loop = asyncio.get_running_loop()
         self._tasks = [loop.create_task(self._gateway_events())]
+
+    def _routes(self, robot: str) -> tuple[tuple[float, float], ...]:
+        """Where a robot drives next, as far as the site knows (the virtual site's routes;
+        robots of a real fleet: none yet)."""
+        sim = self.sim
+        if sim is None or robot not in sim.robot_names:
+            return ()
+        return sim.planned_route(robot)
 
     # -- running ---------------------------------------------------------------------------
     def _request_leds(self, robot: str, req: LedRequest) -> None:

@@ -96,6 +96,7 @@ class RobotRunner:
         self.poses = 0
         self.errors = 0
         self.recorder: RecordingWriter | None = None
+        self._taps: tuple[Callable[[Event], None], ...] = ()
         self.on_mode_change: Callable[[str, Mode, Mode], None] | None = None
         self._mode: Mode = localizer.mode
         self._pending: deque[Event] = deque()
@@ -126,6 +127,8 @@ class RobotRunner:
             if isinstance(event, FrameObserved | SpotsObserved):
                 self.recent.append(event)
             self._record(event)
+            for tap in self._taps:
+                tap(event)
             try:
                 outputs = self.localizer.handle(event)
             except Exception:
@@ -175,7 +178,17 @@ class RobotRunner:
         with self._lock:
             self.localizer.set_map(landmark_map)
 
-    # -- recording ---------------------------------------------------------------------------
+    # -- taps and recording ------------------------------------------------------------------
+    def add_tap(self, tap: Callable[[Event], None]) -> None:
+        """Hand every event fed to the localizer (in time order, LED changes included) to
+        `tap` too, on the feeding thread: it must return at once (the live survey queues)."""
+        with self._lock:
+            self._taps = (*self._taps, tap)
+
+    def remove_tap(self, tap: Callable[[Event], None]) -> None:
+        with self._lock:
+            self._taps = tuple(t for t in self._taps if t is not tap)
+
     def start_recording(self, root: Path, landmark_records: list[dict[str, Any]]) -> None:
         """Record this robot's frames, odometry, LED changes and live poses to a recording
         folder; leds.csv starts with the LED state in force (a replay then knows what was lit

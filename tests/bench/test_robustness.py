@@ -13,9 +13,10 @@ import numpy as np
 import pytest
 
 from bench.robustness import MATRIX_FILES, _row, comparison, load_matrix, site_truth
-from bench.robustness_score import FrameResult, score
+from bench.robustness_score import FrameResult, SiteTruth, score, wrong_ids
 from irloc.simulated_recording import simulate_recording
 from localizer.camera import predict_pixels
+from localizer.geometry import T_world_body_from_pose
 from recording.reader import read_groundtruth
 from recording.replay_cli import replay
 from sim.cameras import CALIBRATION_LEVELS
@@ -85,6 +86,33 @@ def test_wrong_ids_and_wrong_poses_are_counted(recorded: tuple[Path, object, obj
     assert (s.wrong_id, s.gross, s.misidentified, s.dr_off) == (n10 + 1, n10, n10 + 1, 1)
     assert s.max_m == pytest.approx(0.4)
     assert s.notes[0].startswith("t=0.00 s: ") and "is landmark" in s.notes[0]
+
+
+def test_a_body_tilted_by_a_bump_is_not_a_wrong_id(recorded: tuple[Path, object, object]) -> None:
+    # A landmark and a glint beside it; the body pitched 5 deg by a floor bump. The right
+    # planar pose naming the landmark is right; the same pose naming it next to the glint's
+    # image is not (the glint sits where a level body would see the landmark).
+    _, _, rig = recorded
+    c, s = math.cos(math.radians(5.0)), math.sin(math.radians(5.0))
+    pitch = np.array([[c, 0, s, 0], [0, 1, 0, 0], [-s, 0, c, 0], [0, 0, 0, 1]], dtype=float)
+
+    def tilted(x: float, y: float, th: float) -> np.ndarray:
+        return T_world_body_from_pose(x, y, th) @ pitch
+
+    landmark = np.array([0.3, 0.1, 2.5])
+    # the glint: where the pitched camera sees what a level one sees at the landmark
+    glint = (tilted(0, 0, 0) @ np.append(landmark, 1.0))[:3]
+    assert 0.1 < float(np.hypot(*(glint - landmark)[:2])) < 0.4
+    site = SiteTruth(
+        sources=np.array([landmark, glint]), source_ids=np.array([1, -1]),
+        camera_true=rig.camera_true, camera_nominal=rig.camera_true,  # type: ignore[attr-defined]
+        surveyed={1: landmark}, T_world_body=tilted,
+    )  # fmt: skip
+    assert wrong_ids(site, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), [1]) == []
+    # an estimate that puts the landmark onto the glint (the body's own tilt taken away)
+    dx = float(landmark[0] - glint[0])
+    bad = wrong_ids(site, (dx, 0.0, 0.0), (0.0, 0.0, 0.0), [1])
+    assert len(bad) == 1 and "is a glint" in bad[0]
 
 
 def test_recovery_after_a_kidnap_is_timed(recorded: tuple[Path, object, object]) -> None:

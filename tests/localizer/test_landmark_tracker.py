@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from localizer.camera import predict_pixels
 from localizer.config import LocalizerConfig
 from localizer.events import FrameObserved, SpotsObserved
 from localizer.geometry import T_world_body_from_pose
@@ -73,3 +74,38 @@ def test_given_spots_are_used_as_they_are() -> None:
     given = SpotsObserved(0, spots.pixels, spots.intensities, spots.areas)
     result = tracker.step(filt, given, dt_frame_s=1 / 30, fresh_odometry=True, candidates=None)
     assert result.used == (7, 8, 9)
+
+
+def _spots(pixels: np.ndarray) -> SpotsObserved:
+    n = len(pixels)
+    return SpotsObserved(0, pixels, np.full(n, 5000.0), np.full(n, 12.0))
+
+
+def test_a_glint_close_beside_a_landmark_is_not_taken_for_it() -> None:
+    # The truth's spots of 7, 8, 9 and a glint 4.5 px beside 9, nearer to where the
+    # prediction (5 cm and 0.02 rad off) puts 9 than 9's own spot, too close for the fix's
+    # residuals to tell (taken for 9 without the ambiguity test): neither spot may be named
+    # 9; the fix is made of 7 and 8 and lands on the truth.
+    true_px, ok = predict_pixels(CAM, T_world_body_from_pose(*TRUE_POSE), MAP.positions)
+    assert ok.all()
+    tracker = LandmarkTracker(CAM, ROBOT, LocalizerConfig(), MAP)
+    prior = (0.6, 0.27, 0.42)
+    predicted, _ = predict_pixels(CAM, T_world_body_from_pose(*prior), MAP.positions)
+    glint = true_px[2] + 0.7 * (predicted[2] - true_px[2])
+    assert 4 < np.linalg.norm(glint - true_px[2]) < 5
+    assert np.linalg.norm(glint - predicted[2]) < np.linalg.norm(true_px[2] - predicted[2])
+    cov = np.diag([0.04**2, 0.04**2, 0.02**2])
+
+    def step(pixels: np.ndarray) -> tuple[tuple[int, ...], PoseFilter]:
+        filt = PoseFilter(*prior, cov, wheel_base=ROBOT.wheel_base)
+        r = tracker.step(filt, _spots(pixels), dt_frame_s=1 / 30, fresh_odometry=True,
+                         candidates=None)  # fmt: skip
+        return r.used, filt
+
+    used, filt = step(np.vstack([true_px, glint]))
+    assert used == (7, 8)
+    np.testing.assert_allclose(filt.pose[:2], TRUE_POSE[:2], atol=3e-3)
+    # without the glint all three are named
+    used, filt = step(true_px)
+    assert used == (7, 8, 9)
+    np.testing.assert_allclose(filt.pose[:2], TRUE_POSE[:2], atol=3e-3)

@@ -13,6 +13,7 @@ from localizer.tracking import (
     default_angular_speed,
     motion_bound_px,
     scale_px_per_m,
+    unambiguous_pairs,
     window_half_sizes,
 )
 
@@ -79,3 +80,23 @@ def test_window_size_grows_with_speed_interval_radius_and_uncertainty() -> None:
 def test_config_is_validated() -> None:
     with pytest.raises(ValueError):
         TrackingConfig(min_half_size_px=0.0)
+
+
+def test_a_free_spot_nearly_as_close_makes_the_pair_ambiguous() -> None:
+    # landmark 0: its spot 2 px off, a glint (spot 2) 5 px off; landmark 1: alone, 3 px off.
+    # With sigma 3 px: (25 - 4) / (2 * 9) = 1.2 nats < 4.6: landmark 0 is left out.
+    cost = [[2.0, 40.0, 5.0], [50.0, 3.0, 45.0]]
+    pairs = bottleneck_assignment(cost, [12.0, 12.0])
+    assert pairs == [(0, 0), (1, 1)]
+    keep, left = unambiguous_pairs(cost, pairs, [3.0, 3.0], 4.6)
+    assert keep == [(1, 1)] and left == [0]
+    # the glint 12 px off: (144 - 4) / 18 = 7.8 nats, clearly the landmark's spot
+    cost[0][2] = 12.0
+    assert unambiguous_pairs(cost, pairs, [3.0, 3.0], 4.6) == (pairs, [])
+
+
+def test_a_neighbour_landmarks_spot_is_never_a_rival() -> None:
+    # a dense grid: landmark 1's spot is 4 px from landmark 0's prediction, but it is taken
+    cost = [[1.0, 4.0], [4.0, 1.0]]
+    pairs = bottleneck_assignment(cost, 10.0)
+    assert unambiguous_pairs(cost, pairs, [3.0, 3.0], 4.6) == (pairs, [])

@@ -86,5 +86,10 @@ class ScriptedTransport:
         self.clock.now += self.tick_ns
         return self.supply_mv.get(address, 3000)
 
+    async def set_awake_time(self, address: str, seconds: float) -> None:
+        self.log.append(("st", address, seconds))
+        await self._answer(address)
+        self.clock.now += self.tick_ns
+
     async def discover(self) -> list[DiscoveredRadio]:
         return list(self.radios)

@@ -318,3 +318,21 @@ def test_start_lights_everything_before_any_request() -> None:
         LedsChanged(5000, lit=frozenset({2})),
     ]
     assert log[:3] == [("pin", ADDR[i], True) for i in (1, 2, 3)]
+
+
+def test_set_awake_time_sends_st_to_each_landmark_and_skips_one_that_fails() -> None:
+    async def main() -> None:
+        gw, tr = make()
+        await gw.start()
+        tr.dead.add(ADDR[3])
+        done = await gw.set_awake_time([1, 2, 3], 30.0)
+        assert done == frozenset({1, 2})
+        assert sorted(e for e in tr.log if e[0] == "st" and e[2] == 30.0)[:2] == [
+            ("st", ADDR[1], 30.0), ("st", ADDR[2], 30.0),
+        ]  # fmt: skip
+        assert 3 in gw.unreachable
+        with pytest.raises(UnknownLandmarkError, match="99"):
+            await gw.set_awake_time([1, 99], 1.0)
+        await gw.close()
+
+    run(main())

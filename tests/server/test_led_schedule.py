@@ -123,7 +123,7 @@ def test_an_idle_site_darkens() -> None:
                      wear_h={})  # fmt: skip
     assert plan.lit == frozenset()
     # Recently chosen landmarks are held a moment (no flapping), then darkened.
-    held = plan_leds(parked, ids, pos, lit_now=lit, last_chosen_s={i: 0.5 for i in ids},
+    held = plan_leds(parked, ids, pos, lit_now=lit, last_chosen_s={i: 0.2 for i in ids},
                      wear_h={})  # fmt: skip
     assert held.lit == lit
     assert set(held.reasons.values()) == {"held"}
@@ -182,3 +182,39 @@ def test_the_command_budget_lights_what_is_needed_soonest_first() -> None:
     assert len(plan.lit ^ lit) == 3
     assert plan.lit - lit  # the lights came first
     assert plan.deferred > 0
+
+
+def test_a_landmark_needed_later_than_the_latency_is_planned_not_lit_yet() -> None:
+    """A robot at 1 m/s with a 0.3 s latency and a 2 s horizon: the landmarks it reaches
+    only after the latency are chosen (`planned`) but not lit yet: lighting them now would
+    only burn their cells."""
+    ids, pos = grid(20, 1, 1.5)
+    cfg = ScheduleConfig(latency_s=0.3, horizon_s=2.0)
+    plan = plan_leds([robot("r1", (3.0, 0.0, 0.0), v=1.0)], ids, pos, lit_now=frozenset(),
+                     last_chosen_s={}, wear_h={}, config=cfg)  # fmt: skip
+    now = {ids[k] for k in visible((3.0, 0.0, 0.0), pos)}
+    assert plan.lit and plan.lit <= now | {ids[k] for k in visible((3.6, 0.0, 0.0), pos)}
+    assert plan.planned and not plan.planned & plan.lit
+    assert all(ids.index(i) * 1.5 > 3.0 for i in plan.planned)  # ahead of the robot
+
+
+def test_landmarks_a_tracking_robot_sees_stay_lit_until_its_new_ones_are_confirmed() -> None:
+    """The schedule moves a robot to other landmarks (its old ones are worn); while the new
+    ones are still being switched (not confirmed), the old ones in its view are not darkened
+    (it would have nothing to track); once the new ones are confirmed, the old ones go dark."""
+    ids, pos = grid(12, 3, 1.0)
+    pose = (6.0, 1.0, 0.0)
+    seen = sorted(ids[k] for k in visible(pose, pos))
+    assert len(seen) >= 8
+    old = frozenset(seen[:3])
+    worn = {i: 100.0 for i in old}
+    cfg = ScheduleConfig(horizon_s=0.0, hold_s=0.0)
+    first = plan_leds([robot("r1", pose)], ids, pos, lit_now=old, last_chosen_s={},
+                      wear_h=worn, config=cfg, confirmed=frozenset())  # fmt: skip
+    assert old <= first.lit
+    assert {first.reasons[i] for i in old} == {"seen r1 (until its new ones are lit)"}
+    new = first.lit - old
+    assert len(new) == 3 and new <= set(seen)
+    later = plan_leds([robot("r1", pose)], ids, pos, lit_now=first.lit, last_chosen_s={},
+                      wear_h=worn, config=cfg, confirmed=first.lit)  # fmt: skip
+    assert later.lit == new

@@ -35,7 +35,7 @@ def test_roles_and_bad_input(api: Api) -> None:
     assert r.status_code == 503 and "no radio" in r.json()["detail"]  # no live site here
     assert c.post(S + "/stop", headers=h).status_code == 409
     r = c.post(S + "/accept", json={}, headers=h)
-    assert r.status_code == 409 and "no survey result" in r.json()["detail"]
+    assert r.status_code == 409 and "no survey estimate" in r.json()["detail"]
     r = c.post(S + "/accept", json={"landmarks": ["a"]}, headers=h)
     assert r.status_code == 422
 

@@ -7,6 +7,7 @@ import asyncio
 import numpy as np
 import pytest
 
+from bench.virtual_site import run_virtual
 from sim.battery import Battery, BatteryConfig
 from sim.energy import (
     DutyCycle,
@@ -102,3 +103,57 @@ def test_a_sleeping_radio_delivers_at_the_next_wake_up_then_within_a_poll() -> N
     assert second <= 0.15 and third <= 0.15  # awake: within a poll (100 ms)
     assert after == pytest.approx((phase - t4 - 0.0025) % 1.0 + 0.01, abs=0.05)
     assert world.energy.landmarks[5].messages == 4
+
+
+def test_a_long_time_awake_keeps_commands_within_a_poll_and_is_charged() -> None:
+    """`set_awake_time` (XBee `ST`) raised to 5 s: commands 3 s later still arrive within a
+    poll interval; the ledger charges the 5 s awake at the polling current; setting it back
+    to 0.3 s lets the radio sleep again 0.3 s after that command."""
+    world = _world()
+    radio = SimRadio(world, rng=np.random.default_rng(0), latency_s=(0.01, 0.01), loss=0.0,
+                     sleep=RadioSleep(1.0, wake_s=0.3))  # fmt: skip
+
+    async def main() -> tuple[float, float, float]:
+        loop = asyncio.get_running_loop()
+        assert await radio.set_awake_time("0013A20041000005", 5.0)
+        await asyncio.sleep(3.0)
+        t = loop.time()
+        assert await radio.set_pin("0013A20041000005", True)
+        awake_took = loop.time() - t
+        assert await radio.set_awake_time("0013A20041000005", 0.3)
+        await asyncio.sleep(0.6)
+        t = loop.time()
+        assert await radio.set_pin("0013A20041000005", False)
+        return awake_took, loop.time() - t, t
+
+    awake_took, asleep_took, t = run_virtual(main())  # virtual time: no waiting
+    assert awake_took <= 0.12
+    phase = radio.wake_delay_s(5, 0.0)
+    assert asleep_took == pytest.approx((phase - t - 0.0025) % 1.0 + 0.01, abs=0.05)
+    assert world.energy is not None
+    e = world.energy.landmarks[5]
+    polling_ma = RadioSleep(1.0).awake_ma(RadioPower())
+    # awake from the first command until 0.3 s after the third (3.3 s), and 0.3 s after
+    # the last: the 5 s of the first `ST` that the third cut short are not charged
+    assert e.message_mah == pytest.approx(
+        4 * RadioPower().charge_per_message_mah() + 3.6 * polling_ma / 3600, rel=0.05
+    )
+    with pytest.raises(ValueError, match="ST"):
+        run_virtual(radio.set_awake_time("0013A20041000005", 100.0))
+
+
+def test_the_ledger_splits_the_radio_charge_into_sleep_wake_ups_and_commands() -> None:
+    ledger = EnergyLedger(sleep=RadioSleep(0.5))
+    ledger.advance(7, 3600.0, led_ma=0.0)
+    ledger.message(7, extra_awake_s=1.0)
+    e = ledger.landmarks[7]
+    assert e.idle_mah + e.wake_mah + e.message_mah == pytest.approx(e.radio_mah)
+    assert e.idle_mah == pytest.approx(0.002 * (1 - 0.012 / 0.5), rel=1e-6)
+    assert e.wake_mah == pytest.approx(ledger.radio_ma() - e.idle_mah, rel=1e-6)
+    assert e.radio_ma == pytest.approx(e.radio_mah, rel=1e-9)  # over one hour
+    # each 0.5 s wake-up sends one poll (1 ms), the command's answer 3 ms, 10 polls awake
+    assert e.tx_s == pytest.approx(7200 * 0.001 + 0.003 + 10 * 0.001)
+    # a measured radio current replaces the model in the life prediction
+    modelled = predict_life_days(DutyCycle(0.0, 1 / 3600), sleep=RadioSleep(0.5))
+    measured = predict_life_days(DutyCycle(0.0, 1 / 3600, e.radio_ma), sleep=RadioSleep(0.5))
+    assert measured == pytest.approx(modelled, rel=0.02)

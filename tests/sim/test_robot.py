@@ -76,3 +76,21 @@ def test_floor_bump_lifts_and_tilts_the_body() -> None:
     # nose up: the body x axis points upward
     assert T[2, 0] == pytest.approx(math.sin(math.atan(gx)))
     np.testing.assert_allclose(T[:3, :3] @ T[:3, :3].T, np.eye(3), atol=1e-12)
+
+
+def test_a_route_follower_tells_the_waypoints_still_ahead() -> None:
+    from sim.routes import Goto, Route, RouteFollower, Wait
+
+    route = Route((Goto(1.0, 0.0, 0.5), Wait(2.0), Goto(1.0, 1.0, 0.5), Goto(0.0, 1.0, 0.5)),
+                  loop=True)  # fmt: skip
+    f = RouteFollower(route)
+    assert f.upcoming(3) == ((1.0, 0.0), (1.0, 1.0), (0.0, 1.0))
+    assert f.upcoming(5) == ((1.0, 0.0), (1.0, 1.0), (0.0, 1.0))  # one lap, not repeated
+    t, pose = 0.0, (0.0, 0.0, 0.0)
+    while f.upcoming(1) == ((1.0, 0.0),) and t < 10.0:  # drive to the first point
+        v, w = f.command(t, *pose)
+        pose = (pose[0] + v * 0.01 * math.cos(pose[2]), pose[1] + v * 0.01 * math.sin(pose[2]),
+                pose[2] + w * 0.01)  # fmt: skip
+        t += 0.01
+    assert f.upcoming(4) == ((1.0, 1.0), (0.0, 1.0), (1.0, 0.0))  # the loop comes round
+    assert RouteFollower(Route(())).upcoming() == ()

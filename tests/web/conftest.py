@@ -83,16 +83,21 @@ def nearest_landmarks(services: Any, robot: str, n: int) -> list[int]:
     return [int(lm.id) for lm in lms[:n]]
 
 
+def patrol_route(services: Any, robot: str) -> np.ndarray:
+    """Points (N, 2) along a simulated robot's patrol loop, metres."""
+    spec = next(r for r in services.sim.scenario.robots if r.name == robot)
+    corners = [(float(spec.start[0]), float(spec.start[1]))]
+    corners += [(float(st.x), float(st.y)) for st in spec.route.steps if hasattr(st, "x")]
+    return np.vstack(
+        [np.linspace(a, b, 20) for a, b in zip(corners, corners[1:] + corners[:1], strict=True)]
+    )
+
+
 def landmark_always_in_view(services: Any, robot: str) -> int:
     """The reachable landmark nearest to the robot's whole patrol route (the largest
     horizontal distance from the route is the smallest): in its camera's view wherever it
     is when a slow step (a browser click) finally measures it."""
-    spec = next(r for r in services.sim.scenario.robots if r.name == robot)
-    corners = [(float(spec.start[0]), float(spec.start[1]))]
-    corners += [(float(st.x), float(st.y)) for st in spec.route.steps if hasattr(st, "x")]
-    route = np.vstack(
-        [np.linspace(a, b, 20) for a, b in zip(corners, corners[1:] + corners[:1], strict=True)]
-    )
+    route = patrol_route(services, robot)
     lms = [lm for lm in services.sim.world.landmarks.values() if lm.reachable]
 
     def worst(lm: Any) -> float:

@@ -29,6 +29,7 @@ from commissioning.wizard import (
 from localizer.camera import CameraModel, predict_pixels
 from localizer.events import PoseEstimate
 from localizer.geometry import T_world_body_from_pose
+from server.survey_service import SurveyStatus
 from sim.cameras import wide_angle_camera
 from web.services import CameraView, Candidate, EventLine, LandmarkState, RobotState
 
@@ -55,6 +56,7 @@ class MemSite:
         self.stored_cameras: list[tuple[str, str]] = []
         self.lock = threading.Lock()
         self.wizard = IdentificationWizard()  # driven by the tests (no LEDs switched here)
+        self.survey = SurveyStatus("idle")  # the tests set its estimate
 
     # -- reads -----------------------------------------------------------------------------
     def landmarks(self) -> list[LandmarkState]:
@@ -194,6 +196,31 @@ class MemSite:
 
     def wizard_cancel(self, *, actor: str) -> None:
         self._wizard_feed(Cancel(1))
+
+    # -- the survey: a status the tests set; accepting writes its proposals ------------------
+    def survey_status(self) -> SurveyStatus:
+        return self.survey
+
+    def survey_start(self, robot: str, *, actor: str) -> None:
+        if robot not in self.poses:
+            raise KeyError(f"unknown robot {robot!r}")
+        self.survey = SurveyStatus("driving", robot)
+
+    def survey_stop(self, *, actor: str) -> None:
+        self.survey = replace(self.survey, state="solving")
+
+    def survey_cancel(self, *, actor: str) -> None:
+        self.survey = SurveyStatus("idle")
+
+    def survey_accept(self, landmark_ids: Sequence[int] | None, *, actor: str) -> None:
+        props = {p.landmark_id: p for p in self.survey.proposals}
+        ids = [i for i, p in props.items() if not p.flags] if landmark_ids is None else landmark_ids
+        missing = sorted(set(ids) - set(props))
+        if missing:
+            raise ValueError(f"landmarks: {missing} not surveyed")
+        for i in ids:
+            self.update_landmark(i, actor=actor, x=props[i].x, y=props[i].y, z=props[i].z)
+        self.survey = replace(self.survey, accepted=(*self.survey.accepted, *ids))
 
 
 def grid_site(*, doubted: dict[int, tuple[float, float]] | None = None) -> MemSite:

@@ -53,8 +53,8 @@ def test_batteries_low_first_unknown_last_with_the_schedule_and_the_model() -> N
     ]  # fmt: skip
     rows = battery_table(lms).splitlines()[2:]
     assert [r.split("|")[1].strip() for r in rows] == ["3 **LOW** (unreachable)", "1", "4", "2"]
-    assert rows[0] == "| 3 **LOW** (unreachable) | 2.30 | 4 (12) | 50 % | off | dark |"
-    assert rows[1] == "| 1 | 3.00 | 90 (300) | 20 % | on | view r1 |"
+    assert rows[0] == "| 3 **LOW** (unreachable) | 2.30 | 4 (12) | 50% | off | dark |"
+    assert rows[1] == "| 1 | 3.00 | 90 (300) | 20% | on | view r1 |"
     by_volts = battery_table(lms, "volts").splitlines()[2:]
     assert [r.split("|")[1].strip()[0] for r in by_volts] == ["3", "4", "1", "2"]
     by_duty = battery_table(lms, "duty").splitlines()[2:]

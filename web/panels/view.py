@@ -15,6 +15,9 @@ from web.colors import (
     LIT_COLOR,
     MODE_COLORS,
     RGB,
+    ROUTE_COLOR,
+    SURVEY_STATE_COLORS,
+    SURVEY_STATE_NAMES,
     UNKNOWN_COLOR,
     UNREACHABLE_COLOR,
     battery_color,
@@ -80,6 +83,9 @@ def legend_html() -> str:
     rows.append(head.format("Coverage (floor)"))
     rows += [swatch(c, t) for c, t in COVERAGE_COUNT]
     rows.append(gradient([battery_color(p) for p in (0, 50, 100)], ">= 5 cm / no fix", "<= 1 cm"))
+    rows.append(head.format("Survey (ceiling: 1-sigma ellipses, magnified)"))
+    rows += [swatch(SURVEY_STATE_COLORS[k], t) for k, t in SURVEY_STATE_NAMES.items()]
+    rows.append(swatch(ROUTE_COLOR, "suggested route (floor)"))
     return '<div style="font-size:0.9em">' + "".join(rows) + "</div>"
 
 

@@ -1,0 +1,170 @@
+"""The live survey's running estimate: the surveying robot's events kept in memory while it
+drives (`LiveDrive`), solved again every few seconds, and what each landmark's estimate says
+(`landmark_state`).
+
+The recording on disk stays the survey's record (the final solve after `stop` reads it); the
+live estimate only needs the spots, the wheels and the LED states, which the robot's runner
+hands over as it feeds its localizer (`RobotRunner.add_tap`). Frames are reduced to their spots
+in a worker thread (`localizer.spots.detect_spots`), never on the robot's own thread.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+from collections import deque
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+import numpy.typing as npt
+
+from localizer.camera import CameraModel
+from localizer.events import Event, FrameObserved, LedsChanged, OdometryMeasured, SpotsObserved
+from localizer.robot import RobotGeometry
+from localizer.spots import DetectionConfig, detect_spots
+from survey.drive import SurveyDrive
+from survey.problem import BundleConfig
+from survey.result import LandmarkEstimate
+from survey.route import RouteConfig
+from survey.survey_map import SurveyLandmark
+
+log = logging.getLogger(__name__)
+
+FloatArray = npt.NDArray[np.float64]
+
+LandmarkSurveyState = Literal["anchor", "converging", "converged", "flagged"]
+
+
+@dataclass(frozen=True)
+class LiveSurveyConfig:
+    """Tuning of the live survey.
+
+    Attributes:
+        solve_every_s: a new live estimate is started this long after the previous one
+            ended, or as long as the previous one took if that is longer (at most half a
+            core), seconds.
+        converged_sigma_m: a landmark whose 1-sigma uncertainty is at or under this counts
+            as converged (2 sigma within the survey's 1 cm target), metres; it is no longer
+            blinked.
+        queue_frames: frames waiting for spot detection, at most (older ones are dropped
+            when the machine falls behind: the tracker coasts over the gap).
+        bundle: the estimator's tuning for the live solves (fewer iterations than the final
+            one: it starts again a few seconds later anyway).
+        route: the suggested route's tuning.
+        site_margin_m: the route stays inside the landmarks' extent plus this, metres.
+    """
+
+    solve_every_s: float = 4.0
+    converged_sigma_m: float = 0.005
+    queue_frames: int = 90
+    bundle: BundleConfig = field(
+        default_factory=lambda: BundleConfig(max_iterations=12, window_iterations=4)
+    )
+    route: RouteConfig = field(default_factory=RouteConfig)
+    site_margin_m: float = 0.5
+
+
+def landmark_state(e: LandmarkEstimate, converged_sigma_m: float) -> LandmarkSurveyState:
+    """What an estimate says: an anchor (locked, held), flagged (something looks wrong),
+    converged (1-sigma at or under `converged_sigma_m`) or still converging."""
+    if e.anchor:
+        return "anchor"
+    if e.flags:
+        return "flagged"
+    return "converged" if e.sigma_m <= converged_sigma_m else "converging"
+
+
+class LiveDrive:
+    """The surveying robot's events in memory, as a growing `SurveyDrive`.
+
+    `add` is called on the robot's thread for every event it feeds its localizer (cheap: a
+    frame is queued); a worker thread detects each frame's spots. `snapshot()` is the drive
+    so far. `close()` stops the worker.
+    """
+
+    def __init__(
+        self,
+        landmarks: list[SurveyLandmark],
+        camera: CameraModel,
+        robot: RobotGeometry,
+        *,
+        detection: DetectionConfig | None = None,
+        queue_frames: int = 90,
+    ) -> None:
+        self.landmarks, self.camera, self.robot = landmarks, camera, robot
+        self.detection = detection or DetectionConfig()
+        self._lock = threading.Lock()
+        self._queue: deque[FrameObserved] = deque(maxlen=queue_frames)
+        self._wake = threading.Event()
+        self._closed = threading.Event()
+        self._frame_t: list[int] = []
+        self._spots: list[FloatArray] = []
+        self._odom_t: list[int] = []
+        self._odom_v: list[tuple[float, float]] = []
+        self._leds: list[LedsChanged] = []
+        self.dropped = 0
+        self._thread = threading.Thread(target=self._detect, name="survey-spots", daemon=True)
+        self._thread.start()
+
+    def add(self, event: Event) -> None:
+        """One event of the robot (any thread; never blocks)."""
+        with self._lock:
+            if isinstance(event, FrameObserved):
+                if len(self._queue) == self._queue.maxlen:
+                    self.dropped += 1
+                self._queue.append(event)
+                self._wake.set()
+            elif isinstance(event, SpotsObserved):
+                self._add_spots(event.t_ns, np.asarray(event.pixels, dtype=np.float64))
+            elif isinstance(event, OdometryMeasured):
+                if not self._odom_t or event.t_ns > self._odom_t[-1]:
+                    self._odom_t.append(event.t_ns)
+                    self._odom_v.append((event.v_left, event.v_right))
+            elif isinstance(event, LedsChanged) and (
+                not self._leds or event.t_ns >= self._leds[-1].t_ns
+            ):
+                # as a recording keeps it: the state in force, no "changing" set
+                self._leds.append(LedsChanged(event.t_ns, event.lit, event.all_lit))
+
+    def _add_spots(self, t_ns: int, pixels: FloatArray) -> None:
+        if not self._frame_t or t_ns > self._frame_t[-1]:
+            self._frame_t.append(t_ns)
+            self._spots.append(pixels.reshape(-1, 2))
+
+    def _detect(self) -> None:
+        while not self._closed.is_set():
+            self._wake.wait(0.5)
+            while True:
+                with self._lock:
+                    if not self._queue:
+                        self._wake.clear()
+                        break
+                    frame = self._queue.popleft()
+                try:
+                    pixels = detect_spots(np.asarray(frame.image, np.uint8), self.detection).pixels
+                except Exception:  # a bad frame: skipped, as a recording's unreadable one
+                    log.debug("survey: spot detection failed on a frame", exc_info=True)
+                    continue
+                with self._lock:
+                    self._add_spots(frame.t_ns, np.asarray(pixels, dtype=np.float64))
+
+    @property
+    def frames(self) -> int:
+        with self._lock:
+            return len(self._frame_t)
+
+    def snapshot(self) -> SurveyDrive:
+        """The drive so far (frames whose spots are known)."""
+        with self._lock:
+            return SurveyDrive(
+                self.landmarks, self.camera, self.robot,
+                np.asarray(self._frame_t, dtype=np.int64), list(self._spots),
+                np.asarray(self._odom_t, dtype=np.int64),
+                np.asarray(self._odom_v, dtype=np.float64).reshape(-1, 2), list(self._leds), 0,
+            )  # fmt: skip
+
+    def close(self) -> None:
+        self._closed.set()
+        self._wake.set()
+        self._thread.join(timeout=5.0)

@@ -1,0 +1,26 @@
+"""When the sleeping landmarks stay awake (server/led_schedule/wake_window.py)."""
+
+from __future__ import annotations
+
+import pytest
+
+from server.led_schedule.wake_window import WakeWindow, WakeWindowConfig
+
+
+def test_the_window_opens_while_a_robot_identifies_and_closes_after_it_held_a_pose() -> None:
+    w = WakeWindow(WakeWindowConfig(normal_wake_s=1.0, identify_wake_s=30.0, relax_after_s=5.0))
+    assert w.update(0.0, identifying=False) is None  # nothing to change at a calm start
+    assert w.update(1.0, identifying=True) == 30.0
+    assert w.update(1.25, identifying=True) is None  # sent once, not every plan
+    assert w.update(3.0, identifying=False) is None  # posed since 3 s
+    assert w.update(6.0, identifying=True) is None  # lost again: still open, timer reset
+    assert w.update(7.0, identifying=False) is None
+    assert w.update(11.9, identifying=False) is None
+    assert w.update(12.0, identifying=False) == 1.0  # 5 s with every robot posed
+    assert not w.open
+    assert w.update(20.0, identifying=False) is None
+
+
+def test_a_window_shorter_than_the_normal_time_awake_is_refused() -> None:
+    with pytest.raises(ValueError, match="normal_wake_s"):
+        WakeWindowConfig(normal_wake_s=2.0, identify_wake_s=1.0)
