@@ -14,6 +14,7 @@ without a full-frame pass.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from typing import NamedTuple
 
@@ -23,6 +24,7 @@ import numpy.typing as npt
 from localizer.camera import CameraModel
 from localizer.config import LocalizerConfig
 from localizer.events import FrameObserved, SpotsObserved
+from localizer.geometry import wrap_angle
 from localizer.handoff import (
     Prediction,
     consistent_hypotheses,
@@ -51,6 +53,7 @@ from localizer.tracking import (
 
 FloatArray = npt.NDArray[np.float64]
 Frame = FrameObserved | SpotsObserved
+Pose3 = tuple[float, float, float]
 
 
 class TrackResult(NamedTuple):
@@ -118,6 +121,7 @@ class LandmarkTracker:
         self.noise = PixelNoiseModel(self.camera, self.config.noise, self.scale_px_per_m)
         if old is not None:
             self.noise.factor = old.factor  # what the residuals taught so far
+        self._consider_cache: dict[tuple[int, ...], tuple[Pose3, FloatArray]] = {}
 
     def full_spots(self, e: Frame) -> Spots:
         """The spots of the whole frame (remembering its background for the windows)."""
@@ -285,9 +289,11 @@ class LandmarkTracker:
         fc = self.config.fusion
         px = spots.pixels[[s for _, s in pairs]].tolist()
         sig = [self.noise.sigma_px(u, v) for u, v in px]
-        fix = self._solve([r for r, _ in pairs], px, sig, found.pose, robust=True)
+        rows_used = [r for r, _ in pairs]
+        fix = self._solve(rows_used, px, sig, found.pose, robust=True)
         if fix is None or fix.n_landmarks < 2:
             return None
+        fix = self._with_calibration(fix, rows_used, px, sig)
         res = fix.residuals_px or (fix.residual_rms_px,) * len(sig)
         inliers = sum(1 for r, si in zip(res, sig, strict=True) if r <= fc.outlier_sigma * si)
         if inliers < max(2, 0.8 * len(sig)):
@@ -371,6 +377,7 @@ class LandmarkTracker:
             if fix is None:
                 return ()
             res = fix.residuals_px
+        fix = self._with_calibration(fix, rows, px, sig)
         n = len(rows)
         if n < need:
             return ()
@@ -386,6 +393,32 @@ class LandmarkTracker:
         self.last_fused = (rows, px, fix)
         self.last_matched = n
         return fix.landmark_ids
+
+    def _with_calibration(
+        self, fix: PoseFix, rows: list[int], px: list[list[float]], sig: list[float]
+    ) -> PoseFix:
+        """The fix with the calibration's consider term added to its covariance
+        (`calibration_consider`): the part of the calibration's error that is common to
+        every landmark and does not shrink with their number. It changes smoothly with the
+        view and turns with the camera: for the same landmarks it is reused, turned by the
+        change of heading, until the pose has moved `PixelNoiseConfig.consider_reuse_m` or
+        `consider_reuse_rad`."""
+        pose = (fix.x, fix.y, fix.theta)
+        cached = self._consider_cache.get(fix.landmark_ids)
+        nc = self.config.noise
+        turn = 0.0 if cached is None else float(wrap_angle(pose[2] - cached[0][2]))
+        if cached is None or (
+            math.hypot(pose[0] - cached[0][0], pose[1] - cached[0][1]) > nc.consider_reuse_m
+            or abs(turn) > nc.consider_reuse_rad
+        ):
+            term = self.noise.calibration_covariance(px, self.map.positions[rows], pose, sig)
+            if term is None:
+                return fix
+            cached, turn = (pose, term), 0.0
+            self._consider_cache = {fix.landmark_ids: cached}
+        c, s = math.cos(turn), math.sin(turn)
+        R = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+        return dataclasses.replace(fix, covariance=fix.covariance + R @ cached[1] @ R.T)
 
     def _off_image(
         self, rows: list[int], px: list[list[float]], pose: tuple[float, float, float]

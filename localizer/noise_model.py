@@ -12,6 +12,16 @@ Three independent parts, added in quadrature, per landmark:
   same ray (`calibration_sigma_table`). It grows with the radius, steeply for a strong
   radial-tangential lens: a few pixels at the edge of a wide lens is normal.
 
+The first two are independent from landmark to landmark; the calibration's error is not (it
+distorts the whole image alike), so a fix's covariance also carries it as a consider term
+(`calibration_consider`, `PixelNoiseModel.calibration_covariance`) that does not shrink with
+the number of landmarks. The per-spot sigma here (all three parts) stays the weight of the fit,
+the fit's own covariance and the scale of the per-spot outlier and chi-square tests: a residual
+still holds the calibration's systematic displacement of its spot (less what the pose
+absorbs), and on recordings of an independent generator (`bench/foreign`) a per-spot sigma of
+the centroid and survey alone made fixes of two landmarks over-confident (spot shape and blur
+that the calibration part covers).
+
 The defaults are a prior. `PixelNoiseModel.observe` adapts one common scale factor online
 from the fixes' normalised residuals (chi-square over its degrees of freedom, which is 1 on
 average when the model is right), within `adapt_bounds`.
@@ -26,6 +36,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from localizer.calibration_consider import CalibrationConsider
 from localizer.camera import CameraModel, normalized_from_pixels, pixels_from_points_camera
 
 FloatArray = npt.NDArray[np.float64]
@@ -46,6 +57,9 @@ class PixelNoiseConfig:
         adapt_bounds: the scale factor stays within these.
         adapt_min_landmarks: fixes from fewer landmarks do not adapt it (too few degrees of
             freedom to tell noise from a pose error).
+        consider_reuse_m, consider_reuse_rad: a fix's calibration term
+            (`calibration_covariance`) is reused for the same landmarks (turned with the
+            heading) until the pose has moved this far, metres / radians.
     """
 
     centroid_sigma_px: float = 0.5
@@ -57,10 +71,13 @@ class PixelNoiseConfig:
     adapt_gain: float = 0.02
     adapt_bounds: tuple[float, float] = (0.2, 3.0)
     adapt_min_landmarks: int = 3
+    consider_reuse_m: float = 0.05
+    consider_reuse_rad: float = 0.1
 
     def __post_init__(self) -> None:
         for name in ("centroid_sigma_px", "survey_sigma_m", "focal_rel", "principal_px",
-                     "distortion_rel", "adapt_gain"):  # fmt: skip
+                     "distortion_rel", "adapt_gain", "consider_reuse_m",
+                     "consider_reuse_rad"):  # fmt: skip
             v = getattr(self, name)
             if not math.isfinite(v) or v < 0:
                 raise ValueError(f"PixelNoiseConfig: {name} must be >= 0, got {v!r}")
@@ -136,6 +153,24 @@ class PixelNoiseModel:
         self._step = float(radii[1] - radii[0]) if len(radii) > 1 else 1.0
         self._table = [math.sqrt(base2 + c * c) for c in cal.tolist()]
         self._cu, self._cv = camera.cu, camera.cv
+        self.consider = CalibrationConsider.for_camera(
+            camera,
+            focal_rel=config.focal_rel,
+            principal_px=config.principal_px,
+            distortion_rel=config.distortion_rel,
+        )
+
+    def calibration_covariance(
+        self,
+        pixels: list[list[float]],
+        p_world: FloatArray,
+        pose: tuple[float, float, float],
+        sigma_px: list[float],
+    ) -> FloatArray | None:
+        """The calibration's consider term A Sigma_cal A^T, shape (3, 3), of a level fit at
+        `pose` weighted by `sigma_px` (this model's sigmas); None when degenerate."""
+        found = self.consider.covariance(pixels, p_world, pose, sigma_px, self.factor)
+        return None if found is None else found[1]
 
     def sigma_px(self, u: float, v: float) -> float:
         """The standard deviation of a spot at pixel (u, v), per axis, pixels."""

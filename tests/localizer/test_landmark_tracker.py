@@ -39,8 +39,9 @@ def test_a_step_finds_every_landmark_and_fuses_the_fix() -> None:
     tracker, filt, frame = _setup((0.56, 0.29, 0.41))
     result = tracker.step(filt, frame, dt_frame_s=1 / 30, fresh_odometry=True, candidates=None)
     assert result.used == (7, 8, 9) and not result.unexplained
-    # 1 cm and 0.01 rad off before: the fix (a few mm, mrad) pulls the estimate to the truth
-    np.testing.assert_allclose(filt.pose[:2], TRUE_POSE[:2], atol=2e-3)
+    # 1 cm and 0.01 rad off before: the fix (a few mm, mrad, the calibration's uncertainty
+    # included) pulls the estimate to the truth
+    np.testing.assert_allclose(filt.pose[:2], TRUE_POSE[:2], atol=3e-3)
     assert abs(filt.pose[2] - TRUE_POSE[2]) < 0.004
 
 
