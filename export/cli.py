@@ -19,6 +19,7 @@ from pathlib import Path
 
 from export.content import export_content
 from export.foxglove_mcap import write_foxglove
+from export.poses_option import add_poses_option
 from export.ros2_mcap import write_ros2
 from export.topics import PROFILES, Profile
 from recording.localize import PoseSource
@@ -62,13 +63,7 @@ def main(argv: list[str] | None = None) -> int:
         default="foxglove",
         help="foxglove: Foxglove schemas (default); ros2: ROS 2 messages (rosbag2 in MCAP)",
     )
-    parser.add_argument(
-        "--poses",
-        choices=("live", "replay"),
-        default=None,
-        help="live: what the robot's localizer gave (a live recording's live_poses.csv); "
-        "replay: run the localizer over the recording; default live when recorded",
-    )
+    add_poses_option(parser)
     parser.add_argument("--quiet", action="store_true", help="no summary")
     args = parser.parse_args(argv)
     start = time.perf_counter()

@@ -13,6 +13,7 @@ import sys
 import time
 from pathlib import Path
 
+from export.poses_option import add_poses_option
 from export.report import write_report
 from recording.reader import RecordingError
 from recording.scoring import sec_v_table
@@ -32,13 +33,7 @@ def main(argv: list[str] | None = None) -> int:
         help="ground truth CSV (timestamp_ns,x,y,theta); default groundtruth.csv beside the "
         "recording, when there is one",
     )
-    parser.add_argument(
-        "--poses",
-        choices=("live", "replay"),
-        default=None,
-        help="live: what the robot's localizer gave (a live recording's live_poses.csv); "
-        "replay: run the localizer over the recording; default live when recorded",
-    )
+    add_poses_option(parser)
     parser.add_argument("--quiet", action="store_true", help="print nothing on success")
     args = parser.parse_args(argv)
     start = time.perf_counter()

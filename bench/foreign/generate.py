@@ -110,6 +110,15 @@ def body_from_camera(case: Case) -> FloatArray:
     return T
 
 
+def in_camera(pose: FloatArray, T_BS: FloatArray, p_world: FloatArray) -> FloatArray:
+    """World points (N, 3) in the camera frame of a robot at planar `pose` (x, y, theta)."""
+    T_WB = np.eye(4)
+    T_WB[:3, :3] = rot_z(float(pose[2]))
+    T_WB[:3, 3] = [pose[0], pose[1], 0.0]
+    T_CW = np.linalg.inv(T_WB @ T_BS)
+    return p_world @ T_CW[:3, :3].T + T_CW[:3, 3]
+
+
 @dataclass
 class Motion:
     """The true planar path, sampled at 1 kHz from the case's command segments."""
@@ -303,22 +312,12 @@ def generate(case: Case, out: Path, seconds: float, seed: int) -> None:
         samples, ok = [], np.ones(len(ids), bool)
         for dt in np.linspace(-0.5, 0.5, n_sub) * case.exposure_s:
             k = min(round((t_frame + dt) / 1e-3), len(motion.t) - 1)
-            x, y, th = motion.pose[k]
-            T_WB = np.eye(4)
-            T_WB[:3, :3] = rot_z(th)
-            T_WB[:3, 3] = [x, y, 0]
-            T_CW = np.linalg.inv(T_WB @ T_BS)
-            p_cam = p_true @ T_CW[:3, :3].T + T_CW[:3, 3]
-            px, inside = true_lens.project(p_cam)
+            px, inside = true_lens.project(in_camera(motion.pose[k], T_BS, p_true))
             samples.append(px)
             ok &= inside
         k = min(round(t_frame / 1e-3), len(motion.t) - 1)
         x, y, th = motion.pose[k]
-        T_WB = np.eye(4)
-        T_WB[:3, :3] = rot_z(th)
-        T_WB[:3, 3] = [x, y, 0]
-        T_CW = np.linalg.inv(T_WB @ T_BS)
-        p_cam = p_true @ T_CW[:3, :3].T + T_CW[:3, 3]
+        p_cam = in_camera(motion.pose[k], T_BS, p_true)
         dist_m = np.linalg.norm(p_cam, axis=1)
         cos_a = np.clip(p_cam[:, 2] / dist_m, 0, 1)
         bright = (2.5 / dist_m) ** 2 * cos_a**3 * case.led_power[ids - case.first_id]
