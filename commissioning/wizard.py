@@ -580,7 +580,9 @@ class IdentificationWizard:
         if pose.mode != "landmark" or sigma > cfg.max_sigma_m:
             return
         leds = self._leds_at(e.t_ns)
-        if leds is None:
+        if leds is None or leds.changing - {t.candidate.landmark_id}:
+            # another LED in transition (a robot's identification probe): the frame may show
+            # it either way, and a pair across its switch would take its spot for the target's
             return
         on = self._target_on_at(t, e.t_ns, leds)
         if on is None:
