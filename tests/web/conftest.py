@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+import viser
 
 REPO = Path(__file__).resolve().parents[2]
 ARTIFACTS = REPO / "test-artifacts"
@@ -54,6 +55,16 @@ def running_site(data: Path, *, seed: int = 5) -> Iterator[tuple[Any, int]]:
     finally:
         server.should_exit = True
         thread.join(timeout=30)
+
+
+@pytest.fixture
+def server() -> Iterator[viser.ViserServer]:
+    """A viser server on a free loopback port, for panels driven without a browser."""
+    s = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
+    try:
+        yield s
+    finally:
+        s.stop()
 
 
 @pytest.fixture(scope="session")

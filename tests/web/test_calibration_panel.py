@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -14,13 +13,6 @@ from web.panels.calibration import CalibrationPanel
 from web.roles import Session
 
 PHOTOS = Path(__file__).parents[1] / "data" / "chessboard"
-
-
-@pytest.fixture
-def server() -> Iterator[viser.ViserServer]:
-    s = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
-    yield s
-    s.stop()
 
 
 def _panel(server: viser.ViserServer, role: str) -> tuple[CalibrationPanel, list[str]]:

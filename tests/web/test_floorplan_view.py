@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator
 from pathlib import Path
 
 import cv2
@@ -13,13 +12,6 @@ import viser
 
 from server.floorplan import FloorPlanStore, Placement
 from web.floorplan_view import FloorPlanLayer, FloorPlanPanel, floorplan_pixels
-
-
-@pytest.fixture
-def server() -> Iterator[viser.ViserServer]:
-    s = viser.ViserServer("127.0.0.1", 0, verbose=False)
-    yield s
-    s.stop()
 
 
 def _png(w: int, h: int) -> bytes:

@@ -29,13 +29,6 @@ def repo(tmp_path: Path) -> Iterator[MapRepository]:
     engine.dispose()
 
 
-@pytest.fixture
-def server() -> Iterator[viser.ViserServer]:
-    s = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
-    yield s
-    s.stop()
-
-
 def _panel(server: viser.ViserServer, repo: MapRepository) -> tuple[HistoryPanel, list[str]]:
     notes: list[str] = []
     return HistoryPanel(server.gui, repo, ME, lambda t, b: notes.append(b)), notes

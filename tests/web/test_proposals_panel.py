@@ -44,13 +44,6 @@ def upkeep(tmp_path: Path) -> Iterator[MapUpkeepService]:
     engine.dispose()
 
 
-@pytest.fixture
-def server() -> Iterator[viser.ViserServer]:
-    s = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
-    yield s
-    s.stop()
-
-
 def test_the_panel_lists_accepts_and_rejects_as_the_api_does(
     server: viser.ViserServer, upkeep: MapUpkeepService
 ) -> None:

@@ -1,24 +1,13 @@
 from __future__ import annotations
 
-from collections.abc import Iterator
 from dataclasses import replace
 from typing import Any
 
 import numpy as np
-import pytest
 import viser
 
 from tests.web.memsite import grid_site
 from web.scene import SceneConfig, SiteScene, Trail
-
-
-@pytest.fixture
-def server() -> Iterator[viser.ViserServer]:
-    s = viser.ViserServer("127.0.0.1", 0, verbose=False)
-    try:
-        yield s
-    finally:
-        s.stop()
 
 
 def node(server: viser.ViserServer, name: str) -> Any:
