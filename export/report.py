@@ -22,7 +22,7 @@ import numpy.typing as npt
 from export import report_plots as plots
 from localizer.events import NoPose, PoseEstimate
 from recording.layout import GROUNDTRUTH_FILE
-from recording.localize import PoseSource, has_live_poses, localized
+from recording.localize import PoseSource, localized, pose_source
 from recording.reader import Recording, read_groundtruth_file, read_recording
 from recording.scoring import (
     PAPER,
@@ -93,7 +93,7 @@ def collect(
     gt = read_groundtruth_file(truth) if (truth is not None and use_truth) else None
     estimates: list[PoseEstimate | NoPose] = []
     cpu: list[float] = []
-    source: PoseSource = poses or ("live" if has_live_poses(rec) else "replay")
+    source = pose_source(rec, poses)
     for done in localized(rec, source):
         estimates.append(done.estimate)
         if source == "replay":

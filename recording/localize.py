@@ -144,6 +144,11 @@ def has_live_poses(rec: Recording) -> bool:
     return (rec.root / LIVE_POSES_FILE).is_file()
 
 
+def pose_source(rec: Recording, poses: PoseSource | None) -> PoseSource:
+    """`poses` itself, or when None `live` for a recording with live poses, else `replay`."""
+    return poses or ("live" if has_live_poses(rec) else "replay")
+
+
 def live_poses(rec: Recording, *, threads: int | None = None) -> Iterator[Localized]:
     """What the robot's localizer gave live for every listed frame (`live_poses.csv`), the
     frames decoded as `localize` decodes them; a frame without a row there (recorded after
@@ -177,7 +182,7 @@ def localized(
     Raises:
         RecordingError: `live` asked of a recording without live poses, or a malformed file.
     """
-    source = poses or ("live" if has_live_poses(rec) else "replay")
+    source = pose_source(rec, poses)
     if source == "live":
         if not has_live_poses(rec):
             raise RecordingError(
