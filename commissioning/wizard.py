@@ -4,10 +4,11 @@ It measures, one candidate at a time, where a landmark (or a new radio from disc
 with one chosen robot's camera, while every robot keeps tracking: it never darkens the
 ceiling. A landmark of the map is darkened *alone* against the lit set for `dark_s`, then lit
 again for `lit_s`, over and over (as robots identify themselves); a new radio is lit alone
-and darkened again. Pairs of frames, one with the target lit and one without (the other LEDs
-the same), give one sample each of where it is (`commissioning.measuring`); the robot may
-move meanwhile. Confirm is offered once `min_agreeing` samples agree, and a position far
-from the map's needs an explicit "accept far".
+and darkened again. Each lit frame gives a sample of where it is when one spot followed the
+LED through `min_cycles` lit phases and the dark ones between (`commissioning.measuring`,
+kept by `commissioning.sampling`); the robot may move meanwhile. Confirm is offered once
+`min_agreeing` samples agree, and a position far from the map's needs an explicit "accept
+far". Its tuning is `commissioning.wizard_config`, its words `commissioning.wizard_prompts`.
 
 Before darkening a landmark it checks the robots that track: when one of them would be left
 with fewer than `min_fix_landmarks` landmarks (its fix), the wizard waits and says so; after
@@ -29,19 +30,16 @@ from dataclasses import dataclass, field
 from typing import Literal
 
 import numpy as np
-import numpy.typing as npt
 
 from commissioning.doubt import expected_in_view
 from commissioning.measuring import (
-    Agreement,
     PlacedFrame,
-    agreement,
     place_spots,
     plausibility,
-    switch_record,
-    switched_spot,
 )
+from commissioning.sampling import TargetSamples
 from commissioning.types import Candidate, MapLandmark
+from commissioning.wizard_config import WizardConfig
 from commissioning.wizard_messages import (
     Cancel,
     Confirm,
@@ -74,53 +72,6 @@ from commissioning.wizard_prompts import (
 from localizer.camera import CameraModel
 from localizer.events import PoseEstimate
 
-FloatArray = npt.NDArray[np.float64]
-
-
-@dataclass(frozen=True)
-class WizardConfig:
-    """The wizard's tuning.
-
-    Attributes:
-        dark_s: the target's LED is held dark this long per cycle, seconds.
-        lit_s: ... and lit this long between, seconds.
-        settle_s: a frame counts once taken this long after its LED state was confirmed, s.
-        resend_s: an LED state the wizard wants and does not see is asked for again after
-            this long (a robot's own LED request may have replaced it), seconds.
-        match_m: a spot of the lit frame with no spot of the dark frame within this
-            (horizontally, on the ceiling) is a candidate for the target's, metres.
-        min_cycles: a candidate is the target's once it followed its LED through this many
-            lit phases and the dark ones between: present in every frame that would have
-            seen it while lit, absent in every one while dark.
-        agree_m: samples agree when within this of their median (horizontally), metres.
-        min_agreeing: Confirm is offered once this many successive samples agree.
-        far_m: a measurement farther than this from the map's position is flagged, metres.
-        min_fix_landmarks: a tracking robot keeps its fix with this many landmarks.
-        wait_fix_s: after waiting this long for robots to free a landmark, the wizard asks
-            whether to switch it anyway, seconds.
-        no_spot_s: after measuring this long without a sample, it says what to move, s.
-        max_sigma_m: the measuring robot's 1-sigma position error must be at most this, m.
-        keep_s: frames and LED states kept for pairing and for following a candidate
-            (at least `min_cycles` cycles of `dark_s + lit_s`), seconds.
-        margin_px: a map position this far inside the image border counts as in view, px.
-    """
-
-    dark_s: float = 0.5
-    lit_s: float = 0.6
-    settle_s: float = 0.05
-    resend_s: float = 0.4
-    match_m: float = 0.15
-    min_cycles: int = 2
-    agree_m: float = 0.03
-    min_agreeing: int = 5
-    far_m: float = 0.5
-    min_fix_landmarks: int = 3
-    wait_fix_s: float = 10.0
-    no_spot_s: float = 4.0
-    max_sigma_m: float = 0.05
-    keep_s: float = 2.5
-    margin_px: float = 10.0
-
 
 @dataclass
 class _Target:
@@ -130,6 +81,7 @@ class _Target:
     known: MapLandmark | None
     height: float
     want_on: bool  # the target's LED as the cycle wants it now
+    sampled: TargetSamples  # its frames and the samples they gave
     since_ns: int | None = None  # when the wanted state was confirmed (None: not yet)
     asked_ns: int | None = None  # when it was last asked for
     # from asking for a state until it was confirmed, the LED may be either way: (from, to)
@@ -138,15 +90,6 @@ class _Target:
     waiting_since_ns: int | None = None
     blockers: tuple[str, ...] = ()
     started_ns: int = 0
-    frames: deque[PlacedFrame] = field(default_factory=deque)  # time order
-    samples: list[FloatArray] = field(default_factory=list)
-    pairs: int = 0
-    ambiguous: int = 0
-    flickering: tuple[float, float] | None = None  # the last candidate that did not follow
-    last_pixel: tuple[float, float] | None = None
-    last_frame_ns: int = 0
-    agreed: Agreement | None = None
-    note: str = ""
 
 
 class IdentificationWizard:
@@ -291,7 +234,10 @@ class IdentificationWizard:
         height = known.z if known is not None else self._ceiling_z
         # it starts lit (a landmark is, a new radio is asked to be: it was lit when found),
         # then it is darkened: a spot is measured from its second lit phase on
-        self._target = _Target(c, known, height, want_on=True, started_ns=t_ns)
+        assert self._camera is not None
+        others = [(lm.x, lm.y) for lid, lm in self._landmarks.items() if lid != c.landmark_id]
+        sampled = TargetSamples(self._camera, self.config, others)
+        self._target = _Target(c, known, height, want_on=True, sampled=sampled, started_ns=t_ns)
         self._phase = "waiting"
         self._prompt = f"{self._what(c)}: starting"
 
@@ -464,53 +410,16 @@ class IdentificationWizard:
         px = np.asarray(e.pixels, dtype=np.float64).reshape(-1, 2)
         xyt = (pose.x, pose.y, pose.theta)
         frame = PlacedFrame(e.t_ns, leds.lit - target, on, px, pts, xyt, leds.changing - target)
-        if t.frames and frame.t_ns <= t.frames[-1].t_ns:
-            return  # stale or repeated
-        t.frames.append(frame)
-        horizon = e.t_ns - round(cfg.keep_s * 1e9)
-        while t.frames[0].t_ns < horizon:
-            t.frames.popleft()
-        t.unsure = [u for u in t.unsure if u[1] is None or u[1] >= horizon]
-        if not on:
-            if t.agreed is not None:  # a spot where it was measured while it is dark: no switch
-                rec = switch_record(
-                    self._camera, t.agreed.position, [frame], match_m=cfg.match_m,
-                    margin_px=cfg.margin_px,
-                )  # fmt: skip
-                if rec.extras:
-                    t.agreed, t.samples = None, []
-            return
-        found = switched_spot(
-            self._camera, t.frames, match_m=cfg.match_m, margin_px=cfg.margin_px,
-            min_cycles=cfg.min_cycles,
-        )  # fmt: skip
-        if found is None:
-            return
-        t.pairs += 1
-        t.ambiguous += found.switched > 1
-        # spots at other landmarks (one a robot darkened, one at the edge of detection) are
-        # no news to the user; another spot that flickers is named by the no-spot prompt
-        others = [(lm.x, lm.y) for lm in self._landmarks.values() if lm.id not in target]
-        for fx, fy in found.flickering:
-            if all(math.hypot(fx - x, fy - y) > cfg.match_m for x, y in others):
-                t.flickering = (fx, fy)
-        if found.point is None:
-            return
-        t.samples.append(found.point)
-        del t.samples[: -4 * cfg.min_agreeing]
-        t.last_pixel = found.pixel
-        t.last_frame_ns = frame.t_ns
-        agreed = agreement(t.samples, agree_m=cfg.agree_m, needed=cfg.min_agreeing)
-        if agreed is not None:
-            t.agreed = agreed
+        t.sampled.add(frame)
+        t.unsure = [u for u in t.unsure if u[1] is None or u[1] >= t.sampled.horizon_ns]
 
     def _measurement(self, t: _Target) -> Measurement | None:
-        a = t.agreed
+        a, s = t.sampled.agreed, t.sampled
         if a is None:
             return None
         others = [lm for lid, lm in self._landmarks.items() if lid != t.candidate.landmark_id]
         plaus = plausibility(a.position, t.known, others, far_m=self.config.far_m)
-        return Measurement(a.position, a.count, a.spread_m, plaus, t.last_pixel, t.last_frame_ns)
+        return Measurement(a.position, a.count, a.spread_m, plaus, s.pixel, s.frame_ns)
 
     # -- prompts (worded in `commissioning.wizard_prompts`) -------------------------------------
     def _what(self, c: Candidate) -> str:
@@ -518,10 +427,9 @@ class IdentificationWizard:
 
     def _measuring_prompt(self, t: _Target, t_ns: int) -> str:
         late = (t_ns - t.started_ns) * 1e-9 >= self.config.no_spot_s
-        no_spot = None if t.samples or not late else no_spot_prompt(self._no_spot(t))
-        return measuring_prompt(
-            self._what(t.candidate), self._measurement(t), len(t.samples), no_spot
-        )
+        count = len(t.sampled.points)
+        no_spot = None if count or not late else no_spot_prompt(self._no_spot(t))
+        return measuring_prompt(self._what(t.candidate), self._measurement(t), count, no_spot)
 
     def _no_spot(self, t: _Target) -> NoSpot:
         pose = self._poses.get(self._robot)
@@ -539,8 +447,8 @@ class IdentificationWizard:
             known=t.known,
             radio=t.candidate.radio,
             in_view=in_view,
-            reflections=t.ambiguous > t.pairs // 2,
-            flickering=t.flickering,
+            reflections=t.sampled.ambiguous > t.sampled.pairs // 2,
+            flickering=t.sampled.flickering,
             min_cycles=self.config.min_cycles,
         )
 
