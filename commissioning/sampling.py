@@ -65,7 +65,7 @@ class TargetSamples:
         if self.frames and frame.t_ns <= self.frames[-1].t_ns:
             return
         self.frames.append(frame)
-        self.horizon_ns = frame.t_ns - round(cfg.keep_s * 1e9)
+        self.horizon_ns = self._horizon(frame.t_ns)
         while self.frames[0].t_ns < self.horizon_ns:
             self.frames.popleft()
         match = {"match_m": cfg.match_m, "margin_px": cfg.margin_px}
@@ -91,3 +91,18 @@ class TargetSamples:
         agreed = agreement(self.points, agree_m=cfg.agree_m, needed=cfg.min_agreeing)
         if agreed is not None:
             self.agreed = agreed
+
+    def _horizon(self, now_ns: int) -> int:
+        """Frames before this are forgotten: those older than `keep_s`, unless among the
+        last 2 `min_cycles` phases of the target's LED (the LED coordinator may stretch a
+        phase while robots take their turns), and those older than `max_keep_s`."""
+        cfg = self.config
+        keep = now_ns - round(cfg.keep_s * 1e9)
+        runs, previous, start = 0, None, now_ns
+        for f in reversed(self.frames):
+            if f.target_on != previous:
+                runs, previous = runs + 1, f.target_on
+                if runs > 2 * cfg.min_cycles:
+                    break
+            start = f.t_ns
+        return max(min(keep, start), now_ns - round(cfg.max_keep_s * 1e9))

@@ -84,7 +84,8 @@ class _Target:
     sampled: TargetSamples  # its frames and the samples they gave
     since_ns: int | None = None  # when the wanted state was confirmed (None: not yet)
     asked_ns: int | None = None  # when it was last asked for
-    # from asking for a state until it was confirmed, the LED may be either way: (from, to)
+    # a new radio's LED from asking for a state until its acknowledgement may be either way
+    # (a landmark's: the gateway's LED state says when it is being switched): (from, to)
     unsure: list[tuple[int, int | None]] = field(default_factory=list)
     force: bool = False
     waiting_since_ns: int | None = None
@@ -307,7 +308,8 @@ class IdentificationWizard:
 
     def _target_on_at(self, t: _Target, t_ns: int, leds: LedsSeen) -> bool | None:
         """Whether the target's LED was (surely) lit at `t_ns`; None when unknown (it was
-        being switched then: asked for and not yet confirmed, or confirmed too recently)."""
+        being switched then, or confirmed too recently; a new radio: from asking for the
+        state until its acknowledgement)."""
         settle = round(self.config.settle_s * 1e9)
         for since, until in t.unsure:
             if since <= t_ns and (until is None or t_ns < until + settle):
@@ -379,7 +381,7 @@ class IdentificationWizard:
         if t.since_ns is None and (
             t.asked_ns is None or t_ns - t.asked_ns >= cfg.resend_s * 1e9
         ):  # ask for the wanted state (again: something may have replaced it)
-            if t.asked_ns is None:
+            if t.asked_ns is None and t.known is None:
                 t.unsure.append((t_ns, None))
             t.asked_ns = t_ns
             if t.known is not None:

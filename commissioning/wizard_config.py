@@ -29,8 +29,12 @@ class WizardConfig:
             whether to switch it anyway, seconds.
         no_spot_s: after measuring this long without a sample, it says what to move, s.
         max_sigma_m: the measuring robot's 1-sigma position error must be at most this, m.
-        keep_s: frames and LED states kept for pairing and for following a candidate
-            (at least `min_cycles` cycles of `dark_s + lit_s`), seconds.
+        keep_s: frames and LED states kept for following a candidate, seconds: a little
+            over `min_cycles` + 1 cycles of `dark_s + lit_s`, so that a robot that delivers
+            few frames (a loaded computer) still has `min_cycles` lit phases in them.
+        max_keep_s: frames of the last 2 `min_cycles` phases of the target's LED are kept
+            longer than `keep_s` (the LED coordinator stretches a phase while robots take
+            their turns), up to this, seconds.
         margin_px: a map position this far inside the image border counts as in view, px.
     """
 
@@ -47,5 +51,6 @@ class WizardConfig:
     wait_fix_s: float = 10.0
     no_spot_s: float = 4.0
     max_sigma_m: float = 0.05
-    keep_s: float = 2.5
+    keep_s: float = 3.4
+    max_keep_s: float = 12.0
     margin_px: float = 10.0

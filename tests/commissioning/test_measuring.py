@@ -78,7 +78,7 @@ def drive(
     return frames
 
 
-def windows(frames: list[PlacedFrame], keep_ns: int = 2_500_000_000) -> list[list[PlacedFrame]]:
+def windows(frames: list[PlacedFrame], keep_ns: int = 3_400_000_000) -> list[list[PlacedFrame]]:
     """The frames the wizard keeps at each lit frame (the last `keep_ns`)."""
     return [
         [g for g in frames[: k + 1] if g.t_ns >= f.t_ns - keep_ns]

@@ -133,7 +133,14 @@ def test_identification_on_the_live_site_keeps_the_other_robots_tracking(live: A
     again = c.post(W + "/start", json={"robot": "r1", "landmarks": [lid]}, headers=h)
     assert again.status_code == 409
     st = live.wait_for(W, lambda s: s["measurement"] is not None, 40)
-    time.sleep(2.0)  # it goes on measuring until confirmed
+    poses = sub.drain()
+    deadline = time.monotonic() + 15.0  # it goes on measuring until confirmed: enough frames
+    while (
+        time.monotonic() < deadline
+        and min(sum(p.robot == robot for p in poses) for robot in ("r2", "r3")) <= 60
+    ):
+        time.sleep(0.2)
+        poses += sub.drain()
     st = c.get(W, headers=h).json()
     m = st["measurement"]
     assert m["far"] and st["needs_accept_far"] and not st["can_confirm"], st
@@ -141,7 +148,6 @@ def test_identification_on_the_live_site_keeps_the_other_robots_tracking(live: A
     r = c.post(W + "/confirm", json={}, headers=h)
     assert r.status_code == 422 and "far from the map" in r.json()["detail"]
     assert live.services.map.get(lid).x == pytest.approx(moved["x"])  # nothing saved
-    poses = sub.drain()
     for robot in ("r2", "r3"):
         modes = [p.mode for p in poses if p.robot == robot]
         share = modes.count("landmark") / len(modes)
