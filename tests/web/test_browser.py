@@ -119,17 +119,29 @@ def test_viewer_key_sees_but_cannot_edit(browser: Any, live_site: LiveSite) -> N
 
 
 def test_wizard_keeps_the_fleet_tracking_and_a_far_measurement_needs_accept_far(
-    browser: Any, live_site: LiveSite
+    browser: Any, live_site: LiveSite, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """Through the browser's buttons, on the live site: the landmark's map position is 4.2 m
     off; the wizard darkens it alone against the lit ceiling, the other robots stay in
     landmark mode on >= 95 % of their frames, the far measurement is flagged and Confirm
     stays disabled until "Accept far" is ticked; the saved position is the true one (the
     simulator's truth only checks it)."""
+    from localizer.events import LedRequest
     from server.models import LandmarkUpdate
     from tests.web.conftest import landmark_always_in_view, wait_localized
 
     services = live_site.services
+    coordinator = services.leds.coordinator
+    assert coordinator is not None
+    asked: list[LedRequest] = []  # what the wizard asks the LED coordinator for
+    ask = coordinator.request
+
+    def spy(who: str, req: LedRequest) -> None:
+        if who == "wizard":
+            asked.append(req)
+        ask(who, req)
+
+    monkeypatch.setattr(coordinator, "request", spy)
     world = services.sim.world
     viewer = live_site.app.state.viewer
     robot = "r2"
@@ -157,7 +169,8 @@ def test_wizard_keeps_the_fleet_tracking_and_a_far_measurement_needs_accept_far(
         st = services.commissioning.status()
         assert st.measurement is not None and st.measurement.plausibility.far, st
         assert st.phase == "measuring" and not st.can_confirm
-        assert world.lit_ids() >= set(services.map.addresses()) - {lid}  # never the ceiling
+        # never the ceiling: it only ever darkened lid (robots' own probes darken others)
+        assert asked and all(r.all_lit and set(r.dark) <= {lid} for r in asked), asked
         time.sleep(2.0)
         save_shot(page, "viewer-commissioning.png", doc=True)
         assert confirm.is_disabled()  # cannot be confirmed by accident
