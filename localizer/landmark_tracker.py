@@ -14,7 +14,6 @@ without a full-frame pass.
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from typing import NamedTuple
 
@@ -416,9 +415,7 @@ class LandmarkTracker:
                 return fix
             cached, turn = (pose, term), 0.0
             self._consider_cache = {fix.landmark_ids: cached}
-        c, s = math.cos(turn), math.sin(turn)
-        R = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-        return dataclasses.replace(fix, covariance=fix.covariance + R @ cached[1] @ R.T)
+        return fix.plus_covariance_turned(cached[1], turn)
 
     def _off_image(
         self, rows: list[int], px: list[list[float]], pose: tuple[float, float, float]
