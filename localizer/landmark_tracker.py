@@ -19,6 +19,7 @@ from typing import NamedTuple
 
 import numpy as np
 import numpy.typing as npt
+from scipy.spatial import cKDTree
 
 from localizer.camera import CameraModel
 from localizer.config import LocalizerConfig
@@ -73,6 +74,16 @@ class TrackResult(NamedTuple):
 _NOTHING = TrackResult()
 
 
+def landmark_spacing_m(positions: FloatArray) -> float:
+    """The median horizontal distance from a landmark to its nearest neighbour, metres (inf
+    with fewer than two): a displacement under half of it cannot pair a spot with another
+    landmark's prediction."""
+    if len(positions) < 2:
+        return math.inf
+    d, _ = cKDTree(positions[:, :2]).query(positions[:, :2], k=2)
+    return float(np.median(d[:, 1]))
+
+
 class LandmarkTracker:
     """Tracking and fusing for one camera, robot and map (see the module docstring).
 
@@ -116,6 +127,7 @@ class LandmarkTracker:
         ceiling_m = float(np.median(heights)) if len(heights) else 2.2
         self.scale_px_per_m = scale_px_per_m(max(self.camera.fu, self.camera.fv), ceiling_m)
         self._reach = visible_radius_m(self.camera, float(np.max(heights, initial=ceiling_m)))
+        self.spacing_m = landmark_spacing_m(landmark_map.positions)
         old: PixelNoiseModel | None = getattr(self, "noise", None)
         self.noise = PixelNoiseModel(self.camera, self.config.noise, self.scale_px_per_m)
         if old is not None:

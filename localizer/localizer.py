@@ -330,14 +330,18 @@ class Localizer:
 
     def _widen_unexplained(self, t_ns: int) -> None:
         """After frames whose spots no fix explained, the robot may have been moved without
-        its odometry knowing (a kidnap): this frame's spots are matched with the position
-        uncertainty widened to `carry_speed_m_s` x the time since the last explained frame
+        its odometry knowing (a kidnap): once `carry_speed_m_s` x the time since the last
+        explained frame reaches half the landmark spacing (a shorter stretch, a bump or a
+        glint, cannot pair a spot with another landmark's prediction and is tracked through
+        as before), this frame's spots are matched with the position sigma widened to it
         (the frame's copy of the filter; kept only with a fix). Past `reacquire_sigma_m` a
-        match needs the geometric check, which on a regular grid finds the pose one
-        spacing away as good as the old one and takes neither."""
+        match needs the geometric check, which on a regular grid finds the pose one spacing
+        away as good as the old one and takes neither."""
         if self._filter is None or self._rejections == 0:
             return
         sigma = self.config.fusion.carry_speed_m_s * (t_ns - self._t_explained) * _NS
+        if sigma < 0.5 * self._tracker.spacing_m:
+            return  # too short a carry to pair a spot with another landmark's prediction
         P = self._filter.covariance_rows
         var = sigma * sigma - min(P[0][0], P[1][1])
         if var > 0:

@@ -193,14 +193,9 @@ def test_relocalize_near_a_pose_probes_the_landmarks_there_first() -> None:
     assert run.modes()[-1] == "landmark" and run.errors_m()[-1] < 0.003
 
 
-@pytest.mark.parametrize("carry_speed", [0.0, FusionConfig().carry_speed_m_s])
-def test_spots_observed_input_and_lost_when_the_map_disagrees(carry_speed: float) -> None:
-    """Without the widening after unexplained frames (carry speed 0) the robot is lost and
-    found again by blinking; with it the spots are matched to the map by the geometric
-    check within 0.1 s (never at the old pose) and it is never lost."""
+def test_spots_observed_input_and_lost_when_the_map_disagrees() -> None:
     cam = _camera("pinhole", "centred")
-    fusion = FusionConfig(lost_after_rejections=5, carry_speed_m_s=carry_speed)
-    cfg = LocalizerConfig(fusion=fusion)
+    cfg = LocalizerConfig(fusion=FusionConfig(lost_after_rejections=5))
     loc = Localizer(cam, TRIANGLE, ROBOT, cfg)
     pose = (0.5, 0.4, 0.3)
     T = T_world_body_from_pose(*pose)
@@ -236,11 +231,7 @@ def test_spots_observed_input_and_lost_when_the_map_disagrees(carry_speed: float
     shifted = LandmarkMap(TRIANGLE.ids, TRIANGLE.positions + np.array([0.5, 0.0, 0.0]))
     loc.set_map(shifted)
     seen = frames(60)
-    if carry_speed == 0.0:
-        assert "lost" in seen
-    else:
-        k = seen.index("landmark")
-        assert "lost" not in seen and 2 <= k <= 4 and set(seen[k:]) == {"landmark"}
+    assert "lost" in seen
     assert seen[-1] == "landmark"
     assert loc.latest.x == pytest.approx(pose[0] + 0.5, abs=1e-3)
 
