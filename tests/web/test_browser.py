@@ -22,6 +22,7 @@ ARGS = [
     "--headless=new", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
     "--disable-background-networking", "--disable-component-update", "--disable-sync",
 ]  # fmt: skip
+FRAME_RATE_HZ = 10  # the pages' animation frames: software WebGL, see `throttle_frames`
 LANDMARKS_IN_SCENE = (  # a JS expression: the number of /landmarks/<id> scene nodes
     "Object.keys((window.__viserMutable || {}).nodeRefFromName || {})"
     ".filter(k => /^\\/landmarks\\/\\d+$/.test(k)).length"
@@ -38,6 +39,40 @@ pytestmark = [
 ]
 
 
+def throttle_frames(hz: float) -> str:
+    """A page script that runs the page's animation-frame callbacks at most `hz` times a
+    second, all of one frame together (and `cancelAnimationFrame` as before).
+
+    The viewer redraws on every scene change (the robots move at 30 Hz), and headless
+    Chromium draws WebGL in software (SwiftShader): uncapped, the page takes a core or more
+    of a 2-core machine from the site and from the test, and the page's main thread, busy
+    drawing, answers each Playwright query late. Fewer frames show the same scene.
+    """
+    return f"""(() => {{
+  const minGapMs = 1000 / {hz};
+  const nativeRaf = window.requestAnimationFrame.bind(window);
+  let queue = new Map(), nextId = 1, scheduled = false, last = -Infinity;
+  function flush(t) {{
+    const wait = last + minGapMs - t;
+    if (wait > 1) {{ setTimeout(() => nativeRaf(flush), wait); return; }}
+    last = t;
+    scheduled = false;
+    const due = queue;
+    queue = new Map();
+    for (const cb of due.values()) {{
+      try {{ cb(t); }} catch (e) {{ setTimeout(() => {{ throw e; }}); }}
+    }}
+  }}
+  window.requestAnimationFrame = (cb) => {{
+    const id = nextId++;
+    queue.set(id, cb);
+    if (!scheduled) {{ scheduled = true; nativeRaf(flush); }}
+    return id;
+  }};
+  window.cancelAnimationFrame = (id) => {{ queue.delete(id); }};
+}})();"""
+
+
 @pytest.fixture(scope="module")
 def browser(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Any]:
     from playwright.sync_api import sync_playwright
@@ -47,6 +82,7 @@ def browser(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Any]:
             str(tmp_path_factory.mktemp("chromium")), executable_path=str(CHROMIUM),
             headless=True, args=ARGS, viewport={"width": 1280, "height": 800},
         )  # fmt: skip
+        ctx.add_init_script(script=throttle_frames(FRAME_RATE_HZ))
         try:
             yield ctx
         finally:
@@ -60,6 +96,17 @@ def open_viewer(browser: Any, site: LiveSite, key: str) -> Any:
     page.wait_for_function(f"() => {LANDMARKS_IN_SCENE} > 0", timeout=90_000)
     page.get_by_text("Connecting...").wait_for(state="hidden", timeout=60_000)
     return page
+
+
+def wait_frames(page: Any, n: int) -> None:
+    """Wait until the page has drawn `n` more animation frames (a change to the scene is on
+    the canvas a frame or two later)."""
+    page.evaluate(
+        "n => new Promise(done => { let k = 0;"
+        " const tick = () => (++k >= n ? done(k) : requestAnimationFrame(tick));"
+        " requestAnimationFrame(tick); })",
+        n,
+    )
 
 
 def dismiss_software_webgl_notice(page: Any) -> None:
@@ -94,7 +141,7 @@ def test_scene_renders_with_every_landmark_of_the_map(browser: Any, live_site: L
                 timeout=30_000,
             )
         page.get_by_text("signed in as admin").wait_for(timeout=10_000)
-        time.sleep(3.0)  # let software WebGL draw a few frames
+        wait_frames(page, 10)  # every robot drawn where it is now, for the picture
         save_shot(page, "viewer-monitoring.png", doc=True)
     finally:
         page.close()
@@ -250,7 +297,7 @@ def test_top_view_renders_the_floor_plan_under_the_map(browser: Any, live_site: 
     bounds = viewer.scene.bounds
     page = open_viewer(browser, live_site, live_site.admin_key)
     try:
-        time.sleep(2.0)
+        wait_frames(page, 5)
         before = wall_pixels(page.screenshot())
         x0, x1, _, y1 = bounds
         png = floor_plan_png(bounds)
@@ -265,11 +312,16 @@ def test_top_view_renders_the_floor_plan_under_the_map(browser: Any, live_site: 
         page.wait_for_function(
             "() => !!window.__viserMutable.nodeRefFromName['/floorplan']", timeout=30_000
         )
-        time.sleep(3.0)  # software WebGL: a few frames
-        save_shot(page, "viewer-top.png", doc=True)
-        after = wall_pixels((ARTIFACTS / "viewer-top.png").read_bytes())
         # the plan's walls are drawn: thousands of pixels of their colour, where there were
-        # (nearly) none (a blue "identifying" robot comes close to it)
+        # (nearly) none (a blue "identifying" robot comes close to it); the image is decoded
+        # and uploaded a few frames after its node exists
+        deadline = time.monotonic() + 60.0
+        while True:
+            wait_frames(page, 3)
+            save_shot(page, "viewer-top.png", doc=True)
+            after = wall_pixels((ARTIFACTS / "viewer-top.png").read_bytes())
+            if (after > 3000 and after > 20 * before) or time.monotonic() > deadline:
+                break
         assert after > 3000 and after > 20 * before, (before, after)
         page.get_by_text("Legend", exact=True).click()  # every colour explained
         page.get_by_text("doubted: robots expected it but did not see it").wait_for()
