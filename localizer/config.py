@@ -59,6 +59,9 @@ class FusionConfig:
             (integrated by the trapezoid rule).
         odometry_stale_s: odometry older than this at a frame is stale: the whole frame
             interval counts as unpredicted motion, seconds.
+        correlated_fix_error: a tracking fix's survey and calibration error is the same on
+            every frame of the same landmarks: fuse it by the consider update of
+            `fix_bias` (False: as white noise, every frame independent).
     """
 
     pixel_sigma_px: float = 1.0
@@ -80,6 +83,7 @@ class FusionConfig:
     odometry_history_s: float = 5.0
     odometry_interval_mean: bool = True
     odometry_stale_s: float = 0.2
+    correlated_fix_error: bool = True
 
 
 @dataclass(frozen=True)

@@ -27,6 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from localizer.fix_bias import bias_factor, carried_correlation, carry_bias, consider_update
 from localizer.geometry import wrap_angle
 from localizer.odometry import odometry_increments, odometry_partials
 from localizer.pose import PoseFix
@@ -205,6 +206,10 @@ class PoseFilter:
         self._age_s = 0.0  # time since the last reset
         self._propagation = DeferredPropagation()
         self.noise_scale = 1.0  # odometry noise over the configured one (adapted online)
+        # cross-covariance of the state's error with the last fixes' systematic error, and
+        # their landmarks (`fix_bias`); None: no correlated fix since the last reset
+        self._C: FloatArray | None = None
+        self._bias_ids: frozenset[int] = frozenset()
         self.reset(x, y, theta, covariance)
 
     # -- state ----------------------------------------------------------------------------------
@@ -278,6 +283,7 @@ class PoseFilter:
         ]
         self._offset = [0.0, 0.0, 0.0]
         self._age_s = 0.0
+        self._C, self._bias_ids = None, frozenset()
 
     def copy(self) -> PoseFilter:
         """An independent copy (state, covariance, output offset): a frame's tentative
@@ -291,6 +297,8 @@ class PoseFilter:
         twin._age_s = self._age_s
         twin._propagation = DeferredPropagation()
         twin.noise_scale = self.noise_scale
+        twin._C = None if self._C is None else self._C.copy()
+        twin._bias_ids = self._bias_ids
         return twin
 
     def inflate(self, var_xy_m2: float, var_theta_rad2: float) -> None:
@@ -347,6 +355,8 @@ class PoseFilter:
     def _flush(self) -> None:
         """Apply the deferred covariance propagation (see `DeferredPropagation`)."""
         if self._propagation.pending:
+            if self._C is not None:
+                self._C = self._propagation.carry(self._C)
             self._P = self._propagation.apply(self._P)
 
     # -- update ---------------------------------------------------------------------------------
@@ -365,24 +375,82 @@ class PoseFilter:
         y, S_inv = self._innovation(fix)
         return _quadratic_form(y, S_inv)
 
-    def update_fix(self, fix: PoseFix, *, max_nis: float | None = None) -> float:
+    def update_fix(
+        self,
+        fix: PoseFix,
+        *,
+        max_nis: float | None = None,
+        white_covariance: FloatArray | None = None,
+    ) -> float:
         """Fuse a landmark fix (measurement (x, y, theta) with `fix.covariance`).
 
         y = z - h(X);  S = H P H^T + R;  K = P H^T S^-1;  X = X + K y;  P = (I - K H) P.
+
+        With `white_covariance` the fix's covariance is split (`fix_bias`): that part is
+        white (new on every frame), the rest systematic (survey, calibration), the same for
+        every fix of the same landmarks. The update is then the consider update, which
+        carries the state's correlation with that error from fix to fix.
 
         Args:
             fix: the fix.
             max_nis: when given, a fix whose NIS exceeds it is not applied (gate); e.g. the
                 chi-square 3-dof 99.9 % quantile 16.27.
+            white_covariance: the white part of `fix.covariance`, (3, 3).
 
         Returns:
             The fix's NIS (normalised innovation squared) before the update; inf (and the
             fix not applied) when S is singular.
         """
-        y, S_inv = self._innovation(fix)
-        nis = _quadratic_form(y, S_inv)
-        if S_inv is None or (max_nis is not None and not nis <= max_nis):
-            return nis
+        if white_covariance is not None:
+            found = self._consider_step(fix, white_covariance)
+            if found is None:
+                return math.inf
+            dX, P_new, C_new, nis = found
+            if max_nis is not None and not nis <= max_nis:
+                return nis
+            self._P, self._C = P_new, C_new
+            self._bias_ids = frozenset(fix.landmark_ids)
+        else:
+            y, S_inv = self._innovation(fix)
+            nis = _quadratic_form(y, S_inv)
+            if S_inv is None or (max_nis is not None and not nis <= max_nis):
+                return nis
+            dX = self._plain_step(y, S_inv)
+            self._C, self._bias_ids = None, frozenset()
+        self._apply_correction(dX, nis)
+        return nis
+
+    def _consider_step(
+        self, fix: PoseFix, white: FloatArray
+    ) -> tuple[list[float], Rows, FloatArray, float] | None:
+        """The consider update's correction, covariance, cross-covariance and NIS (not
+        applied); None when S is singular."""
+        self._flush()
+        x, y, th = observation_model(self._X)
+        innovation = np.array([fix.x - x, fix.y - y, float(wrap_angle(fix.theta - th))])
+        R = np.asarray(fix.covariance, dtype=np.float64)
+        R_white = np.asarray(white, dtype=np.float64)
+        R_bias = R - R_white
+        try:
+            L = bias_factor(R_bias)
+        except np.linalg.LinAlgError:
+            return None
+        P = np.array(self._P)
+        rho = carried_correlation(self._bias_ids, frozenset(fix.landmark_ids))
+        C = np.zeros((6, 3))
+        if self._C is not None and rho > 0.0:
+            C = carry_bias(self._C, P, L, rho)
+        # (rounding can still leave the joint covariance a hair from positive definite:
+        # then the correlation is shrunk, and at last dropped)
+        for shrink in (1.0, 0.5, 0.0):
+            found = consider_update(P, [shrink * C], innovation, R_white, [R_bias])
+            if found is not None:
+                dX, P_new, (C_new,), nis = found
+                return dX.tolist(), P_new.tolist(), C_new, nis
+        return None
+
+    def _plain_step(self, y: list[float], S_inv: list[float]) -> list[float]:
+        """The ordinary update: P applied, the state's correction returned."""
         # Plain floats: for a 6-state filter numpy's per-call overhead dominates.
         i00, i01, i02, i11, i12, i22 = S_inv
         P = self._P
@@ -402,7 +470,11 @@ class PoseFilter:
                 ]
             )
         self._P = [[U[j][i - j] for j in range(i)] + U[i] for i in range(6)]
+        return dX
 
+    def _apply_correction(self, dX: list[float], nis: float) -> None:
+        """Move the state by a fused fix's correction; adapt the odometry noise from its
+        NIS; the output offset (smoothing)."""
         old = self._X
         X = [u + d for u, d in zip(old, dX, strict=True)]
         X[2] = float(wrap_angle(X[2]))
@@ -420,7 +492,6 @@ class PoseFilter:
             self._offset = [0.0, 0.0, 0.0]
         else:
             self._offset = [o + j for o, j in zip(self._offset, jump, strict=True)]
-        return nis
 
 
 def _quadratic_form(y: list[float], S_inv: list[float] | None) -> float:
