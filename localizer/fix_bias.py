@@ -61,6 +61,14 @@ def bias_factor(R_bias: FloatArray) -> FloatArray:
     return np.asarray(L, dtype=np.float64)
 
 
+def moved_bias(dx_m: float, dy_m: float) -> FloatArray:
+    """T with b' = T b for the same landmarks after the body moved by (dx, dy): their map
+    error is a rigid error of the set (a shift and a turn dtheta about its centre), and a
+    fix's position is off by the shift plus dtheta times its offset from the centre, so the
+    position part changes by dtheta (-dy, dx) while the heading part stays."""
+    return np.array([[1.0, 0.0, -dy_m], [0.0, 1.0, dx_m], [0.0, 0.0, 1.0]])
+
+
 def carry_bias(C: FloatArray, P: FloatArray, L: FloatArray, rho: float) -> FloatArray:
     """The cross-covariance with the new fix's systematic error: rho C, shrunk where the
     new error's covariance (Cholesky factor L) cannot hold that correlation with a state of

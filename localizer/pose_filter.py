@@ -27,7 +27,13 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from localizer.fix_bias import bias_factor, carried_correlation, carry_bias, consider_update
+from localizer.fix_bias import (
+    bias_factor,
+    carried_correlation,
+    carry_bias,
+    consider_update,
+    moved_bias,
+)
 from localizer.geometry import wrap_angle
 from localizer.odometry import odometry_increments, odometry_partials
 from localizer.pose import PoseFix
@@ -210,6 +216,7 @@ class PoseFilter:
         # their landmarks (`fix_bias`); None: no correlated fix since the last reset
         self._C: FloatArray | None = None
         self._bias_ids: frozenset[int] = frozenset()
+        self._bias_at = (0.0, 0.0)  # where the last of them was fused
         self.reset(x, y, theta, covariance)
 
     # -- state ----------------------------------------------------------------------------------
@@ -298,7 +305,7 @@ class PoseFilter:
         twin._propagation = DeferredPropagation()
         twin.noise_scale = self.noise_scale
         twin._C = None if self._C is None else self._C.copy()
-        twin._bias_ids = self._bias_ids
+        twin._bias_ids, twin._bias_at = self._bias_ids, self._bias_at
         return twin
 
     def inflate(self, var_xy_m2: float, var_theta_rad2: float) -> None:
@@ -409,7 +416,7 @@ class PoseFilter:
             if max_nis is not None and not nis <= max_nis:
                 return nis
             self._P, self._C = P_new, C_new
-            self._bias_ids = frozenset(fix.landmark_ids)
+            self._bias_ids, self._bias_at = frozenset(fix.landmark_ids), (fix.x, fix.y)
         else:
             y, S_inv = self._innovation(fix)
             nis = _quadratic_form(y, S_inv)
@@ -439,7 +446,8 @@ class PoseFilter:
         rho = carried_correlation(self._bias_ids, frozenset(fix.landmark_ids))
         C = np.zeros((6, 3))
         if self._C is not None and rho > 0.0:
-            C = carry_bias(self._C, P, L, rho)
+            T = moved_bias(fix.x - self._bias_at[0], fix.y - self._bias_at[1])
+            C = carry_bias(self._C @ T.T, P, L, rho)
         # (rounding can still leave the joint covariance a hair from positive definite:
         # then the correlation is shrunk, and at last dropped)
         for shrink in (1.0, 0.5, 0.0):
