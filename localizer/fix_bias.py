@@ -42,6 +42,8 @@ import math
 import numpy as np
 import numpy.typing as npt
 
+from localizer.small_linalg import inverse_3x3_sym
+
 FloatArray = npt.NDArray[np.float64]
 
 
@@ -53,14 +55,6 @@ def carried_correlation(old: frozenset[int], new: frozenset[int]) -> float:
     return len(old & new) / math.sqrt(len(old) * len(new))
 
 
-def bias_factor(R_bias: FloatArray) -> FloatArray:
-    """The lower Cholesky factor of a systematic error's covariance (3, 3), regularised
-    by 1e-9 of its trace so that a nearly singular one still factors."""
-    jitter = 1e-9 * max(float(np.trace(R_bias)), 1e-30)
-    L = np.linalg.cholesky(0.5 * (R_bias + R_bias.T) + jitter * np.eye(3))
-    return np.asarray(L, dtype=np.float64)
-
-
 def moved_bias(dx_m: float, dy_m: float) -> FloatArray:
     """T with b' = T b for the same landmarks after the body moved by (dx, dy): their map
     error is a rigid error of the set (a shift and a turn dtheta about its centre), and a
@@ -69,18 +63,32 @@ def moved_bias(dx_m: float, dy_m: float) -> FloatArray:
     return np.array([[1.0, 0.0, -dy_m], [0.0, 1.0, dx_m], [0.0, 0.0, 1.0]])
 
 
-def carry_bias(C: FloatArray, P: FloatArray, L: FloatArray, rho: float) -> FloatArray:
+def carry_bias(C: FloatArray, P: FloatArray, R_bias: FloatArray, rho: float) -> FloatArray:
     """The cross-covariance with the new fix's systematic error: rho C, shrunk where the
-    new error's covariance (Cholesky factor L) cannot hold that correlation with a state of
-    covariance P (the joint covariance would not be positive semi-definite: C^T P^+ C must
-    stay below L L^T; module docstring)."""
+    new error's covariance R_bias cannot hold that correlation with a state of covariance P
+    (the joint covariance would not be positive semi-definite: C^T P^-1 C must stay below
+    R_bias; module docstring). P is regularised by 1e-12 of its largest variance (a frozen
+    odometry calibration leaves zero rows, where C is zero too)."""
     C = rho * C
     if not C.any():
         return C
-    A = np.linalg.solve(L, C.T)  # L^-1 C^T
-    M = A @ np.linalg.pinv(P, hermitian=True) @ A.T
-    top = float(np.max(np.linalg.eigvalsh(0.5 * (M + M.T))))
+    n = len(P)
+    jitter = 1e-12 * float(np.max(np.diag(P)))
+    M = C.T @ np.linalg.solve(P + jitter * np.eye(n), C)  # C^T P^-1 C
+    M = 0.5 * (M + M.T)
     limit = 1.0 - 1e-6
+    try:  # the usual case: it holds
+        np.linalg.cholesky(limit * R_bias - M)
+        return C
+    except np.linalg.LinAlgError:
+        pass
+    try:
+        jitter_b = 1e-9 * max(float(np.trace(R_bias)), 1e-30)
+        L = np.linalg.cholesky(0.5 * (R_bias + R_bias.T) + jitter_b * np.eye(3))
+    except np.linalg.LinAlgError:  # no systematic error left to be correlated with
+        return np.zeros_like(C)
+    A = np.linalg.solve(L, np.linalg.solve(L, M).T)  # L^-1 M L^-T
+    top = float(np.max(np.linalg.eigvalsh(0.5 * (A + A.T))))
     return C if top <= limit else C * math.sqrt(limit / top)
 
 
@@ -108,14 +116,15 @@ def consider_update(
     C_all = sum(C, np.zeros_like(P[:, :3]))
     HC = C_all[:3]
     S = P[:3, :3] + HC + HC.T + sum(R_bias, R_white)
-    S = 0.5 * (S + S.T)
-    try:
-        np.linalg.cholesky(S)
-    except np.linalg.LinAlgError:
+    (a, b, c), (_, d, e), (_, _, f) = (0.5 * (S + S.T)).tolist()
+    if not (a > 0.0 and a * d - b * b > 0.0):  # positive definite: leading minors > 0
         return None
-    S_inv = np.linalg.inv(S)
-    if not np.all(np.isfinite(S_inv)):
+    inv = inverse_3x3_sym([a, b, c, d, e, f])  # (and det > 0)
+    if inv is None:
         return None
+    i00, i01, i02, i11, i12, i22 = inv
+    S_inv = np.array([[i00, i01, i02], [i01, i11, i12], [i02, i12, i22]])
+    S = np.array([[a, b, c], [b, d, e], [c, e, f]])
     K = (P[:, :3] + C_all) @ S_inv
     P_new = P - K @ S @ K.T
     P_new = 0.5 * (P_new + P_new.T)

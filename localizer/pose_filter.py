@@ -28,7 +28,6 @@ import numpy as np
 import numpy.typing as npt
 
 from localizer.fix_bias import (
-    bias_factor,
     carried_correlation,
     carry_bias,
     consider_update,
@@ -455,16 +454,12 @@ class PoseFilter:
         R = np.asarray(fix.covariance, dtype=np.float64)
         R_white = np.asarray(white, dtype=np.float64)
         R_bias = R - R_white
-        try:
-            L = bias_factor(R_bias)
-        except np.linalg.LinAlgError:
-            return None
         P = np.array(self._P)
         rho = carried_correlation(self._bias_ids, frozenset(fix.landmark_ids))
         C = np.zeros((6, 3))
         if self._C is not None and rho > 0.0:
             T = moved_bias(fix.x - self._bias_at[0], fix.y - self._bias_at[1])
-            C = carry_bias(self._C @ T.T, P, L, rho)
+            C = carry_bias(self._C @ T.T, P, R_bias, rho)
         # (rounding can still leave the joint covariance a hair from positive definite:
         # then the correlation is shrunk, and at last dropped)
         for shrink in (1.0, 0.5, 0.0):
