@@ -63,14 +63,26 @@ def moved_bias(dx_m: float, dy_m: float) -> FloatArray:
     return np.array([[1.0, 0.0, -dy_m], [0.0, 1.0, dx_m], [0.0, 0.0, 1.0]])
 
 
-def carry_bias(C: FloatArray, P: FloatArray, R_bias: FloatArray, rho: float) -> FloatArray:
+def carry_bias(
+    C: FloatArray,
+    P: FloatArray,
+    R_bias: FloatArray,
+    rho: float,
+    R_carried: FloatArray | None = None,
+) -> FloatArray:
     """The cross-covariance with the new fix's systematic error: rho C, shrunk where the
     new error's covariance R_bias cannot hold that correlation with a state of covariance P
     (the joint covariance would not be positive semi-definite: C^T P^-1 C must stay below
     R_bias; module docstring). P is regularised by 1e-12 of its largest variance (a frozen
-    odometry calibration leaves zero rows, where C is zero too)."""
+    odometry calibration leaves zero rows, where C is zero too).
+
+    R_carried: the covariance of the error C was consistent with, carried to this view
+    (T R_old T^T); when R_bias exceeds rho^2 of it the correlation holds and the test is
+    skipped (the same answer, cheaply)."""
     C = rho * C
     if not C.any():
+        return C
+    if R_carried is not None and _positive_definite(R_bias - rho * rho * R_carried):
         return C
     n = len(P)
     jitter = 1e-12 * float(np.max(np.diag(P)))
@@ -92,43 +104,66 @@ def carry_bias(C: FloatArray, P: FloatArray, R_bias: FloatArray, rho: float) -> 
     return C if top <= limit else C * math.sqrt(limit / top)
 
 
+def _positive_definite(A: FloatArray) -> bool:
+    """Whether a symmetric 3 x 3 matrix is positive definite (its leading minors), on floats."""
+    (a, b, c), (_, d, e), (_, _, f) = A.tolist()
+    if not (a > 0.0 and a * d - b * b > 0.0):
+        return False
+    return bool(a * (d * f - e * e) - b * (b * f - c * e) + c * (b * e - c * d) > 0.0)
+
+
 def consider_update(
-    P: FloatArray,
-    C: list[FloatArray],
-    y: FloatArray,
-    R_white: FloatArray,
-    R_bias: list[FloatArray],
-) -> tuple[FloatArray, FloatArray, list[FloatArray], float] | None:
+    P: list[list[float]],
+    C: list[list[float]],
+    y: list[float],
+    R_white: list[list[float]],
+    R_bias: list[list[float]],
+) -> tuple[list[float], list[list[float]], list[list[float]], float] | None:
     """One consider update (module docstring) of a filter over n states whose first three
-    are the measured (x, y, theta), with independent systematic errors b_i.
+    are the measured (x, y, theta). On Python floats (nested lists; for 6 states numpy's
+    per-call overhead costs more than the arithmetic).
 
     Args:
-        P: state covariance, (n, n).
-        C: for each b_i, the cross-covariance of the state's error with it, (n, 3).
-        y: innovation z - H X, (3,).
-        R_white: covariance of the fix's white error, (3, 3).
-        R_bias: covariance of each b_i, (3, 3).
+        P: state covariance, n x n.
+        C: the cross-covariance of the state's error with the fix's systematic error, n x 3.
+        y: innovation z - H X, 3.
+        R_white: covariance of the fix's white error, 3 x 3.
+        R_bias: covariance of its systematic error, 3 x 3.
 
     Returns:
-        (dX (n,), P (n, n), the new C_i (n, 3), NIS y^T S^-1 y), or None when S is not
-        positive definite (a C_i inconsistent with its R_bias: the caller shrinks it).
+        (dX n, P n x n, C n x 3, NIS y^T S^-1 y), or None when S or the new P is not
+        positive definite (C inconsistent with R_bias: the caller shrinks it).
     """
-    C_all = sum(C, np.zeros_like(P[:, :3]))
-    HC = C_all[:3]
-    S = P[:3, :3] + HC + HC.T + sum(R_bias, R_white)
-    (a, b, c), (_, d, e), (_, _, f) = (0.5 * (S + S.T)).tolist()
+    S = [[P[r][c] + C[r][c] + C[c][r] + R_bias[r][c] + R_white[r][c] for c in range(3)]
+         for r in range(3)]  # fmt: skip
+    a, b, c = S[0][0], 0.5 * (S[0][1] + S[1][0]), 0.5 * (S[0][2] + S[2][0])
+    d, e, f = S[1][1], 0.5 * (S[1][2] + S[2][1]), S[2][2]
     if not (a > 0.0 and a * d - b * b > 0.0):  # positive definite: leading minors > 0
         return None
     inv = inverse_3x3_sym([a, b, c, d, e, f])  # (and det > 0)
     if inv is None:
         return None
     i00, i01, i02, i11, i12, i22 = inv
-    S_inv = np.array([[i00, i01, i02], [i01, i11, i12], [i02, i12, i22]])
-    S = np.array([[a, b, c], [b, d, e], [c, e, f]])
-    K = (P[:, :3] + C_all) @ S_inv
-    P_new = P - K @ S @ K.T
-    P_new = 0.5 * (P_new + P_new.T)
-    if np.any(np.diag(P_new) <= 0.0):
-        return None
-    C_new = [Ci - K @ (Ci[:3] + Ri) for Ci, Ri in zip(C, R_bias, strict=True)]
-    return K @ y, P_new, C_new, float(y @ S_inv @ y)
+    y0, y1, y2 = y
+    n = len(P)
+    G = [[P[i][0] + C[i][0], P[i][1] + C[i][1], P[i][2] + C[i][2]] for i in range(n)]
+    K = [[g0 * i00 + g1 * i01 + g2 * i02, g0 * i01 + g1 * i11 + g2 * i12,
+          g0 * i02 + g1 * i12 + g2 * i22] for g0, g1, g2 in G]  # fmt: skip
+    dX = [k0 * y0 + k1 * y1 + k2 * y2 for k0, k1, k2 in K]
+    # P - K S K^T = P - G K^T (K S = G), symmetrised
+    P_new = [[0.0] * n for _ in range(n)]
+    for i in range(n):
+        Gi, Pi = G[i], P[i]
+        for j in range(i, n):
+            Kj, Gj, Ki = K[j], G[j], K[i]
+            v = Pi[j] - 0.5 * (Gi[0] * Kj[0] + Gi[1] * Kj[1] + Gi[2] * Kj[2]
+                               + Gj[0] * Ki[0] + Gj[1] * Ki[1] + Gj[2] * Ki[2])  # fmt: skip
+            P_new[i][j] = P_new[j][i] = v
+        if P_new[i][i] <= 0.0:
+            return None
+    M = [[C[r][col] + R_bias[r][col] for col in range(3)] for r in range(3)]  # H C + R_bias
+    C_new = [[C[i][col] - (K[i][0] * M[0][col] + K[i][1] * M[1][col] + K[i][2] * M[2][col])
+              for col in range(3)] for i in range(n)]  # fmt: skip
+    nis = (i00 * y0 * y0 + i11 * y1 * y1 + i22 * y2 * y2
+           + 2.0 * (i01 * y0 * y1 + i02 * y0 * y2 + i12 * y1 * y2))  # fmt: skip
+    return dX, P_new, C_new, nis

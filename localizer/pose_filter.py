@@ -220,6 +220,7 @@ class PoseFilter:
         self._C: FloatArray | None = None
         self._bias_ids: frozenset[int] = frozenset()
         self._bias_at = (0.0, 0.0)  # where the last of them was fused
+        self._bias_R = np.zeros((3, 3))  # and that error's covariance
         self.reset(x, y, theta, covariance)
 
     # -- state ----------------------------------------------------------------------------------
@@ -308,7 +309,7 @@ class PoseFilter:
         twin._propagation = DeferredPropagation()
         twin.noise_scale = self.noise_scale
         twin._C = None if self._C is None else self._C.copy()
-        twin._bias_ids, twin._bias_at = self._bias_ids, self._bias_at
+        twin._bias_ids, twin._bias_at, twin._bias_R = self._bias_ids, self._bias_at, self._bias_R
         return twin
 
     def inflate(self, var_xy_m2: float, var_theta_rad2: float) -> None:
@@ -433,6 +434,7 @@ class PoseFilter:
                 return nis
             self._P, self._C = P_new, C_new
             self._bias_ids, self._bias_at = frozenset(fix.landmark_ids), (fix.x, fix.y)
+            self._bias_R = np.asarray(fix.covariance, dtype=np.float64) - white_covariance
         else:
             y, S_inv = self._innovation(fix)
             nis = _quadratic_form(y, S_inv)
@@ -450,23 +452,22 @@ class PoseFilter:
         applied); None when S is singular."""
         self._flush()
         x, y, th = observation_model(self._X)
-        innovation = np.array([fix.x - x, fix.y - y, float(wrap_angle(fix.theta - th))])
-        R = np.asarray(fix.covariance, dtype=np.float64)
+        innovation = [fix.x - x, fix.y - y, float(wrap_angle(fix.theta - th))]
         R_white = np.asarray(white, dtype=np.float64)
-        R_bias = R - R_white
-        P = np.array(self._P)
+        R_bias = np.asarray(fix.covariance, dtype=np.float64) - R_white
         rho = carried_correlation(self._bias_ids, frozenset(fix.landmark_ids))
         C = np.zeros((6, 3))
         if self._C is not None and rho > 0.0:
             T = moved_bias(fix.x - self._bias_at[0], fix.y - self._bias_at[1])
-            C = carry_bias(self._C @ T.T, P, R_bias, rho)
+            C = carry_bias(self._C @ T.T, np.array(self._P), R_bias, rho, T @ self._bias_R @ T.T)
         # (rounding can still leave the joint covariance a hair from positive definite:
         # then the correlation is shrunk, and at last dropped)
+        rw, rb = R_white.tolist(), R_bias.tolist()
         for shrink in (1.0, 0.5, 0.0):
-            found = consider_update(P, [shrink * C], innovation, R_white, [R_bias])
+            found = consider_update(self._P, (shrink * C).tolist(), innovation, rw, rb)
             if found is not None:
-                dX, P_new, (C_new,), nis = found
-                return dX.tolist(), P_new.tolist(), C_new, nis
+                dX, P_new, C_new, nis = found
+                return dX, P_new, np.array(C_new), nis
         return None
 
     def _plain_step(self, y: list[float], S_inv: list[float]) -> list[float]:

@@ -24,9 +24,10 @@ def test_without_correlation_it_is_the_kalman_update() -> None:
     P = A @ A.T + 0.1 * np.eye(6)
     R = np.diag([0.2, 0.3, 0.1])
     y = np.array([0.1, -0.2, 0.05])
-    found = consider_update(P, [np.zeros((6, 3))], y, R, [np.zeros((3, 3))])
+    found = consider_update(P.tolist(), np.zeros((6, 3)).tolist(), y.tolist(), R.tolist(),
+                            np.zeros((3, 3)).tolist())  # fmt: skip
     assert found is not None
-    dX, P_new, (C_new,), nis = found
+    dX, P_new, C_new, nis = found
     S = P[:3, :3] + R
     K = P[:, :3] @ np.linalg.inv(S)
     np.testing.assert_allclose(dX, K @ y, rtol=1e-12)
@@ -39,16 +40,16 @@ def test_repeated_fixes_with_a_common_error_do_not_average_it_away() -> None:
     """N fixes of a static state, each with white variance w and the same bias of
     variance b: the estimate's variance is b + w / N (not (b + w) / N)."""
     b, w, N = 4e-6, 1e-6, 60
-    P = np.diag([1.0, 1.0, 1.0, 1e-4, 1e-4, 1e-4])
-    C = np.zeros((6, 3))
-    R_w, R_b = w * np.eye(3), b * np.eye(3)
+    P = np.diag([1.0, 1.0, 1.0, 1e-4, 1e-4, 1e-4]).tolist()
+    C = np.zeros((6, 3)).tolist()
+    R_w, R_b = (w * np.eye(3)).tolist(), (b * np.eye(3)).tolist()
     for _ in range(N):
-        found = consider_update(P, [C], np.zeros(3), R_w, [R_b])
+        found = consider_update(P, C, [0.0] * 3, R_w, R_b)
         assert found is not None
-        _, P, (C,), _ = found
+        _, P, C, _ = found
     np.testing.assert_allclose(np.diag(P)[:3], b + w / N, rtol=0.02)
     # as white noise the filter would claim (b + w) / N, 22x smaller here
-    assert (b + w) / N < 0.05 * np.diag(P)[0]
+    assert (b + w) / N < 0.05 * P[0][0]
 
 
 def test_the_share_of_common_landmarks_is_the_correlation() -> None:
