@@ -121,13 +121,15 @@ async def run_site(
     known_poses: bool = False,
     on_step: Callable[[float, LiveSite], None] | None = None,
     routes: bool = True,
+    until_fixed: bool = False,
 ) -> SiteRun:
     """Run a site for `seconds` of virtual time with the settings' LED policy and radios.
 
     Energy, lit samples and radio commands are counted from `measure_from_s` on (poses from
     the start). `known_poses`: each robot starts with its pose known to within a few
     centimetres (as at the end of a shift) instead of a cold start. `routes`: the scheduler
-    knows each robot's route (the next waypoints, as a fleet manager would)."""
+    knows each robot's route (the next waypoints, as a fleet manager would). `until_fixed`:
+    stop early once every robot has had a pose (a cold start's first fixes)."""
     loop = asyncio.get_running_loop()
     sc = load_scenario(scenario) if isinstance(scenario, str) else scenario
 
@@ -152,8 +154,12 @@ async def run_site(
         for lid, lm in site.world.landmarks.items()
     }
 
+    fixed: set[str] = set()
+
     def publish(upd: PoseUpdate) -> None:
         run.poses[upd.robot].append((upd, site.true_pose_at(upd.robot, upd.t_ns)))
+        if upd.x is not None:
+            fixed.add(upd.robot)
 
     leds = LedCoordinator(gateway, lambda: list(runners.values()))
     for name in site.robot_names:
@@ -199,6 +205,8 @@ async def run_site(
             next_sample += 0.25
         if on_step is not None:
             on_step(now - t0, site)
+        if until_fixed and len(fixed) == len(run.poses):
+            break
     run.seconds = loop.time() - t0 - measure_from_s
     run.commands = gateway.stats.commands - commands0
     if site.world.energy is not None:

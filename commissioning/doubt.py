@@ -34,7 +34,8 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from localizer.camera import CameraModel, T_camera_world, pixels_from_points_camera
+from commissioning.geometry import in_view_camera
+from localizer.camera import CameraModel, T_camera_world
 from localizer.events import PoseEstimate
 from localizer.geometry import T_world_body_from_pose, transform_points
 
@@ -104,15 +105,7 @@ def expected_in_view(
     if len(p) == 0:
         return np.zeros(0, dtype=bool)
     p_camera = transform_points(T_camera_world(camera, T_world_body_from_pose(*pose)), p)
-    px, ok = pixels_from_points_camera(camera, p_camera)
-    near_axis = p_camera[:, 2] >= math.cos(max_off_axis_rad) * np.linalg.norm(p_camera, axis=1)
-    inside = (
-        (px[:, 0] >= margin_px - 0.5)
-        & (px[:, 0] <= camera.width - 0.5 - margin_px)
-        & (px[:, 1] >= margin_px - 0.5)
-        & (px[:, 1] <= camera.height - 0.5 - margin_px)
-    )
-    return np.asarray(ok & inside & near_axis, dtype=bool)
+    return in_view_camera(camera, p_camera, margin_px=margin_px, max_off_axis_rad=max_off_axis_rad)
 
 
 class DoubtTracker:

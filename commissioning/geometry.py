@@ -3,13 +3,54 @@ pose and intersected with the ceiling (docs/commissioning.md). Pure: numpy in, n
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import numpy.typing as npt
 
-from localizer.camera import CameraModel, rays_from_pixels
-from localizer.geometry import T_world_body_from_pose
+from localizer.camera import CameraModel, pixels_from_points_camera, rays_from_pixels
+from localizer.geometry import T_world_body_from_pose, invert_transform
 
 FloatArray = npt.NDArray[np.float64]
+BoolArray = npt.NDArray[np.bool_]
+
+
+def in_view_camera(
+    cam: CameraModel,
+    p_camera: npt.ArrayLike,
+    *,
+    margin_px: float,
+    max_off_axis_rad: float = math.pi / 2,
+) -> BoolArray:
+    """Which camera-frame points (N, 3) project into the image, `margin_px` inside its
+    border, at most `max_off_axis_rad` from the optical axis; shape (N,)."""
+    p = np.asarray(p_camera, dtype=np.float64).reshape(-1, 3)
+    if len(p) == 0:
+        return np.zeros(0, dtype=bool)
+    px, ok = pixels_from_points_camera(cam, p)
+    near_axis = p[:, 2] >= math.cos(max_off_axis_rad) * np.linalg.norm(p, axis=1)
+    inside = (
+        (px[:, 0] >= margin_px - 0.5)
+        & (px[:, 0] <= cam.width - 0.5 - margin_px)
+        & (px[:, 1] >= margin_px - 0.5)
+        & (px[:, 1] <= cam.height - 0.5 - margin_px)
+    )
+    return np.asarray(ok & inside & near_axis, dtype=bool)
+
+
+def point_in_view_from_poses(
+    cam: CameraModel, poses: npt.ArrayLike, p_world: npt.ArrayLike, *, margin_px: float
+) -> BoolArray:
+    """Whether one world point (3,) is in view (`in_view_camera`) from each of M body poses
+    (x, y, theta), shape (M, 3) -> (M,)."""
+    q = np.asarray(poses, dtype=np.float64).reshape(-1, 3)
+    p = np.asarray(p_world, dtype=np.float64).reshape(3)
+    dx, dy = p[0] - q[:, 0], p[1] - q[:, 1]
+    c, s = np.cos(q[:, 2]), np.sin(q[:, 2])
+    p_body = np.stack([c * dx + s * dy, -s * dx + c * dy, np.full(len(q), p[2])], axis=1)
+    T_camera_body = invert_transform(cam.T_body_camera)
+    p_camera = p_body @ T_camera_body[:3, :3].T + T_camera_body[:3, 3]
+    return in_view_camera(cam, p_camera, margin_px=margin_px)
 
 
 def rays_world(cam: CameraModel, T_world_body: FloatArray, pixels: npt.ArrayLike) -> FloatArray:

@@ -4,10 +4,11 @@ It measures, one candidate at a time, where a landmark (or a new radio from disc
 with one chosen robot's camera, while every robot keeps tracking: it never darkens the
 ceiling. A landmark of the map is darkened *alone* against the lit set for `dark_s`, then lit
 again for `lit_s`, over and over (as robots identify themselves); a new radio is lit alone
-and darkened again. Pairs of frames, one with the target lit and one without (the other LEDs
-the same), give one sample each of where it is (`commissioning.measuring`); the robot may
-move meanwhile. Confirm is offered once `min_agreeing` samples agree, and a position far
-from the map's needs an explicit "accept far".
+and darkened again. Each lit frame gives a sample of where it is when one spot followed the
+LED through `min_cycles` lit phases and the dark ones between (`commissioning.measuring`,
+kept by `commissioning.sampling`); the robot may move meanwhile. Confirm is offered once
+`min_agreeing` samples agree, and a position far from the map's needs an explicit "accept
+far". Its tuning is `commissioning.wizard_config`, its words `commissioning.wizard_prompts`.
 
 Before darkening a landmark it checks the robots that track: when one of them would be left
 with fewer than `min_fix_landmarks` landmarks (its fix), the wizard waits and says so; after
@@ -29,18 +30,16 @@ from dataclasses import dataclass, field
 from typing import Literal
 
 import numpy as np
-import numpy.typing as npt
 
 from commissioning.doubt import expected_in_view
 from commissioning.measuring import (
-    Agreement,
     PlacedFrame,
-    agreement,
-    lone_spots,
     place_spots,
     plausibility,
 )
+from commissioning.sampling import TargetSamples
 from commissioning.types import Candidate, MapLandmark
+from commissioning.wizard_config import WizardConfig
 from commissioning.wizard_messages import (
     Cancel,
     Confirm,
@@ -62,50 +61,16 @@ from commissioning.wizard_messages import (
     WizardOutput,
     WizardStatus,
 )
+from commissioning.wizard_prompts import (
+    NoSpot,
+    measuring_prompt,
+    never_switched_prompt,
+    no_spot_prompt,
+    waiting_prompt,
+    what,
+)
 from localizer.camera import CameraModel
 from localizer.events import PoseEstimate
-
-FloatArray = npt.NDArray[np.float64]
-
-
-@dataclass(frozen=True)
-class WizardConfig:
-    """The wizard's tuning.
-
-    Attributes:
-        dark_s: a landmark is held dark (a new radio lit) this long per cycle, seconds.
-        lit_s: ... and lit (a new radio dark) this long between, seconds.
-        settle_s: a frame counts once taken this long after its LED state was confirmed, s.
-        resend_s: an LED state the wizard wants and does not see is asked for again after
-            this long (a robot's own LED request may have replaced it), seconds.
-        match_m: a spot of the lit frame with no spot of the dark frame within this
-            (horizontally, on the ceiling) is the target's, metres.
-        agree_m: samples agree when within this of their median (horizontally), metres.
-        min_agreeing: Confirm is offered once this many successive samples agree.
-        far_m: a measurement farther than this from the map's position is flagged, metres.
-        min_fix_landmarks: a tracking robot keeps its fix with this many landmarks.
-        wait_fix_s: after waiting this long for robots to free a landmark, the wizard asks
-            whether to switch it anyway, seconds.
-        no_spot_s: after measuring this long without a sample, it says what to move, s.
-        max_sigma_m: the measuring robot's 1-sigma position error must be at most this, m.
-        keep_s: frames and LED states kept for pairing, seconds.
-        margin_px: a map position this far inside the image border counts as in view, px.
-    """
-
-    dark_s: float = 0.5
-    lit_s: float = 0.6
-    settle_s: float = 0.05
-    resend_s: float = 0.4
-    match_m: float = 0.15
-    agree_m: float = 0.03
-    min_agreeing: int = 5
-    far_m: float = 0.5
-    min_fix_landmarks: int = 3
-    wait_fix_s: float = 10.0
-    no_spot_s: float = 4.0
-    max_sigma_m: float = 0.05
-    keep_s: float = 2.0
-    margin_px: float = 10.0
 
 
 @dataclass
@@ -116,21 +81,16 @@ class _Target:
     known: MapLandmark | None
     height: float
     want_on: bool  # the target's LED as the cycle wants it now
+    sampled: TargetSamples  # its frames and the samples they gave
     since_ns: int | None = None  # when the wanted state was confirmed (None: not yet)
     asked_ns: int | None = None  # when it was last asked for
+    # a new radio's LED from asking for a state until its acknowledgement may be either way
+    # (a landmark's: the gateway's LED state says when it is being switched): (from, to)
+    unsure: list[tuple[int, int | None]] = field(default_factory=list)
     force: bool = False
     waiting_since_ns: int | None = None
     blockers: tuple[str, ...] = ()
     started_ns: int = 0
-    frames_on: deque[PlacedFrame] = field(default_factory=deque)
-    frames_off: deque[PlacedFrame] = field(default_factory=deque)
-    samples: list[FloatArray] = field(default_factory=list)
-    pairs: int = 0
-    ambiguous: int = 0
-    last_pixel: tuple[float, float] | None = None
-    last_frame_ns: int = 0
-    agreed: Agreement | None = None
-    note: str = ""
 
 
 class IdentificationWizard:
@@ -231,8 +191,9 @@ class IdentificationWizard:
         self._landmarks = dict(e.landmarks)
         self._ceiling_z = e.ceiling_z
         self._saved, self._skipped = [], []
-        # unmapped LEDs would be stray spots in every frame: new radios start dark
-        out: list[WizardOutput] = [SwitchRadio(c.radio, False) for c in e.queue if c.radio]
+        # unmapped LEDs would be stray spots in every frame: new radios wait dark for their
+        # turn (the first is measured at once: it starts lit)
+        out: list[WizardOutput] = [SwitchRadio(c.radio, False) for c in e.queue[1:] if c.radio]
         self._begin(e.t_ns)
         return out + self._step(e.t_ns)
 
@@ -272,8 +233,12 @@ class IdentificationWizard:
         c = self._queue[self._index]
         known = self._landmarks.get(c.landmark_id) if c.radio is None else None
         height = known.z if known is not None else self._ceiling_z
-        # a landmark starts lit (then is darkened); a new radio starts dark (then is lit)
-        self._target = _Target(c, known, height, want_on=known is not None, started_ns=t_ns)
+        # it starts lit (a landmark is, a new radio is asked to be: it was lit when found),
+        # then it is darkened: a spot is measured from its second lit phase on
+        assert self._camera is not None
+        others = [(lm.x, lm.y) for lid, lm in self._landmarks.items() if lid != c.landmark_id]
+        sampled = TargetSamples(self._camera, self.config, others)
+        self._target = _Target(c, known, height, want_on=True, sampled=sampled, started_ns=t_ns)
         self._phase = "waiting"
         self._prompt = f"{self._what(c)}: starting"
 
@@ -319,14 +284,18 @@ class IdentificationWizard:
             self._leds.popleft()
 
     def _leds_at(self, t_ns: int) -> LedsSeen | None:
-        """The LED state in force at `t_ns`, when it was settled by then."""
-        state = None
+        """The LED state in force at `t_ns`; the LEDs it switched less than `settle_s`
+        before count as changing. None when unknown."""
+        state = before = None
         for s in self._leds:
             if s.t_ns <= t_ns:
-                state = s
-        if state is None or t_ns - state.t_ns < self.config.settle_s * 1e9:
+                state, before = s, state
+        if state is None or t_ns - state.t_ns >= self.config.settle_s * 1e9:
+            return state
+        if before is None:
             return None
-        return state
+        recent = (state.lit ^ before.lit) | before.changing
+        return LedsSeen(state.t_ns, state.lit, state.changing | recent)
 
     def _on_radio(self, e: RadioSwitched) -> list[WizardOutput]:
         t = self._target
@@ -338,8 +307,13 @@ class IdentificationWizard:
         return self._step(e.t_ns)
 
     def _target_on_at(self, t: _Target, t_ns: int, leds: LedsSeen) -> bool | None:
-        """Whether the target's LED was (surely) lit at `t_ns`; None when unknown."""
+        """Whether the target's LED was (surely) lit at `t_ns`; None when unknown (it was
+        being switched then, or confirmed too recently; a new radio: from asking for the
+        state until its acknowledgement)."""
         settle = round(self.config.settle_s * 1e9)
+        for since, until in t.unsure:
+            if since <= t_ns and (until is None or t_ns < until + settle):
+                return None
         if t.known is not None:
             lid = t.candidate.landmark_id
             return None if lid in leds.changing else lid in leds.lit
@@ -381,6 +355,8 @@ class IdentificationWizard:
         on_now = self._target_on_now(t)
         if on_now is not None and on_now == t.want_on and t.since_ns is None:
             t.since_ns = t_ns
+            if t.unsure and t.unsure[-1][1] is None:
+                t.unsure[-1] = (t.unsure[-1][0], t_ns)
         held_s = None if t.since_ns is None else (t_ns - t.since_ns) * 1e-9
         want_next = not t.want_on
         if held_s is not None and held_s >= (cfg.dark_s if not t.want_on else cfg.lit_s):
@@ -390,7 +366,14 @@ class IdentificationWizard:
                     t.blockers = blockers
                     t.waiting_since_ns = t.waiting_since_ns or t_ns
                     self._phase = "waiting"
-                    self._prompt = self._waiting_prompt(t, t_ns)
+                    self._prompt = waiting_prompt(
+                        self._what(t.candidate),
+                        t.candidate.landmark_id,
+                        blockers,
+                        (t_ns - t.waiting_since_ns) * 1e-9,
+                        min_fix_landmarks=cfg.min_fix_landmarks,
+                        wait_fix_s=cfg.wait_fix_s,
+                    )
                     return out
             t.blockers, t.waiting_since_ns = (), None
             t.want_on, t.since_ns, t.asked_ns = want_next, None, None
@@ -398,6 +381,8 @@ class IdentificationWizard:
         if t.since_ns is None and (
             t.asked_ns is None or t_ns - t.asked_ns >= cfg.resend_s * 1e9
         ):  # ask for the wanted state (again: something may have replaced it)
+            if t.asked_ns is None and t.known is None:
+                t.unsure.append((t_ns, None))
             t.asked_ns = t_ns
             if t.known is not None:
                 out.append(SwitchLandmark(t.candidate.landmark_id, t.want_on))
@@ -406,11 +391,7 @@ class IdentificationWizard:
         if self._phase == "measuring":
             self._prompt = self._measuring_prompt(t, t_ns)
         elif not t.blockers and (t_ns - t.started_ns) * 1e-9 >= cfg.no_spot_s:
-            state = "lit" if t.want_on else "dark"
-            self._prompt = (
-                f"{self._what(t.candidate)}: its LED was never confirmed {state} (does its "
-                "radio answer?): skip it, or type its position by hand"
-            )
+            self._prompt = never_switched_prompt(self._what(t.candidate), t.want_on)
         return out
 
     def _on_frame(self, e: FrameSeen) -> None:
@@ -423,125 +404,54 @@ class IdentificationWizard:
         if pose.mode != "landmark" or sigma > cfg.max_sigma_m:
             return
         leds = self._leds_at(e.t_ns)
-        if leds is None or leds.changing - {t.candidate.landmark_id}:
-            # another LED in transition (a robot's identification probe): the frame may show
-            # it either way, and a pair across its switch would take its spot for the target's
-            return
-        on = self._target_on_at(t, e.t_ns, leds)
-        if on is None:
+        on = None if leds is None else self._target_on_at(t, e.t_ns, leds)
+        if leds is None or on is None:
             return
         pts = place_spots(self._camera, (pose.x, pose.y, pose.theta), e.pixels, t.height)
-        lit = leds.lit - ({t.candidate.landmark_id} if t.known is not None else set())
+        target = {t.candidate.landmark_id}
         px = np.asarray(e.pixels, dtype=np.float64).reshape(-1, 2)
-        frame = PlacedFrame(e.t_ns, frozenset(lit), on, px, pts, (pose.x, pose.y, pose.theta))
-        mine, other = (t.frames_on, t.frames_off) if on else (t.frames_off, t.frames_on)
-        mine.append(frame)
-        horizon = e.t_ns - round(cfg.keep_s * 1e9)
-        for q in (t.frames_on, t.frames_off):
-            while q and q[0].t_ns < horizon:
-                q.popleft()
-        partner = next((f for f in reversed(other) if f.lit == frame.lit), None)
-        if partner is None:
-            return
-        lit_frame, dark_frame = (frame, partner) if on else (partner, frame)
-        t.pairs += 1
-        lone = lone_spots(
-            self._camera, lit_frame, dark_frame, match_m=cfg.match_m, margin_px=cfg.margin_px
-        )
-        if len(lone) != 1:
-            t.ambiguous += len(lone) > 1
-            return
-        p = lone[0]
-        t.samples.append(p)
-        del t.samples[: -4 * cfg.min_agreeing]
-        k = int(np.argmin(np.linalg.norm(np.nan_to_num(lit_frame.points, nan=1e9) - p, axis=1)))
-        t.last_pixel = (float(lit_frame.pixels[k, 0]), float(lit_frame.pixels[k, 1]))
-        t.last_frame_ns = lit_frame.t_ns
-        agreed = agreement(t.samples, agree_m=cfg.agree_m, needed=cfg.min_agreeing)
-        if agreed is not None:
-            t.agreed = agreed
+        xyt = (pose.x, pose.y, pose.theta)
+        frame = PlacedFrame(e.t_ns, leds.lit - target, on, px, pts, xyt, leds.changing - target)
+        t.sampled.add(frame)
+        t.unsure = [u for u in t.unsure if u[1] is None or u[1] >= t.sampled.horizon_ns]
 
     def _measurement(self, t: _Target) -> Measurement | None:
-        a = t.agreed
+        a, s = t.sampled.agreed, t.sampled
         if a is None:
             return None
         others = [lm for lid, lm in self._landmarks.items() if lid != t.candidate.landmark_id]
         plaus = plausibility(a.position, t.known, others, far_m=self.config.far_m)
-        return Measurement(a.position, a.count, a.spread_m, plaus, t.last_pixel, t.last_frame_ns)
+        return Measurement(a.position, a.count, a.spread_m, plaus, s.pixel, s.frame_ns)
 
-    # -- prompts ---------------------------------------------------------------------------------
+    # -- prompts (worded in `commissioning.wizard_prompts`) -------------------------------------
     def _what(self, c: Candidate) -> str:
-        n = f"({self._index + 1} of {len(self._queue)})"
-        if c.radio is not None:
-            return f"New radio {c.radio} (to be landmark {c.landmark_id}) {n}"
-        return f"Landmark {c.landmark_id} {n}"
-
-    def _waiting_prompt(self, t: _Target, t_ns: int) -> str:
-        lid = t.candidate.landmark_id
-        names = ", ".join(t.blockers)
-        waited = (t_ns - (t.waiting_since_ns or t_ns)) * 1e-9
-        text = (
-            f"{self._what(t.candidate)}: darkening it would cost {names} its landmark fix "
-            f"(it tracks with landmark {lid} and fewer than {self.config.min_fix_landmarks} "
-            f"others): waiting for {names} to move on ({waited:.0f} s)"
-        )
-        if waited >= self.config.wait_fix_s:
-            text += "; switch anyway (it falls back to dead reckoning for a moment), or skip"
-        return text
+        return what(c, self._index, len(self._queue))
 
     def _measuring_prompt(self, t: _Target, t_ns: int) -> str:
-        head = self._what(t.candidate)
-        m = self._measurement(t)
-        if m is not None:
-            x, y, z = m.position
-            text = (
-                f"{head}: at ({x:.3f}, {y:.3f}, {z:.3f}) m, {m.samples} frames agree within "
-                f"{100 * m.spread_m:.1f} cm; {m.plausibility.note}"
-            )
-            return text
-        if t.samples:
-            return f"{head}: measuring ({len(t.samples)} frames, not yet agreeing)"
-        if (t_ns - t.started_ns) * 1e-9 < self.config.no_spot_s:
-            return f"{head}: measuring"
-        return f"{head}: {self._no_spot(t)}"
+        late = (t_ns - t.started_ns) * 1e-9 >= self.config.no_spot_s
+        count = len(t.sampled.points)
+        no_spot = None if count or not late else no_spot_prompt(self._no_spot(t))
+        return measuring_prompt(self._what(t.candidate), self._measurement(t), count, no_spot)
 
-    def _no_spot(self, t: _Target) -> str:
-        robot = self._robot
-        pose = self._poses.get(robot)
-        if pose is None or pose.mode != "landmark":
-            return (
-                f"{robot} has no landmark fix, and measuring needs one: drive {robot} where "
-                "it sees at least three lit landmarks"
+    def _no_spot(self, t: _Target) -> NoSpot:
+        pose = self._poses.get(self._robot)
+        in_view = False
+        if pose is not None and t.known is not None and self._camera is not None:
+            lm = t.known
+            p = np.array([[lm.x, lm.y, lm.z]])
+            seen = expected_in_view(
+                self._camera, (pose.x, pose.y, pose.theta), p, margin_px=self.config.margin_px
             )
-        where = f"{robot} is at ({pose.x:.2f}, {pose.y:.2f})"
-        if t.ambiguous > t.pairs // 2:
-            return (
-                f"more than one spot switches with it in {robot}'s view (reflections?): "
-                f"drive {robot} a little to another place"
-            )
-        if t.known is None:
-            return (
-                f"no spot of radio {t.candidate.radio} in {robot}'s view ({where}): drive "
-                f"{robot} to where the radio hangs, or skip it"
-            )
-        lm = t.known
-        assert self._camera is not None
-        seen = expected_in_view(
-            self._camera,
-            (pose.x, pose.y, pose.theta),
-            np.array([[lm.x, lm.y, lm.z]]),
-            margin_px=self.config.margin_px,
-        )
-        d = math.hypot(lm.x - pose.x, lm.y - pose.y)
-        if not bool(seen[0]):
-            return (
-                f"landmark {lm.id}'s map position ({lm.x:.2f}, {lm.y:.2f}) is not in {robot}'s "
-                f"view ({where}, {d:.1f} m away): drive {robot} under it"
-            )
-        return (
-            f"no spot switches with landmark {lm.id} in {robot}'s view although its map "
-            f"position is in view ({where}): its LED may be dead or it hangs elsewhere; drive "
-            f"{robot} around where it may be, or skip it"
+            in_view = bool(seen[0])
+        return NoSpot(
+            robot=self._robot,
+            pose=pose,
+            known=t.known,
+            radio=t.candidate.radio,
+            in_view=in_view,
+            reflections=t.sampled.ambiguous > t.sampled.pairs // 2,
+            flickering=t.sampled.flickering,
+            min_cycles=self.config.min_cycles,
         )
 
 

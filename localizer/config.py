@@ -44,6 +44,11 @@ class FusionConfig:
         lost_after_rejections: this many consecutive frames with spots seen while 2+
             landmarks are predicted in view but no accepted fix (observations that disagree
             with the map) make the localizer lost.
+        carry_speed_m_s: how fast a robot may be moved without its odometry knowing
+            (lifted and carried, pushed) while its observations go unexplained: on each frame
+            of such a stretch the position uncertainty the spots are matched with is at
+            least this x the stretch's duration (a put-down one grid spacing away must
+            not be matched as the old pose), m/s.
         min_matched_fraction: a tracking fix must keep at least this share of the
             landmarks of the last fused one (a kidnapped robot, carried off, still sees a few
             spots fall into some windows by chance; such a fix is not fused).
@@ -79,6 +84,7 @@ class FusionConfig:
     lost_sigma_m: float = 1.0
     lost_sigma_rad: float = math.pi
     lost_after_rejections: int = 30
+    carry_speed_m_s: float = 1.0
     min_matched_fraction: float = 0.25
     initial_sigma_m: float = 0.5
     initial_sigma_rad: float = 0.3

@@ -73,6 +73,15 @@ class LedsChanged:
         """The lit landmarks, `all_lit` expanded to `landmarks` (every landmark controlled)."""
         return frozenset(int(i) for i in landmarks) if self.all_lit else self.lit
 
+    def surely_dark_as_dark(self) -> LedsChanged:
+        """This state without `changing`, as a recording keeps it: a landmark being
+        switched counts as lit, so that a landmark written dark is surely dark in every
+        frame of that time (one being switched may show either way: written lit, a frame
+        may miss its spot, but no frame credits a spot to a dark landmark)."""
+        if self.all_lit or not self.changing:
+            return LedsChanged(self.t_ns, self.lit, self.all_lit)
+        return LedsChanged(self.t_ns, self.lit | self.changing, False)
+
 
 @dataclass(frozen=True)
 class RelocalizeRequested:

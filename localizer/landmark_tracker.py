@@ -14,12 +14,12 @@ without a full-frame pass.
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from typing import NamedTuple
 
 import numpy as np
 import numpy.typing as npt
+from scipy.spatial import cKDTree
 
 from localizer.camera import CameraModel
 from localizer.config import LocalizerConfig
@@ -74,6 +74,16 @@ class TrackResult(NamedTuple):
 _NOTHING = TrackResult()
 
 
+def landmark_spacing_m(positions: FloatArray) -> float:
+    """The median horizontal distance from a landmark to its nearest neighbour, metres (inf
+    with fewer than two): a displacement under half of it cannot pair a spot with another
+    landmark's prediction."""
+    if len(positions) < 2:
+        return math.inf
+    d, _ = cKDTree(positions[:, :2]).query(positions[:, :2], k=2)
+    return float(np.median(d[:, 1]))
+
+
 class LandmarkTracker:
     """Tracking and fusing for one camera, robot and map (see the module docstring).
 
@@ -117,6 +127,7 @@ class LandmarkTracker:
         ceiling_m = float(np.median(heights)) if len(heights) else 2.2
         self.scale_px_per_m = scale_px_per_m(max(self.camera.fu, self.camera.fv), ceiling_m)
         self._reach = visible_radius_m(self.camera, float(np.max(heights, initial=ceiling_m)))
+        self.spacing_m = landmark_spacing_m(landmark_map.positions)
         old: PixelNoiseModel | None = getattr(self, "noise", None)
         self.noise = PixelNoiseModel(self.camera, self.config.noise, self.scale_px_per_m)
         if old is not None:
@@ -419,9 +430,7 @@ class LandmarkTracker:
                 return fix
             cached, turn = (pose, term), 0.0
             self._consider_cache = {fix.landmark_ids: cached}
-        c, s = math.cos(turn), math.sin(turn)
-        R = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-        return dataclasses.replace(fix, covariance=fix.covariance + R @ cached[1] @ R.T)
+        return fix.plus_covariance_turned(cached[1], turn)
 
     def _off_image(
         self, rows: list[int], px: list[list[float]], pose: tuple[float, float, float]

@@ -99,6 +99,7 @@ class Localizer:
         self._t_frame: int | None = None
         self._expected: tuple[int, ...] = ()  # lit landmarks predicted in view, this frame
         self._rejections = 0  # frames in a row whose spots no fused fix explained
+        self._t_explained = 0  # the last frame whose spots a fix explained (or none predicted)
         self._last_request: LedRequest | None = None
         self._want_all = False
         self._lit_rows_memo: (
@@ -193,6 +194,7 @@ class Localizer:
         self._t_filter = max(self._t_filter, t_ns)
         self._commit = True
         self._rejections = 0
+        self._t_explained = t_ns
         if self.calibration is not None:
             self.calibration.break_track()
         self._hypotheses.clear()
@@ -278,6 +280,7 @@ class Localizer:
                     self._sweeping = False
                     self._want_all = True
         else:
+            self._widen_unexplained(t)
             used = self._track(e, dt_frame)
             self._mode = "landmark" if used else "dead_reckoning"
             if used and self.calibration is not None:
@@ -321,7 +324,28 @@ class Localizer:
             self._rejections = 0
         elif result.unexplained:
             self._rejections += 1
+        if not result.unexplained:
+            self._t_explained = e.t_ns
         return result.used
+
+    def _widen_unexplained(self, t_ns: int) -> None:
+        """After frames whose spots no fix explained, the robot may have been moved without
+        its odometry knowing (a kidnap): once `carry_speed_m_s` x the time since the last
+        explained frame reaches half the landmark spacing (a shorter stretch, a bump or a
+        glint, cannot pair a spot with another landmark's prediction and is tracked through
+        as before), this frame's spots are matched with the position sigma widened to it
+        (the frame's copy of the filter; kept only with a fix). Past `reacquire_sigma_m` a
+        match needs the geometric check, which on a regular grid finds the pose one spacing
+        away as good as the old one and takes neither."""
+        if self._filter is None or self._rejections == 0:
+            return
+        sigma = self.config.fusion.carry_speed_m_s * (t_ns - self._t_explained) * _NS
+        if sigma < 0.5 * self._tracker.spacing_m:
+            return  # too short a carry to pair a spot with another landmark's prediction
+        P = self._filter.covariance_rows
+        var = sigma * sigma - min(P[0][0], P[1][1])
+        if var > 0:
+            self._filter.inflate(var, 0.0)
 
     def _relocalize(self, t_ns: int, spots: Spots) -> tuple[int, ...]:
         """Re-localization without LEDs: while lost (or identifying from a prior), the
@@ -433,13 +457,13 @@ class Localizer:
                 self.calibration.break_track()
             self._start_identification()
             self._commit = True
-            if sigma < fc.lost_sigma_m:
+            if sigma < fc.lost_sigma_m or self._rejections > 0:
                 # The observations disagree with the pose (a kidnapped robot, put down
                 # anywhere, facing anywhere): widen its uncertainty so that a map-consistent
                 # re-acquisition can correct it.
                 x, y, th = (float(v) for v in self._filter.state)
                 cov = self._filter.covariance
-                cov[:2, :2] = np.eye(2) * fc.lost_sigma_m**2
+                cov[:2, :2] = np.eye(2) * max(fc.lost_sigma_m, sigma) ** 2
                 cov[:2, 2] = cov[2, :2] = 0.0
                 cov[2, 2] = max(float(cov[2, 2]), fc.lost_sigma_rad**2)
                 self._filter.reset(x, y, th, cov)

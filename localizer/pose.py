@@ -163,6 +163,23 @@ class PoseFix:
     n_landmarks: int = 0
     residuals_px: tuple[float, ...] = ()
 
+    def plus_covariance_turned(self, term: FloatArray, turn_rad: float) -> PoseFix:
+        """This fix with `term` (3, 3), turned about the vertical by `turn_rad`
+        (R term R^T), added to its covariance (plain floats: the tracking hot path)."""
+        c, s = math.cos(turn_rad), math.sin(turn_rad)
+        C0, C1, C2 = term.tolist()
+        RC = (
+            [c * u - s * v for u, v in zip(C0, C1, strict=True)],
+            [s * u + c * v for u, v in zip(C0, C1, strict=True)],
+            C2,
+        )
+        cov = np.array([
+            [p0 + c * r0 - s * r1, p1 + s * r0 + c * r1, p2 + r2]
+            for (p0, p1, p2), (r0, r1, r2) in zip(self.covariance.tolist(), RC, strict=True)
+        ])  # fmt: skip
+        return PoseFix(self.x, self.y, self.theta, cov, self.tilt, self.residual_rms_px,
+                       self.landmark_ids, self.n_landmarks, self.residuals_px)  # fmt: skip
+
 
 def solve_pose(
     camera: CameraModel,

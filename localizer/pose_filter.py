@@ -298,15 +298,16 @@ class PoseFilter:
 
     def copy(self) -> PoseFilter:
         """An independent copy (state, covariance, output offset): a frame's tentative
-        filter, extrapolated past the last odometry sample and kept only if a fix is fused."""
-        self._flush()
+        filter, extrapolated past the last odometry sample and kept only if a fix is fused.
+        The deferred propagation is copied, not applied: the copy applies it with its own
+        steps in one go (a frame pays for one propagation, not two)."""
         twin = object.__new__(PoseFilter)
         twin.config, twin.wheel_base = self.config, self.wheel_base
         twin._X = list(self._X)
         twin._P = [list(r) for r in self._P]
         twin._offset = list(self._offset)
         twin._age_s = self._age_s
-        twin._propagation = DeferredPropagation()
+        twin._propagation = self._propagation.copy()
         twin.noise_scale = self.noise_scale
         twin._C = None if self._C is None else self._C.copy()
         twin._bias_ids, twin._bias_at, twin._bias_R = self._bias_ids, self._bias_at, self._bias_R

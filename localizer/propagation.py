@@ -48,6 +48,12 @@ class DeferredPropagation:
         self._walk = 0.0
         self.pending = False
 
+    def copy(self) -> DeferredPropagation:
+        """An independent copy of the batch (its parts are immutable: a shallow copy)."""
+        twin = object.__new__(DeferredPropagation)
+        twin.__dict__.update(self.__dict__)
+        return twin
+
     def add_step(self, F_top: Rows, G: Rows, m_left: float, m_right: float, walk: float) -> None:
         """Fold in one step.
 

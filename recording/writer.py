@@ -148,19 +148,23 @@ class RecordingWriter:
         self._odometry.write(t_ns, [_number(v_left), _number(v_right)])
 
     def add_leds(self, event: LedsChanged) -> None:
-        """Add the LED state in force from `event.t_ns` on.
+        """Add the LED state in force from `event.t_ns` on. A landmark the event lists as
+        `changing` (its command in flight: the radio has not confirmed it) is written lit
+        (`LedsChanged.surely_dark_as_dark`): a dark landmark in leds.csv is dark in every
+        frame of that time, whenever the LED actually switched.
 
         Raises:
             ValueError: a lit ID is not in the map.
         """
-        if event.all_lit:
+        event = event.surely_dark_as_dark()
+        unknown = sorted(i for i in event.lit if i not in self.landmark_map)
+        if unknown:
+            raise ValueError(f"leds: landmarks {unknown} are not in the map")
+        if event.all_lit or (event.lit and len(event.lit) == len(self.landmark_map)):
             on = layout.LEDS_ALL
         elif not event.lit:
             on = layout.LEDS_NONE
         else:
-            unknown = sorted(i for i in event.lit if i not in self.landmark_map)
-            if unknown:
-                raise ValueError(f"leds: landmarks {unknown} are not in the map")
             on = " ".join(str(i) for i in sorted(event.lit))
         self._leds.write(event.t_ns, [on])
 

@@ -30,6 +30,13 @@ class GatewayConfig:
         battery: battery monitoring settings.
         sleep: the landmarks' radios sleep in cycles (None: always awake): commands wait
             for a landmark's predicted wake-up before taking an in-flight slot.
+        start_awake_s: with sleeping landmarks and a transport that broadcasts
+            (`BroadcastTransport`), the start-up sweep is two broadcasts instead of one
+            command per landmark through the few in-flight slots, each waiting for its
+            wake-up: LED on, then (`SleepConfig.broadcast_wait_s` later, every landmark
+            having polled once) `ST` = this, seconds (the wake window of the robots'
+            identification). The LEDs are published lit at once and read back one by one
+            meanwhile (`Gateway._verify_believed`). None: no broadcast.
     """
 
     max_in_flight: int = 4
@@ -46,6 +53,7 @@ class GatewayConfig:
     subscriber_queue: int = 256
     battery: BatteryConfig = field(default_factory=BatteryConfig)
     sleep: SleepConfig | None = None
+    start_awake_s: float | None = None
 
 
 @dataclass(frozen=True)
@@ -87,6 +95,12 @@ class SleepConfig:
         timeout (digi-xbee's per-remote sync-ops timeout must be at least this)."""
         return self.period_s + self.awake_timeout_s
 
+    @property
+    def broadcast_wait_s(self) -> float:
+        """How long until every landmark took a broadcast: each polls once a period (the
+        parent buffers it for 1.2 periods), plus an air time."""
+        return self.period_s + self.air_s
+
 
 @dataclass
 class GatewayStats:
@@ -97,3 +111,5 @@ class GatewayStats:
     failures: int = 0
     skipped: int = 0
     published: int = 0
+    broadcasts: int = 0
+    broadcast_missed: int = 0

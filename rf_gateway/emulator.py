@@ -3,11 +3,12 @@
 It speaks real API frames (`rf_gateway.frames`) to whatever opens its port (digi-xbee through
 pyserial in the tests and the benchmark), answers the local AT commands digi-xbee sends on
 open (0x08 and 0x09: AP, HV, VR, SH, SL, NI, MY, CE, ...), remote AT commands (0x17 -> 0x97)
-to emulated landmarks (DIO pin levels, `%V` supply voltage), transmit requests (0x10 -> 0x8B)
-and node discovery (N?, NT, ND). Faults are injected on the replies to remote commands:
-drop, delay, corrupt, duplicate, garbage bytes, truncated and unknown frames. `pull_cable()`
-closes the pseudo-terminal (the port disappears) and `plug_in()` brings a new one back at the
-same path.
+to emulated landmarks (DIO pin levels, `%V` supply voltage; to the broadcast address
+0x000000000000FFFF every reachable landmark applies it, one answer at most), transmit
+requests (0x10 -> 0x8B) and node discovery (N?, NT, ND). Faults are injected on the replies
+to remote commands: drop, delay, corrupt, duplicate, garbage bytes, truncated and unknown
+frames. `pull_cable()` closes the pseudo-terminal (the port disappears) and `plug_in()`
+brings a new one back at the same path.
 
 Not a test double of digi-xbee: digi-xbee runs unmodified against it.
 """
@@ -36,6 +37,7 @@ VR_ZIGBEE = bytes((0x10, 0x0B))
 STATUS_OK = 0
 STATUS_INVALID_COMMAND = 2
 STATUS_TX_FAILURE = 4
+BROADCAST_64 = 0xFFFF
 
 
 @dataclass
@@ -364,6 +366,19 @@ class XBeeEmulator:
         return STATUS_INVALID_COMMAND, b""
 
     def _handle_remote(self, frame: fr.RemoteAtCommand) -> None:
+        if frame.address64 == BROADCAST_64:  # every reachable remote applies it
+            self.counts["broadcasts"] += 1
+            answered = frame.frame_id == 0  # frame id 0: no answer asked for
+            for each in list(self.remotes.values()):
+                if each.reachable and not each.silent:
+                    status, data = self._remote_answer(each, frame)
+                    if not answered:  # one answer at most (Digi's guides)
+                        answered = True
+                        answer = fr.RemoteAtResponse(
+                            frame.frame_id, each.address64, 0x1000, frame.command, status, data
+                        )
+                        self._faulty_reply(answer, each.delay_s)
+            return
         remote = self.remotes.get(f"{frame.address64:016X}")
         if remote is None or not remote.reachable:
             self.counts["tx_failures"] += 1

@@ -48,6 +48,7 @@ from rf_gateway.events import (
 )
 from rf_gateway.scheduler import Priority, PrioritySlots
 from rf_gateway.transport import (
+    BroadcastTransport,
     DiscoveredRadio,
     Transport,
     TransportState,
@@ -96,6 +97,8 @@ class Gateway:
         self._failures: dict[int, int] = {}
         self._unreachable: set[int] = set()
         self._sweep_lock = asyncio.Lock()
+        self._broadcasting: frozenset[int] = frozenset()  # LEDs a broadcast is switching
+        self._believed: set[int] = set()  # lit by the start-up broadcast, not read back yet
         self._leds_hub: Bus[LedsChanged] = Bus(self.config.subscriber_queue)
         self._led_listeners: list[Callable[[LedsChanged], None]] = []
         self._battery_listeners: list[Callable[[BatteryReading], None]] = []
@@ -122,13 +125,98 @@ class Gateway:
             await self._sweep_lock.acquire()  # held until lit: LED requests queue behind
             self._start_task = loop.create_task(self._light_all())
 
+    @property
+    def start_awake_s(self) -> float | None:
+        """The `ST` the start-up sweep broadcasts to every landmark first (None: none:
+        awake radios, no `start_awake_s`, or a transport that cannot broadcast)."""
+        cfg = self.config
+        if cfg.sleep is None or cfg.start_awake_s is None or not cfg.light_all_on_start:
+            return None
+        return cfg.start_awake_s if isinstance(self.transport, BroadcastTransport) else None
+
     async def _light_all(self) -> None:
+        broadcast = False
         try:
-            await self._apply(dict.fromkeys(self._addresses, True), Priority.IDENTIFY)
+            broadcast = await self._broadcast_start()
+            if not broadcast:
+                await self._apply(dict.fromkeys(self._addresses, True), Priority.IDENTIFY)
         except Exception as exc:  # logged; the state confirmed so far is published
             log.warning("lighting every landmark at start: %s", exc)
         finally:
             self._sweep_lock.release()
+        if broadcast:
+            await self._verify_believed()
+
+    async def _broadcast_start(self) -> bool:
+        """Start-up with sleeping landmarks (`start_awake_s`): light every LED by one
+        broadcast, wait until every landmark has polled once (`broadcast_wait_s`), publish
+        them lit (*believed*: robots identify at once) and open the wake window by a second
+        broadcast (`ST`; the landmarks are awake after the first). False: no broadcast
+        (the start-up sweep is one command per landmark)."""
+        seconds, sleep, transport = self.start_awake_s, self.config.sleep, self.transport
+        if seconds is None or sleep is None or not isinstance(transport, BroadcastTransport):
+            return False
+        ids = frozenset(self._addresses)
+        self._broadcasting = ids
+        self._publish_state(announce=True)  # unknown until every landmark took it
+        try:
+            await transport.broadcast_pin(True)
+            self.stats.commands += 1
+            self.stats.broadcasts += 1
+            await asyncio.sleep(sleep.broadcast_wait_s)
+        except RfGatewayError as exc:
+            log.warning("broadcasting LED on to every landmark: %s", exc)
+            return False
+        finally:
+            self._broadcasting = frozenset()
+        t_ns = self.clock_ns()
+        for lid in ids - set(self._syncers):
+            self._seq += 1
+            self._desired[lid] = (True, self._seq)
+            self._confirmed[lid] = (True, self._seq, t_ns)
+            self._believed.add(lid)
+        self._publish_state()
+        try:
+            await transport.broadcast_awake_time(seconds)
+            self.stats.commands += 1
+            self.stats.broadcasts += 1
+        except RfGatewayError as exc:  # identification probes are then only slower
+            log.warning("broadcasting ST to every landmark: %s", exc)
+        return True
+
+    async def _verify_believed(self) -> None:
+        """Read back each LED believed lit since the start-up broadcast (housekeeping
+        priority: after the robots' probes). One that missed the broadcast is switched as
+        believed (announced, as any change); a confirmed command settles a landmark too. A
+        missed one is dark while believed lit: a steady spot-less landmark, which neither
+        identification (it compares switches) nor tracking (an occluded landmark) mistakes
+        for anything."""
+        transport = self.transport
+        if not isinstance(transport, BroadcastTransport):
+            return
+
+        async def one(lid: int) -> None:
+            seq = self._confirmed.get(lid, (False, 0, 0))[1]
+            send = partial(transport.read_pin, self._addresses[lid])
+            try:
+                high = await self._command(lid, Priority.HOUSEKEEPING, send)
+            except RfGatewayError:  # marked unreachable by `_command`: its LED is unknown
+                if lid in self._believed and self._confirmed.get(lid, (0, -1))[1] == seq:
+                    self._believed.discard(lid)
+                    del self._confirmed[lid]
+                    self._publish_state()
+                return
+            confirmed = self._confirmed.get(lid)
+            if lid not in self._believed or confirmed is None or confirmed[1] != seq:
+                return  # a command settled it meanwhile
+            self._believed.discard(lid)
+            if high != confirmed[0]:
+                self.stats.broadcast_missed += 1
+                del self._confirmed[lid]  # unknown: sent again
+                async with self.sweep():
+                    await self._apply({lid: confirmed[0]}, Priority.HOUSEKEEPING)
+
+        await asyncio.gather(*(one(lid) for lid in sorted(self._believed)), return_exceptions=True)
 
     async def close(self) -> None:
         """Stop the schedule and the syncers, close the transport."""
@@ -307,7 +395,7 @@ class Gateway:
         last confirmation."""
         ids = set(self._addresses)
         lit = frozenset(lid for lid in ids if self._confirmed.get(lid, (False, 0, 0))[0])
-        changing = frozenset(self._syncers) & ids
+        changing = (frozenset(self._syncers) | self._broadcasting) & ids
         times = [c[2] for lid, c in self._confirmed.items() if lid in ids]
         t_ns = self.clock_ns() if announce or not times else max(times)
         if self._last_leds is not None:
@@ -345,6 +433,7 @@ class Gateway:
                     continue
                 t_ns = self.clock_ns()
                 self._confirmed[lid] = (level, seq, t_ns)
+                self._believed.discard(lid)
                 self._waiters.resolve(lid, seq, t_ns)
         finally:
             self._syncers.pop(lid, None)

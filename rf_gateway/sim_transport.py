@@ -79,6 +79,35 @@ class SimTransport(StateReporter):
         if not ok:
             raise RadioTimeout(address, f"radio {address} did not acknowledge")
 
+    async def broadcast_pin(self, high: bool) -> None:
+        """`BroadcastTransport.broadcast_pin` (nothing when the radio cannot)."""
+        self._check_open()
+        send = getattr(self.radio, "broadcast_pin", None)
+        if send is not None:
+            await send(high)
+
+    async def broadcast_awake_time(self, seconds: float) -> None:
+        """`BroadcastTransport.broadcast_awake_time` (nothing when the radio cannot)."""
+        self._check_open()
+        send = getattr(self.radio, "broadcast_awake_time", None)
+        if send is not None:
+            await send(seconds)
+
+    async def read_pin(self, address: str) -> bool:
+        """`BroadcastTransport.read_pin` (RadioTimeout when the radio cannot read it)."""
+        address = normalize_address(address)
+        self._check_open()
+        read = getattr(self.radio, "read_pin", None)
+        if read is None:
+            raise RadioTimeout(address, f"radio {address}: pin not readable")
+        try:
+            level = await asyncio.wait_for(read(address), self.command_timeout_s)
+        except TimeoutError:
+            raise RadioTimeout(address) from None
+        if level is None:
+            raise RadioTimeout(address)
+        return bool(level)
+
     async def read_supply_mv(self, address: str) -> int:
         address = normalize_address(address)
         self._check_open()

@@ -130,6 +130,33 @@ class Transport(Protocol):
         ...
 
 
+@runtime_checkable
+class BroadcastTransport(Protocol):
+    """A transport that can also send one remote AT command to every landmark at once (the
+    broadcast address, unacknowledged): a sleeping landmark's parent buffers one broadcast
+    for all its children and each takes it at its next poll, so the whole site hears one
+    frame within a sleep period instead of one command per landmark through the
+    coordinator's few in-flight slots. Nothing confirms who got it (Digi's guides: a
+    broadcast is not acknowledged and a remote AT command to it gets at most one answer),
+    so what it set is read back landmark by landmark (`read_pin`). One broadcast at a time:
+    a parent keeps only the newest."""
+
+    async def broadcast_pin(self, high: bool) -> None:
+        """Drive every landmark's LED pin by one unacknowledged broadcast. Raises
+        TransportUnavailable."""
+        ...
+
+    async def broadcast_awake_time(self, seconds: float) -> None:
+        """Send `ST` (seconds, applied at once, not saved) to every landmark by one
+        unacknowledged broadcast. Raises TransportUnavailable."""
+        ...
+
+    async def read_pin(self, address: str) -> bool:
+        """Whether the landmark's LED pin is high (remote query of the pin's setting);
+        raises as `Transport.set_pin`."""
+        ...
+
+
 @dataclass(frozen=True)
 class SimRadioSpec:
     """`--radio sim`: the virtual site's simulated radio."""

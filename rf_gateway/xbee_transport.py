@@ -70,6 +70,14 @@ class XBeeTransportConfig:
     pipelined: bool = False
 
 
+def _st_value(seconds: float) -> bytes:
+    """XBee `ST` in milliseconds, two bytes; ValueError outside 1 .. 65534 ms."""
+    ms = round(seconds * 1000.0)
+    if not 1 <= ms <= 0xFFFE:
+        raise ValueError(f"set_awake_time: ST is 1 .. 65534 ms, got {seconds} s")
+    return ms.to_bytes(2, "big")
+
+
 class XBeeTransport(StateReporter):
     """`Transport` over a local XBee coordinator in API mode (AP=1 or 2).
 
@@ -262,10 +270,7 @@ class XBeeTransport(StateReporter):
         await self._remote_call(address, lambda r: r.set_parameter(self.pin, value))
 
     async def set_awake_time(self, address: str, seconds: float) -> None:
-        ms = round(seconds * 1000.0)
-        if not 1 <= ms <= 0xFFFE:
-            raise ValueError(f"set_awake_time: ST is 1 .. 65534 ms, got {seconds} s")
-        value = bytearray(ms.to_bytes(2, "big"))
+        value = bytearray(_st_value(seconds))
         if self.config.pipelined:
             await self._pipelined(address, "ST", bytes(value))
             return
@@ -324,6 +329,52 @@ class XBeeTransport(StateReporter):
         if reply.status != 0:
             raise RemoteCommandError(address, reply.status)
         return reply
+
+    async def read_pin(self, address: str) -> bool:
+        """`BroadcastTransport.read_pin`: the LED pin's setting (5: output high)."""
+        if self.config.pipelined:
+            reply = await self._pipelined(address, self.pin, b"")
+            raw = reply.value
+        else:
+            raw = bytes(await self._remote_call(address, lambda r: r.get_parameter(self.pin)))
+        return bool(raw) and raw[-1] == DIO_OUTPUT_HIGH
+
+    async def broadcast_pin(self, high: bool) -> None:
+        """`BroadcastTransport.broadcast_pin`: as `broadcast_awake_time`, for the LED pin."""
+        await self._broadcast(self.pin, bytes((DIO_OUTPUT_HIGH if high else DIO_OUTPUT_LOW,)))
+
+    async def broadcast_awake_time(self, seconds: float) -> None:
+        """`BroadcastTransport.broadcast_awake_time`: a remote `ST` to the broadcast address
+        with frame id 0 (no answer asked for: Digi's guides say a broadcast remote AT
+        command gets at most one, and is not acknowledged)."""
+        await self._broadcast("ST", _st_value(seconds))
+
+    async def _broadcast(self, command: str, value: bytes) -> None:
+        if self._state != "open":
+            raise TransportUnavailable(f"XBee on {self.port} is {self._state}")
+
+        def send() -> None:
+            device = self._device
+            if device is None:
+                raise TransportUnavailable(f"XBee on {self.port} is {self._state}")
+            packet = RemoteATCommandPacket(
+                0,
+                XBee64BitAddress.BROADCAST_ADDRESS,
+                XBee16BitAddress.UNKNOWN_ADDRESS,
+                RemoteATCmdOptions.APPLY_CHANGES.value,
+                command,
+                parameter=bytearray(value),
+                op_mode=device.operating_mode,
+            )
+            device.send_packet(packet, sync=False)
+
+        try:
+            await self._call(send)
+        except TransportUnavailable:
+            raise
+        except Exception as exc:  # the write failed: the port is gone
+            await self._lost(str(exc))
+            raise TransportUnavailable(f"XBee on {self.port}: {exc}") from exc
 
     def _discover(self) -> list[DiscoveredRadio]:
         device = self._device

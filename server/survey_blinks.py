@@ -1,6 +1,6 @@
 """The live survey's blinks: one landmark dark at a time against the lit ceiling, chosen
-among those the surveying robot sees that the survey still needs, never one another robot is
-tracking.
+among those the surveying robot sees that the survey still needs, never one another robot
+cannot spare (one of the few its fix stands on).
 
 The requests go to the LED coordinator as the requester "survey" (`SURVEY`); each dark and
 each lit window starts once the radio confirmed the switch, so that windows never run into
@@ -28,33 +28,39 @@ SURVEY = "survey"
 def blink_choice(
     candidates: Iterable[int],
     expected: Sequence[int] | None,
-    tracked_by_others: set[int],
+    spared: set[int],
     blinked: dict[int, int],
     first: set[int] | frozenset[int] = frozenset(),
+    seen: Sequence[int] = (),
 ) -> int | None:
     """The landmark to darken next, or None (blink nothing now).
 
     Of the `candidates` (not yet identified, or not converged) that the surveying robot
-    expects in view (`expected`; None while it has no pose: any candidate), those no other
-    robot tracks (`tracked_by_others`: darkening them would cost that robot a landmark of
-    its fix), the one blinked least so far (ties: lowest ID); those in `first` (the anchors
-    not identified yet: nothing can be estimated before) before any other."""
-    pending = set(candidates) - tracked_by_others
+    expects in view (`expected`; None while it has no pose: any candidate), those not
+    `spared` (`needed_by_others`: darkening one would leave another robot's fix too few
+    landmarks): first those its latest fix used (`seen`: surely in the image and detected;
+    one merely expected may sit at the image's edge, where its spot is too faint to see, and
+    its blink is wasted), among them the anchors not identified yet (nothing can be
+    estimated before), then the one blinked least so far (ties: lowest ID)."""
+    pending = set(candidates) - spared
     near = sorted(pending if expected is None else pending & set(expected))
     if not near:
         return None
-    return min(near, key=lambda i: (i not in first, blinked.get(i, 0), i))
+    used = set(seen)
+    return min(near, key=lambda i: (i not in used, i not in first, blinked.get(i, 0), i))
 
 
-def tracked_by_others(robots: Robots, robot: str) -> set[int]:
-    """The landmarks every robot but `robot` tracks: those its latest fix used. (A landmark
-    another robot merely expects in view may go dark: its localizer hears of the switch
-    before it happens and leaves it out, as when robots identify themselves.)"""
+def needed_by_others(fixes: Iterable[Sequence[int]], keep: int) -> set[int]:
+    """The landmarks other robots cannot spare, from the landmarks each of their latest
+    fixes used (`fixes`): those of every fix of fewer than `keep` + 1 landmarks (darkening
+    one would leave it fewer than `keep`). A robot that fixes from more may lose one for a
+    dark window: its localizer hears of the switch before it happens and leaves it out, as
+    when robots identify themselves. (Sparing every landmark any robot tracks, as before,
+    let a robot parked under an anchor keep that anchor from ever being identified.)"""
     out: set[int] = set()
-    for name in robots.names():
-        pose = None if name == robot else robots.latest(name)
-        if pose is not None:
-            out.update(pose.landmark_ids)
+    for used in fixes:
+        if len(used) <= keep:
+            out.update(used)
     return out
 
 
@@ -82,21 +88,33 @@ class BlinkDriver:
         config: BlinkConfig,
         on_blink: Callable[[], None],
         anchors: Sequence[int] = (),
+        others_keep: int = 3,
+        frames_in_state: Callable[[int, bool], int] | None = None,
+        max_hold_s: float = 2.0,
     ) -> None:
         self.leds, self.robots, self.robot, self.ids = leds, robots, robot, list(ids)
         self.anchors = frozenset(anchors)
         self.settled, self.config, self.on_blink = settled, config, on_blink
         self.blinked = dict.fromkeys(self.ids, 0)
+        self.others_keep = others_keep
+        self.frames_in_state, self.max_hold_s = frames_in_state, max_hold_s
 
     def next_landmark(self) -> int | None:
         """What to darken now (`blink_choice` on the robots' latest poses)."""
         pose = self.robots.latest(self.robot)
         expected = None if pose is None or pose.x is None else pose.expected_ids
+        seen = () if pose is None else pose.landmark_ids
         done = self.settled()
         return blink_choice(
             (i for i in self.ids if i not in done), expected,
-            tracked_by_others(self.robots, self.robot), self.blinked, self.anchors - done,
+            needed_by_others(self._other_fixes(), self.others_keep), self.blinked,
+            self.anchors - done, seen,
         )  # fmt: skip
+
+    def _other_fixes(self) -> list[tuple[int, ...]]:
+        """The landmarks each other robot's latest fix used."""
+        poses = (self.robots.latest(n) for n in self.robots.names() if n != self.robot)
+        return [p.landmark_ids for p in poses if p is not None]
 
     def run(self, stop: threading.Event) -> None:
         coordinator = self.leds.coordinator
@@ -114,12 +132,32 @@ class BlinkDriver:
             self.blinked[lid] += 1
             coordinator.request(SURVEY, LedRequest(all_lit=True, dark=frozenset({lid})))
             self.on_blink()
-            if not self._confirmed(lid, stop, lit=False) or stop.wait(dark_s):
+            if not self._confirmed(lid, stop, lit=False) or not self._hold(
+                lid, stop, lit=False, frames=cfg.dark_frames, min_s=dark_s
+            ):
                 break
             coordinator.request(SURVEY, LedRequest(all_lit=True))
-            if not self._confirmed(lid, stop, lit=True) or stop.wait(lit_s):
+            if not self._confirmed(lid, stop, lit=True) or not self._hold(
+                lid, stop, lit=True, frames=cfg.lit_frames, min_s=lit_s
+            ):
                 break
         coordinator.request(SURVEY, LedRequest(all_lit=True))
+
+    def _hold(
+        self, landmark_id: int, stop: threading.Event, *, lit: bool, frames: int, min_s: float
+    ) -> bool:
+        """Keep the state in force `min_s`, then until the robot took `frames` frames in it
+        (`frames_in_state`), at most `max_hold_s` in all. False when stopped."""
+        if stop.wait(min_s):
+            return False
+        count = self.frames_in_state
+        if count is None:
+            return True
+        deadline = time.monotonic() + max(self.max_hold_s - min_s, 0.0)
+        while count(landmark_id, lit) < frames and time.monotonic() < deadline:
+            if stop.wait(0.25 * self.config.frame_period_s):
+                return False
+        return True
 
     def _confirmed(
         self, landmark_id: int, stop: threading.Event, *, lit: bool, timeout_s: float = 1.0

@@ -103,6 +103,8 @@ class LiveDrive:
         self._odom_t: list[int] = []
         self._odom_v: list[tuple[float, float]] = []
         self._leds: list[LedsChanged] = []
+        self._recent_leds: deque[LedsChanged] = deque(maxlen=64)  # `changing` kept
+        self._taken: deque[int] = deque(maxlen=256)  # times of the latest frames fed
         self.dropped = 0
         self._thread = threading.Thread(target=self._detect, name="survey-spots", daemon=True)
         self._thread.start()
@@ -110,6 +112,8 @@ class LiveDrive:
     def add(self, event: Event) -> None:
         """One event of the robot (any thread; never blocks)."""
         with self._lock:
+            if isinstance(event, FrameObserved | SpotsObserved):
+                self._taken.append(event.t_ns)
             if isinstance(event, FrameObserved):
                 if len(self._queue) == self._queue.maxlen:
                     self.dropped += 1
@@ -124,8 +128,8 @@ class LiveDrive:
             elif isinstance(event, LedsChanged) and (
                 not self._leds or event.t_ns >= self._leds[-1].t_ns
             ):
-                # as a recording keeps it: the state in force, no "changing" set
-                self._leds.append(LedsChanged(event.t_ns, event.lit, event.all_lit))
+                self._leds.append(event.surely_dark_as_dark())  # as a recording keeps it
+                self._recent_leds.append(event)
 
     def _add_spots(self, t_ns: int, pixels: FloatArray) -> None:
         if not self._frame_t or t_ns > self._frame_t[-1]:
@@ -148,6 +152,21 @@ class LiveDrive:
                     continue
                 with self._lock:
                     self._add_spots(frame.t_ns, np.asarray(pixels, dtype=np.float64))
+
+    def frames_since_switch(self, landmark_id: int, *, lit: bool) -> int:
+        """How many frames the robot took since `landmark_id` became surely `lit` (or surely
+        dark: confirmed, no command in flight) and stayed so, 0 if it is not now: the frames
+        of a blink's window a survey can use, however slowly the camera runs."""
+        with self._lock:
+            since: int | None = None
+            for state in reversed(self._recent_leds):
+                is_lit = state.all_lit or landmark_id in state.lit
+                if landmark_id in state.changing or is_lit != lit:
+                    break
+                since = state.t_ns
+            if since is None:
+                return 0
+            return sum(1 for t in self._taken if t > since)
 
     @property
     def frames(self) -> int:

@@ -183,8 +183,11 @@ class LiveSurvey:
             self._message, self._result, self._accepted = "", None, []
             self._drive_s, self._estimates, self._route = 0.0, 0, ()
             self._stop = stop = threading.Event()  # this drive's: an old thread keeps its own
-            blinker = BlinkDriver(self.leds, self.robots, robot, sorted(lm.id for lm in lms),
-                                  self._settled, self.blinks, self._counted, anchors)  # fmt: skip
+            blinker = BlinkDriver(
+                self.leds, self.robots, robot, sorted(lm.id for lm in lms), self._settled,
+                self.blinks, self._counted, anchors,
+                frames_in_state=lambda lid, lit: drive.frames_since_switch(lid, lit=lit),
+            )  # fmt: skip
             self._threads = [
                 threading.Thread(target=blinker.run, args=(stop,), name="survey-blinks",
                                  daemon=True),

@@ -10,12 +10,18 @@ own phase) and polls its parent, which has buffered the command meanwhile; the c
 delivered at that wake-up, so it waits up to one period before the usual latency. After a
 command the landmark stays awake `wake_s` (XBee `ST`), polling every `poll_interval_s`, so
 the commands that follow soon wait at most a poll interval.
+
+Broadcasts (`broadcast_pin`, `broadcast_awake_time`: a remote AT command to the broadcast
+address, not acknowledged): the parent buffers one broadcast for all its sleeping children
+and each takes it at its next poll (or loses it), so one frame reaches the whole site within
+a sleep period; `read_pin` reads a landmark's pin back.
 """
 
 from __future__ import annotations
 
 import asyncio
 import math
+from collections.abc import Callable
 
 import numpy as np
 
@@ -69,6 +75,7 @@ class SimRadio:
         self.messages = 0
         self._awake_until: dict[int, float] = {}
         self._wake_s: dict[int, float] = {}  # per landmark `ST` set over the air
+        self._broadcasts: set[asyncio.Task[None]] = set()
 
     @property
     def sleep_period_s(self) -> float:
@@ -164,6 +171,52 @@ class SimRadio:
         if lm is None:
             return False
         return await self._answer(self.latency_s[0] / 2)
+
+    async def read_pin(self, address: str) -> bool | None:
+        """Whether the landmark's LED pin is high, or None when it does not answer."""
+        lm = await self._exchange(address)
+        if lm is None:
+            return None
+        level = lm.led_on
+        return level if await self._answer(self.latency_s[0] / 2) else None
+
+    async def broadcast_pin(self, high: bool) -> None:
+        """Drive every landmark's LED pin by one unacknowledged broadcast (as
+        `broadcast_awake_time`)."""
+        await self._broadcast(lambda lm: self.world.set_led(lm.id, high), None)
+
+    async def broadcast_awake_time(self, seconds: float) -> None:
+        """Set every landmark's `ST` by one unacknowledged broadcast: returns once it is on
+        the air; each landmark takes it at its next poll unless the packet is lost."""
+        if not 0.0 <= seconds <= 65.0:
+            raise ValueError(f"broadcast_awake_time: ST 0 .. 65 s, got {seconds}")
+        await self._broadcast(lambda lm: None, float(seconds))
+
+    async def _broadcast(
+        self, apply: Callable[[SimLandmark], None], new_wake_s: float | None
+    ) -> None:
+        loop = asyncio.get_running_loop()
+        t0 = loop.time()
+        for lm in sorted(self.world.landmarks.values(), key=lambda lm: lm.id):
+            latency = float(self.rng.uniform(*self.latency_s))
+            if not lm.reachable or self._lost():
+                continue
+            at = self.wake_delay_s(lm.id, t0 + latency / 4) + latency / 2
+            task = loop.create_task(self._broadcast_to(lm, at, apply, new_wake_s))
+            self._broadcasts.add(task)
+            task.add_done_callback(self._broadcasts.discard)
+        await asyncio.sleep(self.latency_s[0] / 2)
+
+    async def _broadcast_to(
+        self,
+        lm: SimLandmark,
+        delay_s: float,
+        apply: Callable[[SimLandmark], None],
+        new_wake_s: float | None,
+    ) -> None:
+        await asyncio.sleep(delay_s)
+        self._delivered(lm.id, asyncio.get_running_loop().time(), new_wake_s)
+        apply(lm)
 
     async def discover(self) -> list[tuple[str, str]]:
         """(address, node identifier) of every landmark that answers a node discovery."""

@@ -52,6 +52,23 @@ def corridor_pairs(z: float, dz: float) -> Layout:
     return make
 
 
+def hall_with_skylights(spacing: float, z: float, dz: float) -> Layout:
+    """A 9 x 7 m hall, landmarks on an irregular ~`spacing` grid, two skylights (no
+    landmarks) and a few missing ones: the only features a lost robot can go by."""
+
+    def make(rng: np.random.Generator) -> FloatArray:
+        p = irregular(int(9 / spacing) + 1, int(7 / spacing) + 1, spacing, 0.1 * spacing, z, dz)(
+            rng
+        )
+        sky = ((p[:, 0] > 2.0) & (p[:, 0] < 3.4) & (p[:, 1] > 1.0) & (p[:, 1] < 2.2)) | (
+            (p[:, 0] > 5.6) & (p[:, 0] < 6.8) & (p[:, 1] > 4.0) & (p[:, 1] < 5.5)
+        )
+        keep = ~sky & (rng.random(len(p)) > 0.06)
+        return p[keep]
+
+    return make
+
+
 def triangle(side: float, z: float) -> Layout:
     def make(rng: np.random.Generator) -> FloatArray:
         return np.array([[0.0, 0.0, z], [side, 0.0, z], [side / 2, side * math.sqrt(3) / 2, z]])
@@ -99,6 +116,12 @@ class Case:
     read_noise: float = 2.5
     drop_frames: float = 0.0
     glints: tuple[tuple[float, float, float], ...] = ()  # (u / width, v / height, counts)
+    # lights that are no landmark, fixed in the building: (x, y, z m, radius m, counts)
+    stray_lights: tuple[tuple[float, float, float, float, float], ...] = ()
+    # the robot lifted at `kidnap_s` and set down at `kidnap_to` (x, y, theta): the wheels
+    # feel nothing of it; None: never
+    kidnap_s: float | None = None
+    kidnap_to: tuple[float, float, float] = (0.0, 0.0, 0.0)
     epoch_ns: int = 0  # the clock's origin: EuRoC's recordings count from 1970
     led_power: FloatArray = field(default_factory=lambda: np.ones(400))
 
@@ -145,6 +168,49 @@ CASES: dict[str, Case] = {
         mount_yaw_rad=-2.3,
         epoch_ns=1_403_636_579_763_555_584,
         first_id=1000,
+    ),
+    # sparse pairs along a 14 m corridor, fisheye, 1.5 m/s then half a turn at 3 rad/s
+    "pairs_spin": Case(
+        corridor_pairs(2.6, 0.05),
+        _turns(1.5, 3.0, 4.0, math.pi),
+        start=(0.3, -0.1, 0.0),
+        rate_hz=30.0,
+        odom_hz=50.0,
+        f_px=240.0,
+        mount_yaw_rad=-0.9,
+        first_id=500,
+    ),
+    # a hall at 4.2 m, ~70 cm irregular grid with skylights: the robot is lifted after 10 s
+    # and put down 4 m away turned by 100 deg; only the start-up sweep blinks (a replay)
+    "hall_kidnap": Case(
+        hall_with_skylights(0.7, 4.2, 0.06),
+        ((3.0, 0.9, 0.25), (1.0, 0.0, 1.2), (3.0, 0.9, -0.25), (1.0, 0.0, -1.2)),
+        start=(1.0, 1.0, 0.3),
+        seconds=30.0,
+        kidnap_s=10.0,
+        kidnap_to=(5.2, 3.3, 2.0),
+        f_px=250.0,
+        rate_hz=30.0,
+        exposure_s=0.01,
+        odom_hz=50.0,
+        mount_yaw_rad=2.9,
+        first_id=2000,
+    ),
+    # an irregular 1.2 m ceiling with two lamps and a sunlit patch (no landmarks), a glint
+    # beside a landmark's image, two dead LEDs, 5 % dropped frames
+    "stray_light": Case(
+        irregular(7, 6, 1.2, 0.25, 3.0, 0.04),
+        ((4.0, 1.1, 0.3), (1.5, 0.0, 2.0), (4.0, 1.1, -0.3), (1.5, 0.0, -2.0)),
+        start=(1.5, 1.5, 0.2),
+        stray_lights=(
+            (3.0, 2.4, 3.0, 0.15, 255.0),
+            (5.5, 3.7, 3.0, 0.25, 180.0),
+            (2.2, 4.5, 3.05, 0.6, 70.0),
+        ),
+        glints=((0.58, 0.41, 160.0),),
+        drop_frames=0.05,
+        led_power=np.concatenate([np.ones(9), [0.0], np.ones(20), [0.0], np.ones(400)]),
+        first_id=700,
     ),
     # the paper's bed: three landmarks 1.2 m apart, a narrow pinhole lens, 10 deg steps
     "paper_bed": Case(

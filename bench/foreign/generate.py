@@ -150,6 +150,8 @@ def drive(case: Case, seconds: float, start_s: float) -> Motion:
         v += (cmd_v - v) * min(a, 1.0)
         w += (cmd_w - w) * min(a, 1.0)
         x, y, th = pose[k - 1]
+        if case.kidnap_s is not None and t[k - 1] < case.kidnap_s <= t[k]:
+            x, y, th = case.kidnap_to  # lifted and set down: nothing of it in the odometry
         pose[k] = (
             x + v * dt * math.cos(th + 0.5 * w * dt),
             y + v * dt * math.sin(th + 0.5 * w * dt),
@@ -181,9 +183,11 @@ def render(
     brightness: FloatArray,
     case: Case,
     rng: np.random.Generator,
+    stray: list[tuple[FloatArray, float, float]],
 ) -> npt.NDArray[np.uint8]:
     """One 8-bit frame: each lit LED a saturating Gaussian core plus a wide halo, smeared over
-    the exposure's sub-samples; a vignetted background; shot and read noise."""
+    the exposure's sub-samples; `stray` lights that are no landmark (camera-frame centre, radius
+    m, counts); a vignetted background; shot and read noise."""
     w, h = lens.size
     yy, xx = np.mgrid[0:h, 0:w]
     img = _vignetted_background(w, h, case.background)
@@ -204,6 +208,13 @@ def render(
             d2 = (gx - u) ** 2 + (gy - v) ** 2
             patch += np.exp(-0.5 * d2 / s_core**2) + 0.08 * np.exp(-0.5 * d2 / s_halo**2)
         img[y0:y1, x0:x1] += amp * patch / m
+    for p_cam, radius_m, amp in stray:  # lamps and sunlit patches: flat disks, soft edges
+        px, inside = lens.project(p_cam[None, :])
+        if not inside[0]:
+            continue
+        r_px = max(radius_m / float(p_cam[2]) * float(lens.K[0, 0]), 1.5)
+        d = np.sqrt((xx - px[0, 0]) ** 2 + (yy - px[0, 1]) ** 2)
+        img += amp * np.clip(1.2 - d / r_px, 0.0, 1.0)
     for gx_, gy_, amp in case.glints:
         d2 = (xx - gx_ * w) ** 2 + (yy - gy_ * h) ** 2
         img += amp * np.exp(-0.5 * d2 / 2.0**2)
@@ -321,7 +332,11 @@ def generate(case: Case, out: Path, seconds: float, seed: int) -> None:
         dist_m = np.linalg.norm(p_cam, axis=1)
         cos_a = np.clip(p_cam[:, 2] / dist_m, 0, 1)
         bright = (2.5 / dist_m) ** 2 * cos_a**3 * case.led_power[ids - case.first_id]
-        image = render(true_lens, samples, ok & lit, bright, case, rng)
+        stray = [
+            (in_camera(motion.pose[k], T_BS, np.array([[sx, sy, sz]]))[0], r, a)
+            for sx, sy, sz, r, a in case.stray_lights
+        ]
+        image = render(true_lens, samples, ok & lit, bright, case, rng, stray)
         if rng.random() >= case.drop_frames:
             cv2.imwrite(str(out / "cam0" / "data" / f"{t_ns}.png"), image)
             frames.append(f"{t_ns},{t_ns}.png")

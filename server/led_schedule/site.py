@@ -69,17 +69,19 @@ def schedule_config(settings: Settings, period_s: float) -> ScheduleConfig:
     return ScheduleConfig(latency_s=period_s + wake_latency_s(settings), max_switches=budget)
 
 
-def wake_window(settings: Settings) -> WakeWindow | None:
-    """The wake window of sleeping radios while robots identify (None: awake radios)."""
+def wake_window(settings: Settings, *, opened_s: float | None = None) -> WakeWindow | None:
+    """The wake window of sleeping radios while robots identify (None: awake radios);
+    open from the start when the gateway's start-up broadcast set `ST` = `opened_s`, the
+    window's own."""
     if settings.radio_sleep_period_s is None:
         return None
-    return WakeWindow(
-        WakeWindowConfig(normal_wake_s=SleepConfig(settings.radio_sleep_period_s).wake_s)
-    )
+    config = WakeWindowConfig(normal_wake_s=SleepConfig(settings.radio_sleep_period_s).wake_s)
+    return WakeWindow(config, opened=opened_s == config.identify_wake_s)
 
 
 def gateway_config(settings: Settings) -> GatewayConfig:
-    """The gateway's tuning for this site: its battery polls, the landmarks' sleep."""
+    """The gateway's tuning for this site: its battery polls, the landmarks' sleep (and the
+    wake window the start-up sweep opens by one broadcast, as robots identify after it)."""
     sleep = settings.radio_sleep_period_s
     return GatewayConfig(
         battery=BatteryConfig(
@@ -87,6 +89,11 @@ def gateway_config(settings: Settings) -> GatewayConfig:
             first_read_s=0.0 if sleep is None else FIRST_BATTERY_READ_S,
         ),
         sleep=None if sleep is None else SleepConfig(sleep),
+        start_awake_s=(
+            WakeWindowConfig().identify_wake_s
+            if sleep is not None and settings.led_policy == "scheduled"  # the window closes it
+            else None
+        ),
     )
 
 
@@ -161,7 +168,7 @@ def make_scheduler(
         return by_name.get(name, 1.0)
 
     gateway = coordinator.gateway
-    window = wake_window(settings)
+    window = wake_window(settings, opened_s=gateway.start_awake_s)
 
     async def set_awake(seconds: float) -> object:
         normal = window is not None and seconds <= window.config.normal_wake_s

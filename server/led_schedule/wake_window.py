@@ -7,7 +7,9 @@ While any robot identifies (or is lost, or has no pose at all) the landmarks' ti
 after a message (`ST`) is raised to `identify_wake_s`: after its next command each
 landmark polls its parent every 100 ms for that long (every further command restarts the
 timer), so probes land within a poll interval. Once every robot has held a pose for
-`relax_after_s`, `ST` goes back to `normal_wake_s` and the landmarks sleep again.
+`relax_after_s`, `ST` goes back to `normal_wake_s` and the landmarks sleep again. A window
+the gateway already opened (its start-up broadcast, `GatewayConfig.start_awake_s`) starts
+open (`opened=True`): the first robots identifying after a restart cost no `ST` commands.
 """
 
 from __future__ import annotations
@@ -43,9 +45,9 @@ class WakeWindowConfig:
 class WakeWindow:
     """Decides when to raise and lower the landmarks' `ST` (no clock: times are passed)."""
 
-    def __init__(self, config: WakeWindowConfig | None = None) -> None:
+    def __init__(self, config: WakeWindowConfig | None = None, *, opened: bool = False) -> None:
         self.config = config or WakeWindowConfig()
-        self.open = False
+        self.open = opened
         self._posed_since_s: float | None = None
 
     def update(self, t_s: float, *, identifying: bool) -> float | None:

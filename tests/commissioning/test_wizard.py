@@ -44,6 +44,7 @@ class Site:
     def __init__(self, truth: dict[int, tuple[float, float, float]], *, r2_uses: tuple[int, ...]):
         self.truth = {k: np.array(v) for k, v in truth.items()}
         self.radios: dict[str, np.ndarray] = {}
+        self.glints: list[tuple[np.ndarray, float]] = []  # position, chance to be detected
         self.dark: set[int] = set()
         self.radio_on: set[str] = set()
         self.t_ns = 1_000_000_000
@@ -77,6 +78,7 @@ class Site:
         x, y, th = self.pose_r1()
         lit = [self.truth[i] for i in sorted(self.truth) if i not in self.dark]
         lit += [self.radios[a] for a in sorted(self.radio_on) if a in self.radios]
+        lit += [p for p, chance in self.glints if self.rng.random() < chance]
         px, ok = predict_pixels(CAM, T_world_body_from_pose(x, y, th), np.array(lit))
         px = px[ok] + self.rng.normal(0.0, 0.2, (int(ok.sum()), 2))
         cov = np.diag([1e-4, 1e-4, 1e-5])
@@ -208,6 +210,22 @@ def test_a_new_radio_is_lit_alone_measured_then_skipped_and_relit() -> None:
     assert site.dark_log == []  # no landmark was darkened for a new radio
     site.carry_out(wiz, wiz.handle(Skip(site.t_ns)))
     assert radio in site.radio_on and site.finished[0].skipped == (105,)
+
+
+def test_a_flickering_glint_is_not_measured_and_the_prompt_says_so() -> None:
+    site = Site(TRUTH, r2_uses=(10, 11, 12, 13))
+    radio = "0013A20041000106"
+    site.radios[radio] = np.array([9.0, 9.0, 2.5])  # hangs far from r1: never in view
+    site.radio_on.add(radio)
+    site.glints.append((np.array([1.45, 1.2, 2.5]), 0.5))  # 25 cm beside landmark 14
+    wiz = IdentificationWizard()
+    start(site, wiz, (Candidate(106, radio, "new radio"),), TRUTH)
+    site.run(wiz, 6.0)
+    st = wiz.status()
+    assert st.measurement is None and not st.can_confirm
+    assert "no spot follows radio 0013A20041000106's LED in r1's view" in st.prompt, st.prompt
+    assert "a spot at (1.45, 1.20) comes and goes out of step with it" in st.prompt
+    assert "keep it blinking and drive r1 to where the radio hangs" in st.prompt
 
 
 def test_bad_starts_and_actions_say_why() -> None:

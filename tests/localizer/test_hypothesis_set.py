@@ -150,16 +150,21 @@ def test_a_late_comer_as_good_as_the_best_blocks_the_acceptance() -> None:
     assert np.min(np.hypot(hs.poses[:, 0] - truth[0], hs.poses[:, 1] - truth[1])) < 0.03
 
 
-def test_a_kidnapped_robot_is_not_fused_while_carried_and_is_found_again_driving_on() -> None:
-    """The Localizer end to end (no LED control, a 15 Hz camera): tracking, lifted and
-    carried 2.5 m and turned (odometry still), put down, driving on towards the skylight."""
-    P = _hall(gap=True)
+Run = list[tuple[float, str, float]]
+
+
+def _kidnap(
+    P: np.ndarray, A: tuple[float, float, float], B: tuple[float, float, float], seconds: float
+) -> Run:
+    """The Localizer end to end (no LED control, a 15 Hz camera): parked at A and tracking,
+    lifted at 1 s and carried to B and turned (odometry still, 1 s), put down, driving on
+    from 2.3 s at 0.6 m/s. Returns (t s, mode, position error m) per frame."""
     # told where it starts; lost after 1 s of frames no fix explains
     start = FusionConfig(initial_sigma_m=0.05, initial_sigma_rad=0.05, lost_after_rejections=15)
     robot = RobotGeometry(wheel_base=0.36, max_speed=1.0)
     lm = LandmarkMap(np.arange(1, len(P) + 1), P)
     loc = Localizer(CAM, lm, robot, LocalizerConfig(fusion=start))
-    A, B, v = (1.2, 1.2, -1.2), (3.6, 2.0, 0.3), 0.6
+    v = 0.6
 
     def truth(t: float) -> tuple[tuple[float, float, float], float, float]:
         """(pose, lift m, wheel speed m/s) at t."""
@@ -175,9 +180,10 @@ def test_a_kidnapped_robot_is_not_fused_while_carried_and_is_found_again_driving
 
     loc.set_initial_pose(*A, 0)
     rng = np.random.default_rng(5)
-    events: list[tuple[int, int]] = [(k * 20_000_000, 0) for k in range(1, 8 * 50)]  # odometry
-    events += [(k * 66_666_667, 1) for k in range(1, 8 * 15)]  # frames
-    out = []
+    n = int(seconds)
+    events: list[tuple[int, int]] = [(k * 20_000_000, 0) for k in range(1, n * 50)]  # odometry
+    events += [(k * 66_666_667, 1) for k in range(1, n * 15)]  # frames
+    out: Run = []
     for t_ns, kind in sorted(events):
         pose, lift, speed = truth(t_ns * 1e-9)
         if kind == 0:
@@ -191,6 +197,12 @@ def test_a_kidnapped_robot_is_not_fused_while_carried_and_is_found_again_driving
         est = loc.handle(SpotsObserved(t_ns, px, np.ones(len(px)), np.full(len(px), 9.0)))[0]
         assert isinstance(est, PoseEstimate)
         out.append((t_ns * 1e-9, est.mode, math.hypot(est.x - pose[0], est.y - pose[1])))
+    return out
+
+
+def test_a_kidnapped_robot_is_not_fused_while_carried_and_is_found_again_driving_on() -> None:
+    """Carried 2.5 m and turned, put down, driving on towards the skylight."""
+    out = _kidnap(_hall(gap=True), (1.2, 1.2, -1.2), (3.6, 2.0, 0.3), 8.0)
     # never a wrong fix: every landmark frame within 3 cm of the truth
     assert max(e for _, mode, e in out if mode == "landmark") < 0.03
     # picked up at 1.0 s: not fused from the next frames on, lost within 1.2 s
@@ -201,3 +213,14 @@ def test_a_kidnapped_robot_is_not_fused_while_carried_and_is_found_again_driving
     t_back = next(t for t, mode, _ in out if t > 2.0 and mode == "landmark")
     assert t_back < 7.0
     assert all(mode == "landmark" for t, mode, _ in out if t > t_back + 0.5)
+
+
+def test_a_robot_put_down_one_spacing_away_on_a_regular_grid_is_never_taken_for_where_it_was():
+    """The classic trap: lifted and put down 40 cm (one spacing) away, same heading, mid-hall
+    of the perfect grid. Every view after the put-down is the view from where it was picked
+    up (and from its other grid copies): the prior (where it got lost) must not decide, and
+    no tracking hand-off may take the old pose back. It says `lost`, never a wrong pose."""
+    out = _kidnap(_hall(gap=False), (2.2, 1.8, 0.3), (2.6, 1.8, 0.3), 5.0)
+    assert max(e for _, mode, e in out if mode == "landmark") < 0.03
+    after = [mode for t, mode, _ in out if t > 2.0]
+    assert after and all(mode == "lost" for mode in after)

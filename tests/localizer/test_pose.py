@@ -263,3 +263,20 @@ def test_mismatched_shapes_raise() -> None:
         solve_pose(cam, np.zeros((3, 2)), np.zeros((2, 3)))
     with pytest.raises(ValueError, match="pixels"):
         solve_pose(cam, np.zeros(4), np.zeros((2, 3)))
+
+
+def test_a_fix_plus_a_covariance_turned_about_the_vertical() -> None:
+    rng = np.random.default_rng(7)
+    A = rng.normal(size=(3, 3))
+    B = rng.normal(size=(3, 3))
+    base, term = A @ A.T, B @ B.T
+    fix = PoseFix(1.0, 2.0, 0.5, base, landmark_ids=(4, 5), n_landmarks=2, residuals_px=(0.1, 0.2))
+    turn = 0.37
+    c, s = math.cos(turn), math.sin(turn)
+    R = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    out = fix.plus_covariance_turned(term, turn)
+    np.testing.assert_allclose(out.covariance, base + R @ term @ R.T, rtol=1e-13, atol=1e-13)
+    assert (out.x, out.y, out.theta, out.landmark_ids, out.residuals_px) == (
+        1.0, 2.0, 0.5, (4, 5), (0.1, 0.2),
+    )  # fmt: skip
+    np.testing.assert_array_equal(fix.covariance, base)  # the fix itself unchanged

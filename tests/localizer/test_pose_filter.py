@@ -296,3 +296,25 @@ def test_bad_reset_input_raises() -> None:
         PoseFilter(0.0, 0.0, 0.0, np.eye(2), wheel_base=W)
     with pytest.raises(ValueError, match="wheel_base"):
         PoseFilter(0.0, 0.0, 0.0, np.eye(3), wheel_base=0.0)
+
+
+def test_a_copy_carries_the_deferred_propagation_and_leaves_the_original_alone() -> None:
+    """A frame's copy is not flushed: it applies the original's pending odometry steps with
+    its own in one go, and gives the covariance the original would have after the same
+    steps; the original does not see the copy's steps."""
+    f = PoseFilter(1.0, 2.0, 0.3, np.diag([0.01, 0.02, 0.003]), wheel_base=0.4)
+    for vl, vr in ((0.5, 0.6), (0.4, 0.7), (0.6, 0.6)):
+        f.predict(vl, vr, 0.02)
+    twin = f.copy()
+    twin.predict(0.5, 0.8, 0.013)
+    ref = PoseFilter(1.0, 2.0, 0.3, np.diag([0.01, 0.02, 0.003]), wheel_base=0.4)
+    for vl, vr in ((0.5, 0.6), (0.4, 0.7), (0.6, 0.6)):
+        ref.predict(vl, vr, 0.02)
+        ref.covariance  # noqa: B018 (flushed after every step)
+    before = ref.covariance
+    ref.predict(0.5, 0.8, 0.013)
+    # (batched and stepwise propagation agree to rounding, as in test_propagation)
+    np.testing.assert_allclose(twin.covariance, ref.covariance, rtol=1e-9, atol=1e-16)
+    np.testing.assert_allclose(twin.pose, ref.pose, atol=1e-15)
+    np.testing.assert_allclose(f.covariance, before, rtol=1e-9, atol=1e-16)
+    assert not np.allclose(f.covariance, twin.covariance)

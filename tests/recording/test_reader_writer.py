@@ -173,3 +173,19 @@ def test_writer_rejects_time_going_backwards_and_bad_images(tmp_path: Path) -> N
             w.add_frame(10, np.zeros((4, 4), dtype=np.float32))
         with pytest.raises(ValueError, match=r"\[99\] are not in the map"):
             w.add_leds(LedsChanged(10, frozenset({99})))
+
+
+def test_a_landmark_being_switched_is_written_lit_so_dark_means_surely_dark(
+    tmp_path: Path,
+) -> None:
+    camera = wide_angle_camera("pinhole")
+    ids = [r["id"] for r in RECORDS]
+    with RecordingWriter(tmp_path, camera, RobotGeometry(0.3), RECORDS) as w:
+        # darkening ids[0]: requested at 10 (still lit or already dark), confirmed at 20
+        w.add_leds(LedsChanged(10, frozenset(ids), changing=frozenset({ids[0]})))
+        w.add_leds(LedsChanged(20, frozenset(ids[1:])))
+        # lighting it again: requested at 30 (may be lit already: written lit), confirmed 40
+        w.add_leds(LedsChanged(30, frozenset(ids[1:]), changing=frozenset({ids[0]})))
+        w.add_leds(LedsChanged(40, all_lit=True))
+    text = (tmp_path / "leds.csv").read_text().splitlines()
+    assert text[1:] == ["10,all", f"20,{' '.join(map(str, sorted(ids[1:])))}", "30,all", "40,all"]

@@ -343,3 +343,27 @@ def test_a_lost_reply_while_opening_is_retried_at_once(tmp_path: Path) -> None:
     assert states == ["opening", "open", "closed"]  # never "reopening"
     # digi-xbee itself probes AT command mode (guard times) after the lost reply: ~4 s of it
     assert elapsed < 10.0, elapsed
+
+
+def test_a_broadcast_awake_time_reaches_every_reachable_remote(tmp_path: Path) -> None:
+    """`ST` to the broadcast address with frame id 0: every reachable landmark applies it
+    (30 s = 0x7530 ms), nothing answers, and the link carries on."""
+    emu = XBeeEmulator(tmp_path / "ttyXBEE", remotes())
+    emu.start()
+    try:
+
+        async def body(t: XBeeTransport) -> None:
+            await t.broadcast_awake_time(30.0)
+            await until(lambda: emu.counts["broadcasts"] == 1)
+            await asyncio.sleep(0.05)
+            assert t.replies.late_replies == 0  # no answer came to the broadcast
+            await t.set_pin(ADDR[1], True)
+            with pytest.raises(ValueError, match="ST"):
+                await t.broadcast_awake_time(100.0)
+
+        with_transport(Link(emu, CONFIG), body)
+        assert emu.remote(ADDR[1]).applied == [("ST", 30000), ("D4", 5)]
+        assert emu.remote(ADDR[2]).applied == [("ST", 30000)]
+        assert emu.remote(ADDR[3]).applied == [] and emu.remote(ADDR[4]).applied == []
+    finally:
+        emu.stop()

@@ -72,13 +72,34 @@ def test_bad_input_is_named(api: Api) -> None:
     assert r.status_code == 409 and "not running" in r.json()["detail"]
 
 
-def _nearest(api: Api, robot: str, ids: list[int]) -> int:
+def _ahead(api: Api, robot: str, distance_m: float) -> tuple[float, float]:
+    """Where `robot` will truly be once it drove `distance_m` on along its route."""
     sim = api.services.sim
     assert sim is not None
     x, y, _ = sim.true_pose(robot)
-    lms = {lm.id: lm for lm in sim.world.landmarks.values() if lm.reachable}
-    return min((i for i in ids if i in lms),
-               key=lambda i: np.hypot(lms[i].p_true[0] - x, lms[i].p_true[1] - y))  # fmt: skip
+    for wx, wy in sim.planned_route(robot):
+        leg = float(np.hypot(wx - x, wy - y))
+        if leg >= distance_m:
+            return x + (wx - x) * distance_m / leg, y + (wy - y) * distance_m / leg
+        distance_m -= leg
+        x, y = wx, wy
+    return x, y
+
+
+def _passed_under(api: Api, robot: str) -> int:
+    """The bright landmark `robot` will pass under while the wizard measures (the nearest to
+    where it will be 1.5 m on along its route, 2.5 s): measured while the robot drives,
+    whichever test ran before."""
+    sim = api.services.sim
+    assert sim is not None
+    x, y = _ahead(api, robot, 1.5)
+    lms = [
+        lm
+        for lm in sim.world.landmarks.values()
+        if lm.reachable and lm.battery.led_brightness() > 0.8
+    ]
+    best = min(lms, key=lambda lm: np.hypot(lm.p_true[0] - x, lm.p_true[1] - y))
+    return best.id
 
 
 @pytest.mark.slow
@@ -101,7 +122,7 @@ def test_identification_on_the_live_site_keeps_the_other_robots_tracking(live: A
         time.sleep(0.2)
         used = live.services.robots.latest("r1")
     assert used is not None and used.landmark_ids
-    lid = _nearest(live, "r1", list(used.landmark_ids))
+    lid = _passed_under(live, "r1")
     truth = next(lm.p_true for lm in sim.world.landmarks.values() if lm.id == lid)
     lm = live.services.map.get(lid)
     moved = {"x": lm.x + 3.0, "y": lm.y + 3.0, "z": lm.z}  # the map says 4.2 m away
@@ -112,7 +133,14 @@ def test_identification_on_the_live_site_keeps_the_other_robots_tracking(live: A
     again = c.post(W + "/start", json={"robot": "r1", "landmarks": [lid]}, headers=h)
     assert again.status_code == 409
     st = live.wait_for(W, lambda s: s["measurement"] is not None, 40)
-    time.sleep(2.0)  # it goes on measuring until confirmed
+    poses = sub.drain()
+    deadline = time.monotonic() + 15.0  # it goes on measuring until confirmed: enough frames
+    while (
+        time.monotonic() < deadline
+        and min(sum(p.robot == robot for p in poses) for robot in ("r2", "r3")) <= 60
+    ):
+        time.sleep(0.2)
+        poses += sub.drain()
     st = c.get(W, headers=h).json()
     m = st["measurement"]
     assert m["far"] and st["needs_accept_far"] and not st["can_confirm"], st
@@ -120,7 +148,6 @@ def test_identification_on_the_live_site_keeps_the_other_robots_tracking(live: A
     r = c.post(W + "/confirm", json={}, headers=h)
     assert r.status_code == 422 and "far from the map" in r.json()["detail"]
     assert live.services.map.get(lid).x == pytest.approx(moved["x"])  # nothing saved
-    poses = sub.drain()
     for robot in ("r2", "r3"):
         modes = [p.mode for p in poses if p.robot == robot]
         share = modes.count("landmark") / len(modes)
@@ -146,7 +173,7 @@ def test_a_radio_deleted_from_the_map_is_found_measured_and_saved_back(live: Api
         time.sleep(0.2)
         used = live.services.robots.latest("r1")
     assert used is not None and used.landmark_ids
-    lid = _nearest(live, "r1", list(used.landmark_ids))
+    lid = _passed_under(live, "r1")
     address = live.services.map.get(lid).radio
     assert address is not None
     truth = next(lm.p_true for lm in sim.world.landmarks.values() if lm.id == lid)

@@ -10,7 +10,7 @@ import pytest
 
 from localizer.events import FrameObserved, LedsChanged, OdometryMeasured, SpotsObserved
 from localizer.robot import RobotGeometry
-from server.survey_blinks import blink_choice
+from server.survey_blinks import blink_choice, needed_by_others
 from server.survey_live import LiveDrive
 from sim.cameras import wide_angle_camera
 from survey.result import LandmarkEstimate, SurveyResult
@@ -112,6 +112,21 @@ def test_blink_choice_needs_in_view_and_untracked() -> None:
     assert blink_choice([1], [1], {1}, blinked) is None
     # an anchor not identified yet goes first, however often it was blinked
     assert blink_choice([1, 2, 3, 4], [1, 2, 3], set(), blinked, first={1}) == 1
+    # but one the robot's fix used goes before one merely expected (at the image's edge,
+    # too faint to see: a wasted blink), anchor or not
+    assert blink_choice([1, 2, 3, 4], [1, 2, 3], set(), blinked, first={1}, seen=(3,)) == 3
+    assert blink_choice([1, 2, 3], [1, 2, 3], set(), blinked, first={1}, seen=(1, 3)) == 1
+
+
+def test_other_robots_keep_three_landmarks_through_a_dark_window() -> None:
+    # r2 fixes from 1-5: any one may go dark; r3 from 6, 7, 8: none of them may
+    assert needed_by_others([(1, 2, 3, 4, 5), (6, 7, 8)], keep=3) == {6, 7, 8}
+    assert needed_by_others([(1, 2, 3, 4)], keep=3) == set()
+    assert needed_by_others([(1, 2)], keep=2) == {1, 2}
+    assert needed_by_others([()], keep=3) == set()  # lost or dead reckoning: nothing used
+    # an anchor under a robot that sees plenty is blinked (it used to be spared for ever)
+    spared = needed_by_others([(1, 2, 3, 4, 5)], keep=3)
+    assert blink_choice([1, 9], [1, 9], spared, {1: 0, 9: 0}, first={1}) == 1
 
 
 def test_live_drive_keeps_spots_wheels_and_led_states_in_time_order() -> None:
@@ -134,10 +149,29 @@ def test_live_drive_keeps_spots_wheels_and_led_states_in_time_order() -> None:
         np.testing.assert_allclose(snap.frame_spots[0], [[201.5, 101.5]], atol=0.05)
         assert snap.frame_spots[1].shape == (0, 2)
         assert snap.odom_t_ns.tolist() == [11] and snap.odom_v.tolist() == [[0.1, 0.2]]
-        assert snap.leds == [LedsChanged(12, frozenset({1}))]  # as a recording keeps it
+        # as a recording keeps it: 2, its command in flight, may be lit already: written lit
+        assert snap.leds == [LedsChanged(12, frozenset({1, 2}))]
     finally:
         drive.close()
     spots = LiveDrive([], cam, RobotGeometry(wheel_base=0.4))  # a robot sending spots
+    try:  # a blink's frames: counted from the confirmed switch on, not from the request
+        spots.add(LedsChanged(100, frozenset({1, 2})))
+        spots.add(LedsChanged(200, frozenset({1, 2}), changing=frozenset({2})))  # darkening
+        frame = [np.array([[5.0, 6.0]]), np.ones(1), np.ones(1)]
+        spots.add(SpotsObserved(210, *frame))  # type: ignore[arg-type]
+        assert spots.frames_since_switch(2, lit=False) == 0
+        assert spots.frames_since_switch(2, lit=True) == 0  # in flight: neither for sure
+        spots.add(LedsChanged(250, frozenset({1})))  # confirmed dark at 250
+        assert spots.frames_since_switch(2, lit=False) == 0  # 210 was before
+        spots.add(LedsChanged(260, frozenset({1}), changing=frozenset({3})))  # another LED
+        for t in (270, 300, 330):
+            spots.add(SpotsObserved(t, *frame))  # type: ignore[arg-type]
+        assert spots.frames_since_switch(2, lit=False) == 3  # still dark since 250
+        assert spots.frames_since_switch(2, lit=True) == 0
+        assert spots.frames_since_switch(1, lit=True) == 4  # lit all along since 100
+    finally:
+        spots.close()
+    spots = LiveDrive([], cam, RobotGeometry(wheel_base=0.4))
     try:
         spots.add(SpotsObserved(5, np.array([[5.0, 6.0]]), np.ones(1), np.ones(1)))
         spots.add(SpotsObserved(4, np.array([[1.0, 1.0]]), np.ones(1), np.ones(1)))  # late

@@ -2,9 +2,14 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+from typing import Literal
+
 import pytest
 
+from server.led_schedule.site import gateway_config, wake_window
 from server.led_schedule.wake_window import WakeWindow, WakeWindowConfig
+from server.settings import Settings
 
 
 def test_the_window_opens_while_a_robot_identifies_and_closes_after_it_held_a_pose() -> None:
@@ -24,3 +29,25 @@ def test_the_window_opens_while_a_robot_identifies_and_closes_after_it_held_a_po
 def test_a_window_shorter_than_the_normal_time_awake_is_refused() -> None:
     with pytest.raises(ValueError, match="normal_wake_s"):
         WakeWindowConfig(normal_wake_s=2.0, identify_wake_s=1.0)
+
+
+def test_a_window_the_gateway_opened_at_start_costs_no_st_commands() -> None:
+    """Sleeping radios under the schedule: the gateway's start-up broadcast sets `ST` to the
+    window's own 30 s, so the window starts open and only its closing is sent; `all_lit`
+    (no window to close it) and awake radios broadcast no window."""
+
+    def settings(policy: Literal["scheduled", "all_lit"], sleep: float | None) -> Settings:
+        return Settings(data_dir=Path("/nonexistent"), led_policy=policy,
+                        radio_sleep_period_s=sleep)  # fmt: skip
+
+    sched = settings("scheduled", 0.5)
+    assert gateway_config(sched).start_awake_s == WakeWindowConfig().identify_wake_s
+    assert gateway_config(settings("all_lit", 0.5)).start_awake_s is None
+    assert gateway_config(settings("scheduled", None)).start_awake_s is None
+    w = wake_window(sched, opened_s=gateway_config(sched).start_awake_s)
+    assert w is not None and w.open
+    assert w.update(0.0, identifying=True) is None  # already open: nothing sent
+    assert w.update(1.0, identifying=False) is None
+    assert w.update(6.0, identifying=False) == 1.0  # closing is sent
+    closed = wake_window(sched, opened_s=None)
+    assert closed is not None and not closed.open

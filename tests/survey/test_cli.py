@@ -16,18 +16,19 @@ NS = 1_000_000_000
 DRIVE_S = 16.0
 
 
-@pytest.fixture(scope="module")
-def recording(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict[int, np.ndarray]]:
-    """A rendered 16 s survey drive over 9 landmarks; map.json: the corners surveyed, the
-    rest off by up to 30 cm, two with no position."""
+def _recording(
+    tmp_path_factory: pytest.TempPathFactory, drive_s: float
+) -> tuple[Path, dict[int, np.ndarray]]:
+    """A rendered survey drive of `drive_s` over 9 landmarks; map.json: the corners surveyed,
+    the rest off by up to 30 cm, two with no position."""
     scenario = survey_floor_scenario(
         seed=5, n_landmarks=9, size_m=(3.0, 3.0), lane_spacing_m=1.2, speed_mps=0.4
     )
     ids = sorted(lm.id for lm in scenario.landmarks)
     root = tmp_path_factory.mktemp("survey") / "rec"
     simulate_recording(
-        scenario, root, duration_s=DRIVE_S,
-        led_program=lambda t: blink_schedule(ids, t, round(DRIVE_S * NS), BlinkConfig()),
+        scenario, root, duration_s=drive_s,
+        led_program=lambda t: blink_schedule(ids, t, round(drive_s * NS), BlinkConfig()),
     )  # fmt: skip
     truth = {lm.id: np.array([lm.x, lm.y, lm.z]) for lm in scenario.landmarks}
     doc = json.loads((root / "map.json").read_text())
@@ -43,6 +44,21 @@ def recording(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict[int,
         rec["y"] += r * math.sin(a)
     (root / "map.json").write_text(json.dumps(doc))
     return root, truth
+
+
+@pytest.fixture(scope="module")
+def recording(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict[int, np.ndarray]]:
+    """The 16 s drive the survey places every landmark from."""
+    return _recording(tmp_path_factory, DRIVE_S)
+
+
+@pytest.fixture(scope="module")
+def short_recording(
+    tmp_path_factory: pytest.TempPathFactory,
+) -> tuple[Path, dict[int, np.ndarray]]:
+    """A 1 s drive with the same map.json: for the input errors, found before any solve (each
+    read of the 16 s drive's frames takes seconds)."""
+    return _recording(tmp_path_factory, 1.0)
 
 
 def test_survey_writes_every_landmark_within_a_centimetre(recording, tmp_path, capsys) -> None:  # type: ignore[no-untyped-def]
@@ -73,9 +89,9 @@ def test_survey_writes_every_landmark_within_a_centimetre(recording, tmp_path, c
     ],
 )
 def test_bad_input_is_one_line_and_writes_nothing(
-    recording, tmp_path, capsys, args, message
+    short_recording, tmp_path, capsys, args, message
 ) -> None:  # type: ignore[no-untyped-def]
-    root, _ = recording
+    root, _ = short_recording
     out = tmp_path / "out.json"
     assert main([str(root), *args, "--out", str(out), "--quiet"]) == 1
     err = capsys.readouterr().err.strip()
@@ -83,8 +99,8 @@ def test_bad_input_is_one_line_and_writes_nothing(
     assert not out.exists()
 
 
-def test_no_odometry_and_not_a_recording(recording, tmp_path, capsys) -> None:  # type: ignore[no-untyped-def]
-    root, truth = recording
+def test_no_odometry_and_not_a_recording(short_recording, tmp_path, capsys) -> None:  # type: ignore[no-untyped-def]
+    root, truth = short_recording
     ids = sorted(truth)
     copy = tmp_path / "rec"
     import shutil
