@@ -64,6 +64,12 @@ class FusionConfig:
             (integrated by the trapezoid rule).
         odometry_stale_s: odometry older than this at a frame is stale: the whole frame
             interval counts as unpredicted motion, seconds.
+        correlated_fix_error: a tracking fix's survey and calibration error is the same on
+            every frame of the same landmarks: fuse it by the consider update of
+            `fix_bias` (False: as white noise, every frame independent). Off by default:
+            on the robustness matrix it takes 0.4-0.5 cm off the pair patrol and the held-out
+            corridor but lets a 30 cm pair seen through a poor calibration pull the pose 33
+            cm off for 5 frames (`hostile_poor`), see docs/localizer.md "third pass".
     """
 
     pixel_sigma_px: float = 1.0
@@ -86,6 +92,7 @@ class FusionConfig:
     odometry_history_s: float = 5.0
     odometry_interval_mean: bool = True
     odometry_stale_s: float = 0.2
+    correlated_fix_error: bool = False
 
 
 @dataclass(frozen=True)

@@ -388,6 +388,9 @@ class LandmarkTracker:
             if fix is None:
                 return ()
             res = fix.residuals_px
+        # the centroids' share of the solver's covariance is white, the rest (survey,
+        # calibration, its consider term) the same on every frame of these landmarks
+        white = fix.covariance * self.noise.white_share(sig) if fc.correlated_fix_error else None
         fix = self._with_calibration(fix, rows, px, sig)
         n = len(rows)
         if n < need:
@@ -398,7 +401,7 @@ class LandmarkTracker:
             chi2 = n * (fix.residual_rms_px / (sum(sig) / n)) ** 2
         if chi2 / max(2 * n - 3, 1) > fc.max_chi2_per_dof:
             return ()
-        if not filt.update_fix(fix, max_nis=fc.nis_gate) <= fc.nis_gate:
+        if not filt.update_fix(fix, max_nis=fc.nis_gate, white_covariance=white) <= fc.nis_gate:
             return ()
         self.noise.observe(chi2, n)
         self.last_fused = (rows, px, fix)

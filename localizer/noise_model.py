@@ -182,6 +182,16 @@ class PixelNoiseModel:
         a = f - i
         return self.factor * ((1.0 - a) * table[i] + a * table[i + 1])
 
+    def white_share(self, sigma_px: list[float]) -> float:
+        """The share of a fix's variance that is white (the centroids' own noise, new on
+        every frame; the survey's and the calibration's parts are the same on every frame
+        of the same landmarks), for spots of these sigmas (this model's): the mean over the
+        spots of (centroid sigma / sigma)^2, the adapted factor applying to both."""
+        if not sigma_px:
+            return 1.0
+        c = self.factor * self.config.centroid_sigma_px
+        return min(1.0, sum((c / s) ** 2 for s in sigma_px) / len(sigma_px))
+
     def observe(self, chi2: float, n_landmarks: int) -> None:
         """Adapt the factor from a fix's chi-square (sum of squared residuals over this
         model's sigmas) with `n_landmarks` landmarks (2n - 3 degrees of freedom)."""

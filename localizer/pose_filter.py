@@ -27,6 +27,12 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from localizer.fix_bias import (
+    carried_correlation,
+    carry_bias,
+    consider_update,
+    moved_bias,
+)
 from localizer.geometry import wrap_angle
 from localizer.odometry import odometry_increments, odometry_partials
 from localizer.pose import PoseFix
@@ -63,6 +69,9 @@ class FilterConfig:
             filter's predicted covariance is right); the configured values are the prior.
         adapt_gain: weight of one fix in that running estimate.
         noise_scale_bounds: the factor stays within these.
+        attenuate_turn_scale: evaluate the wheel base's Jacobian at the expected true turn
+            given the measured one (the measured turn's noise otherwise biases k_b upwards
+            while driving straight; see `predict`).
     """
 
     wheel_noise_m_per_sqrt_s: float = 0.003
@@ -77,6 +86,7 @@ class FilterConfig:
     adapt_noise: bool = True
     adapt_gain: float = 0.005
     noise_scale_bounds: tuple[float, float] = (0.7, 4.0)
+    attenuate_turn_scale: bool = True
 
     def __post_init__(self) -> None:
         for name in (
@@ -205,6 +215,12 @@ class PoseFilter:
         self._age_s = 0.0  # time since the last reset
         self._propagation = DeferredPropagation()
         self.noise_scale = 1.0  # odometry noise over the configured one (adapted online)
+        # cross-covariance of the state's error with the last fixes' systematic error, and
+        # their landmarks (`fix_bias`); None: no correlated fix since the last reset
+        self._C: FloatArray | None = None
+        self._bias_ids: frozenset[int] = frozenset()
+        self._bias_at = (0.0, 0.0)  # where the last of them was fused
+        self._bias_R = np.zeros((3, 3))  # and that error's covariance
         self.reset(x, y, theta, covariance)
 
     # -- state ----------------------------------------------------------------------------------
@@ -278,6 +294,7 @@ class PoseFilter:
         ]
         self._offset = [0.0, 0.0, 0.0]
         self._age_s = 0.0
+        self._C, self._bias_ids = None, frozenset()
 
     def copy(self) -> PoseFilter:
         """An independent copy (state, covariance, output offset): a frame's tentative
@@ -292,6 +309,8 @@ class PoseFilter:
         twin._age_s = self._age_s
         twin._propagation = self._propagation.copy()
         twin.noise_scale = self.noise_scale
+        twin._C = None if self._C is None else self._C.copy()
+        twin._bias_ids, twin._bias_at, twin._bias_R = self._bias_ids, self._bias_at, self._bias_R
         return twin
 
     def inflate(self, var_xy_m2: float, var_theta_rad2: float) -> None:
@@ -333,6 +352,19 @@ class PoseFilter:
         q2, s2 = k2 * cfg.wheel_noise_m_per_sqrt_s**2 * dt, k2 * cfg.wheel_slip_m_per_sqrt_m**2
         m_l = (q2 + s2 * abs(X[4] * v_left * dt)) / (dt * dt)
         m_r = (q2 + s2 * abs(X[3] * v_right * dt)) / (dt * dt)
+        if cfg.attenuate_turn_scale:
+            # The wheel base's column of F scales the measured turn dR, noise included:
+            # driving straight, dR is the wheels' noise alone, the heading error it causes
+            # and the column share it, and every fix then pushed k_b up (by the noise's
+            # variance: 3 % in 15 s, so the next 180 deg turn was 5 deg off). Evaluated at
+            # the expected true turn given the measured one, dR dR^2 / (dR^2 + var(dR)).
+            W = X[5] * self.wheel_base
+            dR = (X[3] * v_right - X[4] * v_left) * dt / W
+            var_dR = (m_l + m_r) * dt * dt / (W * W)
+            f = dR * dR / (dR * dR + var_dR) if var_dR > 0 else 1.0
+            F_top[0][5] *= f
+            F_top[1][5] *= f
+            F_top[2][5] *= f
 
         walk = cfg.calibration_walk_per_sqrt_s**2 * dt if cfg.estimate_calibration else 0.0
         self._propagation.add_step(F_top, G, m_l, m_r, walk)
@@ -348,6 +380,8 @@ class PoseFilter:
     def _flush(self) -> None:
         """Apply the deferred covariance propagation (see `DeferredPropagation`)."""
         if self._propagation.pending:
+            if self._C is not None:
+                self._C = self._propagation.carry(self._C)
             self._P = self._propagation.apply(self._P)
 
     # -- update ---------------------------------------------------------------------------------
@@ -366,24 +400,79 @@ class PoseFilter:
         y, S_inv = self._innovation(fix)
         return _quadratic_form(y, S_inv)
 
-    def update_fix(self, fix: PoseFix, *, max_nis: float | None = None) -> float:
+    def update_fix(
+        self,
+        fix: PoseFix,
+        *,
+        max_nis: float | None = None,
+        white_covariance: FloatArray | None = None,
+    ) -> float:
         """Fuse a landmark fix (measurement (x, y, theta) with `fix.covariance`).
 
         y = z - h(X);  S = H P H^T + R;  K = P H^T S^-1;  X = X + K y;  P = (I - K H) P.
+
+        With `white_covariance` the fix's covariance is split (`fix_bias`): that part is
+        white (new on every frame), the rest systematic (survey, calibration), the same for
+        every fix of the same landmarks. The update is then the consider update, which
+        carries the state's correlation with that error from fix to fix.
 
         Args:
             fix: the fix.
             max_nis: when given, a fix whose NIS exceeds it is not applied (gate); e.g. the
                 chi-square 3-dof 99.9 % quantile 16.27.
+            white_covariance: the white part of `fix.covariance`, (3, 3).
 
         Returns:
             The fix's NIS (normalised innovation squared) before the update; inf (and the
             fix not applied) when S is singular.
         """
-        y, S_inv = self._innovation(fix)
-        nis = _quadratic_form(y, S_inv)
-        if S_inv is None or (max_nis is not None and not nis <= max_nis):
-            return nis
+        if white_covariance is not None:
+            found = self._consider_step(fix, white_covariance)
+            if found is None:
+                return math.inf
+            dX, P_new, C_new, nis = found
+            if max_nis is not None and not nis <= max_nis:
+                return nis
+            self._P, self._C = P_new, C_new
+            self._bias_ids, self._bias_at = frozenset(fix.landmark_ids), (fix.x, fix.y)
+            self._bias_R = np.asarray(fix.covariance, dtype=np.float64) - white_covariance
+        else:
+            y, S_inv = self._innovation(fix)
+            nis = _quadratic_form(y, S_inv)
+            if S_inv is None or (max_nis is not None and not nis <= max_nis):
+                return nis
+            dX = self._plain_step(y, S_inv)
+            self._C, self._bias_ids = None, frozenset()
+        self._apply_correction(dX, nis)
+        return nis
+
+    def _consider_step(
+        self, fix: PoseFix, white: FloatArray
+    ) -> tuple[list[float], Rows, FloatArray, float] | None:
+        """The consider update's correction, covariance, cross-covariance and NIS (not
+        applied); None when S is singular."""
+        self._flush()
+        x, y, th = observation_model(self._X)
+        innovation = [fix.x - x, fix.y - y, float(wrap_angle(fix.theta - th))]
+        R_white = np.asarray(white, dtype=np.float64)
+        R_bias = np.asarray(fix.covariance, dtype=np.float64) - R_white
+        rho = carried_correlation(self._bias_ids, frozenset(fix.landmark_ids))
+        C = np.zeros((6, 3))
+        if self._C is not None and rho > 0.0:
+            T = moved_bias(fix.x - self._bias_at[0], fix.y - self._bias_at[1])
+            C = carry_bias(self._C @ T.T, np.array(self._P), R_bias, rho, T @ self._bias_R @ T.T)
+        # (rounding can still leave the joint covariance a hair from positive definite:
+        # then the correlation is shrunk, and at last dropped)
+        rw, rb = R_white.tolist(), R_bias.tolist()
+        for shrink in (1.0, 0.5, 0.0):
+            found = consider_update(self._P, (shrink * C).tolist(), innovation, rw, rb)
+            if found is not None:
+                dX, P_new, C_new, nis = found
+                return dX, P_new, np.array(C_new), nis
+        return None
+
+    def _plain_step(self, y: list[float], S_inv: list[float]) -> list[float]:
+        """The ordinary update: P applied, the state's correction returned."""
         # Plain floats: for a 6-state filter numpy's per-call overhead dominates.
         i00, i01, i02, i11, i12, i22 = S_inv
         P = self._P
@@ -403,7 +492,11 @@ class PoseFilter:
                 ]
             )
         self._P = [[U[j][i - j] for j in range(i)] + U[i] for i in range(6)]
+        return dX
 
+    def _apply_correction(self, dX: list[float], nis: float) -> None:
+        """Move the state by a fused fix's correction; adapt the odometry noise from its
+        NIS; the output offset (smoothing)."""
         old = self._X
         X = [u + d for u, d in zip(old, dX, strict=True)]
         X[2] = float(wrap_angle(X[2]))
@@ -421,7 +514,6 @@ class PoseFilter:
             self._offset = [0.0, 0.0, 0.0]
         else:
             self._offset = [o + j for o, j in zip(self._offset, jump, strict=True)]
-        return nis
 
 
 def _quadratic_form(y: list[float], S_inv: list[float] | None) -> float:

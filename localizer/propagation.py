@@ -21,6 +21,9 @@ nested lists): for this size numpy's per-call overhead costs more than the arith
 
 from __future__ import annotations
 
+import numpy as np
+import numpy.typing as npt
+
 Vec3 = tuple[float, float, float]
 Rows = list[list[float]]
 _ZERO3: Vec3 = (0.0, 0.0, 0.0)
@@ -83,6 +86,18 @@ class DeferredPropagation:
         )
         self._walk += walk
         self.pending = True
+
+    def carry(self, C: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
+        """Phi C for a matrix of the state's rows (6, k) (e.g. the cross-covariance of the
+        state's error with something the odometry does not move, `fix_bias`); the batch
+        stays pending (`apply` follows)."""
+        a, b, (B0, B1, B2) = self._a, self._b, self._B
+        Phi = np.array(
+            [[1.0, 0.0, a, *B0], [0.0, 1.0, b, *B1], [0.0, 0.0, 1.0, *B2]], dtype=np.float64
+        )
+        out = C.copy()
+        out[:3] = Phi @ C
+        return out
 
     def apply(self, P: Rows) -> Rows:
         """The propagated covariance (6 x 6 nested lists) of `P`; clears the batch.

@@ -253,7 +253,7 @@ def test_jacob_f_matches_finite_differences() -> None:
 
 def test_deferred_covariance_equals_step_by_step_propagation() -> None:
     """P = F P F^T + G M G^T at every step, written out with numpy, against the filter."""
-    cfg = FilterConfig(calibration_walk_per_sqrt_s=0.0)
+    cfg = FilterConfig(calibration_walk_per_sqrt_s=0.0, attenuate_turn_scale=False)
     filt = PoseFilter(1.0, 2.0, 3.0, np.diag([1e-3, 2e-3, 1e-3]), wheel_base=W, config=cfg)
     X = filt.full_state.tolist()
     P = filt.full_covariance
