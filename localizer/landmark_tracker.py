@@ -350,8 +350,9 @@ class LandmarkTracker:
 
         Robust: with 3+ landmarks the solve uses `FusionConfig.robust_loss`; a landmark whose
         residual then exceeds `outlier_sigma` of its own pixel sigma is left out and the rest
-        solved again (one bad pair costs that pair, never the fix). The fix is then gated by
-        its chi-square per degree of freedom and by its NIS against the filter.
+        solved again (one bad pair costs that pair, never the fix); after a tilted fit (no
+        per-spot residuals) the bad pairs are found on the level robust fit. The fix is then
+        gated by its chi-square per degree of freedom and by its NIS against the filter.
         """
         fc = self.config.fusion
         rows = [r for r, _ in pairs]
@@ -361,21 +362,35 @@ class LandmarkTracker:
         if fix is None:
             return ()
         res = fix.residuals_px
+        keep = list(range(len(rows)))
         if res:
             keep = [i for i, (r, si) in enumerate(zip(res, sig, strict=True))
                     if r <= fc.outlier_sigma * si]  # fmt: skip
-            if len(keep) < len(rows):
-                if len(keep) < 2:
-                    return ()
-                rows, px, sig = (
-                    [rows[i] for i in keep],
-                    [px[i] for i in keep],
-                    [sig[i] for i in keep],
-                )
-                fix = self._solve(rows, px, sig, (fix.x, fix.y, fix.theta), robust=False)
-                if fix is None:
-                    return ()
-                res = fix.residuals_px
+        elif len(rows) >= 4 and self._chi2_per_dof(fix, sig) > fc.max_chi2_per_dof:
+            # A tilted fit (it returns no per-spot residuals) that the chi-square test will
+            # refuse may have taken a bad pair in: a tilt moves every spot alike, so it soaks
+            # up part of one wrong spot. Find the bad pairs on the level robust fit: those
+            # standing out there (beyond `outlier_sigma` and three times the median residual;
+            # a real tilt raises all alike), and solve again without them (a tilt, if real,
+            # fitted again). A tilted fit that passes is left as it is.
+            level = self._solve(rows, px, sig, pose, robust=True, tilt=False)
+            lres = level.residuals_px if level is not None else ()
+            if lres:
+                bar = 3.0 * float(np.median(lres))
+                keep = [i for i, (r, si) in enumerate(zip(lres, sig, strict=True))
+                        if r <= max(fc.outlier_sigma * si, bar)]  # fmt: skip
+        if len(keep) < len(rows):
+            if len(keep) < 2:
+                return ()
+            rows, px, sig = (
+                [rows[i] for i in keep],
+                [px[i] for i in keep],
+                [sig[i] for i in keep],
+            )
+            fix = self._solve(rows, px, sig, (fix.x, fix.y, fix.theta), robust=False)
+            if fix is None:
+                return ()
+            res = fix.residuals_px
         # A spot at the image edge paired with a landmark the fixed pose puts outside the
         # image (a neighbour of the one that made it, during a fast turn): leave it out.
         edge = self._off_image(rows, px, (fix.x, fix.y, fix.theta))
@@ -395,10 +410,7 @@ class LandmarkTracker:
         n = len(rows)
         if n < need:
             return ()
-        if res:
-            chi2 = sum((r / si) ** 2 for r, si in zip(res, sig, strict=True))
-        else:  # (a tilted fit: its RMS against the mean sigma)
-            chi2 = n * (fix.residual_rms_px / (sum(sig) / n)) ** 2
+        chi2 = self._chi2_per_dof(fix, sig) * max(2 * n - 3, 1)
         if chi2 / max(2 * n - 3, 1) > fc.max_chi2_per_dof:
             return ()
         if not filt.update_fix(fix, max_nis=fc.nis_gate, white_covariance=white) <= fc.nis_gate:
@@ -407,6 +419,18 @@ class LandmarkTracker:
         self.last_fused = (rows, px, fix)
         self.last_matched = n
         return fix.landmark_ids
+
+    @staticmethod
+    def _chi2_per_dof(fix: PoseFix, sig: list[float]) -> float:
+        """The fix's chi-square per degree of freedom (2n - 3) over the spots' sigmas (a
+        tilted fit, without per-spot residuals: its RMS against the mean sigma)."""
+        n = len(sig)
+        res = fix.residuals_px
+        if res:
+            chi2 = sum((r / si) ** 2 for r, si in zip(res, sig, strict=True))
+        else:
+            chi2 = n * (fix.residual_rms_px / (sum(sig) / n)) ** 2
+        return chi2 / max(2 * n - 3, 1)
 
     def _with_calibration(
         self, fix: PoseFix, rows: list[int], px: list[list[float]], sig: list[float]
@@ -472,6 +496,7 @@ class LandmarkTracker:
         initial: tuple[float, float, float],
         *,
         robust: bool,
+        tilt: bool = True,
     ) -> PoseFix | None:
         fc = self.config.fusion
         return solve_pose(
@@ -479,7 +504,7 @@ class LandmarkTracker:
             px,
             self.map.positions[rows],
             initial=initial,
-            estimate_tilt=fc.tilt_from_landmarks and len(rows) >= 3,
+            estimate_tilt=tilt and fc.tilt_from_landmarks and len(rows) >= 3,
             tilt_sigma_rad=fc.tilt_sigma_rad,
             pixel_sigma_px=sig,
             landmark_ids=tuple(self._ids[r] for r in rows),

@@ -160,7 +160,9 @@ def _kidnap(
     lifted at 1 s and carried to B and turned (odometry still, 1 s), put down, driving on
     from 2.3 s at 0.6 m/s. Returns (t s, mode, position error m) per frame."""
     # told where it starts; lost after 1 s of frames no fix explains
-    start = FusionConfig(initial_sigma_m=0.05, initial_sigma_rad=0.05, lost_after_rejections=15)
+    start = FusionConfig(
+        initial_sigma_m=0.05, initial_sigma_rad=0.05, lost_after_rejections=15, carry_speed_m_s=1.0
+    )
     robot = RobotGeometry(wheel_base=0.36, max_speed=1.0)
     lm = LandmarkMap(np.arange(1, len(P) + 1), P)
     loc = Localizer(CAM, lm, robot, LocalizerConfig(fusion=start))
