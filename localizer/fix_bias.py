@@ -25,13 +25,18 @@ odometry links fixes of different pairs over the whole pass (a baseline of metre
 heading that is right.
 
 The systematic error of the same landmarks changes with the view (its covariance does:
-the pair moves across the image). It is carried as the same error read through the new
-view's covariance, b' = T b with T = L' L^-1 (L, L' the Cholesky factors of the old and the
-new Sigma_b, `carry_bias`), so C' = C T^T and the joint covariance of state and b stays
-positive definite (a C left as it was when Sigma_b shrinks is not, and the filter's
-covariance went indefinite within a second). When the landmarks change, the new fix's b is
-correlated with the old one by the share of landmarks they have in common
-(`carried_correlation`, |A n B| / sqrt(|A| |B|): the correlation of two means of
+the pair moves across the image). It is carried as a rigid error of the set's map
+(`moved_bias`: b_c = T b as the body moves) and, where the new view's Sigma_b is smaller
+than the carried one in some direction, read through the new view's covariance,
+b' = L' L^-1 b_c (L, L' the Cholesky factors of the carried and the new Sigma_b,
+`carry_bias`), so C' = C T^T L^-T L'^T, and the joint covariance of state and b stays
+positive semi-definite. A C left as it was when Sigma_b shrinks (even where the joint
+covariance allows it) claims the new fix's error is the old one whole: the difference of
+two fixes reads as white noise alone, and fixes of a 30 cm pair sliding along the image's
+edge under a poor calibration dragged the pose 35 cm away from every one of them
+(`hostile_poor` of the robustness matrix). When the landmarks change,
+the new fix's b is correlated with the old one by the share of landmarks they have in
+common (`carried_correlation`, |A n B| / sqrt(|A| |B|): the correlation of two means of
 independent per-landmark errors), and C is scaled by it too.
 """
 
@@ -63,62 +68,85 @@ def moved_bias(dx_m: float, dy_m: float) -> FloatArray:
     return np.array([[1.0, 0.0, -dy_m], [0.0, 1.0, dx_m], [0.0, 0.0, 1.0]])
 
 
-def carry_bias(
-    C: FloatArray,
-    P: FloatArray,
-    R_bias: FloatArray,
-    rho: float,
-    R_carried: FloatArray | None = None,
-) -> FloatArray:
-    """The cross-covariance with the new fix's systematic error: rho C, shrunk where the
-    new error's covariance R_bias cannot hold that correlation with a state of covariance P
-    (the joint covariance would not be positive semi-definite: C^T P^-1 C must stay below
-    R_bias; module docstring). P is regularised by 1e-12 of its largest variance (a frozen
-    odometry calibration leaves zero rows, where C is zero too).
-
-    R_carried: the covariance of the error C was consistent with, carried to this view
-    (T R_old T^T); when R_bias exceeds rho^2 of it the correlation holds and the test is
-    skipped (the same answer, cheaply)."""
-    C = rho * C
-    if not C.any():
-        return C
-    if R_carried is not None and _positive_definite(R_bias - rho * rho * R_carried):
-        return C
-    n = len(P)
-    jitter = 1e-12 * float(np.max(np.diag(P)))
-    M = C.T @ np.linalg.solve(P + jitter * np.eye(n), C)  # C^T P^-1 C
-    M = 0.5 * (M + M.T)
-    limit = 1.0 - 1e-6
-    try:  # the usual case: it holds
-        np.linalg.cholesky(limit * R_bias - M)
-        return C
-    except np.linalg.LinAlgError:
-        pass
-    try:
-        jitter_b = 1e-9 * max(float(np.trace(R_bias)), 1e-30)
-        L = np.linalg.cholesky(0.5 * (R_bias + R_bias.T) + jitter_b * np.eye(3))
-    except np.linalg.LinAlgError:  # no systematic error left to be correlated with
-        return np.zeros_like(C)
-    A = np.linalg.solve(L, np.linalg.solve(L, M).T)  # L^-1 M L^-T
-    top = float(np.max(np.linalg.eigvalsh(0.5 * (A + A.T))))
-    return C if top <= limit else C * math.sqrt(limit / top)
+Rows = list[list[float]]
 
 
-def _positive_definite(A: FloatArray) -> bool:
+def carry_bias(C: Rows, R_old: Rows, R_bias: Rows, rho: float, dx_m: float, dy_m: float) -> Rows:
+    """The cross-covariance (n x 3) with the new fix's systematic error, of covariance
+    R_bias, from C, the one with the last fix's error (covariance R_old), the body moved by
+    (dx, dy) since, the two errors correlated by rho (`carried_correlation`). On Python
+    floats (the tracking hot path).
+
+    The old error, carried rigidly (`moved_bias`: b_c = T b, covariance R_c = T R_old T^T),
+    gives rho C T^T. Where the new view's error is smaller than that (R_bias - rho^2 R_c
+    not positive definite: the pair slid towards the image's centre, a poor calibration's
+    share shrank), the error is not the same any more: it is read through the new view's
+    covariance, b' = L' L^-1 b_c (L, L' the Cholesky factors of R_c and R_bias), so
+    C' = rho C T^T L^-T L'^T. Left as it was, C would claim that the new fix's error is the
+    old one, whole: the difference of two fixes then reads as their white part alone, the
+    gain exceeds one, and the fixes of a 30 cm pair sliding along the image's edge under a
+    poor calibration dragged the pose 35 cm away from every one of them (`hostile_poor`).
+    Either way the joint covariance of state and error stays positive semi-definite when
+    it was (C^T P^-1 C <= R_c implies the same for the result against R_bias)."""
+    rows = [[rho * (c0 - dy_m * c2), rho * (c1 + dx_m * c2), rho * c2] for c0, c1, c2 in C]
+    (a, b, c), (_, d, e), (_, _, f) = R_old
+    # R_c = T R_old T^T, T = [[1, 0, -dy], [0, 1, dx], [0, 0, 1]]
+    r02, r12 = c - dy_m * f, e + dx_m * f
+    r00 = a - 2.0 * dy_m * c + dy_m * dy_m * f
+    r01 = b + dx_m * c - dy_m * e - dx_m * dy_m * f
+    r11 = d + 2.0 * dx_m * e + dx_m * dx_m * f
+    R_c = [[r00, r01, r02], [r01, r11, r12], [r02, r12, f]]
+    k = rho * rho
+    if _positive_definite([[R_bias[i][j] - k * R_c[i][j] for j in range(3)] for i in range(3)]):
+        return rows
+    L, L_new = _cholesky_3x3(R_c), _cholesky_3x3(R_bias)
+    if L is None or L_new is None:  # no systematic error left to be correlated with
+        return [[0.0, 0.0, 0.0] for _ in C]
+    (l00, _, _), (l10, l11, _), (l20, l21, l22) = L
+    (m00, _, _), (m10, m11, _), (m20, m21, m22) = L_new
+    out = []
+    for x0, x1, x2 in rows:  # row c -> (L' L^-1 c^T)^T
+        u0 = x0 / l00
+        u1 = (x1 - l10 * u0) / l11
+        u2 = (x2 - l20 * u0 - l21 * u1) / l22
+        out.append([m00 * u0, m10 * u0 + m11 * u1, m20 * u0 + m21 * u1 + m22 * u2])
+    return out
+
+
+def _cholesky_3x3(A: Rows) -> Rows | None:
+    """The lower Cholesky factor of a symmetric 3 x 3 matrix (its upper triangle read), on
+    floats; None when it is not positive definite."""
+    (a, b, c), (_, d, e), (_, _, f) = A
+    if not a > 0.0:
+        return None
+    l00 = math.sqrt(a)
+    l10, l20 = b / l00, c / l00
+    q = d - l10 * l10
+    if not q > 0.0:
+        return None
+    l11 = math.sqrt(q)
+    l21 = (e - l20 * l10) / l11
+    q = f - l20 * l20 - l21 * l21
+    if not q > 0.0:
+        return None
+    return [[l00, 0.0, 0.0], [l10, l11, 0.0], [l20, l21, math.sqrt(q)]]
+
+
+def _positive_definite(A: Rows) -> bool:
     """Whether a symmetric 3 x 3 matrix is positive definite (its leading minors), on floats."""
-    (a, b, c), (_, d, e), (_, _, f) = A.tolist()
+    (a, b, c), (_, d, e), (_, _, f) = A
     if not (a > 0.0 and a * d - b * b > 0.0):
         return False
     return bool(a * (d * f - e * e) - b * (b * f - c * e) + c * (b * e - c * d) > 0.0)
 
 
 def consider_update(
-    P: list[list[float]],
-    C: list[list[float]],
+    P: Rows,
+    C: Rows,
     y: list[float],
-    R_white: list[list[float]],
-    R_bias: list[list[float]],
-) -> tuple[list[float], list[list[float]], list[list[float]], float] | None:
+    R_white: Rows,
+    R_bias: Rows,
+) -> tuple[list[float], Rows, Rows, float] | None:
     """One consider update (module docstring) of a filter over n states whose first three
     are the measured (x, y, theta). On Python floats (nested lists; for 6 states numpy's
     per-call overhead costs more than the arithmetic).
@@ -150,16 +178,15 @@ def consider_update(
     K = [[g0 * i00 + g1 * i01 + g2 * i02, g0 * i01 + g1 * i11 + g2 * i12,
           g0 * i02 + g1 * i12 + g2 * i22] for g0, g1, g2 in G]  # fmt: skip
     dX = [k0 * y0 + k1 * y1 + k2 * y2 for k0, k1, k2 in K]
-    # P - K S K^T = P - G K^T (K S = G), symmetrised
+    # P - K S K^T = P - G K^T (K S = G; G S^-1 G^T is symmetric: its upper triangle)
     P_new = [[0.0] * n for _ in range(n)]
     for i in range(n):
-        Gi, Pi = G[i], P[i]
+        g0, g1, g2 = G[i]
+        Pi, Ri = P[i], P_new[i]
         for j in range(i, n):
-            Kj, Gj, Ki = K[j], G[j], K[i]
-            v = Pi[j] - 0.5 * (Gi[0] * Kj[0] + Gi[1] * Kj[1] + Gi[2] * Kj[2]
-                               + Gj[0] * Ki[0] + Gj[1] * Ki[1] + Gj[2] * Ki[2])  # fmt: skip
-            P_new[i][j] = P_new[j][i] = v
-        if P_new[i][i] <= 0.0:
+            k0, k1, k2 = K[j]
+            Ri[j] = P_new[j][i] = Pi[j] - (g0 * k0 + g1 * k1 + g2 * k2)
+        if Ri[i] <= 0.0:
             return None
     M = [[C[r][col] + R_bias[r][col] for col in range(3)] for r in range(3)]  # H C + R_bias
     C_new = [[C[i][col] - (K[i][0] * M[0][col] + K[i][1] * M[1][col] + K[i][2] * M[2][col])

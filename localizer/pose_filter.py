@@ -31,7 +31,6 @@ from localizer.fix_bias import (
     carried_correlation,
     carry_bias,
     consider_update,
-    moved_bias,
 )
 from localizer.geometry import wrap_angle
 from localizer.odometry import odometry_increments, odometry_partials
@@ -217,10 +216,10 @@ class PoseFilter:
         self.noise_scale = 1.0  # odometry noise over the configured one (adapted online)
         # cross-covariance of the state's error with the last fixes' systematic error, and
         # their landmarks (`fix_bias`); None: no correlated fix since the last reset
-        self._C: FloatArray | None = None
+        self._C: Rows | None = None
         self._bias_ids: frozenset[int] = frozenset()
         self._bias_at = (0.0, 0.0)  # where the last of them was fused
-        self._bias_R = np.zeros((3, 3))  # and that error's covariance
+        self._bias_R: Rows = [[0.0] * 3 for _ in range(3)]  # and that error's covariance
         self.reset(x, y, theta, covariance)
 
     # -- state ----------------------------------------------------------------------------------
@@ -309,7 +308,7 @@ class PoseFilter:
         twin._age_s = self._age_s
         twin._propagation = self._propagation.copy()
         twin.noise_scale = self.noise_scale
-        twin._C = None if self._C is None else self._C.copy()
+        twin._C = None if self._C is None else [row[:] for row in self._C]
         twin._bias_ids, twin._bias_at, twin._bias_R = self._bias_ids, self._bias_at, self._bias_R
         return twin
 
@@ -430,12 +429,12 @@ class PoseFilter:
             found = self._consider_step(fix, white_covariance)
             if found is None:
                 return math.inf
-            dX, P_new, C_new, nis = found
+            dX, P_new, C_new, nis, R_bias = found
             if max_nis is not None and not nis <= max_nis:
                 return nis
             self._P, self._C = P_new, C_new
             self._bias_ids, self._bias_at = frozenset(fix.landmark_ids), (fix.x, fix.y)
-            self._bias_R = np.asarray(fix.covariance, dtype=np.float64) - white_covariance
+            self._bias_R = R_bias
         else:
             y, S_inv = self._innovation(fix)
             nis = _quadratic_form(y, S_inv)
@@ -448,27 +447,33 @@ class PoseFilter:
 
     def _consider_step(
         self, fix: PoseFix, white: FloatArray
-    ) -> tuple[list[float], Rows, FloatArray, float] | None:
-        """The consider update's correction, covariance, cross-covariance and NIS (not
-        applied); None when S is singular."""
+    ) -> tuple[list[float], Rows, Rows, float, Rows] | None:
+        """The consider update's correction, covariance, cross-covariance and NIS, and the
+        fix's systematic covariance (not applied); None when S is singular. Plain floats."""
         self._flush()
         x, y, th = observation_model(self._X)
         innovation = [fix.x - x, fix.y - y, float(wrap_angle(fix.theta - th))]
-        R_white = np.asarray(white, dtype=np.float64)
-        R_bias = np.asarray(fix.covariance, dtype=np.float64) - R_white
+        R_white = white.tolist()
+        R_bias = [[r - w for r, w in zip(rr, ww, strict=True)]
+                  for rr, ww in zip(fix.covariance.tolist(), R_white, strict=True)]  # fmt: skip
         rho = carried_correlation(self._bias_ids, frozenset(fix.landmark_ids))
-        C = np.zeros((6, 3))
+        C = None
         if self._C is not None and rho > 0.0:
-            T = moved_bias(fix.x - self._bias_at[0], fix.y - self._bias_at[1])
-            C = carry_bias(self._C @ T.T, np.array(self._P), R_bias, rho, T @ self._bias_R @ T.T)
+            dx, dy = fix.x - self._bias_at[0], fix.y - self._bias_at[1]
+            C = carry_bias(self._C, self._bias_R, R_bias, rho, dx, dy)
         # (rounding can still leave the joint covariance a hair from positive definite:
         # then the correlation is shrunk, and at last dropped)
-        rw, rb = R_white.tolist(), R_bias.tolist()
         for shrink in (1.0, 0.5, 0.0):
-            found = consider_update(self._P, (shrink * C).tolist(), innovation, rw, rb)
+            if C is None or shrink == 0.0:
+                Cs = [[0.0, 0.0, 0.0] for _ in range(6)]
+            else:
+                Cs = C if shrink == 1.0 else [[shrink * v for v in row] for row in C]
+            found = consider_update(self._P, Cs, innovation, R_white, R_bias)
             if found is not None:
                 dX, P_new, C_new, nis = found
-                return dX, P_new, np.array(C_new), nis
+                return dX, P_new, C_new, nis, R_bias
+            if C is None:
+                break
         return None
 
     def _plain_step(self, y: list[float], S_inv: list[float]) -> list[float]:

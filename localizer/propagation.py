@@ -21,9 +21,6 @@ nested lists): for this size numpy's per-call overhead costs more than the arith
 
 from __future__ import annotations
 
-import numpy as np
-import numpy.typing as npt
-
 Vec3 = tuple[float, float, float]
 Rows = list[list[float]]
 _ZERO3: Vec3 = (0.0, 0.0, 0.0)
@@ -87,17 +84,21 @@ class DeferredPropagation:
         self._walk += walk
         self.pending = True
 
-    def carry(self, C: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
-        """Phi C for a matrix of the state's rows (6, k) (e.g. the cross-covariance of the
-        state's error with something the odometry does not move, `fix_bias`); the batch
-        stays pending (`apply` follows)."""
+    def carry(self, C: Rows) -> Rows:
+        """Phi C for a matrix of the state's rows (6 x k nested lists; e.g. the
+        cross-covariance of the state's error with something the odometry does not move,
+        `fix_bias`); the batch stays pending (`apply` follows)."""
         a, b, (B0, B1, B2) = self._a, self._b, self._B
-        Phi = np.array(
-            [[1.0, 0.0, a, *B0], [0.0, 1.0, b, *B1], [0.0, 0.0, 1.0, *B2]], dtype=np.float64
-        )
-        out = C.copy()
-        out[:3] = Phi @ C
-        return out
+        C0, C1, C2, C3, C4, C5 = C
+        cal = list(zip(C3, C4, C5, strict=True))
+        return [
+            [u + a * w + B0[0] * p + B0[1] * q + B0[2] * r
+             for u, w, (p, q, r) in zip(C0, C2, cal, strict=True)],
+            [u + b * w + B1[0] * p + B1[1] * q + B1[2] * r
+             for u, w, (p, q, r) in zip(C1, C2, cal, strict=True)],
+            [w + B2[0] * p + B2[1] * q + B2[2] * r for w, (p, q, r) in zip(C2, cal, strict=True)],
+            C3, C4, C5,
+        ]  # fmt: skip
 
     def apply(self, P: Rows) -> Rows:
         """The propagated covariance (6 x 6 nested lists) of `P`; clears the batch.

@@ -78,16 +78,40 @@ def test_a_rigid_map_error_moves_the_fix_error_with_the_body() -> None:
     np.testing.assert_allclose(predicted, fix_error(b), atol=2e-4)
 
 
-def test_a_correlation_the_new_view_cannot_hold_is_shrunk() -> None:
+def test_a_correlation_the_new_view_cannot_hold_is_read_through_its_covariance() -> None:
+    """After many fixes of a large error the new view's error is 100x smaller: the
+    correlation is scaled down to it (b' = L' L^-1 b), so the joint covariance stays
+    positive semi-definite and the consider gain stays below one."""
     P = np.diag([1e-4, 1e-4, 1e-5, 1e-6, 1e-6, 1e-6])
+    R_old = np.diag([1e-4, 1e-4, 1e-5])
     C = np.zeros((6, 3))
-    C[:3, :3] = -np.diag([1e-4, 1e-4, 1e-5]) * 0.9  # as after many fixes of a large bias
-    R_new = np.diag([1e-6, 1e-6, 1e-7])  # the new view's bias: 100x smaller
-    C2 = carry_bias(C, P, R_new, 1.0)
+    C[:3, :3] = -R_old * 0.9  # as after many fixes of a large bias
+    R_new = np.diag([1e-6, 1e-6, 1e-7])
+    C2 = np.array(carry_bias(C.tolist(), R_old.tolist(), R_new.tolist(), 1.0, 0.0, 0.0))
     joint = np.block([[P, C2], [C2.T, R_new]])
     assert np.min(np.linalg.eigvalsh(joint)) > -1e-18
-    assert np.all(np.abs(C2) <= np.abs(C))
-    np.testing.assert_allclose(carry_bias(0.01 * C, P, np.eye(3) * 1e-4, 0.5), 0.005 * C)
+    np.testing.assert_allclose(C2, C * 0.1, atol=1e-15)  # sigma ratio 1/10
+    # a new view with a larger error holds the whole correlation, scaled by rho
+    C3 = carry_bias((0.01 * C).tolist(), R_old.tolist(), (np.eye(3) * 1e-3).tolist(), 0.5, 0, 0)
+    np.testing.assert_allclose(np.array(C3), 0.005 * C, atol=1e-18)
+
+
+def test_the_carried_correlation_moves_with_the_body_as_moved_bias_says() -> None:
+    rng = np.random.default_rng(3)
+    C = rng.normal(0.0, 1e-3, (6, 3))
+    A = rng.normal(0.0, 0.01, (3, 3))
+    R_old = A @ A.T + 1e-6 * np.eye(3)
+    T = moved_bias(0.4, -0.7)
+    big = 10.0 * T @ R_old @ T.T  # holds the correlation: only the rigid carry applies
+    got = np.array(carry_bias(C.tolist(), R_old.tolist(), big.tolist(), 0.8, 0.4, -0.7))
+    np.testing.assert_allclose(got, 0.8 * C @ T.T, rtol=1e-12)
+    # and read through a smaller one: C T^T M^T with M R_c M^T = R_new
+    R_new = 0.2 * T @ R_old @ T.T
+    got = np.array(carry_bias(C.tolist(), R_old.tolist(), R_new.tolist(), 1.0, 0.4, -0.7))
+    L, L_new = np.linalg.cholesky(T @ R_old @ T.T), np.linalg.cholesky(R_new)
+    M = L_new @ np.linalg.inv(L)
+    np.testing.assert_allclose(M @ T @ R_old @ T.T @ M.T, R_new, rtol=1e-9)
+    np.testing.assert_allclose(got, C @ T.T @ M.T, rtol=1e-9, atol=1e-15)
 
 
 def test_the_filter_keeps_a_short_pairs_heading_error_while_parked_under_it() -> None:
