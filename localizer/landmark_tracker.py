@@ -410,12 +410,12 @@ class LandmarkTracker:
         n = len(rows)
         if n < need:
             return ()
-        chi2 = self._chi2_per_dof(fix, sig) * max(2 * n - 3, 1)
-        if chi2 / max(2 * n - 3, 1) > fc.max_chi2_per_dof:
+        chi2_per_dof = self._chi2_per_dof(fix, sig)
+        if chi2_per_dof > fc.max_chi2_per_dof:
             return ()
         if not filt.update_fix(fix, max_nis=fc.nis_gate, white_covariance=white) <= fc.nis_gate:
             return ()
-        self.noise.observe(chi2, n)
+        self.noise.observe(chi2_per_dof * max(2 * n - 3, 1), n)
         self.last_fused = (rows, px, fix)
         self.last_matched = n
         return fix.landmark_ids
