@@ -221,6 +221,15 @@ class CalibrationConsider:
         J = np.concatenate([J_t, J_theta], axis=2)
         return J, J_cal
 
+    def scaled_jacobian(self, pixels: npt.ArrayLike, calibration_scale: float = 1.0) -> FloatArray:
+        """J_cal diag(sigmas) at the spots' pixels (N, 2): d pixel per standard deviation of
+        each calibration parameter (its covariance then the identity), shape (N, 2, P);
+        `calibration_scale` multiplies the standard deviations."""
+        px = np.asarray(pixels, dtype=np.float64).reshape(-1, 2)
+        J_cal = _bilinear(self.table, _GRID_STEP_PX, px)[:, :, 2:]
+        scaled: FloatArray = J_cal * (calibration_scale * self.sigmas)
+        return scaled
+
     def covariance(
         self,
         pixels: npt.ArrayLike,

@@ -47,6 +47,8 @@ class CameraModel:
         T_body_camera: body-from-camera transform, shape (4, 4) (EuRoC `T_BS`);
             `T_body_camera_rows` and `T_camera_body_rows` hold the top three rows of it and of
             its inverse as tuples of floats (derived, for code on Python floats).
+        max_angle_rad: the largest angle from the optical axis in view (derived), and
+            `cos_max_angle` its cosine.
         rate_hz: nominal frame rate.
     """
 
@@ -61,6 +63,7 @@ class CameraModel:
     T_body_camera: FloatArray = field(default_factory=lambda: np.eye(4))
     rate_hz: float = 30.0
     max_angle_rad: float = field(init=False, repr=False, compare=False)
+    cos_max_angle: float = field(init=False, repr=False, compare=False)
     K_matrix: FloatArray = field(init=False, repr=False, compare=False)
     T_camera_body: FloatArray = field(init=False, repr=False, compare=False)
     invertible: bool = field(init=False, repr=False, compare=False)
@@ -108,6 +111,7 @@ class CameraModel:
         object.__setattr__(self, "T_camera_body_rows", _rows3x4(T_cb))
         object.__setattr__(self, "invertible", _every_pixel_inverts(self))
         object.__setattr__(self, "max_angle_rad", _field_of_view_half_angle(self))
+        object.__setattr__(self, "cos_max_angle", math.cos(self.max_angle_rad))
 
     @property
     def K(self) -> FloatArray:
@@ -216,9 +220,11 @@ def normalized_from_pixels(cam: CameraModel, pixels: npt.ArrayLike) -> FloatArra
     Returns:
         shape (N, 2); NaN rows for pixels without an inverse.
     """
-    px = np.ascontiguousarray(np.asarray(pixels, dtype=np.float64).reshape(-1, 1, 2))
+    px = np.asarray(pixels, dtype=np.float64).reshape(-1, 1, 2)
     if len(px) == 0:
         return np.zeros((0, 2))
+    if not px.flags.c_contiguous:  # (a nested list comes contiguous: skip the copy's call)
+        px = np.ascontiguousarray(px)
     xy = _undistort(cam, px)
     if not cam.invertible:
         xy[~_round_trips(cam, px, xy)] = np.nan
@@ -255,7 +261,7 @@ def pixels_from_points_camera(
         return np.zeros((0, 2)), np.zeros(0, dtype=bool)
     z = p[:, 2]
     # in the field of view: angle from the axis <= max_angle, i.e. z / |p| >= cos(max_angle)
-    in_view = (z > 1e-9) & (z >= math.cos(cam.max_angle_rad) * np.sqrt((p * p).sum(axis=1)))
+    in_view = (z > 1e-9) & (z >= cam.cos_max_angle * np.sqrt((p * p).sum(axis=1)))
     safe = p if in_view.all() else np.where(in_view[:, None], p, np.array([0.0, 0.0, 1.0]))
     obj = np.ascontiguousarray(safe.reshape(-1, 1, 3))
     if cam.distortion_model == "equidistant":

@@ -5,8 +5,10 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+from localizer.fix_run import FixRunConfig
+from localizer.floor_plane import FloorPlaneConfig
 from localizer.handoff import HandoffConfig
-from localizer.identification import IdentificationConfig
+from localizer.identification_config import IdentificationConfig
 from localizer.noise_model import PixelNoiseConfig
 from localizer.pose_filter import FilterConfig
 from localizer.relocalization import RelocalizationConfig
@@ -34,10 +36,13 @@ class FusionConfig:
             exceeds this is inconsistent.
         nis_gate: a fix whose normalised innovation squared (3 dof) exceeds this is rejected
             (16.3 is the 99.9 % point of chi-square with 3 dof).
-        tilt_from_landmarks: with 3+ landmarks also estimate the body tilt (taken only when
-            it explains the spots significantly better, see `solve_pose`).
-        tilt_sigma_rad: zero-mean prior on that tilt, radians (a tilt moves every spot
-            almost like a translation, so an unconstrained one is noisy).
+        tilt_from_landmarks: with 3+ landmarks also estimate the body tilt: with the floor's
+            slope and height carried (`LocalizerConfig.floor`, the default) always, with the
+            carried slope as its prior; without, taken only when it explains the spots
+            significantly better (see `solve_pose`).
+        tilt_sigma_rad: without the carried slope, the zero-mean prior on that tilt,
+            radians (a tilt moves every spot almost like a translation, so an
+            unconstrained one is noisy).
         lost_sigma_m: position standard deviation beyond which the localizer is lost, metres.
         lost_sigma_rad: heading standard deviation given to a pose the observations keep
             disagreeing with (a kidnapped robot may face anywhere), radians.
@@ -53,8 +58,9 @@ class FusionConfig:
             absorbed by the tilted fit, left 0.7 s of unexplained frames while parked, and
             1 m/s turned them into a loss for good (docs/localizer.md, "Kidnapped robot").
         min_matched_fraction: a tracking fix must keep at least this share of the
-            landmarks of the last fused one (a kidnapped robot, carried off, still sees a few
-            spots fall into some windows by chance; such a fix is not fused).
+            landmarks of the last fused one that are still surely lit (a kidnapped robot,
+            carried off, still sees a few spots fall into some windows by chance; such a fix
+            is not fused; landmarks darkened since, as an LED schedule does, are not missing).
         initial_sigma_m: position standard deviation of `set_initial_pose`, metres.
         initial_sigma_rad: heading standard deviation of `set_initial_pose`, radians.
         full_frame_every_s: in landmark or dead-reckoning mode with no tracked landmark,
@@ -69,11 +75,8 @@ class FusionConfig:
             interval counts as unpredicted motion, seconds.
         correlated_fix_error: a tracking fix's survey and calibration error is the same on
             every frame of the same landmarks: fuse it by the consider update of
-            `fix_bias` (False: as white noise, every frame independent). Off by default:
-            on the whole robustness matrix it is as good or better (0 misidentified, p95
-            up to 0.7 cm lower, at most 0.1 cm higher), but on `bench/foreign`
-            `radtan_pairs` the dead reckoning through the 5 m gap's 180 deg turn comes out
-            worse (p95 2.2 -> 2.7 cm, max 5.3 -> 8.0), see docs/localizer.md "third pass".
+            `fix_bias` (False: as white noise, every frame independent). See
+            docs/localizer.md, "A fix's systematic error" (the fourth pass turned it on).
     """
 
     pixel_sigma_px: float = 1.0
@@ -96,7 +99,7 @@ class FusionConfig:
     odometry_history_s: float = 5.0
     odometry_interval_mean: bool = True
     odometry_stale_s: float = 0.2
-    correlated_fix_error: bool = False
+    correlated_fix_error: bool = True
 
 
 @dataclass(frozen=True)
@@ -112,3 +115,5 @@ class LocalizerConfig:
     relocalization: RelocalizationConfig = field(default_factory=RelocalizationConfig)
     noise: PixelNoiseConfig = field(default_factory=PixelNoiseConfig)
     self_calibration: SelfCalibrationConfig = field(default_factory=SelfCalibrationConfig)
+    floor: FloorPlaneConfig = field(default_factory=FloorPlaneConfig)
+    fix_run: FixRunConfig = field(default_factory=FixRunConfig)

@@ -24,6 +24,14 @@ FloatArray = npt.NDArray[np.float64]
 OdometryPose = tuple[float, float, float]
 
 
+def body_motion(odo_then: OdometryPose, odo_now: OdometryPose) -> tuple[FloatArray, float]:
+    """The body's motion from the odometry pose `odo_then` to `odo_now` (x, y, theta; any
+    common frame), in the body frame then: (translation (2,), rotation), metres and radians."""
+    d_world = np.array([odo_now[0] - odo_then[0], odo_now[1] - odo_then[1]])
+    d_body: FloatArray = rotation_2d(-odo_then[2]) @ d_world
+    return d_body, float(wrap_angle(odo_now[2] - odo_then[2]))
+
+
 def transfer_pixel(
     camera: CameraModel,
     pixel: tuple[float, float],
@@ -34,9 +42,7 @@ def transfer_pixel(
     """Where a ceiling spot seen at `pixel` appears after the body moved from the odometry
     pose `odo_then` to `odo_now` (x, y, theta; any common frame), pixels."""
     q = ceiling_points_body(camera, np.array([pixel]), np.array([height_m]))[0]
-    d_world = np.array([odo_now[0] - odo_then[0], odo_now[1] - odo_then[1]])
-    d_body = rotation_2d(-odo_then[2]) @ d_world
-    dth = float(wrap_angle(odo_now[2] - odo_then[2]))
+    d_body, dth = body_motion(odo_then, odo_now)
     q_now = rotation_2d(-dth) @ (q - d_body)
     p_body = np.array([[q_now[0], q_now[1], height_m]])
     p_cam = transform_points(invert_transform(camera.T_body_camera), p_body)
@@ -88,14 +94,15 @@ def first_fix(
     """The pose at `t_ns` from identified landmarks, each carried there by odometry.
 
     Args:
-        odometry_at: the raw odometry pose at a time (ns).
+        odometry_at: the raw odometry pose at a time (ns): now, and a sighting's when it
+            does not carry its own (`Sighting.odometry`, kept however old it is).
     """
     rows = np.array([landmark_map.index_of(s.landmark_id) for s in sightings])
     P = landmark_map.positions[rows]
     now = odometry_at(t_ns)
     pixels = np.array(
         [
-            transfer_pixel(camera, s.pixel, P[i, 2], odometry_at(s.t_ns), now)
+            transfer_pixel(camera, s.pixel, P[i, 2], s.odometry or odometry_at(s.t_ns), now)
             for i, s in enumerate(sightings)
         ]
     )

@@ -26,15 +26,17 @@ heading that is right.
 
 The systematic error of the same landmarks changes with the view (its covariance does:
 the pair moves across the image). It is carried as a rigid error of the set's map
-(`moved_bias`: b_c = T b as the body moves) and, where the new view's Sigma_b is smaller
-than the carried one in some direction, read through the new view's covariance,
-b' = L' L^-1 b_c (L, L' the Cholesky factors of the carried and the new Sigma_b,
-`carry_bias`), so C' = C T^T L^-T L'^T, and the joint covariance of state and b stays
-positive semi-definite. A C left as it was when Sigma_b shrinks (even where the joint
-covariance allows it) claims the new fix's error is the old one whole: the difference of
-two fixes reads as white noise alone, and fixes of a 30 cm pair sliding along the image's
-edge under a poor calibration dragged the pose 35 cm away from every one of them
-(`hostile_poor` of the robustness matrix). When the landmarks change,
+(`moved_bias`: b_c = T b as the body moves); where the new view's Sigma_b is smaller than
+the carried one in some direction, only the part the two share is carried (`carry_bias`:
+Cov(b_c, b') = Sigma_b' there), so the joint covariance of state and b stays positive
+semi-definite and the difference of two fixes says nothing about the new one's error. A C
+left as it was when Sigma_b shrinks claims the new fix's error is the old one whole (the
+difference of two fixes reads as white noise alone: fixes of a 30 cm pair sliding along
+the image's edge under a poor calibration dragged the pose 35 cm away from every one of
+them, `hostile_poor`); scaled down with the covariance (b' = L' L^-1 b_c, fully
+correlated) it makes the difference a measurement of the error, and the filter
+extrapolates beyond the new fix (`hostile_none`: 3 cm beyond every fix of that pair, and
+`disturbed_real` rejected 120 more fixes). When the landmarks change,
 the new fix's b is correlated with the old one by the share of landmarks they have in
 common (`carried_correlation`, |A n B| / sqrt(|A| |B|): the correlation of two means of
 independent per-landmark errors), and C is scaled by it too.
@@ -47,7 +49,7 @@ import math
 import numpy as np
 import numpy.typing as npt
 
-from localizer.small_linalg import inverse_3x3_sym
+from localizer.small_linalg import clipped_to_unit_3x3_sym, inverse_3x3_sym
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -57,6 +59,8 @@ def carried_correlation(old: frozenset[int], new: frozenset[int]) -> float:
     and `new`: |old n new| / sqrt(|old| |new|) (1 for the same set, 0 for disjoint ones)."""
     if not old or not new:
         return 0.0
+    if old == new:  # (the usual case: n / sqrt(n n), exactly)
+        return 1.0
     return len(old & new) / math.sqrt(len(old) * len(new))
 
 
@@ -74,20 +78,25 @@ Rows = list[list[float]]
 def carry_bias(C: Rows, R_old: Rows, R_bias: Rows, rho: float, dx_m: float, dy_m: float) -> Rows:
     """The cross-covariance (n x 3) with the new fix's systematic error, of covariance
     R_bias, from C, the one with the last fix's error (covariance R_old), the body moved by
-    (dx, dy) since, the two errors correlated by rho (`carried_correlation`). On Python
-    floats (the tracking hot path).
+    (dx, dy) since, the two errors correlated by rho (`carried_correlation`).
 
-    The old error, carried rigidly (`moved_bias`: b_c = T b, covariance R_c = T R_old T^T),
-    gives rho C T^T. Where the new view's error is smaller than that (R_bias - rho^2 R_c
-    not positive definite: the pair slid towards the image's centre, a poor calibration's
-    share shrank), the error is not the same any more: it is read through the new view's
-    covariance, b' = L' L^-1 b_c (L, L' the Cholesky factors of R_c and R_bias), so
-    C' = rho C T^T L^-T L'^T. Left as it was, C would claim that the new fix's error is the
-    old one, whole: the difference of two fixes then reads as their white part alone, the
-    gain exceeds one, and the fixes of a 30 cm pair sliding along the image's edge under a
-    poor calibration dragged the pose 35 cm away from every one of them (`hostile_poor`).
-    Either way the joint covariance of state and error stays positive semi-definite when
-    it was (C^T P^-1 C <= R_c implies the same for the result against R_bias)."""
+    The old error is carried rigidly (`moved_bias`: b_c = T b, covariance R_c = T R_old T^T).
+    The new one is b' = rho A b_c + n (n independent of everything before) with A the
+    *common part*: in the basis where R_c is the identity and R_bias = diag(lambda)
+    (L^-1 R_bias L^-T = Q diag(lambda) Q^T, L the Cholesky factor of R_c),
+    A = L Q diag(min(1, lambda)) Q^T L^-1. Where the new view's error is at least as large
+    as the old one (lambda >= 1) the old error is carried whole and the new view adds its
+    own; where it is smaller (lambda < 1: the pair slid towards the image's centre) only
+    the part of the old error the new view shares goes on, Cov(b_c, b') = R_bias there, so
+    the difference of the two fixes, b_c - b', says nothing about b' (Cov(b', b_c - b') <= 0).
+    Scaling the old error down to the new covariance instead (b' = sqrt(lambda) b_c, fully
+    correlated) makes that difference a measurement of the error itself, (1 - sqrt(lambda))
+    b_c: the filter then extrapolates beyond the new fix by sqrt(lambda) / (1 - sqrt(lambda))
+    times the innovation (a gain above one), and the fixes of a 30 cm pair sliding along the
+    image's edge carried the pose 3 cm beyond every one of them (`hostile_none`, 8.5 cm
+    against 5.5 with the white filter). So C' = rho C T^T A^T. The joint covariance of
+    state and error stays positive semi-definite when it was (C^T P^-1 C <= R_c gives
+    C'^T P^-1 C' <= rho^2 A R_c A^T <= R_bias, since min(1, lambda)^2 <= lambda)."""
     rows = [[rho * (c0 - dy_m * c2), rho * (c1 + dx_m * c2), rho * c2] for c0, c1, c2 in C]
     (a, b, c), (_, d, e), (_, _, f) = R_old
     # R_c = T R_old T^T, T = [[1, 0, -dy], [0, 1, dx], [0, 0, 1]]
@@ -95,22 +104,55 @@ def carry_bias(C: Rows, R_old: Rows, R_bias: Rows, rho: float, dx_m: float, dy_m
     r00 = a - 2.0 * dy_m * c + dy_m * dy_m * f
     r01 = b + dx_m * c - dy_m * e - dx_m * dy_m * f
     r11 = d + 2.0 * dx_m * e + dx_m * dx_m * f
-    R_c = [[r00, r01, r02], [r01, r11, r12], [r02, r12, f]]
-    k = rho * rho
-    if _positive_definite([[R_bias[i][j] - k * R_c[i][j] for j in range(3)] for i in range(3)]):
+    (b00, b01, b02), (_, b11, b12), (_, _, b22) = R_bias
+    # the sign of R_bias - R_c from its leading minors (on floats: this runs every frame)
+    grow = _leading_minors(b00 - r00, b01 - r01, b02 - r02, b11 - r11, b12 - r12, b22 - f)
+    if grow == 1:  # every lambda > 1: the old error is carried whole
         return rows
-    L, L_new = _cholesky_3x3(R_c), _cholesky_3x3(R_bias)
-    if L is None or L_new is None:  # no systematic error left to be correlated with
+    if grow == -1:
+        # every lambda < 1: A = R_bias R_c^-1, so C' = rows R_c^-1 R_bias
+        inv = inverse_3x3_sym([r00, r01, r02, r11, r12, f])
+        if inv is None:
+            return [[0.0, 0.0, 0.0] for _ in C]
+        i00, i01, i02, i11, i12, i22 = inv
+        shrunk = []
+        for x0, x1, x2 in rows:  # (x R_c^-1) R_bias
+            u0 = x0 * i00 + x1 * i01 + x2 * i02
+            u1 = x0 * i01 + x1 * i11 + x2 * i12
+            u2 = x0 * i02 + x1 * i12 + x2 * i22
+            shrunk.append([u0 * b00 + u1 * b01 + u2 * b02, u0 * b01 + u1 * b11 + u2 * b12,
+                           u0 * b02 + u1 * b12 + u2 * b22])  # fmt: skip
+        return shrunk
+    R_c = [[r00, r01, r02], [r01, r11, r12], [r02, r12, f]]
+    L = _cholesky_3x3(R_c)
+    if L is None:  # no systematic error left to be correlated with
         return [[0.0, 0.0, 0.0] for _ in C]
+    # (on floats: this branch runs on about half the frames of a turning robot)
     (l00, _, _), (l10, l11, _), (l20, l21, l22) = L
-    (m00, _, _), (m10, m11, _), (m20, m21, m22) = L_new
-    out = []
-    for x0, x1, x2 in rows:  # row c -> (L' L^-1 c^T)^T
-        u0 = x0 / l00
-        u1 = (x1 - l10 * u0) / l11
-        u2 = (x2 - l20 * u0 - l21 * u1) / l22
-        out.append([m00 * u0, m10 * u0 + m11 * u1, m20 * u0 + m21 * u1 + m22 * u2])
-    return out
+    k00, k11, k22 = 1.0 / l00, 1.0 / l11, 1.0 / l22  # K = L^-1, lower triangular
+    k10 = -l10 * k00 * k11
+    k21 = -l21 * k11 * k22
+    k20 = -(l20 * k00 + l21 * k10) * k22
+    # M = K R_bias K^T
+    kb0 = (k00 * b00, k00 * b01, k00 * b02)
+    kb1 = (k10 * b00 + k11 * b01, k10 * b01 + k11 * b11, k10 * b02 + k11 * b12)
+    kb2 = (k20 * b00 + k21 * b01 + k22 * b02, k20 * b01 + k21 * b11 + k22 * b12,
+          k20 * b02 + k21 * b12 + k22 * b22)  # fmt: skip
+    n00, n01, n02, n11, n12, n22 = clipped_to_unit_3x3_sym([
+        kb0[0] * k00, kb0[0] * k10 + kb0[1] * k11, kb0[0] * k20 + kb0[1] * k21 + kb0[2] * k22,
+        kb1[0] * k10 + kb1[1] * k11, kb1[0] * k20 + kb1[1] * k21 + kb1[2] * k22,
+        kb2[0] * k20 + kb2[1] * k21 + kb2[2] * k22,
+    ])  # fmt: skip
+    # A^T = K^T N L^T, N = Q diag(min(1, lambda)) Q^T; C' = rows A^T
+    t0 = (k00 * n00 + k10 * n01 + k20 * n02, k00 * n01 + k10 * n11 + k20 * n12,
+          k00 * n02 + k10 * n12 + k20 * n22)  # fmt: skip
+    t1 = (k11 * n01 + k21 * n02, k11 * n11 + k21 * n12, k11 * n12 + k21 * n22)
+    t2 = (k22 * n02, k22 * n12, k22 * n22)
+    g = [
+        (t[0] * l00, t[0] * l10 + t[1] * l11, t[0] * l20 + t[1] * l21 + t[2] * l22)
+        for t in (t0, t1, t2)
+    ]
+    return [[x0 * g[0][j] + x1 * g[1][j] + x2 * g[2][j] for j in range(3)] for x0, x1, x2 in rows]
 
 
 def _cholesky_3x3(A: Rows) -> Rows | None:
@@ -132,12 +174,20 @@ def _cholesky_3x3(A: Rows) -> Rows | None:
     return [[l00, 0.0, 0.0], [l10, l11, 0.0], [l20, l21, math.sqrt(q)]]
 
 
-def _positive_definite(A: Rows) -> bool:
-    """Whether a symmetric 3 x 3 matrix is positive definite (its leading minors), on floats."""
-    (a, b, c), (_, d, e), (_, _, f) = A
-    if not (a > 0.0 and a * d - b * b > 0.0):
-        return False
-    return bool(a * (d * f - e * e) - b * (b * f - c * e) + c * (b * e - c * d) > 0.0)
+def _leading_minors(a: float, b: float, c: float, d: float, e: float, f: float) -> int:
+    """The definiteness of the symmetric 3 x 3 matrix [[a, b, c], [b, d, e], [c, e, f]]
+    from its leading minors, on floats: 1 positive definite (a > 0, ad - b^2 > 0, det > 0),
+    -1 negative definite (its negation positive definite: a < 0, ad - b^2 > 0, det < 0),
+    0 neither."""
+    m2 = a * d - b * b
+    if not m2 > 0.0:
+        return 0
+    det = a * (d * f - e * e) - b * (b * f - c * e) + c * (b * e - c * d)
+    if a > 0.0 and det > 0.0:
+        return 1
+    if a < 0.0 and det < 0.0:
+        return -1
+    return 0
 
 
 def consider_update(
@@ -162,10 +212,17 @@ def consider_update(
         (dX n, P n x n, C n x 3, NIS y^T S^-1 y), or None when S or the new P is not
         positive definite (C inconsistent with R_bias: the caller shrinks it).
     """
-    S = [[P[r][c] + C[r][c] + C[c][r] + R_bias[r][c] + R_white[r][c] for c in range(3)]
-         for r in range(3)]  # fmt: skip
-    a, b, c = S[0][0], 0.5 * (S[0][1] + S[1][0]), 0.5 * (S[0][2] + S[2][0])
-    d, e, f = S[1][1], 0.5 * (S[1][2] + S[2][1]), S[2][2]
+    (p00, p01, p02, *_), (p10, p11, p12, *_), (p20, p21, p22, *_) = P[0], P[1], P[2]
+    (c00, c01, c02), (c10, c11, c12), (c20, c21, c22) = C[0], C[1], C[2]
+    (b00, b01, b02), (b10, b11, b12), (b20, b21, b22) = R_bias
+    (w00, w01, w02), (w10, w11, w12), (w20, w21, w22) = R_white
+    # S = H P H^T + H C + C^T H^T + Sigma_b + R_w, symmetrised
+    a = p00 + c00 + c00 + b00 + w00
+    b = 0.5 * ((p01 + c01 + c10 + b01 + w01) + (p10 + c10 + c01 + b10 + w10))
+    c = 0.5 * ((p02 + c02 + c20 + b02 + w02) + (p20 + c20 + c02 + b20 + w20))
+    d = p11 + c11 + c11 + b11 + w11
+    e = 0.5 * ((p12 + c12 + c21 + b12 + w12) + (p21 + c21 + c12 + b21 + w21))
+    f = p22 + c22 + c22 + b22 + w22
     if not (a > 0.0 and a * d - b * b > 0.0):  # positive definite: leading minors > 0
         return None
     inv = inverse_3x3_sym([a, b, c, d, e, f])  # (and det > 0)
@@ -173,24 +230,38 @@ def consider_update(
         return None
     i00, i01, i02, i11, i12, i22 = inv
     y0, y1, y2 = y
+    # M = H C + Sigma_b
+    m00, m01, m02 = c00 + b00, c01 + b01, c02 + b02
+    m10, m11, m12 = c10 + b10, c11 + b11, c12 + b12
+    m20, m21, m22 = c20 + b20, c21 + b21, c22 + b22
+    # row by row: G = P H^T + C, K = G S^-1, dX = K y, C - K M (written out: for 3-vectors
+    # a comprehension costs more than its arithmetic)
+    G, K, dX, C_new = [], [], [], []
+    for Pi, (x0, x1, x2) in zip(P, C, strict=True):
+        g0, g1, g2 = Pi[0] + x0, Pi[1] + x1, Pi[2] + x2
+        k0 = g0 * i00 + g1 * i01 + g2 * i02
+        k1 = g0 * i01 + g1 * i11 + g2 * i12
+        k2 = g0 * i02 + g1 * i12 + g2 * i22
+        G.append((g0, g1, g2))
+        K.append((k0, k1, k2))
+        dX.append(k0 * y0 + k1 * y1 + k2 * y2)
+        C_new.append([x0 - (k0 * m00 + k1 * m10 + k2 * m20),
+                      x1 - (k0 * m01 + k1 * m11 + k2 * m21),
+                      x2 - (k0 * m02 + k1 * m12 + k2 * m22)])  # fmt: skip
+    # P - K S K^T = P - G K^T (K S = G; G S^-1 G^T is symmetric: its upper triangle,
+    # mirrored: row j gets its entries left of the diagonal from the rows above it)
     n = len(P)
-    G = [[P[i][0] + C[i][0], P[i][1] + C[i][1], P[i][2] + C[i][2]] for i in range(n)]
-    K = [[g0 * i00 + g1 * i01 + g2 * i02, g0 * i01 + g1 * i11 + g2 * i12,
-          g0 * i02 + g1 * i12 + g2 * i22] for g0, g1, g2 in G]  # fmt: skip
-    dX = [k0 * y0 + k1 * y1 + k2 * y2 for k0, k1, k2 in K]
-    # P - K S K^T = P - G K^T (K S = G; G S^-1 G^T is symmetric: its upper triangle)
-    P_new = [[0.0] * n for _ in range(n)]
-    for i in range(n):
-        g0, g1, g2 = G[i]
+    P_new: Rows = [[] for _ in range(n)]
+    for i, (g0, g1, g2) in enumerate(G):
         Pi, Ri = P[i], P_new[i]
         for j in range(i, n):
             k0, k1, k2 = K[j]
-            Ri[j] = P_new[j][i] = Pi[j] - (g0 * k0 + g1 * k1 + g2 * k2)
+            v = Pi[j] - (g0 * k0 + g1 * k1 + g2 * k2)
+            Ri.append(v)
+            if j > i:
+                P_new[j].append(v)
         if Ri[i] <= 0.0:
             return None
-    M = [[C[r][col] + R_bias[r][col] for col in range(3)] for r in range(3)]  # H C + R_bias
-    C_new = [[C[i][col] - (K[i][0] * M[0][col] + K[i][1] * M[1][col] + K[i][2] * M[2][col])
-              for col in range(3)] for i in range(n)]  # fmt: skip
     nis = (i00 * y0 * y0 + i11 * y1 * y1 + i22 * y2 * y2
            + 2.0 * (i01 * y0 * y1 + i02 * y0 * y2 + i12 * y1 * y2))  # fmt: skip
     return dX, P_new, C_new, nis

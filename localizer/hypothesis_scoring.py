@@ -62,9 +62,11 @@ def missing_landmarks(
     *,
     reach_m: float | None = None,
     counted: npt.NDArray[np.bool_] | None = None,
+    weights: FloatArray | None = None,
 ) -> FloatArray:
     """Per hypothesis, the landmarks it predicts well inside the image with no spot near
-    (all hypotheses projected in one call): negative evidence.
+    (all hypotheses projected in one call): negative evidence, each landmark weighted by
+    the log-likelihood ratio of its absence (`weights`, shape (N,); default 1: a count).
 
     Args:
         reach_m: when given, only the landmarks within this of each hypothesis's camera
@@ -74,7 +76,7 @@ def missing_landmarks(
             are marked (updated in place). A dead LED is the same evidence on every frame.
 
     Returns:
-        The count per hypothesis, shape (H,).
+        The (weighted) count per hypothesis, shape (H,).
     """
     H, N = len(hyps), len(positions)
     c, s = np.cos(hyps[:, 2]), np.sin(hyps[:, 2])
@@ -91,13 +93,7 @@ def missing_landmarks(
     body = np.column_stack([bx[h, rows], by[h, rows], positions[rows, 2]])
     T = camera.T_camera_body
     px, valid = pixels_from_points_camera(camera, body @ T[:3, :3].T + T[:3, 3])
-    m = config.miss_margin_px
-    inner = valid & (px[:, 0] >= m) & (px[:, 0] <= camera.width - 1 - m)
-    inner &= (px[:, 1] >= m) & (px[:, 1] <= camera.height - 1 - m)
-    # only as far out as spots are seen at all (far spots fade below the threshold)
-    spots = spot_tree.data
-    r_seen = float(np.max(np.hypot(spots[:, 0] - camera.cu, spots[:, 1] - camera.cv)))
-    inner &= np.hypot(px[:, 0] - camera.cu, px[:, 1] - camera.cv) <= r_seen - m
+    inner = well_in_view(camera, px, valid, seen_radius_px(camera, spot_tree.data), config)
     miss = np.zeros(len(h), dtype=bool)
     if np.any(inner):
         dist, _ = spot_tree.query(px[inner])
@@ -105,7 +101,34 @@ def missing_landmarks(
     if counted is not None:
         miss &= ~counted[h, rows]
         counted[h[miss], rows[miss]] = True
-    out: FloatArray = np.bincount(h, weights=miss, minlength=H).astype(np.float64)
+    w = np.ones(N) if weights is None else weights
+    out: FloatArray = np.bincount(h, weights=miss * w[rows], minlength=H).astype(np.float64)
+    return out
+
+
+def seen_radius_px(camera: CameraModel, pixels: FloatArray) -> float:
+    """How far from the image centre spots are seen at all on a frame (the farthest of
+    `pixels`, shape (S, 2)): beyond it a landmark's spot fades below the threshold, pixels."""
+    if not len(pixels):
+        return 0.0
+    return float(np.max(np.hypot(pixels[:, 0] - camera.cu, pixels[:, 1] - camera.cv)))
+
+
+def well_in_view(
+    camera: CameraModel,
+    px: FloatArray,
+    valid: npt.NDArray[np.bool_],
+    r_seen_px: float,
+    config: RelocalizationConfig,
+) -> npt.NDArray[np.bool_]:
+    """Which predicted pixels (N, 2) lie well inside the image: valid, `miss_margin_px`
+    from its edges and from the radius `r_seen_px` spots are seen at all on this frame.
+    A lit landmark predicted there should be detected (its absence is evidence)."""
+    m = config.miss_margin_px
+    inner = valid & (px[:, 0] >= m) & (px[:, 0] <= camera.width - 1 - m)
+    inner &= (px[:, 1] >= m) & (px[:, 1] <= camera.height - 1 - m)
+    inner &= np.hypot(px[:, 0] - camera.cu, px[:, 1] - camera.cv) <= r_seen_px - m
+    out: npt.NDArray[np.bool_] = inner
     return out
 
 
@@ -149,6 +172,8 @@ class FrameView(NamedTuple):
         anchors: the spots forming hypothesis pairs (the `anchor_spots` nearest the centre).
         landmark_tree: k-d tree of the landmarks' (x, y).
         spot_tree: k-d tree of the spots' pixels.
+        miss_weights: each landmark's log-likelihood ratio against a hypothesis that
+            predicts it well in view where no spot is, shape (N,) (`landmark_liveness`).
     """
 
     positions: FloatArray
@@ -159,14 +184,17 @@ class FrameView(NamedTuple):
     anchors: list[int]
     landmark_tree: cKDTree
     spot_tree: cKDTree
+    miss_weights: FloatArray
 
 
 def frame_view(
     camera: CameraModel, positions: FloatArray, spot_pixels: FloatArray,
     config: RelocalizationConfig,
+    miss_weights: FloatArray | None = None,
 ) -> FrameView | None:  # fmt: skip
     """The frame's spots as ceiling points (see `FrameView`); None with fewer than two
-    usable spots or landmarks."""
+    usable spots or landmarks. `miss_weights` (N,) defaults to `config.miss_log_lr` each
+    (nothing known of any landmark)."""
     S = len(spot_pixels)
     if S < 2 or len(positions) < 2:
         return None
@@ -183,6 +211,7 @@ def frame_view(
         positions, spot_pixels, np.where(ok[:, None], q, 1e6), radial_m,
         np.array(order[: config.score_spots], dtype=np.int64), order[: config.anchor_spots],
         cKDTree(positions[:, :2]), cKDTree(spot_pixels),
+        np.full(len(positions), config.miss_log_lr) if miss_weights is None else miss_weights,
     )  # fmt: skip
 
 
@@ -204,8 +233,8 @@ def frame_log_lr(
     counted: npt.NDArray[np.bool_] | None = None,
 ) -> tuple[FloatArray, FloatArray, FloatArray, npt.NDArray[np.bool_]]:
     """Each hypothesis's log-likelihood ratio on one frame (step 3 of the module docstring):
-    refit to its inliers, `inlier_log_lr` per inlier minus `miss_log_lr` per missing
-    landmark, plus `offset`.
+    refit to its inliers, `inlier_log_lr` per inlier minus each missing landmark's weight
+    (`view.miss_weights`), plus `offset`.
 
     The missing landmarks (the costly part) are counted best first, in chunks of
     `rescore_chunk`, until no hypothesis left can come within `cutoff` of the best (misses
@@ -247,11 +276,12 @@ def frame_log_lr(
             counts[idx] = score_hypotheses(hyps[idx], q, radial, tree, config)[0]
         sub = None if counted is None else counted[idx]
         misses = missing_landmarks(
-            camera, view.positions, hyps[idx], view.spot_tree, config, reach_m=reach, counted=sub
-        )
+            camera, view.positions, hyps[idx], view.spot_tree, config, reach_m=reach,
+            counted=sub, weights=view.miss_weights,
+        )  # fmt: skip
         if counted is not None and sub is not None:
             counted[idx] = sub
-        score[idx] = config.inlier_log_lr * counts[idx] + off[idx] - config.miss_log_lr * misses
+        score[idx] = config.inlier_log_lr * counts[idx] + off[idx] - misses
         done[idx] = True
     if refits == 0:
         hyps = refine_hypotheses(hyps, q, P, nearest, inl)

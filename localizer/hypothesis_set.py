@@ -160,6 +160,7 @@ class HypothesisSet:
         spot_pixels: FloatArray,
         prior: Pose,
         prior_covariance: FloatArray,
+        miss_weights: FloatArray | None = None,
     ) -> Relocalization:
         """One frame: carry the hypotheses to it, score them (or seed), decide.
 
@@ -169,6 +170,9 @@ class HypothesisSet:
             positions: the landmarks that may be lit, shape (N, 3).
             spot_pixels: the frame's spots, shape (S, 2).
             prior, prior_covariance: where the robot may be, for seeding (3, 3).
+            miss_weights: each landmark's weight when missing (N,)
+                (`landmark_liveness.LandmarkLiveness.miss_log_lr`); default
+                `miss_log_lr` each. Keep it fixed while lost: a miss counts once.
 
         Returns:
             The best hypothesis; `pairs` (its inliers on this frame) only when accepted.
@@ -181,7 +185,7 @@ class HypothesisSet:
         if self._t_scored is not None and (t_ns - self._t_scored) * _NS < c.score_every_s:
             return self._outcome(None, [])
         self._t_scored = t_ns
-        view = frame_view(camera, positions, spot_pixels, c)
+        view = frame_view(camera, positions, spot_pixels, c, miss_weights)
         if view is None:
             return self._fail()
         seed = Seed(camera, view, prior, prior_covariance)

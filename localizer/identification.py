@@ -26,98 +26,46 @@ image); otherwise the pair is ambiguous and ignored. An identified landmark whos
 still there in a frame with its LED dark is dropped (a blinking stray IR source that
 happened to switch with it).
 
-In live use the identifier also chooses what to light next (`next_request`): one landmark
-at a time, candidates near a prior pose first, and once one landmark has shown itself,
-those near it (they are the ones in view); a landmark that shows nothing within
-`frames_per_led` frames, or whose switch is not confirmed within `led_timeout_s` (a dead
-battery, out of radio range, out of view), is skipped. When `landmarks_needed` are
-identified it asks for every LED lit.
+Each sighting carries the raw odometry pose of its frame (`Sighting.odometry`): a sighting
+is a ray from a known odometry pose, carried to any later time however old it is
+(`first_fix.py`). Evidence that did not pair within `2 reference_max_age_s` can no longer
+pair and is dropped; the newest is remembered (`anchor`) to order the candidates.
+
+In live use the identifier also chooses what to light next (`next_request`, the probe plan
+of `localizer/probing.py`). When identified landmarks do not give a consistent fix, the
+newest is kept (`keep_newest`: a fresh sighting near the robot) and the others dropped.
 """
 
 from __future__ import annotations
 
 from collections import deque
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Collection, Sequence
 from dataclasses import dataclass
-from typing import Literal
 
 import numpy as np
 import numpy.typing as npt
 
 from localizer.events import LedRequest
+from localizer.identification_config import IdentificationConfig, Probe
+from localizer.probing import ProbePlan, Progress
 
 FloatArray = npt.NDArray[np.float64]
+OdometryPose = tuple[float, float, float]
 
 _NS = 1e-9
 
-Probe = Literal["darken_one", "light_one"]
-
-
-@dataclass(frozen=True)
-class IdentificationConfig:
-    """Tuning of identification.
-
-    Attributes:
-        landmarks_needed: identify this many, then light all (2 in the paper).
-        probe: what `next_request` asks for: "darken_one" (every LED lit but the
-            candidate: other robots keep tracking) or "light_one" (the paper: a dark
-            ceiling with the candidate alone lit).
-        frames_per_led: frames with a candidate switched without evidence before it is
-            skipped.
-        led_timeout_s: a requested LED change not confirmed within this is skipped, seconds.
-        match_radius_px: a spot within this of a spot of the other frame (plus the image
-            motion in between) is the same source, pixels.
-        inner_radius_fraction: only changed spots within this fraction of the distance from
-            the principal point to the nearest image edge are used (at the edge of the view,
-            spots fade in and out with the robot's motion and flicker at the threshold),
-            minus the image motion.
-        min_relative_intensity: only changed spots at least this bright relative to the
-            median spot of their frame are used (a faint spot flickers at the threshold).
-        unique_brightness_ratio: with several changed spots, the brightest is taken only
-            when it is this many times brighter than the next.
-        reference_max_age_s: frames further apart than this are not compared, seconds.
-        follow_window_s: a sighting against a lit ceiling is confirmed only if the spot
-            followed its LED in every kept frame from this long before its first piece of
-            evidence to this long after its last, seconds.
-        history_frames: frames kept for comparisons.
-    """
-
-    landmarks_needed: int = 2
-    probe: Probe = "darken_one"
-    frames_per_led: int = 2
-    led_timeout_s: float = 0.5
-    match_radius_px: float = 3.0
-    inner_radius_fraction: float = 0.8
-    min_relative_intensity: float = 0.5
-    unique_brightness_ratio: float = 2.0
-    reference_max_age_s: float = 0.5
-    follow_window_s: float = 0.1
-    history_frames: int = 24
-
-    def __post_init__(self) -> None:
-        if self.landmarks_needed < 2 or self.frames_per_led < 1 or self.history_frames < 2:
-            raise ValueError(
-                "IdentificationConfig: landmarks_needed >= 2, frames_per_led >= 1, "
-                "history_frames >= 2"
-            )
-        if self.probe not in ("darken_one", "light_one"):
-            raise ValueError(
-                f"IdentificationConfig.probe: 'darken_one' or 'light_one', got {self.probe!r}"
-            )
-        if self.unique_brightness_ratio < 1.0:
-            raise ValueError(
-                "IdentificationConfig.unique_brightness_ratio must be >= 1, "
-                f"got {self.unique_brightness_ratio}"
-            )
+__all__ = ["Evidence", "IdentificationConfig", "Identifier", "Probe", "Sighting"]
 
 
 @dataclass(frozen=True)
 class Sighting:
-    """A landmark identified in one frame: its spot at `pixel` (col, row) at `t_ns`."""
+    """A landmark identified in one frame: its spot at `pixel` (col, row) at `t_ns`, seen
+    from the raw odometry pose `odometry` (x, y, theta; None: unknown, look it up)."""
 
     landmark_id: int
     t_ns: int
     pixel: tuple[float, float]
+    odometry: OdometryPose | None = None
 
 
 @dataclass(frozen=True)
@@ -128,6 +76,7 @@ class Evidence:
         appeared: the spot appeared when the LED was lit (else it vanished when darkened).
         t_ns, pixel: the frame in which the landmark was lit, and its spot there.
         alone: the landmark was the only LED lit in that frame.
+        odometry: the raw odometry pose at `t_ns`, if known.
     """
 
     landmark_id: int
@@ -135,6 +84,7 @@ class Evidence:
     t_ns: int
     pixel: tuple[float, float]
     alone: bool
+    odometry: OdometryPose | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -158,6 +108,8 @@ class Identifier:
         motion_px: bound on the image motion of a spot between two times (ns), pixels;
             widens the match radius between two frames. The localizer derives it from
             odometry (or from the maximum speed when it has none).
+        odometry_at: the raw odometry pose at a time (ns), stored with each piece of
+            evidence (None: not stored).
     """
 
     def __init__(
@@ -169,16 +121,12 @@ class Identifier:
         image_size: tuple[int, int] | None = None,
         principal_point: tuple[float, float] | None = None,
         motion_px: Callable[[int, int], float],
+        odometry_at: Callable[[int], OdometryPose] | None = None,
     ) -> None:
         self.config = config
         self._all_ids = [int(i) for i in landmark_ids]
         self.all_lit = frozenset(self._all_ids)
-        xy = (
-            np.zeros((len(self._all_ids), 2))
-            if positions is None
-            else np.asarray(positions, float).reshape(-1, 3)[:, :2]
-        )
-        self._xy = {lid: xy[k] for k, lid in enumerate(self._all_ids)}
+        self.probes = ProbePlan(config, self._all_ids, positions)
         self._centre: tuple[float, float] | None = None
         self._inner_px = np.inf
         if image_size is not None:
@@ -187,6 +135,7 @@ class Identifier:
             self._centre = (cu, cv)
             self._inner_px = config.inner_radius_fraction * min(cu, cv, w - 1 - cu, h - 1 - cv)
         self._motion_px = motion_px
+        self._odometry_at = odometry_at
         self._history: deque[_Frame] = deque(maxlen=config.history_frames)
         self.sightings: dict[int, Sighting] = {}
         self.evidence: dict[int, list[Evidence]] = {}
@@ -196,21 +145,65 @@ class Identifier:
         """Forget the identified landmarks and try the candidates in `order`."""
         self.sightings = {}
         self.evidence = {}
-        self._order = deque(int(i) for i in order)
-        self._current: int | None = None
-        self._current_since_ns: int | None = None
-        self._current_frames = 0
-        self._in_force = False
-        self._dark_requested = False
-        self._dark_seen = False
-        self._all_requested = False
-        self._neighbours_first = False
-        self._dark_frames: dict[int, int] = {}  # frames seen with only this one darkened
+        self._shown: dict[int, int] = {}  # pieces of evidence per landmark (only grow)
+        self._probed: dict[int, int] = {}  # ... of the probe's kind (darken_one: vanished)
+        self._newest: Evidence | None = None  # the first of the newest unpaired episode
+        self.probes.restart(order)
+
+    @property
+    def inner_radius_px(self) -> float:
+        """Changed spots farther than this from the principal point are not used, pixels."""
+        return self._inner_px
+
+    @property
+    def anchor(self) -> Sighting | None:
+        """What the candidate order can start from: the one landmark identified, or before
+        any, the first piece of the newest evidence (kept after it expired); None with two
+        or more identified, or nothing."""
+        if len(self.sightings) == 1:
+            return next(iter(self.sightings.values()))
+        if self.sightings or self._newest is None:
+            return None
+        ev = self._newest
+        return Sighting(ev.landmark_id, ev.t_ns, ev.pixel, ev.odometry)
+
+    def prefer(self, order: Sequence[int], *, come_into_view: Collection[int] = ()) -> None:
+        """Try the candidates in `order` next (`ProbePlan.prefer`), never identified ones."""
+        self.probes.prefer(
+            [int(i) for i in order if int(i) not in self.sightings], come_into_view=come_into_view
+        )
+
+    def keep_newest(self) -> None:
+        """Keep only the newest sighting (and its evidence): the others disagreed with it."""
+        if not self.sightings:
+            return
+        newest = max(self.sightings.values(), key=lambda s: s.t_ns)
+        self.sightings = {newest.landmark_id: newest}
+        self.evidence = {newest.landmark_id: self.evidence.get(newest.landmark_id, [])}
+        self.probes.resume(newest.landmark_id)
 
     @property
     def done(self) -> bool:
         """Enough landmarks identified."""
         return len(self.sightings) >= self.config.landmarks_needed
+
+    # -- what to light next (live use) ---------------------------------------------------------
+    def led_confirmed(self, t_ns: int, lit: frozenset[int] | None) -> None:
+        """Note an LED state (None: unknown, a switch in flight); `ProbePlan.led_confirmed`."""
+        self.probes.led_confirmed(t_ns, lit)
+
+    def next_request(self, t_ns: int) -> LedRequest | None:
+        """The LED state to ask for now, or None to keep the current one."""
+        unpaired = sorted(
+            (lid for lid in self.evidence if lid not in self.sightings),
+            key=lambda lid: -self.evidence[lid][-1].t_ns,
+        )
+        shown = [e for seen in self.evidence.values() for e in seen[-1:]]
+        newest = max(shown, key=lambda e: e.t_ns).landmark_id if shown else None
+        progress = Progress(
+            self.sightings.keys(), self._shown, self._probed, unpaired, newest, self.done
+        )
+        return self.probes.next_request(t_ns, progress)
 
     # -- what was seen -------------------------------------------------------------------------
     def observe(
@@ -239,7 +232,8 @@ class Identifier:
         if frame.lit is None:
             return []
         self._drop_contradicted(frame)
-        self._note_candidate(frame)
+        self._drop_expired(t_ns)
+        self.probes.note_frame(frame.lit)
         new: list[Sighting] = []
         compared: set[frozenset[int]] = set()
         earlier = list(self._history)
@@ -293,23 +287,40 @@ class Identifier:
             return None  # ambiguous: two sources switched with it
         k = int(order[0])
         pixel = (float(pixels[k, 0]), float(pixels[k, 1]))
-        return Evidence(lid, appeared, lit_frame.t_ns, pixel, lit_frame.lit == frozenset({lid}))
+        odometry = None if self._odometry_at is None else self._odometry_at(lit_frame.t_ns)
+        alone = lit_frame.lit == frozenset({lid})
+        return Evidence(lid, appeared, lit_frame.t_ns, pixel, alone, odometry)
 
     def _add_evidence(self, ev: Evidence) -> Sighting | None:
-        """Keep `ev`; the sighting it completes, if any."""
+        """Keep `ev` (once: the same switch is seen against several reference frames); the
+        sighting it completes, if any."""
         seen = self.evidence.setdefault(ev.landmark_id, [])
-        seen.append(ev)
+        if not any(e.appeared == ev.appeared and e.t_ns == ev.t_ns for e in seen):
+            if not seen:
+                self._newest = ev  # a new episode of this landmark's evidence
+            seen.append(ev)
+            self._shown[ev.landmark_id] = self._shown.get(ev.landmark_id, 0) + 1
+            if ev.appeared == (self.config.probe == "light_one"):
+                self._probed[ev.landmark_id] = self._probed.get(ev.landmark_id, 0) + 1
         confirmed = ev.alone or any(
             e.appeared != ev.appeared
             and self._same_place(e.pixel, e.t_ns, ev.pixel, ev.t_ns)
             and self._follows_its_led(ev.landmark_id, (e, ev))
-            for e in seen[:-1]
+            for e in seen
         )
         if not confirmed:
             return None
-        s = Sighting(ev.landmark_id, ev.t_ns, ev.pixel)
+        s = Sighting(ev.landmark_id, ev.t_ns, ev.pixel, ev.odometry)
         self.sightings[ev.landmark_id] = s
         return s
+
+    def _drop_expired(self, t_ns: int) -> None:
+        """Drop unpaired evidence too old to pair with any to come (a new piece is at most
+        `reference_max_age_s` older than its frame, and pairs within twice that)."""
+        horizon = t_ns - 3 * self.config.reference_max_age_s / _NS
+        for lid, seen in list(self.evidence.items()):
+            if lid not in self.sightings and seen and seen[-1].t_ns < horizon:
+                del self.evidence[lid]
 
     def _same_place(
         self, a: tuple[float, float], t_a: int, b: tuple[float, float], t_b: int
@@ -347,103 +358,3 @@ class Identifier:
             if len(d) and float(d.min()) <= radius:
                 del self.sightings[lid]
                 self.evidence.pop(lid, None)
-
-    # -- what to light next (live use) ---------------------------------------------------------
-    def _probe_in_force(self, lit: frozenset[int]) -> bool:
-        cur = self._current
-        if cur is None:
-            return False
-        if self.config.probe == "light_one":
-            return lit == frozenset({cur})
-        return cur not in lit
-
-    def _note_candidate(self, frame: _Frame) -> None:
-        lit = frame.lit or frozenset()
-        if self.config.probe == "light_one" and not lit:
-            self._dark_seen = True
-        if self._probe_in_force(lit):
-            self._current_frames += 1
-        dark = self.all_lit - lit
-        if len(dark) == 1:  # someone's darken probe: no need to ask for it again
-            (lid,) = dark
-            self._dark_frames[lid] = self._dark_frames.get(lid, 0) + 1
-
-    def led_confirmed(self, t_ns: int, lit: frozenset[int] | None) -> None:
-        """Note an LED state (None: unknown, a switch in flight): the candidate's frame count
-        starts when its probe is in force."""
-        in_force = lit is not None and self._probe_in_force(lit)
-        if in_force and not self._in_force:
-            self._current_since_ns = t_ns
-            self._current_frames = 0
-        self._in_force = in_force
-
-    def _probe_request(self, lid: int) -> LedRequest:
-        if self.config.probe == "light_one":
-            return LedRequest(lit=frozenset({lid}))
-        return LedRequest(all_lit=True, dark=frozenset({lid}))
-
-    def next_request(self, t_ns: int) -> LedRequest | None:
-        """The LED state to ask for now, or None to keep the current one."""
-        cfg = self.config
-        if self.done:
-            if self._all_requested:
-                return None
-            self._all_requested = True
-            return LedRequest(all_lit=True)
-        if cfg.probe == "light_one" and not self._dark_requested:
-            self._dark_requested = True
-            self._current_since_ns = t_ns
-            return LedRequest(lit=frozenset())
-        cur = self._current
-        waited = (t_ns - (self._current_since_ns or t_ns)) * _NS
-        if cur is not None:
-            finished = (
-                cur in self.evidence
-                or self._current_frames >= cfg.frames_per_led
-                or waited > cfg.led_timeout_s
-            )
-            if not finished:
-                return None
-        elif cfg.probe == "light_one" and not self._dark_seen and waited <= cfg.led_timeout_s:
-            return None  # no frame yet under the dark state
-        self._try_neighbours_first()
-        while self._order and (
-            self._order[0] in self.sightings
-            or (
-                self._order[0] not in self.evidence
-                and self._dark_frames.get(self._order[0], 0) >= cfg.frames_per_led
-            )
-        ):
-            self._order.popleft()  # identified, or already probed (by another robot too)
-        if not self._order:
-            # Every candidate tried: start over (the robot may have moved).
-            self._order = deque(i for i in self._all_ids if i not in self.sightings)
-            self._neighbours_first = False
-            self._dark_frames = {}
-            self._current = None
-            self._current_since_ns = t_ns
-            if cfg.probe == "light_one":
-                self._dark_requested = self._dark_seen = False
-                return self.next_request(t_ns)
-            return LedRequest(all_lit=True)  # relight the last candidate (its evidence)
-        nxt = self._order.popleft()
-        self._current = nxt
-        self._current_since_ns = t_ns
-        self._current_frames = 0
-        self._in_force = False
-        return self._probe_request(nxt)
-
-    def _try_neighbours_first(self) -> None:
-        """Once a landmark has shown itself, try the candidates nearest to it first."""
-        if self._neighbours_first or not self.evidence:
-            return
-        found = next(iter(self.evidence))
-        centre = self._xy.get(found)
-        if centre is None:
-            return
-        self._neighbours_first = True
-        rest = sorted(
-            self._order,
-            key=lambda i: float(np.hypot(*(self._xy.get(i, centre + 1e9) - centre))),
-        )
-        self._order = deque(rest)

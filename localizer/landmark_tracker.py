@@ -4,8 +4,9 @@ Eq. (3) predicts the lit landmarks' pixels from the filter's pose; spots are sea
 windows sized from speed, frame interval, scale, radius and uncertainty (Sec. IV-A.1) and
 assigned by the bottleneck rule; after long dead reckoning (or when asked) only a hypothesis
 that agrees with the map's geometry is taken (eq. 4 with a geometric check). `solve_pose`
-over every matched landmark (tilt too with 3+), gated by the residual and the normalised
-innovation, is fused by `PoseFilter.update_fix`.
+over every matched landmark, on the floor carried from fix to fix (`floor_plane`: its tilt
+and height re-estimated with 3+ landmarks where the spots demand it), gated by the residual
+and the normalised innovation, is fused by `PoseFilter.update_fix`.
 
 This is the localizer's hot path while tracking: small Python lists instead of numpy arrays
 (for three landmarks numpy's per-call cost is most of the work), the windows searched
@@ -24,6 +25,7 @@ from scipy.spatial import cKDTree
 from localizer.camera import CameraModel
 from localizer.config import LocalizerConfig
 from localizer.events import FrameObserved, SpotsObserved
+from localizer.floor_plane import FloorPlane, fix_on_floor
 from localizer.geometry import wrap_angle
 from localizer.handoff import (
     Prediction,
@@ -46,7 +48,7 @@ from localizer.spots import Spots, detect_spots, estimate_background
 from localizer.tracking import (
     bottleneck_assignment,
     default_angular_speed,
-    motion_bound_px,
+    motion_bound_terms,
     scale_px_per_m,
     unambiguous_pairs,
 )
@@ -64,11 +66,14 @@ class TrackResult(NamedTuple):
         unexplained: spots were seen while 2+ landmarks were predicted, and no fix was
             fused (the localizer counts these toward getting lost).
         expected: IDs of the lit landmarks predicted inside the image, sorted.
+        rejected: a fix consistent in itself (its chi-square passed) that failed the
+            innovation gate against the filter, when none was fused (`fix_run`).
     """
 
     used: tuple[int, ...] = ()
     unexplained: bool = False
     expected: tuple[int, ...] = ()
+    rejected: PoseFix | None = None
 
 
 _NOTHING = TrackResult()
@@ -97,8 +102,13 @@ class LandmarkTracker:
         max_angular_speed_rad_s: the robot's fastest turn.
         background: the last full frame's background (level, noise), counts; None before.
         last_fused: the last fused fix's map rows, spot pixels and fix (self-calibration).
-        last_matched: landmarks in the last fused tracking fix (the owner zeroes it when it
-            resets the pose another way).
+        last_matched: IDs of the landmarks in the last fused tracking fix (the owner empties
+            it when it resets the pose another way).
+        last_rejected: the last attempt's fix that failed only the innovation gate (map
+            rows, spot pixels, fix), None when it had none (`adopt_rejected`).
+        floor: the floor's height and slope carried from fix to fix (`floor_plane`): every
+            fix's prior on the body's tilt and height, updated by each fused fix of 3+
+            landmarks.
     """
 
     def __init__(
@@ -116,13 +126,18 @@ class LandmarkTracker:
         )
         self.background: tuple[float, float] | None = None
         self.last_fused: tuple[list[int], list[list[float]], PoseFix] | None = None
-        self.last_matched = 0
+        # the last attempt's fix that failed the innovation gate (map rows, pixels, fix)
+        self.last_rejected: tuple[list[int], list[list[float]], PoseFix] | None = None
+        self.last_matched: frozenset[int] = frozenset()
+        self.floor = FloorPlane.level(config.floor)
+        self._floor_shift = (0.0, 0.0, 0.0)  # what the last solve's floor moved its pose by
         self.set_map(landmark_map)
 
     def set_map(self, landmark_map: LandmarkMap) -> None:
         """Track the landmarks of a new map."""
         self.map = landmark_map
         self._ids: list[int] = landmark_map.ids.tolist()
+        self._positions: list[list[float]] = landmark_map.positions.tolist()  # (for `_solve`)
         heights = landmark_map.positions[:, 2] - self.camera.T_body_camera[2, 3]
         ceiling_m = float(np.median(heights)) if len(heights) else 2.2
         self.scale_px_per_m = scale_px_per_m(max(self.camera.fu, self.camera.fv), ceiling_m)
@@ -152,15 +167,17 @@ class LandmarkTracker:
         spots: Spots | None = None,
         reacquire: bool = False,
         since_sample_s: float = 0.0,
+        travel_since_fix_m: float = 0.0,
     ) -> TrackResult:
         """Find the lit landmarks near their predictions, solve and fuse.
 
         The prediction extrapolates the last odometry sample's speeds to the frame's time;
         the wheels may have changed speed since (a turn in place starting right after
-        driving). When no fix fits that prediction, a second hypothesis is tried: the pose
-        uncertainty widened by a change of each wheel's speed of `speed_change_sigma` x the
-        maximum speed over `since_sample_s` (windows and gates widen with it, most at the
-        image edge where a rotation moves spots most).
+        driving), or slipped since the last fix. When no fix fits that prediction, a second
+        hypothesis is tried: the pose uncertainty widened by an error of each wheel's travel
+        of `speed_change_sigma` x the maximum speed over `since_sample_s` and `slip_sigma`
+        x `travel_since_fix_m` (the two independent; windows and gates widen with it, most
+        at the image edge where a rotation moves spots most).
 
         Args:
             filt: the pose filter, at the frame's time; a fix is fused into it.
@@ -173,16 +190,21 @@ class LandmarkTracker:
             reacquire: require a map-consistent hypothesis (also forced by a large
                 position uncertainty).
             since_sample_s: time from the last odometry sample to the frame, seconds.
+            travel_since_fix_m: the robot's travel (the mean of its wheels') by odometry
+                since the last fused fix, metres.
         """
         result = self._attempt(filt, e, dt_frame_s, fresh_odometry, candidates, spots, reacquire)
-        if result.used or not result.expected or since_sample_s <= 0 or reacquire:
-            return result
         tc = self.config.tracking
-        sv = tc.speed_change_sigma * self.robot.max_speed * since_sample_s
+        sv = math.hypot(
+            tc.speed_change_sigma * self.robot.max_speed * max(since_sample_s, 0.0),
+            tc.slip_sigma * max(travel_since_fix_m, 0.0),
+        )
+        if result.used or not result.expected or sv <= 0 or reacquire:
+            return result
         filt.inflate(0.5 * sv * sv, 2.0 * (sv / self.robot.wheel_base) ** 2)
         retry = self._attempt(filt, e, dt_frame_s, fresh_odometry, candidates, spots, reacquire)
         if not retry.used:
-            return result
+            return result._replace(rejected=retry.rejected)  # (the one `last_rejected` holds)
         filt.snap_output()  # the correction is motion, not noise: no output lag
         return retry
 
@@ -210,22 +232,19 @@ class LandmarkTracker:
         )
         if len(pred) == 0:
             return _NOTHING
-        expected = tuple(sorted(self._ids[r] for r in pred.row_list))
+        expected = tuple(sorted([self._ids[r] for r in pred.row_list]))
         tc = self.config.tracking
         dt_free = dt_frame_s * (tc.odometry_speed_fraction if fresh_odometry else 1.0)
         px = pred.pixel_list
         cu, cv = self.camera.cu, self.camera.cv
         noise = self.noise.sigma_px
+        shift, turn = motion_bound_terms(  # `motion_bound_px`, its terms once per frame
+            self.robot.max_speed, self.max_angular_speed_rad_s, dt_free, self.scale_px_per_m
+        )
         gates = [  # window half sizes and assignment gates, pixels
             tc.min_half_size_px
             + tc.sigma_gate * math.hypot(sigma, noise(u, v))
-            + motion_bound_px(
-                math.hypot(u - cu, v - cv),
-                max_speed_m_s=self.robot.max_speed,
-                max_angular_speed_rad_s=self.max_angular_speed_rad_s,
-                dt_s=dt_free,
-                scale_px_per_m=self.scale_px_per_m,
-            )
+            + (shift + turn * math.hypot(u - cu, v - cv))
             for (u, v), sigma in zip(px, pred.sigma_list, strict=True)
         ]
         reacquire = reacquire or sigma_xy > self.config.handoff.reacquire_sigma_m
@@ -253,11 +272,36 @@ class LandmarkTracker:
                 tc.ambiguity_log_ratio,
             )
             pairs = [(rows[k], s) for k, s in sure]
+        self.last_rejected = None
         # A robot lifted and carried off still sees a few spots fall into some windows by
         # chance: a fix of a small share of the landmarks last matched is not taken (kidnap).
-        need = 0.0 if reacquire else self.config.fusion.min_matched_fraction * self.last_matched
+        # Of those, only the ones still surely lit count: landmarks darkened since (an LED
+        # schedule moving the robot from many lit landmarks to a few) are not missing.
+        need = (
+            0.0
+            if reacquire
+            else self.config.fusion.min_matched_fraction
+            * len(self._still_lit(self.last_matched, candidates))
+        )
         used = self._fuse(filt, pairs, spot_px, pose, need) if len(pairs) >= 2 else ()
-        return TrackResult(used, unexplained=not used and len(pred) >= 2, expected=expected)
+        rejected = None if used or self.last_rejected is None else self.last_rejected[2]
+        return TrackResult(
+            used, unexplained=not used and len(pred) >= 2, expected=expected, rejected=rejected
+        )
+
+    def adopt_rejected(self, filt: PoseFilter) -> tuple[int, ...]:
+        """Re-seed `filt` at the last step's rejected fix (`fix_run`: a run of them the
+        odometry disagreed with): the pose and its covariance are the fix's (the odometry's
+        calibration factors stay), the floor takes it as a fused fix. Returns its IDs."""
+        if self.last_rejected is None:
+            return ()
+        _, _, fix = self.last_rejected
+        filt.reset(fix.x, fix.y, fix.theta, fix.covariance)
+        self._update_floor(fix)
+        self.last_fused = self.last_rejected
+        self.last_matched = frozenset(fix.landmark_ids)
+        self.last_rejected = None
+        return fix.landmark_ids
 
     def relocalize(
         self,
@@ -269,11 +313,14 @@ class LandmarkTracker:
         hypotheses: HypothesisSet | None = None,
         t_ns: int = 0,
         odometry_pose: tuple[float, float, float] = (0.0, 0.0, 0.0),
+        miss_weights: FloatArray | None = None,
     ) -> PoseFix | None:
         """Re-localization without LEDs around a prior (default: the filter's pose and
         covariance): one frame (`relocalization.relocalize`), or, given `hypotheses`, the
         set carried over frames (`HypothesisSet.update` with the frame's time and raw
-        odometry pose). Returns the fix of the one unambiguous hypothesis, or None."""
+        odometry pose). `miss_weights` (one per map row) is what each landmark's absence
+        weighs (`LandmarkLiveness.miss_log_lr`). Returns the fix of the one unambiguous
+        hypothesis, or None."""
         rows = np.arange(len(self.map.positions)) if candidates is None else candidates
         if len(rows) < 2 or len(spots) < 2:
             return None
@@ -288,11 +335,12 @@ class LandmarkTracker:
         if len(rows) < 2:
             return None
         positions = self.map.positions[rows]
+        weights = None if miss_weights is None else miss_weights[rows]
         if hypotheses is None:
-            found = relocalize(self.camera, positions, spots.pixels, pose, cov, rc)
+            found = relocalize(self.camera, positions, spots.pixels, pose, cov, rc, weights)
         else:
             found = hypotheses.update(
-                t_ns, odometry_pose, self.camera, positions, spots.pixels, pose, cov
+                t_ns, odometry_pose, self.camera, positions, spots.pixels, pose, cov, weights
             )
         if not found.accepted or found.pose is None:
             return None
@@ -336,6 +384,16 @@ class LandmarkTracker:
             <= hc.prior_gate_chi2
         ]
         return passing[0] if len(passing) == 1 else []
+
+    def _still_lit(
+        self, landmark_ids: frozenset[int], candidates: npt.NDArray[np.int64] | None
+    ) -> frozenset[int]:
+        """The landmarks among `landmark_ids` that are surely lit (`candidates`: map rows of
+        those; None: every landmark)."""
+        if candidates is None:
+            return landmark_ids
+        ids = self._ids
+        return landmark_ids & frozenset(ids[r] for r in candidates.tolist())
 
     def _fuse(
         self,
@@ -413,12 +471,29 @@ class LandmarkTracker:
         chi2_per_dof = self._chi2_per_dof(fix, sig)
         if chi2_per_dof > fc.max_chi2_per_dof:
             return ()
+        # A fix that moved the floor: the pose the earlier fixes (on the old floor) gave is
+        # read on the new one, as when a calibration is corrected (the filter's belief stays).
+        moved = self._floor_shift
+        if moved != (0.0, 0.0, 0.0):
+            filt.shift(*moved)
         if not filt.update_fix(fix, max_nis=fc.nis_gate, white_covariance=white) <= fc.nis_gate:
+            if moved != (0.0, 0.0, 0.0):
+                filt.shift(-moved[0], -moved[1], -moved[2])
+            self.last_rejected = (rows, px, fix)
             return ()
         self.noise.observe(chi2_per_dof * max(2 * n - 3, 1), n)
+        self._update_floor(fix)
         self.last_fused = (rows, px, fix)
-        self.last_matched = n
+        self.last_matched = frozenset(fix.landmark_ids)
         return fix.landmark_ids
+
+    def _update_floor(self, fix: PoseFix) -> None:
+        """The carried floor takes a fused fix's posterior of tilt and height (3+ landmarks:
+        with fewer the fix kept the prior's, which holds nothing new)."""
+        if fix.floor is not None and fix.floor_covariance is not None and fix.n_landmarks >= 3:
+            self.floor = self.floor.updated((fix.x, fix.y, fix.theta), fix.floor,
+                                            fix.floor_covariance,
+                                            fix.floor_sensitivity)  # fmt: skip
 
     @staticmethod
     def _chi2_per_dof(fix: PoseFix, sig: list[float]) -> float:
@@ -427,7 +502,7 @@ class LandmarkTracker:
         n = len(sig)
         res = fix.residuals_px
         if res:
-            chi2 = sum((r / si) ** 2 for r, si in zip(res, sig, strict=True))
+            chi2 = sum([(r / si) ** 2 for r, si in zip(res, sig, strict=True)])
         else:
             chi2 = n * (fix.residual_rms_px / (sum(sig) / n)) ** 2
         return chi2 / max(2 * n - 3, 1)
@@ -498,16 +573,34 @@ class LandmarkTracker:
         robust: bool,
         tilt: bool = True,
     ) -> PoseFix | None:
+        """`solve_pose` of the pairs; on the carried floor (`LocalizerConfig.floor`), its
+        tilt and height estimated where the spots demand it beyond the pixel noise and the
+        calibration's error (the part of it the carried floor does not share, `floor_plane`
+        eq. 6; with a wide prior around it, then fused with it and the pose conditioned on
+        the fusion, eqs. 4-5), else the tilt by the zero-mean test (`tilt`: allowed)."""
         fc = self.config.fusion
-        return solve_pose(
+        cfg = self.config.floor
+        carried = self.floor.prior(initial, cfg) if cfg.enabled else None
+        aware = carried is not None and cfg.calibration_aware and len(rows) >= 3
+        sensitivity = self.floor.sensitivity_at(initial, cfg) if aware else None
+        self._floor_shift = (0.0, 0.0, 0.0)
+        fix = solve_pose(
             self.camera,
             px,
-            self.map.positions[rows],
+            [self._positions[r] for r in rows],
             initial=initial,
             estimate_tilt=tilt and fc.tilt_from_landmarks and len(rows) >= 3,
             tilt_sigma_rad=fc.tilt_sigma_rad,
+            floor_prior=None if carried is None else self.floor.widened(carried, cfg),
+            calibration_jacobian=self.noise.calibration_jacobian if aware else None,
+            floor_sensitivity=sensitivity,
             pixel_sigma_px=sig,
-            landmark_ids=tuple(self._ids[r] for r in rows),
+            landmark_ids=tuple([self._ids[r] for r in rows]),
             loss=fc.robust_loss if robust else None,
             loss_scale=fc.robust_scale,
         )
+        if carried is None or fix is None:
+            return fix
+        fix, self._floor_shift = fix_on_floor(fix, carried, self.floor.widened(carried, cfg),
+                                              cfg.reset_chi2, sensitivity)  # fmt: skip
+        return fix

@@ -23,7 +23,7 @@ def pixel_from_point(
         (col, row), or None when the point is not valid there: behind the camera, outside
         the lens's field of view, or projecting outside the image.
     """
-    if z <= 1e-9 or z < math.cos(camera.max_angle_rad) * math.sqrt(x * x + y * y + z * z):
+    if z <= 1e-9 or z < camera.cos_max_angle * math.sqrt(x * x + y * y + z * z):
         return None
     a, b = x / z, y / z
     k = camera.coefficients

@@ -26,6 +26,7 @@ import numpy as np
 import numpy.typing as npt
 
 from localizer.camera import CameraModel
+from localizer.candidate_order import ViewOrdering, order_by_view
 from localizer.config import LocalizerConfig
 from localizer.events import (
     Event,
@@ -41,12 +42,15 @@ from localizer.events import (
     SpotsObserved,
 )
 from localizer.first_fix import first_fix
+from localizer.fix_run import FixRun
 from localizer.geometry import wrap_angle
 from localizer.handoff import position_sigma_m
 from localizer.hypothesis_set import HypothesisSet
 from localizer.identification import Identifier
+from localizer.landmark_liveness import LandmarkLiveness
 from localizer.landmark_map import LandmarkMap
 from localizer.landmark_tracker import LandmarkTracker
+from localizer.odometry import integrate_arc
 from localizer.odometry_track import OdometryTrack
 from localizer.online_calibration import OnlineCalibration
 from localizer.pose import PoseFix, solve_pose
@@ -83,6 +87,8 @@ class Localizer:
         self._latest: PoseEstimate | None = None
         self._lit: frozenset[int] | None = None  # None: all lit (or unknown)
         self._changing: frozenset[int] = frozenset()  # LEDs being switched (state unknown)
+        self._t_leds: int | None = None  # when the LED state last changed
+        self._frames_since_leds = 0  # frames stamped since then
         self._odometry = OdometryTrack(
             self.robot.wheel_base,
             self.config.fusion.odometry_history_s,
@@ -99,13 +105,19 @@ class Localizer:
         self._t_frame: int | None = None
         self._expected: tuple[int, ...] = ()  # lit landmarks predicted in view, this frame
         self._rejections = 0  # frames in a row whose spots no fused fix explained
+        self._travel_m = 0.0  # odometry travel since the last fused fix (the slip hypothesis)
         self._t_explained = 0  # the last frame whose spots a fix explained (or none predicted)
         self._last_request: LedRequest | None = None
         self._want_all = False
+        # the sighting the candidates were last ordered from, and the raw odometry then
+        ic = self.config.identification
+        self._view = ViewOrdering(ic.reorder_distance_m, ic.reorder_turn_rad)
+        self._frame_interval_s: float | None = None  # between the last two frames
         self._lit_rows_memo: (
             tuple[frozenset[int] | None, frozenset[int], LandmarkMap, npt.NDArray[np.int64]] | None
         ) = None
         self._tracker = LandmarkTracker(camera, robot, self.config, landmark_map)
+        self._reseeded = False  # this frame's filter was re-seeded from a run of fixes
         sc = self.config.self_calibration
         self.calibration = OnlineCalibration(camera, sc) if sc.enabled else None
         self.set_map(landmark_map)
@@ -115,6 +127,11 @@ class Localizer:
     def mode(self) -> Mode:
         """The current mode."""
         return self._mode
+
+    @property
+    def liveness(self) -> LandmarkLiveness:
+        """What tracking learnt of each landmark (lit, dark), per map row."""
+        return self._liveness
 
     @property
     def latest(self) -> PoseEstimate | None:
@@ -127,6 +144,16 @@ class Localizer:
         pose, identification starts over."""
         self.map = landmark_map
         self._tracker.set_map(landmark_map)
+        # fixes the odometry disagrees with, and the last fused one they must link to
+        self._fix_run = FixRun(
+            self.config.fix_run,
+            max_speed_m_s=self.robot.max_speed,
+            max_turn_rad_s=self._tracker.max_angular_speed_rad_s,
+            spacing_m=self._tracker.spacing_m,
+        )
+        # what tracking learnt of each landmark (lit, dark): what its absence weighs
+        self._liveness = LandmarkLiveness(len(landmark_map.ids), self.config.relocalization)
+        self._t_liveness: int | None = None
         self._half_diag = math.hypot(self.camera.width, self.camera.height) / 2
         self._identifier = Identifier(
             self.config.identification,
@@ -135,6 +162,7 @@ class Localizer:
             image_size=(self.camera.width, self.camera.height),
             principal_point=(self.camera.cu, self.camera.cv),
             motion_px=self._motion_bound_px,
+            odometry_at=self._odometry.pose_at,
         )
         self._start_identification()
         if self._filter is not None and self._mode != "lost":
@@ -163,7 +191,11 @@ class Localizer:
             self._on_odometry(event)
             return []
         if isinstance(event, LedsChanged):
-            self._lit = None if event.all_lit else frozenset(event.lit)
+            lit = None if event.all_lit else frozenset(event.lit)
+            if (lit, frozenset(event.changing)) != (self._lit, self._changing):
+                self._t_leds = event.t_ns
+                self._frames_since_leds = 0
+            self._lit = lit
             self._changing = frozenset(event.changing)
             self._identifier.led_confirmed(event.t_ns, self._known_lit())
             return self._requests(event.t_ns)
@@ -194,11 +226,13 @@ class Localizer:
         self._t_filter = max(self._t_filter, t_ns)
         self._commit = True
         self._rejections = 0
+        self._travel_m = 0.0
         self._t_explained = t_ns
         if self.calibration is not None:
             self.calibration.break_track()
         self._hypotheses.clear()
-        self._tracker.last_matched = 0
+        self._tracker.last_matched = frozenset()
+        self._fix_run.clear()
 
     def _advance(self, t_ns: int, v_left: float, v_right: float) -> PoseFilter | None:
         """Extrapolate odometry (raw, and a copy of the filter) from the last state time to
@@ -233,7 +267,8 @@ class Localizer:
         )
 
     def _on_odometry(self, e: OdometryMeasured) -> None:
-        vl, vr, _ = self._odometry.add_sample(e.t_ns, e.v_left, e.v_right)
+        vl, vr, step_s = self._odometry.add_sample(e.t_ns, e.v_left, e.v_right)
+        self._travel_m += 0.5 * (abs(vl) + abs(vr)) * step_s
         dt = (e.t_ns - self._t_filter) * _NS
         if self._filter is not None and dt > 0:
             self._filter.predict(vl, vr, dt)
@@ -258,13 +293,15 @@ class Localizer:
         t = e.t_ns
         base = self._advance(t, *self._odometry.speeds)
         dt_frame = min((t - self._t_frame) * _NS, 1.0) if self._t_frame is not None else 0.0
+        if dt_frame > 0:
+            self._frame_interval_s = dt_frame
         self._t_frame = t
         self._odometry.mark(t)
         used: tuple[int, ...] = ()
         self._expected = ()
         if self._filter is None or self._mode in ("identifying", "lost"):
             spots = self._tracker.full_spots(e)
-            self._identifier.observe(t, self._known_lit(), spots.pixels, spots.intensities)
+            self._identifier.observe(t, self._lit_for_evidence(t), spots.pixels, spots.intensities)
             fix = self._fix_from_sightings(t)
             if fix is not None:
                 self._reset_filter(fix.x, fix.y, fix.theta, fix.covariance, t)
@@ -283,7 +320,9 @@ class Localizer:
             self._widen_unexplained(t)
             used = self._track(e, dt_frame)
             self._mode = "landmark" if used else "dead_reckoning"
-            if used and self.calibration is not None:
+            if used:
+                self._learn_liveness(t)
+            if used and self.calibration is not None and not self._reseeded:
                 self._self_calibrate(t)
         self._commit = self._commit or bool(used)
         self._check_lost(t)
@@ -315,18 +354,40 @@ class Localizer:
             dt_frame_s=dt_frame,
             fresh_odometry=fresh,
             since_sample_s=since,
+            travel_since_fix_m=self._travel_m,
             candidates=cand,
             spots=spots,
             reacquire=reacquire,
         )
         self._expected = result.expected
+        self._reseeded = False
+        if result.used:
+            self._fix_run.fused(e.t_ns, self._filter.pose, self._filter.covariance, result.used)
+        elif not reacquire and result.rejected is not None:
+            result = result._replace(used=self._reseed(e.t_ns, result.rejected))
         if result.used:
             self._rejections = 0
+            self._travel_m = 0.0
         elif result.unexplained:
             self._rejections += 1
         if not result.unexplained:
             self._t_explained = e.t_ns
         return result.used
+
+    def _reseed(self, t_ns: int, fix: PoseFix) -> tuple[int, ...]:
+        """A good fix the filter rejected: when it completes (or continues) a run of such
+        fixes that form one track the robot could have driven by itself (`fix_run`: the
+        odometry is what is wrong, a stall, a spinning wheel, a bump), the filter is re-seeded
+        at it; returns its IDs (empty: not taken). The odometry's track is broken there, so
+        the self-calibration starts a new one."""
+        if self._filter is None or not self._fix_run.offer(t_ns, fix):
+            return ()
+        used = self._tracker.adopt_rejected(self._filter)
+        if used:
+            self._reseeded = True
+            if self.calibration is not None:
+                self.calibration.break_track()
+        return used
 
     def _widen_unexplained(self, t_ns: int) -> None:
         """After frames whose spots no fix explained, the robot may have been moved without
@@ -363,19 +424,45 @@ class Localizer:
                 sigma = sigma0 + math.hypot(odo[0] - odo0[0], odo[1] - odo0[1])
                 prior = ((x, y, th), np.diag([sigma**2, sigma**2, var_th]))
             fix = self._tracker.relocalize(
-                self._filter, spots, cand, prior=prior,
-                hypotheses=self._hypotheses, t_ns=t_ns, odometry_pose=odo,
+                self._filter, spots, cand, prior=prior, hypotheses=self._hypotheses,
+                t_ns=t_ns, odometry_pose=odo, miss_weights=self._miss_weights(),
             )  # fmt: skip
         else:
             every = self.config.relocalization.every_s
             if self._t_relocalized is not None and (t_ns - self._t_relocalized) * _NS < every:
                 return ()
             self._t_relocalized = t_ns
-            fix = self._tracker.relocalize(self._filter, spots, cand)
+            fix = self._tracker.relocalize(
+                self._filter, spots, cand, miss_weights=self._miss_weights()
+            )
         if fix is None:
             return ()
         self._reset_filter(fix.x, fix.y, fix.theta, fix.covariance, t_ns)
         return fix.landmark_ids
+
+    def _learn_liveness(self, t_ns: int) -> None:
+        """A fused frame (at most every `score_every_s`): which landmarks predicted well in
+        view were detected (`LandmarkLiveness.observe_frame`)."""
+        every = self.config.relocalization.score_every_s
+        fused = self._tracker.last_fused
+        if fused is None or self._filter is None:
+            return
+        if self._t_liveness is not None and (t_ns - self._t_liveness) * _NS < every:
+            return
+        self._t_liveness = t_ns
+        index = self.map.index_of
+        predicted = np.array([index(i) for i in self._expected], dtype=np.int64)
+        x, y, th = (float(v) for v in self._filter.state)
+        rows, px, _ = fused
+        self._liveness.observe_frame(
+            self.camera, (x, y, th), self.map.positions, predicted,
+            np.asarray(rows, dtype=np.int64), np.asarray(px, dtype=np.float64).reshape(-1, 2),
+        )  # fmt: skip
+
+    def _miss_weights(self) -> FloatArray:
+        """What each landmark's absence weighs against a hypothesis (`LandmarkLiveness`),
+        one per map row; fixed while lost (nothing is learnt then)."""
+        return self._liveness.miss_log_lr()
 
     def _self_calibrate(self, t_ns: int) -> None:
         """Feed the fused fix to the online self-calibration; when it hands back a corrected
@@ -390,11 +477,17 @@ class Localizer:
             return
         P = self.map.positions[rows]
         pose = (fix.x, fix.y, fix.theta)
-        update = self.calibration.observe(t_ns, px, P, pose, self._odometry.pose_at(t_ns))
+        update = self.calibration.observe(t_ns, px, P, pose, self._odometry.pose_at(t_ns),
+                                          fix.floor)  # fmt: skip
         if update is None:
             return
         sigma = [self._tracker.noise.sigma_px(u, v) for u, v in px]
-        moved = solve_pose(update.camera, px, P, initial=pose, pixel_sigma_px=sigma)
+        # on the floor the fix stood on (its tilt and height), not the map's level one
+        on = None if fix.floor is None else (
+            (float(fix.floor[0]), float(fix.floor[1]), float(fix.floor[2])), np.eye(3) * 1e-12
+        )  # fmt: skip
+        moved = solve_pose(update.camera, px, P, initial=pose, pixel_sigma_px=sigma,
+                           floor_prior=on)  # fmt: skip
         if moved is not None:
             self._filter.shift(moved.x - fix.x, moved.y - fix.y,
                                float(wrap_angle(moved.theta - fix.theta)))  # fmt: skip
@@ -418,8 +511,38 @@ class Localizer:
             max_residual_px=fc.max_residual_px,
         )
         if fix is None:
-            self._start_identification()  # inconsistent sightings: identify again
+            # Inconsistent sightings: keep the newest (a fresh one, near the robot), find
+            # another in view of it.
+            self._identifier.keep_newest()
+            self._view.reset()
         return fix
+
+    def _order_by_view(self, t_ns: int) -> None:
+        """With one landmark identified (or showing itself), probe first the candidates in
+        view of where the robot can be when the next probe lands (`order_by_view`: the
+        sighting's ray from its odometry pose, the odometry since, extrapolated at the
+        current wheel speeds over the measured command latency and the frames a probe
+        needs); again once odometry has moved `reorder_distance_m` or turned
+        `reorder_turn_rad` since the last ordering."""
+        anchor = self._identifier.anchor
+        if anchor is None or anchor.landmark_id not in self.map:
+            return
+        ic = self.config.identification
+        odo = self._odometry.pose_at(t_ns)
+        if not self._view.due(anchor, odo):
+            return
+        frame_s = self._frame_interval_s or 0.0
+        lead_s = self._identifier.probes.latency_s + ic.frames_per_led * frame_s
+        x, y, th = self._odometry.pose
+        landing = integrate_arc(x, y, th, *self._odometry.speeds, lead_s, self.robot.wheel_base)
+        then = anchor.odometry or self._odometry.pose_at(anchor.t_ns)
+        ranked = order_by_view(
+            self.camera, self.map.ids.tolist(), self.map.positions, anchor.landmark_id,
+            anchor.pixel, then, landing,
+            headings=ic.view_headings, inner_radius_px=self._identifier.inner_radius_px,
+        )  # fmt: skip
+        order, fresh = self._view.ordered(anchor, odo, ranked)
+        self._identifier.prefer(order, come_into_view=fresh)
 
     def _known_lit(self) -> frozenset[int] | None:
         """The IDs lit now (every mapped one when all are lit); None while a switch is in
@@ -427,6 +550,19 @@ class Localizer:
         if self._changing:
             return None
         return self._identifier.all_lit if self._lit is None else self._lit
+
+    def _lit_for_evidence(self, t_ns: int) -> frozenset[int] | None:
+        """The LED state a frame stamped `t_ns` was surely exposed under; None (unknown) for
+        the first `IdentificationConfig.led_settle_frames` frames after a change and within
+        its `led_settle_s`."""
+        ic = self.config.identification
+        self._frames_since_leds += 1
+        if self._t_leds is not None and (
+            self._frames_since_leds <= ic.led_settle_frames
+            or (t_ns - self._t_leds) * _NS < ic.led_settle_s
+        ):
+            return None
+        return self._known_lit()
 
     def _lit_rows(self) -> npt.NDArray[np.int64]:
         """Map rows of the landmarks surely lit (not being switched); remembered while the
@@ -472,6 +608,7 @@ class Localizer:
             sigma0 = max(position_sigma_m(self._filter.covariance_rows), fc.lost_sigma_m)
             self._lost_at = (x, y, th, sigma0, var_th, self._odometry.pose)
             self._hypotheses.clear()
+            self._fix_run.clear()
 
     def _start_identification(self) -> None:
         ids = self.map.ids.tolist()
@@ -480,6 +617,7 @@ class Localizer:
             d = np.hypot(self.map.positions[:, 0] - x, self.map.positions[:, 1] - y)
             ids = [int(self.map.ids[i]) for i in np.argsort(d, kind="stable")]
         self._identifier.restart(ids)
+        self._view.reset()
         self._last_request = None
         self._sweeping = True
 
@@ -491,6 +629,7 @@ class Localizer:
                 return [LedRequest(all_lit=True)]
         if not self._sweeping:
             return []
+        self._order_by_view(t_ns)
         req = self._identifier.next_request(t_ns)
         if req is None or req == self._last_request:
             return []

@@ -172,6 +172,11 @@ class PixelNoiseModel:
         found = self.consider.covariance(pixels, p_world, pose, sigma_px, self.factor)
         return None if found is None else found[1]
 
+    def calibration_jacobian(self, pixels: list[list[float]]) -> FloatArray:
+        """d pixel per standard deviation of each calibration parameter at `pixels`, shape
+        (N, 2, P) (`CalibrationConsider.scaled_jacobian`, this model's factor applied)."""
+        return self.consider.scaled_jacobian(pixels, self.factor)
+
     def sigma_px(self, u: float, v: float) -> float:
         """The standard deviation of a spot at pixel (u, v), per axis, pixels."""
         f = math.hypot(u - self._cu, v - self._cv) / self._step

@@ -73,13 +73,20 @@ def reprojection_chi2(
     camera: CameraModel,
     frames: list[tuple[FloatArray, FloatArray, Pose, Pose]],
     pixel_sigma_px: float,
+    floors: FloatArray | None = None,
 ) -> float:
     """Sum over frames of the pose fit's chi-square (squared reprojection errors over the
-    pixel variance), each frame solved again with `camera` from its pose; inf when one
-    frame does not solve."""
+    pixel variance), each frame solved again with `camera` from its pose, on its floor
+    (`floors` (M, 3) of (roll, pitch, dz); None: level); inf when one frame does not
+    solve."""
     total = 0.0
-    for px, P, pose, _ in frames:
-        fix = solve_pose(camera, px, P, initial=pose, pixel_sigma_px=pixel_sigma_px)
+    for k, (px, P, pose, _) in enumerate(frames):
+        on = None
+        if floors is not None:
+            r, p, dz = (float(v) for v in floors[k])
+            on = ((r, p, dz), np.eye(3) * 1e-12)
+        fix = solve_pose(camera, px, P, initial=pose, pixel_sigma_px=pixel_sigma_px,
+                         floor_prior=on)  # fmt: skip
         if fix is None:
             return float("inf")
         total += fix.n_landmarks * (fix.residual_rms_px / pixel_sigma_px) ** 2
@@ -135,19 +142,21 @@ class OnlineCalibration:
         p_world: npt.ArrayLike,
         pose: Pose,
         odometry: Pose,
+        floor: npt.ArrayLike | None = None,
     ) -> CalibrationUpdate | None:
-        """One fused fix: its spots (N, 2), their landmarks (N, 3), the fixed pose and the raw
-        odometry pose at the frame. Returns a calibration to use from now on, or None."""
+        """One fused fix: its spots (N, 2), their landmarks (N, 3), the fixed pose, the raw
+        odometry pose at the frame and the floor it stood on ((roll, pitch, dz); None:
+        level). Returns a calibration to use from now on, or None."""
         cfg = self.config
         px = np.asarray(pixels, dtype=np.float64).reshape(-1, 2)
         if not self.wants(t_ns, len(px)):
             return None
         self._t_kept = t_ns
-        self._window.add(px, p_world, pose, odometry)
+        self._window.add(px, p_world, pose, odometry, floor)
         if len(self._window) < cfg.window_frames:
             return None
         frames = self._window.frames
-        update = self._validate(frames)
+        update = self._validate(frames, self._window.floors)
         est = self._window.solve(self._mean, self._cov)
         self._window.clear()
         self.windows += 1
@@ -180,16 +189,16 @@ class OnlineCalibration:
         return c
 
     def _validate(
-        self, frames: list[tuple[FloatArray, FloatArray, Pose, Pose]]
+        self, frames: list[tuple[FloatArray, FloatArray, Pose, Pose]], floors: FloatArray
     ) -> CalibrationUpdate | None:
         """Apply the candidate when it explains these (new) frames better (module docstring)."""
         c, self._candidate = self._candidate, None
         if c is None:
             return None
         sigma = self.config.pixel_sigma_px
-        now = reprojection_chi2(self.camera_in_use, frames, sigma)
+        now = reprojection_chi2(self.camera_in_use, frames, sigma, floors)
         cam = corrected_camera(self.camera, c)
-        new = reprojection_chi2(cam, frames, sigma)
+        new = reprojection_chi2(cam, frames, sigma, floors)
         ratio = new / now if now > 0 else float("inf")
         if not ratio <= 1.0 - self.config.min_improvement:
             self.rejected += 1

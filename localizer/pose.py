@@ -21,7 +21,7 @@ Frames: see docs/conventions.md and docs/estimation.md.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -29,7 +29,15 @@ import numpy.typing as npt
 
 from localizer.camera import CameraModel, normalized_from_pixels
 from localizer.geometry import wrap_angle
-from localizer.pose_planar import floor_points, procrustes_2d, solve_planar, solve_tilted
+from localizer.pose_planar import (
+    ROBUST_WEIGHTS,
+    floor_change_chi2,
+    floor_points,
+    level_mounting,
+    procrustes_2d,
+    solve_planar,
+    solve_tilted,
+)
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -149,8 +157,16 @@ class PoseFix:
             (sqrt of the mean over landmarks of the squared pixel distance).
         landmark_ids: the landmarks used, in the order given.
         n_landmarks: how many landmarks were used.
-        residuals_px: each landmark's reprojection error of the level fit, pixels (empty
-            when the tilted fit was taken).
+        residuals_px: each landmark's reprojection error, pixels (empty when the tilted
+            fit of the zero-mean test was taken; a fix solved with a tilt prior has them).
+        floor: (roll, pitch, dz) when solved with a floor prior (None otherwise): the tilt
+            and the body's height above the map's floor, metres.
+        floor_covariance: their posterior covariance when the fix estimated them, shape
+            (3, 3) (the carried floor's update, `floor_plane`), else None.
+        floor_cross: then the covariance of (x, y, theta) with them, shape (3, 3).
+        floor_sensitivity: then, when solved with a `calibration_jacobian`, what of the
+            calibration's error the floor holds: d floor / d c per standard deviation of
+            each calibration parameter, shape (3, Q) (`pose_planar.floor_change_chi2`'s E).
     """
 
     x: float
@@ -162,23 +178,30 @@ class PoseFix:
     landmark_ids: tuple[int, ...] = ()
     n_landmarks: int = 0
     residuals_px: tuple[float, ...] = ()
+    floor: FloatArray | None = None
+    floor_covariance: FloatArray | None = None
+    floor_cross: FloatArray | None = None
+    floor_sensitivity: FloatArray | None = None
 
     def plus_covariance_turned(self, term: FloatArray, turn_rad: float) -> PoseFix:
         """This fix with `term` (3, 3), turned about the vertical by `turn_rad`
         (R term R^T), added to its covariance (plain floats: the tracking hot path)."""
         c, s = math.cos(turn_rad), math.sin(turn_rad)
-        C0, C1, C2 = term.tolist()
+        (a0, a1, a2), (b0, b1, b2), (g0, g1, g2) = term.tolist()
+        # R C: rows 0 and 1 turned, row 2 as it is; then (R C) R^T added, row by row
         RC = (
-            [c * u - s * v for u, v in zip(C0, C1, strict=True)],
-            [s * u + c * v for u, v in zip(C0, C1, strict=True)],
-            C2,
+            (c * a0 - s * b0, c * a1 - s * b1, c * a2 - s * b2),
+            (s * a0 + c * b0, s * a1 + c * b1, s * a2 + c * b2),
+            (g0, g1, g2),
         )
         cov = np.array([
             [p0 + c * r0 - s * r1, p1 + s * r0 + c * r1, p2 + r2]
             for (p0, p1, p2), (r0, r1, r2) in zip(self.covariance.tolist(), RC, strict=True)
         ])  # fmt: skip
         return PoseFix(self.x, self.y, self.theta, cov, self.tilt, self.residual_rms_px,
-                       self.landmark_ids, self.n_landmarks, self.residuals_px)  # fmt: skip
+                       self.landmark_ids, self.n_landmarks, self.residuals_px,
+                       self.floor, self.floor_covariance, self.floor_cross,
+                       self.floor_sensitivity)  # fmt: skip
 
 
 def solve_pose(
@@ -191,6 +214,9 @@ def solve_pose(
     pixel_sigma_px: float | Sequence[float] = 0.3,
     landmark_ids: tuple[int, ...] = (),
     tilt_sigma_rad: float | None = None,
+    floor_prior: tuple[tuple[float, float, float], FloatArray] | None = None,
+    calibration_jacobian: Callable[[list[list[float]]], FloatArray] | None = None,
+    floor_sensitivity: FloatArray | None = None,
     loss: str | None = None,
     loss_scale: float = 2.0,
     tilt_min_chi2_drop: float = 9.21,
@@ -225,6 +251,28 @@ def solve_pose(
             (least squares); `loss_scale` is its threshold in sigmas.
         landmark_ids: IDs to carry into the fix.
         tilt_sigma_rad: optional zero-mean prior on roll and pitch (None: no prior).
+        floor_prior: a prior on the body's tilt and height above the map's floor,
+            ((roll, pitch radians, dz metres), covariance (3, 3)): the floor carried from
+            earlier fixes (`floor_plane`). Given, the level fit is solved on that floor (at
+            the prior's tilt and height), and the test below is made around it: with 3+
+            landmarks and `estimate_tilt` the tilted fit (tilt and height too, the prior's
+            Bayesian update, robust by the carried fit's weights) is taken when it lowers
+            the chi-square by more than `tilt_min_chi2_drop`; then `floor` and
+            `floor_covariance` are its posterior. Otherwise `floor` is the prior's mean and
+            `floor_covariance` None (the floor carried; its uncertainty, common to the
+            frames on it, is not added to the fix's, as the level floor's never was).
+        calibration_jacobian: with `floor_prior`, the function of the spots' pixels (N, 2)
+            giving d pixel / d calibration of each, times the calibration's standard
+            deviations, shape (N, 2, Q) (`PixelNoiseModel.calibration_jacobian`; called only
+            when the test below needs it). Given, the tilted fit's floor is also
+            taken only when its change from the prior's is significant against what pixel
+            noise and the calibration's error make of it (`floor_change_chi2` above
+            `tilt_min_chi2_drop`): a calibration's error displaces a dense grid's spots
+            coherently, partly like a tilt and a height, and the chi-square drop of pixel
+            noise alone grows with the number of landmarks; the calibration's share of the
+            floor's spread does not shrink with it.
+        floor_sensitivity: what of the calibration's error the prior's floor holds, shape
+            (3, Q) (`FloorPlane.sensitivity_at`; None: none), for that test.
         tilt_min_chi2_drop: the tilted fit is taken only when it lowers the chi-square
             (sum of squared reprojection errors over sigma^2) by more than this; 9.21 is the
             99 % point of chi-square with 2 dof, 0 always takes it.
@@ -238,15 +286,22 @@ def solve_pose(
     Raises:
         ValueError: when `pixels` and `p_world` have mismatched or wrong shapes.
     """
-    px = np.asarray(pixels, dtype=np.float64)
-    P = np.asarray(p_world, dtype=np.float64)
-    if px.ndim != 2 or px.shape[1] != 2 or P.shape != (len(px), 3):
-        raise ValueError(
-            f"solve_pose: pixels must be (N, 2) and p_world (N, 3), got {px.shape} and {P.shape}"
-        )
-    n = len(px)
-    pl = px.tolist()
-    Pl = P.tolist()
+    if isinstance(pixels, list) and isinstance(p_world, list):
+        # nested lists (the tracking hot path): checked as they are, no round trip through numpy
+        pl, Pl = pixels, p_world
+        if len(Pl) != len(pl) or any(len(p) != 2 for p in pl) or any(len(p) != 3 for p in Pl):
+            shapes = [len(p) for p in pl], [len(p) for p in Pl]
+            raise ValueError(f"solve_pose: pixels must be (N, 2) and p_world (N, 3), got {shapes}")
+    else:
+        px = np.asarray(pixels, dtype=np.float64)
+        P = np.asarray(p_world, dtype=np.float64)
+        if px.ndim != 2 or px.shape[1] != 2 or P.shape != (len(px), 3):
+            raise ValueError(
+                f"solve_pose: pixels must be (N, 2) and p_world (N, 3), got {px.shape} and "
+                f"{P.shape}"
+            )
+        pl, Pl = px.tolist(), P.tolist()
+    n = len(pl)
     # a sum is finite only if every term is (inf - inf is nan)
     if n < 2 or not math.isfinite(sum(map(sum, pl)) + sum(map(sum, Pl))):
         return None
@@ -260,12 +315,15 @@ def solve_pose(
     h = _JACOBIAN_STEP_PX
     shifted = pl + [[c + h, r] for c, r in pl] + [[c, r + h] for c, r in pl]
     nl = normalized_from_pixels(camera, shifted).tolist()
-    m = [(mx, my) for mx, my in nl[:n]]
+    m = nl[:n]
     A = [
         ((ux - mx) / h, (vx - mx) / h, (uy - my) / h, (vy - my) / h)
         for (mx, my), (ux, uy), (vx, vy) in zip(m, nl[n : 2 * n], nl[2 * n :], strict=True)
     ]
-    floor = floor_points(m, A, [p[2] for p in Pl], camera.T_body_camera_rows)
+    mounting: Sequence[Sequence[float]] = camera.T_body_camera_rows
+    if floor_prior is not None:
+        mounting = level_mounting(camera.T_body_camera, *floor_prior[0])
+    floor = floor_points(m, A, [p[2] for p in Pl], mounting)
     if floor is None:
         return None
     q, G = floor
@@ -288,15 +346,50 @@ def solve_pose(
         return None
     (x, y, theta), c, rms, res = planar
     sig = [pixel_sigma_px] * n if isinstance(pixel_sigma_px, int | float) else pixel_sigma_px
-    chi2_level = sum((r / si) ** 2 for r, si in zip(res, sig, strict=True))
-    sigma_px = math.sqrt(sum(si * si for si in sig) / n)
+    chi2_level = sum([(r / si) ** 2 for r, si in zip(res, sig, strict=True)])
+    sigma_px = math.sqrt(sum([si * si for si in sig]) / n)
     covariance = np.array([[c[0], c[1], c[2]], [c[1], c[3], c[4]], [c[2], c[4], c[5]]])
     tilt = np.zeros(2)
     # Tilt only when the data demand it: the level fit's chi-square must drop by more than
     # `tilt_min_chi2_drop` (a likelihood-ratio test, 2 dof). The drop cannot exceed the level
     # fit's own chi-square, so a consistent level fit skips the tilted solve altogether.
     residuals = tuple(res)
-    if estimate_tilt and n >= 3 and chi2_level > tilt_min_chi2_drop:
+    floor_e = floor_cov = floor_cross = floor_sens = None
+    if floor_prior is not None:
+        # The carried floor's fit (above) unless the spots demand a floor of their own: the
+        # tilted fit with the carried floor as its prior must lower the chi-square by more
+        # than `tilt_min_chi2_drop` (the likelihood-ratio test of the zero-mean case,
+        # around the carried floor instead of the level one).
+        e0, _ = floor_prior
+        floor_e = np.array(e0, dtype=np.float64)
+        tilt = floor_e[:2].copy()
+        if estimate_tilt and n >= 3 and chi2_level > tilt_min_chi2_drop:
+            # the carried fit's robust weights kept: sigma_i / sqrt(w_i)
+            w = [ROBUST_WEIGHTS[loss](r / si, loss_scale) if loss else 1.0
+                 for r, si in zip(res, sig, strict=True)]  # fmt: skip
+            sig_w = [si / math.sqrt(wi) for si, wi in zip(sig, w, strict=True)]
+            tilted = solve_tilted(m, A, [p[2] for p in Pl], P_xy, camera.T_body_camera,
+                                  (x, y, theta, *e0), sig_w, None, max_iterations,
+                                  floor_prior=floor_prior)  # fmt: skip
+            if tilted is not None:
+                params, cov_full, rms_t, res_t = tilted
+                chi2_t = sum((r / si) ** 2 for r, si in zip(res_t, sig, strict=True))
+                take = tilt_min_chi2_drop <= 0 or chi2_level - chi2_t > tilt_min_chi2_drop
+                if take and calibration_jacobian is not None:
+                    change, floor_sens = floor_change_chi2(
+                        m, A, [p[2] for p in Pl], P_xy, camera.T_body_camera, params, cov_full,
+                        sig_w, floor_prior, calibration_jacobian(pl),
+                        floor_sensitivity)  # fmt: skip
+                    # nan (degenerate): as without
+                    take = tilt_min_chi2_drop <= 0 or not change <= tilt_min_chi2_drop
+                if take:
+                    x, y, theta = params[0], params[1], params[2]
+                    covariance, rms = cov_full[:3, :3].copy(), rms_t
+                    floor_e, floor_cov = np.array(params[3:6]), cov_full[3:6, 3:6].copy()
+                    floor_cross = cov_full[:3, 3:6].copy()
+                    tilt = floor_e[:2].copy()
+                    residuals = tuple(res_t)
+    elif estimate_tilt and n >= 3 and chi2_level > tilt_min_chi2_drop:
         roll0, pitch0 = (float(v) for v in initial.tilt) if isinstance(initial, PoseFix) else (0, 0)
         tilted = solve_tilted(
             m,
@@ -310,8 +403,9 @@ def solve_pose(
             max_iterations,
         )
         if tilted is not None:
-            params, cov_full, rms_tilted = tilted
-            if chi2_level - n * (rms_tilted / sigma_px) ** 2 > tilt_min_chi2_drop:
+            params, cov_full, rms_tilted, _ = tilted
+            drop = chi2_level - n * (rms_tilted / sigma_px) ** 2
+            if tilt_min_chi2_drop <= 0 or drop > tilt_min_chi2_drop:
                 x, y, theta = params[0], params[1], params[2]
                 covariance, tilt = cov_full[:3, :3].copy(), np.array(params[3:5])
                 rms = rms_tilted
@@ -326,4 +420,8 @@ def solve_pose(
         landmark_ids=tuple(map(int, landmark_ids)),
         n_landmarks=n,
         residuals_px=residuals,
+        floor=floor_e,
+        floor_covariance=floor_cov,
+        floor_cross=floor_cross,
+        floor_sensitivity=floor_sens if floor_cov is not None else None,
     )

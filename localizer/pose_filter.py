@@ -71,6 +71,12 @@ class FilterConfig:
         attenuate_turn_scale: evaluate the wheel base's Jacobian at the expected true turn
             given the measured one (the measured turn's noise otherwise biases k_b upwards
             while driving straight; see `predict`).
+        turn_power_time_constant_s: the expected true turn rate's prior variance is
+            estimated from the measured turn rates of the samples before, averaged with
+            this time constant, seconds (empirical Bayes: driving straight it is the
+            wheels' noise alone, so the wheel base's Jacobian is shrunk to nearly zero; in
+            a turn it is the turn's own). 0: from the step's own measured turn (a partial
+            shrink: that turn's noise is the heading error it causes).
     """
 
     wheel_noise_m_per_sqrt_s: float = 0.003
@@ -86,6 +92,7 @@ class FilterConfig:
     adapt_gain: float = 0.005
     noise_scale_bounds: tuple[float, float] = (0.7, 4.0)
     attenuate_turn_scale: bool = True
+    turn_power_time_constant_s: float = 0.25
 
     def __post_init__(self) -> None:
         for name in (
@@ -94,6 +101,7 @@ class FilterConfig:
             "calibration_walk_per_sqrt_s",
             "output_time_constant_s",
             "output_settle_s",
+            "turn_power_time_constant_s",
         ):
             v = getattr(self, name)
             if not math.isfinite(v) or v < 0:
@@ -206,6 +214,13 @@ class PoseFilter:
             raise ValueError(f"PoseFilter: wheel_base must be positive metres, got {wheel_base!r}")
         self.config = config or FilterConfig()
         self.wheel_base = float(wheel_base)
+        c = self.config
+        # the noise densities squared, once (`predict` runs at the odometry's rate)
+        self._noise2 = (
+            c.wheel_noise_m_per_sqrt_s**2,
+            c.wheel_slip_m_per_sqrt_m**2,
+            c.calibration_walk_per_sqrt_s**2,
+        )
         self._X: State = [0.0, 0.0, 0.0, 1.0, 1.0, 1.0]
         k2 = self.config.calibration_prior_sigma**2 if self.config.estimate_calibration else 0.0
         # P as nested Python lists: for 6 states numpy's per-call overhead dominates
@@ -214,6 +229,7 @@ class PoseFilter:
         self._age_s = 0.0  # time since the last reset
         self._propagation = DeferredPropagation()
         self.noise_scale = 1.0  # odometry noise over the configured one (adapted online)
+        self._turn_power = 0.0  # running mean of the measured turn rate squared, rad^2/s^2
         # cross-covariance of the state's error with the last fixes' systematic error, and
         # their landmarks (`fix_bias`); None: no correlated fix since the last reset
         self._C: Rows | None = None
@@ -301,14 +317,15 @@ class PoseFilter:
         The deferred propagation is copied, not applied: the copy applies it with its own
         steps in one go (a frame pays for one propagation, not two)."""
         twin = object.__new__(PoseFilter)
-        twin.config, twin.wheel_base = self.config, self.wheel_base
+        twin.config, twin.wheel_base, twin._noise2 = self.config, self.wheel_base, self._noise2
         twin._X = list(self._X)
         twin._P = [list(r) for r in self._P]
         twin._offset = list(self._offset)
         twin._age_s = self._age_s
         twin._propagation = self._propagation.copy()
         twin.noise_scale = self.noise_scale
-        twin._C = None if self._C is None else [row[:] for row in self._C]
+        twin._turn_power = self._turn_power
+        twin._C = self._C  # (never modified in place: each step builds a new one)
         twin._bias_ids, twin._bias_at, twin._bias_R = self._bias_ids, self._bias_at, self._bias_R
         return twin
 
@@ -348,7 +365,8 @@ class PoseFilter:
         self._X, F_top, G = motion_step(X, v_left, v_right, dt, self.wheel_base)
         # M: variance of each wheel's true speed, from its travel's noise over the step
         k2 = self.noise_scale * self.noise_scale
-        q2, s2 = k2 * cfg.wheel_noise_m_per_sqrt_s**2 * dt, k2 * cfg.wheel_slip_m_per_sqrt_m**2
+        noise2, slip2, walk2 = self._noise2
+        q2, s2 = k2 * noise2 * dt, k2 * slip2
         m_l = (q2 + s2 * abs(X[4] * v_left * dt)) / (dt * dt)
         m_r = (q2 + s2 * abs(X[3] * v_right * dt)) / (dt * dt)
         if cfg.attenuate_turn_scale:
@@ -356,16 +374,27 @@ class PoseFilter:
             # driving straight, dR is the wheels' noise alone, the heading error it causes
             # and the column share it, and every fix then pushed k_b up (by the noise's
             # variance: 3 % in 15 s, so the next 180 deg turn was 5 deg off). Evaluated at
-            # the expected true turn given the measured one, dR dR^2 / (dR^2 + var(dR)).
+            # the expected true turn given the measured one, dR w^2 / (w^2 + var(r)), w^2
+            # the true turn rate's prior variance: the mean square of the turn rates
+            # measured before (less their noise's variance), so that the shrink does not
+            # depend on this step's noise (with w^2 = r^2, this step's own rate, the
+            # product f dR still is odd in its noise, and k_b was still pushed up, by about
+            # half: `test_fix_bias.py`).
             W = X[5] * self.wheel_base
-            dR = (X[3] * v_right - X[4] * v_left) * dt / W
-            var_dR = (m_l + m_r) * dt * dt / (W * W)
-            f = dR * dR / (dR * dR + var_dR) if var_dR > 0 else 1.0
+            r = (X[3] * v_right - X[4] * v_left) / W  # the measured turn rate
+            var_r = (m_l + m_r) / (W * W)
+            tau = cfg.turn_power_time_constant_s
+            if tau > 0:
+                w2 = max(self._turn_power - var_r, 0.0)
+                self._turn_power += min(dt / tau, 1.0) * (r * r - self._turn_power)
+            else:
+                w2 = r * r
+            f = w2 / (w2 + var_r) if var_r > 0 else 1.0
             F_top[0][5] *= f
             F_top[1][5] *= f
             F_top[2][5] *= f
 
-        walk = cfg.calibration_walk_per_sqrt_s**2 * dt if cfg.estimate_calibration else 0.0
+        walk = walk2 * dt if cfg.estimate_calibration else 0.0
         self._propagation.add_step(F_top, G, m_l, m_r, walk)
 
         self._age_s += dt
@@ -389,9 +418,11 @@ class PoseFilter:
         self._flush()
         x, y, th = observation_model(self._X)
         innovation = [fix.x - x, fix.y - y, float(wrap_angle(fix.theta - th))]
-        (p00, p01, p02, *_), (_, p11, p12, *_), (_, _, p22, *_) = self._P[:3]
+        P0, P1, P2 = self._P[0], self._P[1], self._P[2]
         (r00, r01, r02), (_, r11, r12), (_, _, r22) = np.asarray(fix.covariance).tolist()
-        S_inv = inverse_3x3_sym([p00 + r00, p01 + r01, p02 + r02, p11 + r11, p12 + r12, p22 + r22])
+        S_inv = inverse_3x3_sym(
+            [P0[0] + r00, P0[1] + r01, P0[2] + r02, P1[1] + r11, P1[2] + r12, P2[2] + r22]
+        )
         return innovation, S_inv
 
     def nis(self, fix: PoseFix) -> float:
@@ -426,14 +457,15 @@ class PoseFilter:
             fix not applied) when S is singular.
         """
         if white_covariance is not None:
-            found = self._consider_step(fix, white_covariance)
+            ids = frozenset(fix.landmark_ids)
+            found = self._consider_step(fix, white_covariance, ids)
             if found is None:
                 return math.inf
             dX, P_new, C_new, nis, R_bias = found
             if max_nis is not None and not nis <= max_nis:
                 return nis
             self._P, self._C = P_new, C_new
-            self._bias_ids, self._bias_at = frozenset(fix.landmark_ids), (fix.x, fix.y)
+            self._bias_ids, self._bias_at = ids, (fix.x, fix.y)
             self._bias_R = R_bias
         else:
             y, S_inv = self._innovation(fix)
@@ -446,7 +478,7 @@ class PoseFilter:
         return nis
 
     def _consider_step(
-        self, fix: PoseFix, white: FloatArray
+        self, fix: PoseFix, white: FloatArray, ids: frozenset[int]
     ) -> tuple[list[float], Rows, Rows, float, Rows] | None:
         """The consider update's correction, covariance, cross-covariance and NIS, and the
         fix's systematic covariance (not applied); None when S is singular. Plain floats."""
@@ -454,9 +486,11 @@ class PoseFilter:
         x, y, th = observation_model(self._X)
         innovation = [fix.x - x, fix.y - y, float(wrap_angle(fix.theta - th))]
         R_white = white.tolist()
-        R_bias = [[r - w for r, w in zip(rr, ww, strict=True)]
-                  for rr, ww in zip(fix.covariance.tolist(), R_white, strict=True)]  # fmt: skip
-        rho = carried_correlation(self._bias_ids, frozenset(fix.landmark_ids))
+        (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = fix.covariance.tolist()
+        (w00, w01, w02), (w10, w11, w12), (w20, w21, w22) = R_white
+        R_bias = [[r00 - w00, r01 - w01, r02 - w02], [r10 - w10, r11 - w11, r12 - w12],
+                  [r20 - w20, r21 - w21, r22 - w22]]  # fmt: skip
+        rho = carried_correlation(self._bias_ids, ids)
         C = None
         if self._C is not None and rho > 0.0:
             dx, dy = fix.x - self._bias_at[0], fix.y - self._bias_at[1]
@@ -483,20 +517,18 @@ class PoseFilter:
         P = self._P
         P0, P1, P2 = P[0], P[1], P[2]  # H P = P[:3, :]
         y0, y1, y2 = y
-        dX, U = [], []  # U[i]: row i of P - K H P from the diagonal on (it is symmetric)
+        dX = []
+        new = [[0.0] * 6 for _ in range(6)]  # P - K H P, the upper triangle mirrored (symmetric)
         for i, row in enumerate(P):
             a, b, c = row[0], row[1], row[2]
             k0 = a * i00 + b * i01 + c * i02  # the row of K = P H^T S^-1 = P[:, :3] S^-1
             k1 = a * i01 + b * i11 + c * i12
             k2 = a * i02 + b * i12 + c * i22
             dX.append(k0 * y0 + k1 * y1 + k2 * y2)
-            U.append(
-                [
-                    p - (k0 * u + k1 * v + k2 * w)
-                    for p, u, v, w in zip(row[i:], P0[i:], P1[i:], P2[i:], strict=True)
-                ]
-            )
-        self._P = [[U[j][i - j] for j in range(i)] + U[i] for i in range(6)]
+            out = new[i]
+            for j in range(i, 6):
+                out[j] = new[j][i] = row[j] - (k0 * P0[j] + k1 * P1[j] + k2 * P2[j])
+        self._P = new
         return dX
 
     def _apply_correction(self, dX: list[float], nis: float) -> None:

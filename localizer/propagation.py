@@ -85,18 +85,24 @@ class DeferredPropagation:
         self.pending = True
 
     def carry(self, C: Rows) -> Rows:
-        """Phi C for a matrix of the state's rows (6 x k nested lists; e.g. the
+        """Phi C for a matrix of the state's rows (6 x 3 nested lists; e.g. the
         cross-covariance of the state's error with something the odometry does not move,
         `fix_bias`); the batch stays pending (`apply` follows)."""
-        a, b, (B0, B1, B2) = self._a, self._b, self._B
-        C0, C1, C2, C3, C4, C5 = C
-        cal = list(zip(C3, C4, C5, strict=True))
+        a, b = self._a, self._b
+        (e00, e01, e02), (e10, e11, e12), (e20, e21, e22) = self._B
+        (u0, u1, u2), (v0, v1, v2), (w0, w1, w2), C3, C4, C5 = C
+        (p0, p1, p2), (q0, q1, q2), (r0, r1, r2) = C3, C4, C5
+        # (written out: the consider update carries C on every frame)
         return [
-            [u + a * w + B0[0] * p + B0[1] * q + B0[2] * r
-             for u, w, (p, q, r) in zip(C0, C2, cal, strict=True)],
-            [u + b * w + B1[0] * p + B1[1] * q + B1[2] * r
-             for u, w, (p, q, r) in zip(C1, C2, cal, strict=True)],
-            [w + B2[0] * p + B2[1] * q + B2[2] * r for w, (p, q, r) in zip(C2, cal, strict=True)],
+            [u0 + a * w0 + e00 * p0 + e01 * q0 + e02 * r0,
+             u1 + a * w1 + e00 * p1 + e01 * q1 + e02 * r1,
+             u2 + a * w2 + e00 * p2 + e01 * q2 + e02 * r2],
+            [v0 + b * w0 + e10 * p0 + e11 * q0 + e12 * r0,
+             v1 + b * w1 + e10 * p1 + e11 * q1 + e12 * r1,
+             v2 + b * w2 + e10 * p2 + e11 * q2 + e12 * r2],
+            [w0 + e20 * p0 + e21 * q0 + e22 * r0,
+             w1 + e20 * p1 + e21 * q1 + e22 * r1,
+             w2 + e20 * p2 + e21 * q2 + e22 * r2],
             C3, C4, C5,
         ]  # fmt: skip
 

@@ -82,8 +82,16 @@ class RelocalizationConfig:
         prior_gate_chi2: hypotheses beyond this squared Mahalanobis distance from the prior
             are not scored (3 dof; 25 is far out in the tail).
         max_hypotheses: at most this many hypotheses are scored (the nearest the prior).
-        miss_log_lr: log-likelihood ratio against a hypothesis per such missing landmark
-            (small: a dead LED or a person also hides one).
+        dark_prior: probability that a mapped landmark nothing is known of is dark or
+            hidden when predicted in view (a dead LED, never installed, behind a lamp, a
+            person under it): deliberately pessimistic, so that its absence weighs little
+            (`miss_log_lr`, about 1.5).
+        dark_after_lit: probability that a landmark seen lit while tracking (this run) is
+            dark or hidden now (failed since, a person under it).
+        miss_prior: probability that a lit landmark predicted well in view is not detected
+            on a frame (a prior: the rate on the tracked frames updates it,
+            `landmark_liveness.LandmarkLiveness`).
+        miss_prior_weight: that prior's weight, in landmark-frames.
         miss_margin_px: only landmarks predicted this far inside the image count.
         miss_radius_px: a landmark is missing when no spot lies within this of it, pixels.
 
@@ -125,7 +133,10 @@ class RelocalizationConfig:
     distinct_rad: float = 0.1
     prior_gate_chi2: float = 25.0
     max_hypotheses: int = 3000
-    miss_log_lr: float = 1.5
+    dark_prior: float = 0.2
+    dark_after_lit: float = 0.01
+    miss_prior: float = 0.02
+    miss_prior_weight: float = 50.0
     miss_margin_px: float = 25.0
     miss_radius_px: float = 12.0
     score_every_s: float = 0.2
@@ -136,6 +147,14 @@ class RelocalizationConfig:
     sustain_frames: int = 3
     reseed_after_frames: int = 3
     birth_every_s: float = 1.0
+
+    @property
+    def miss_log_lr(self) -> float:
+        """Log-likelihood ratio against a hypothesis per landmark it predicts well in view
+        where no spot is, when nothing is known of that landmark: -ln P(no spot), the
+        landmark dark or hidden (`dark_prior`) or lit and missed (`miss_prior`)."""
+        p = self.dark_prior + (1.0 - self.dark_prior) * self.miss_prior
+        return -math.log(p)
 
 
 @dataclass(frozen=True)
@@ -270,6 +289,7 @@ def relocalize(
     prior: tuple[float, float, float],
     prior_covariance: FloatArray,
     config: RelocalizationConfig,
+    miss_weights: FloatArray | None = None,
 ) -> Relocalization:
     """Map-consistent data association over pose hypotheses, one frame (see the module
     docstring).
@@ -280,11 +300,12 @@ def relocalize(
         spot_pixels: the frame's spots, shape (S, 2).
         prior: the pose thought most likely (dead reckoning).
         prior_covariance: its covariance, shape (3, 3) (widen it for a kidnapped robot).
+        miss_weights: each landmark's weight when missing, (N,) (default `miss_log_lr`).
 
     Returns:
         The outcome; `pairs` is empty unless accepted.
     """
-    view = frame_view(camera, positions, spot_pixels, config)
+    view = frame_view(camera, positions, spot_pixels, config, miss_weights)
     if view is None:
         return _NONE
     hyps, m2 = seed_hypotheses(view, prior, prior_covariance, config)

@@ -203,13 +203,21 @@ def project_with_jacobians(
     poses: FloatArray,
     P: FloatArray,
     frame: npt.NDArray[np.int64],
+    floors: FloatArray | None = None,
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """Pixels of landmarks P seen from level body poses through the corrected camera, and
-    their derivatives.
+    """Pixels of landmarks P seen from body poses through the corrected camera, and their
+    derivatives.
+
+    The body stands on the floor its fix found (`floor_plane`): tilted by (roll, pitch) and
+    raised by dz, p_body = R_t^T (Rz(theta)^T (P - t) - (0, 0, dz)), R_t = Ry(pitch)
+    Rx(roll); level (zeros) without `floors`. The floor is the fix's, held fixed here: it
+    is a property of the place, the calibration's corrections of the camera, so a tilt
+    the floor explains is not taken for a shift of the principal point.
 
     Args:
         camera: the handed-over camera; c: corrections (6,).
         poses: body poses (M, 3); P: landmarks (N, 3); frame: each landmark's frame (N,).
+        floors: each frame's (roll, pitch, dz), shape (M, 3), or None (level).
 
     Returns:
         (pixels (N, 2), d pixel / d c (N, 2, 6), d pixel / d own pose (N, 2, 3)).
@@ -225,7 +233,18 @@ def project_with_jacobians(
     x, y, th = poses[frame, 0], poses[frame, 1], poses[frame, 2]
     ct, st = np.cos(th), np.sin(th)
     dx, dy = P[:, 0] - x, P[:, 1] - y
-    p_body = np.column_stack([ct * dx + st * dy, -st * dx + ct * dy, P[:, 2]]) - t_bc
+    p_level = np.column_stack([ct * dx + st * dy, -st * dx + ct * dy, P[:, 2]])
+    Rt = None
+    if floors is not None and np.any(floors):
+        f = floors[frame]
+        cr, sr, cp, sp = np.cos(f[:, 0]), np.sin(f[:, 0]), np.cos(f[:, 1]), np.sin(f[:, 1])
+        Rt = np.zeros((len(P), 3, 3))  # Ry(pitch) Rx(roll) per landmark
+        Rt[:, 0, 0], Rt[:, 0, 1], Rt[:, 0, 2] = cp, sp * sr, sp * cr
+        Rt[:, 1, 1], Rt[:, 1, 2] = cr, -sr
+        Rt[:, 2, 0], Rt[:, 2, 1], Rt[:, 2, 2] = -sp, cp * sr, cp * cr
+        p_level = p_level - np.column_stack([np.zeros(len(P)), np.zeros(len(P)), f[:, 2]])
+        p_level = np.einsum("nji,nj->ni", Rt, p_level)  # R_t^T p
+    p_body = p_level - t_bc
     p_cam = p_body @ R_bc  # R_bc^T p_body, row-wise
     z3 = np.zeros(3)
     obj = np.ascontiguousarray(p_cam.reshape(-1, 1, 3))
@@ -255,6 +274,8 @@ def project_with_jacobians(
     d_body[:, 1, 0], d_body[:, 1, 1] = st, -ct
     d_body[:, 0, 2] = -st * dx + ct * dy
     d_body[:, 1, 2] = -ct * dx - st * dy
+    if Rt is not None:  # the tilt turns the level frame's derivatives: R_t^T d
+        d_body = np.einsum("nji,njk->nik", Rt, d_body)
     d_pose = np.einsum("nij,jk,nkl->nil", jp, R_bc.T, d_body)
     return np.asarray(px, dtype=np.float64).reshape(n, 2), d_c, d_pose
 
@@ -271,6 +292,7 @@ class SelfCalibration:
         self.camera = camera
         self.config = config or SelfCalibrationConfig()
         self._frames: deque[Frame] = deque(maxlen=self.config.window_frames)
+        self._floors: deque[tuple[float, float, float]] = deque(maxlen=self.config.window_frames)
         self.estimate: CalibrationEstimate | None = None
 
     def __len__(self) -> int:
@@ -281,21 +303,35 @@ class SelfCalibration:
         """The collected frames: (pixels (N, 2), landmarks (N, 3), fixed pose, odometry pose)."""
         return list(self._frames)
 
+    @property
+    def floors(self) -> FloatArray:
+        """Each collected frame's floor (roll, pitch, dz), shape (M, 3)."""
+        return np.array(self._floors, dtype=np.float64).reshape(-1, 3)
+
     def add(
-        self, pixels: npt.ArrayLike, p_world: npt.ArrayLike, pose: Pose, odometry: Pose
+        self,
+        pixels: npt.ArrayLike,
+        p_world: npt.ArrayLike,
+        pose: Pose,
+        odometry: Pose,
+        floor: npt.ArrayLike | None = None,
     ) -> None:
-        """One fix: the spots (N, 2), their landmarks (N, 3), the fixed pose and the raw
-        odometry pose at that frame."""
+        """One fix: the spots (N, 2), their landmarks (N, 3), the fixed pose, the raw
+        odometry pose at that frame, and the floor the fix stood on ((roll, pitch, dz),
+        `floor_plane`; None: level)."""
         px = np.asarray(pixels, dtype=np.float64).reshape(-1, 2)
         if len(px) < self.config.min_landmarks:
             return
         P = np.asarray(p_world, dtype=np.float64).reshape(-1, 3)
         a, b = tuple(map(float, pose)), tuple(map(float, odometry))
         self._frames.append((px, P, (a[0], a[1], a[2]), (b[0], b[1], b[2])))
+        fl = (0.0, 0.0, 0.0) if floor is None else tuple(map(float, np.ravel(floor)[:3]))
+        self._floors.append((fl[0], fl[1], fl[2]))
 
     def clear(self) -> None:
         """Forget the collected frames (the last estimate stays)."""
         self._frames.clear()
+        self._floors.clear()
 
     def solve(
         self, prior_mean: npt.ArrayLike | None = None, prior_covariance: npt.ArrayLike | None = None
@@ -339,12 +375,14 @@ class SelfCalibration:
         W8[7, 7] = 1.0 / cfg.odometry_turn_scale_sigma**2
         c = mu8.copy()
         poses = np.array([f[2] for f in frames], dtype=np.float64)
+        floors = self.floors
         n_u = n_c + 3 * M
         H = np.zeros((n_u, n_u))
         d_c = np.zeros((0, 2, 6))
         rows = [np.flatnonzero(frame == i) for i in range(M)]
         for _ in range(cfg.iterations):
-            pred, d_c, d_pose = project_with_jacobians(self.camera, c[:6], poses, P, frame)
+            pred, d_c, d_pose = project_with_jacobians(self.camera, c[:6], poses, P, frame,
+                                                       floors)  # fmt: skip
             r = pred - px  # (N, 2), pixels
             e = np.hypot(r[:, 0], r[:, 1]) / cfg.pixel_sigma_px
             k = cfg.huber_sigmas

@@ -15,6 +15,7 @@ from localizer.events import OdometryMeasured, PoseEstimate, SpotsObserved
 from localizer.geometry import T_world_body_from_pose, wrap_angle
 from localizer.hypothesis_scoring import frame_log_lr, frame_view
 from localizer.hypothesis_set import HypothesisSet, compose_odometry
+from localizer.landmark_liveness import LandmarkLiveness
 from localizer.landmark_map import LandmarkMap
 from localizer.localizer import Localizer
 from localizer.relocalization import RelocalizationConfig
@@ -125,6 +126,50 @@ def test_driving_on_until_the_gap_comes_into_view_resolves_it() -> None:
     t_first, pose, r = accepted[0]
     assert math.hypot(5.2 - pose[0], 2.8 - pose[1]) < SEEN_M + 0.8 and t_first > 1.0
     assert len(r.pairs) >= CFG.min_inlier_fraction * len(_spots(P, pose))
+
+
+def _drive_accepts(P, miss_weights, seed):
+    """`_drive` from mid-hall towards a gap at (5.0, 2.6) for 3 s, each landmark's absence
+    weighing `miss_weights`; returns the (t, true pose, outcome) of the accepted frames."""
+    hs = HypothesisSet(CFG)
+    out = []
+    odo_offset = np.array([2.0, -1.0, 0.7])
+    rng = np.random.default_rng(seed)
+    heading, speed, start = 0.3, 0.6, (3.4, 2.0)  # the gap 1.7 m ahead, out of view
+    for k in range(31):
+        t = k / 10
+        pose = (start[0] + speed * t * math.cos(heading),
+                start[1] + speed * t * math.sin(heading), heading)  # fmt: skip
+        co, so = math.cos(odo_offset[2]), math.sin(odo_offset[2])
+        odo = (odo_offset[0] + co * pose[0] - so * pose[1],
+               odo_offset[1] + so * pose[0] + co * pose[1], pose[2] + odo_offset[2])  # fmt: skip
+        r = hs.update(int(t * 1e9), odo, CAM, P, _spots(P, pose, rng), *PRIOR, miss_weights)
+        if r.accepted:
+            out.append((t, pose, r))
+    return out
+
+
+def test_a_gap_of_four_resolves_only_when_the_landmarks_are_known_lit() -> None:
+    # four landmarks missing (columns 12-13, rows 6-7): the truth's twins (half a turn about
+    # the centre, grid copies) predict four landmarks there; nothing known of them, that is
+    # 4 x 1.53 = 6.1 of evidence, under the margin of 9: no acceptance
+    P = grid_positions(16, 10, 0.4)
+    c, r = np.round(P[:, 0] / 0.4), np.round(P[:, 1] / 0.4)
+    P = P[~(np.isin(c, (12, 13)) & np.isin(r, (6, 7)))]
+    assert not _drive_accepts(P, None, 6)
+    # every landmark seen lit while tracking (1 in 100 dark since; detections missed 1 in
+    # 1000): each absence weighs 4.5, the four 18; the truth is taken, and only it
+    seen = LandmarkLiveness(len(P), CFG)
+    seen.observe(np.arange(len(P)), np.arange(len(P)))
+    seen.in_view, seen.missed = 1000, 0
+    w = seen.miss_log_lr()
+    np.testing.assert_allclose(w, -math.log(0.01 + 0.99 * 1.0 / 1050), rtol=1e-9)
+    accepted = _drive_accepts(P, w, 6)
+    assert accepted, "never accepted"
+    for _, pose, r in accepted:
+        assert r.pose is not None
+        assert math.hypot(r.pose[0] - pose[0], r.pose[1] - pose[1]) < 0.02
+        assert abs(wrap_angle(r.pose[2] - pose[2])) < 0.01
 
 
 def test_a_late_comer_as_good_as_the_best_blocks_the_acceptance() -> None:

@@ -131,3 +131,37 @@ def test_one_bad_pair_costs_that_pair_even_when_a_tilted_fit_would_take_it_in() 
     used = tracker._fuse(filt, [(i, i) for i in range(8)], px.tolist(), (0.56, 0.29, 0.41))
     assert used == tuple(i for i in range(20, 28) if i != 25)
     np.testing.assert_allclose(filt.pose[:2], TRUE_POSE[:2], atol=5e-3)
+
+
+def test_landmarks_darkened_since_the_last_fix_do_not_count_as_missing() -> None:
+    """A fix of 16 landmarks, then the LED schedule darkens all but 3 of them: the next fix
+    of those 3 is fused (they are all that is lit: nothing is missing). With the 16 still
+    lit, a fix of only 3 of them is a small share of what was matched (a kidnapped robot
+    whose windows catch a few spots by chance) and is not fused."""
+    xs, ys = np.meshgrid(np.arange(4) * 0.5 - 0.2, np.arange(4) * 0.5 - 0.45)
+    positions = np.column_stack([xs.ravel(), ys.ravel(), np.full(16, 2.5)])
+    grid = LandmarkMap(np.arange(100, 116), positions)
+    T = T_world_body_from_pose(*TRUE_POSE)
+    px, ok = predict_pixels(CAM, T, positions)
+    inside = ok & (px[:, 0] > 5) & (px[:, 0] < CAM.width - 5)
+    inside &= (px[:, 1] > 5) & (px[:, 1] < CAM.height - 5)
+    assert inside.all()  # every landmark in the image
+    few = np.array([0, 5, 15], dtype=np.int64)
+
+    def tracked() -> tuple[LandmarkTracker, PoseFilter]:
+        tracker = LandmarkTracker(CAM, ROBOT, LocalizerConfig(), grid)
+        filt = PoseFilter(*TRUE_POSE, np.diag([0.01**2, 0.01**2, 0.01**2]),
+                          wheel_base=ROBOT.wheel_base)  # fmt: skip
+        first = tracker.step(filt, _spots(px), dt_frame_s=1 / 30, fresh_odometry=True,
+                             candidates=None)  # fmt: skip
+        assert len(first.used) == 16
+        return tracker, filt
+
+    tracker, filt = tracked()  # the schedule darkens 13: 3 lit, 3 spots
+    after = tracker.step(filt, _spots(px[few]), dt_frame_s=1 / 30, fresh_odometry=True,
+                         candidates=few)  # fmt: skip
+    assert after.used == (100, 105, 115)
+    tracker, filt = tracked()  # all still lit, 3 spots: not fused
+    kidnapped = tracker.step(filt, _spots(px[few]), dt_frame_s=1 / 30, fresh_odometry=True,
+                             candidates=None)  # fmt: skip
+    assert kidnapped.used == ()

@@ -265,6 +265,24 @@ def test_mismatched_shapes_raise() -> None:
         solve_pose(cam, np.zeros(4), np.zeros((2, 3)))
 
 
+def test_nested_lists_give_the_same_fix_as_arrays_and_are_checked_alike() -> None:
+    # the tracker passes lists (no round trip through numpy): the same numbers, bit for bit
+    cam = make_camera()
+    pose = (1.5, 2.3, 0.3)
+    px = observe(cam, pose, LANDMARKS) + np.array([[0.3, -0.2], [-0.1, 0.4], [0.2, 0.1], [0, 0]])
+    kw = {"initial": (1.49, 2.31, 0.31), "pixel_sigma_px": [0.3, 0.25, 0.4, 0.3],
+          "loss": "huber", "estimate_tilt": True}  # fmt: skip
+    a = solve_pose(cam, px, LANDMARKS, **kw)
+    b = solve_pose(cam, px.tolist(), LANDMARKS.tolist(), **kw)
+    assert a is not None and b is not None
+    assert (a.x, a.y, a.theta, a.residuals_px) == (b.x, b.y, b.theta, b.residuals_px)
+    assert np.array_equal(a.covariance, b.covariance)
+    with pytest.raises(ValueError, match="p_world"):
+        solve_pose(cam, px.tolist(), LANDMARKS[:3].tolist())
+    with pytest.raises(ValueError, match="pixels"):
+        solve_pose(cam, [[1.0, 2.0, 3.0]] * 4, LANDMARKS.tolist())
+
+
 def test_a_fix_plus_a_covariance_turned_about_the_vertical() -> None:
     rng = np.random.default_rng(7)
     A = rng.normal(size=(3, 3))

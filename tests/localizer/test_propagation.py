@@ -47,3 +47,18 @@ def test_walk_is_added_to_the_calibration_diagonal_once_per_batch() -> None:
 def test_an_empty_batch_is_the_identity() -> None:
     P0, _, _ = _batch(walk=0.0)
     np.testing.assert_allclose(DeferredPropagation().apply(P0.tolist()), P0, rtol=0, atol=0)
+
+
+def test_carry_is_the_composed_jacobian_times_c() -> None:
+    """`carry` (written out on floats) against F_n ... F_1 C on numpy."""
+    rng = np.random.default_rng(6)
+    C = rng.normal(0.0, 1e-3, (6, 3))
+    X = [0.3, -0.2, 2.9, 1.01, 0.99, 1.02]
+    prop, Phi = DeferredPropagation(), np.eye(6)
+    for vl, vr in rng.uniform(-0.5, 0.8, (25, 2)):
+        F_top, G = jacob_f(X, vl, vr, 0.01, W)
+        Phi = np.vstack([F_top, np.hstack([np.zeros((3, 3)), np.eye(3)])]) @ Phi
+        prop.add_step(F_top, G, 1e-6, 1e-6, 0.0)
+        X = motion_model(X, vl, vr, 0.01, W)
+    np.testing.assert_allclose(prop.carry(C.tolist()), Phi @ C, rtol=1e-9, atol=1e-16)
+    assert prop.pending  # (apply follows)

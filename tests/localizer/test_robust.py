@@ -109,6 +109,28 @@ def test_a_turn_started_after_the_last_odometry_sample_is_followed() -> None:
     )
 
 
+def test_a_wheel_slipping_since_the_last_fix_is_followed() -> None:
+    # 2 m/s over a wet patch: since the last fix (one 12 Hz frame, 17 cm of travel) the
+    # odometry turned 1.4 deg the robot did not; a fresh sample, so no speed-change term
+    cam = fisheye_camera(T_body_camera_upward(height=0.3))
+    grid = grid_positions(12, 8, 0.4, 2.5)
+    lmap = LandmarkMap(np.arange(1, len(grid) + 1), grid)
+    truth = (2.0, 1.4, 0.0)
+    img = render_frame(cam, T_world_body_from_pose(*truth), grid, np.ones(len(grid)),
+                       rng=np.random.default_rng(0))  # fmt: skip
+    tracker = LandmarkTracker(cam, RobotGeometry(0.36, 2.0), LocalizerConfig(), lmap)
+    confident = np.diag([0.002**2, 0.002**2, 0.0005**2])
+    args = dict(dt_frame_s=1 / 12, fresh_odometry=True, candidates=None, since_sample_s=0.0)
+    slipped = (2.0, 1.4, -math.radians(1.4))
+    filt = PoseFilter(*slipped, confident, wheel_base=0.36)
+    assert tracker.step(filt, FrameObserved(0, img), **args).used == ()  # type: ignore[arg-type]
+    filt = PoseFilter(*slipped, confident, wheel_base=0.36)
+    res = tracker.step(filt, FrameObserved(0, img), travel_since_fix_m=0.167, **args)  # type: ignore[arg-type]
+    assert len(res.used) > 40
+    assert abs(filt.pose[2] - truth[2]) < 0.002
+    assert math.hypot(filt.pose[0] - truth[0], filt.pose[1] - truth[1]) < 0.003
+
+
 def _spots(cam, positions, pose):
     px, ok = predict_pixels(cam, T_world_body_from_pose(*pose), positions)
     return px[ok] + np.random.default_rng(1).normal(0, 0.3, (int(ok.sum()), 2))

@@ -12,6 +12,7 @@ import pytest
 
 from localizer.camera import CameraModel, predict_pixels
 from localizer.geometry import T_world_body_from_pose
+from localizer.pose_planar import rotation_world_body
 from localizer.self_calibration import (
     SelfCalibration,
     SelfCalibrationConfig,
@@ -155,3 +156,61 @@ def test_three_landmarks_at_one_radius_leave_the_lens_to_its_prior() -> None:
 def test_config_rejects_a_prior_of_the_wrong_length() -> None:
     with pytest.raises(ValueError, match="prior_sigma"):
         SelfCalibrationConfig(prior_sigma=(1.0, 1.0, 0.1, 0.02))  # type: ignore[arg-type]
+
+
+def _tilted_frames(
+    poses: list[Pose], floors: list[tuple[float, float, float]], true_c: np.ndarray
+) -> tuple[CameraModel, list[tuple[np.ndarray, np.ndarray, Pose]]]:
+    """Like `_frames`, the body on a tilted, raised floor (roll, pitch, dz) per frame."""
+    nominal = strong_radtan_camera()
+    true = corrected_camera(nominal, true_c)
+    rng = np.random.default_rng(3)
+    out = []
+    for pose, (r, p, dz) in zip(poses, floors, strict=True):
+        T = T_world_body_from_pose(*pose)
+        T[:3, :3] = rotation_world_body(pose[2], r, p)
+        T[2, 3] = dz
+        px, ok = predict_pixels(true, T, GRID)
+        out.append((px[ok] + rng.normal(0.0, 0.1, (int(ok.sum()), 2)), GRID[ok], pose))
+    return nominal, out
+
+
+def test_projection_on_a_tilted_floor_matches_the_camera_and_its_pose_derivatives() -> None:
+    camera = fisheye_camera()
+    c = np.array([0.3, -0.2, 0.02, -0.01, 0.001, 0.01])
+    poses = np.array([[1.0, 1.2, 0.4], [2.0, 1.0, -2.0]])
+    floors = np.array([[0.012, -0.017, 0.03], [-0.02, 0.005, -0.04]])
+    P = GRID[[3, 10, 20, 30, 40, 50]]
+    frame = np.array([0, 0, 0, 1, 1, 1])
+    px, _, d_pose = project_with_jacobians(camera, c, poses, P, frame, floors)
+    T = T_world_body_from_pose(*poses[1])
+    T[:3, :3] = rotation_world_body(poses[1][2], *floors[1][:2])
+    T[2, 3] = floors[1][2]
+    ref, _ = predict_pixels(corrected_camera(camera, c), T, P[3:])
+    np.testing.assert_allclose(px[3:], ref, atol=1e-6)
+    for k in range(3):
+        dp = np.zeros_like(poses)
+        dp[:, k] = 1e-7
+        num = (project_with_jacobians(camera, c, poses + dp, P, frame, floors)[0] - px) / 1e-7
+        np.testing.assert_allclose(d_pose[:, :, k], num, rtol=1e-3, atol=1e-2)
+
+
+def test_a_floor_tilt_given_with_the_fixes_is_not_taken_for_a_principal_point_shift() -> None:
+    # driving and turning on a floor 1 deg out of level (rising along +x), 3 cm high at x = 2
+    g = math.tan(math.radians(1.0))
+    floors = []
+    for x, _, th in DRIVE:
+        roll, pitch = math.atan(-math.sin(th) * g), -math.atan(math.cos(th) * g)
+        floors.append((roll, pitch, 0.03 + g * (x - 2.0)))
+    true_c = np.array([0.3, -0.3, 0.0, 0.0, 0.0, 0.0])
+    nominal, frames = _tilted_frames(DRIVE, floors, true_c)
+    config = SelfCalibrationConfig(window_frames=40)
+    given, level = SelfCalibration(nominal, config), SelfCalibration(nominal, config)
+    for (px, P, pose), fl in zip(frames, floors, strict=True):
+        given.add(px, P, pose, odometry=pose, floor=fl)
+        level.add(px, P, pose, odometry=pose)
+    est, est_level = given.solve(), level.solve()
+    assert est is not None and est_level is not None
+    np.testing.assert_allclose(est.correction[:2], true_c[:2], atol=0.1)  # pixels
+    # without the floor the same fixes read part of the tilt into the centre (0.44 px here)
+    assert np.max(np.abs(est_level.correction[:2] - true_c[:2])) > 0.3
