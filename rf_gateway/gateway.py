@@ -6,10 +6,11 @@ confirmation is published to every subscriber (each robot's localizer), so one r
 identification sweep is seen by all. LED changes are serialised (`async with gw.sweep():`
 holds the site for a whole identification sweep).
 
-Reliability: every radio command takes an in-flight slot granted by priority (identification,
-then LED housekeeping, then battery polls; `PrioritySlots`), is retried with exponential
-backoff, and a landmark that fails `max_tries` in a row is marked unreachable (event) while the
-others carry on. LED commands are latest-wins per landmark: each request gets a sequence
+Reliability: every radio command goes through `commands.RadioCommands` (an in-flight slot
+granted by priority: identification, then LED housekeeping, then battery polls; retries with
+exponential backoff; a landmark that fails `max_tries` in a row is marked unreachable while
+the others carry on). The start-up sweep is `startup_sweep`, the supply reads and discovery
+`reads`. LED commands are latest-wins per landmark: each request gets a sequence
 number, one syncer task per landmark sends the newest desired level and confirms only the
 sequence number it sent, so a retry crossing a late reply neither loses nor double-counts a
 change (the pin level itself is idempotent).
@@ -29,27 +30,22 @@ from typing import TypeVar
 
 from localizer.events import LedsChanged
 from pubsub.bus import Bus, Subscription
-from rf_gateway.battery import BatteryHistory, BatteryReading, read_all
+from rf_gateway.battery import BatteryHistory, BatteryReading
+from rf_gateway.commands import RadioCommands
 from rf_gateway.config import GatewayConfig, GatewayStats
 from rf_gateway.errors import (
-    LandmarkUnreachableError,
-    RadioTimeout,
-    RemoteCommandError,
     RfGatewayError,
     TransportUnavailable,
     UnknownLandmarkError,
 )
 from rf_gateway.events import (
     GatewayEvent,
-    LandmarkReachable,
-    LandmarkUnreachable,
-    LowBattery,
     TransportStateChanged,
 )
+from rf_gateway.reads import LandmarkReads
 from rf_gateway.scheduler import Priority, PrioritySlots
+from rf_gateway.startup_sweep import StartupSweep
 from rf_gateway.transport import (
-    BroadcastTransport,
-    DiscoveredRadio,
     Transport,
     TransportState,
     normalize_landmark_radios,
@@ -62,7 +58,7 @@ T = TypeVar("T")
 _SWEEP_OWNER: ContextVar[int | None] = ContextVar("rf_gateway_sweep_owner", default=None)
 
 
-class Gateway:
+class Gateway(StartupSweep, LandmarkReads):
     """Switch and read the site's landmarks through `transport`.
 
     Args:
@@ -88,14 +84,16 @@ class Gateway:
         self._addresses = normalize_landmark_radios(landmarks)
         self._slots = PrioritySlots(self.config.max_in_flight, self.config.max_waiting)
         self.wake = WakeTracker(self.config.sleep)
+        self._commands = RadioCommands(
+            self.config, self.stats, self._slots, self.wake,
+            lambda lid: self._addresses[lid], self._publish_event, clock_ns,
+        )  # fmt: skip
         self._desired: dict[int, tuple[bool, int]] = {}  # id -> (level, seq)
         self._confirmed: dict[int, tuple[bool, int, int]] = {}  # id -> (level, seq, t_ns)
         self._waiters = SeqWaiters()
         self._led_priority: dict[int, Priority] = {}
         self._syncers: dict[int, asyncio.Task[None]] = {}
         self._seq = 0
-        self._failures: dict[int, int] = {}
-        self._unreachable: set[int] = set()
         self._sweep_lock = asyncio.Lock()
         self._broadcasting: frozenset[int] = frozenset()  # LEDs a broadcast is switching
         self._believed: set[int] = set()  # lit by the start-up broadcast, not read back yet
@@ -125,99 +123,6 @@ class Gateway:
             await self._sweep_lock.acquire()  # held until lit: LED requests queue behind
             self._start_task = loop.create_task(self._light_all())
 
-    @property
-    def start_awake_s(self) -> float | None:
-        """The `ST` the start-up sweep broadcasts to every landmark first (None: none:
-        awake radios, no `start_awake_s`, or a transport that cannot broadcast)."""
-        cfg = self.config
-        if cfg.sleep is None or cfg.start_awake_s is None or not cfg.light_all_on_start:
-            return None
-        return cfg.start_awake_s if isinstance(self.transport, BroadcastTransport) else None
-
-    async def _light_all(self) -> None:
-        broadcast = False
-        try:
-            broadcast = await self._broadcast_start()
-            if not broadcast:
-                await self._apply(dict.fromkeys(self._addresses, True), Priority.IDENTIFY)
-        except Exception as exc:  # logged; the state confirmed so far is published
-            log.warning("lighting every landmark at start: %s", exc)
-        finally:
-            self._sweep_lock.release()
-        if broadcast:
-            await self._verify_believed()
-
-    async def _broadcast_start(self) -> bool:
-        """Start-up with sleeping landmarks (`start_awake_s`): light every LED by one
-        broadcast, wait until every landmark has polled once (`broadcast_wait_s`), publish
-        them lit (*believed*: robots identify at once) and open the wake window by a second
-        broadcast (`ST`; the landmarks are awake after the first). False: no broadcast
-        (the start-up sweep is one command per landmark)."""
-        seconds, sleep, transport = self.start_awake_s, self.config.sleep, self.transport
-        if seconds is None or sleep is None or not isinstance(transport, BroadcastTransport):
-            return False
-        ids = frozenset(self._addresses)
-        self._broadcasting = ids
-        self._publish_state(announce=True)  # unknown until every landmark took it
-        try:
-            await transport.broadcast_pin(True)
-            self.stats.commands += 1
-            self.stats.broadcasts += 1
-            await asyncio.sleep(sleep.broadcast_wait_s)
-        except RfGatewayError as exc:
-            log.warning("broadcasting LED on to every landmark: %s", exc)
-            return False
-        finally:
-            self._broadcasting = frozenset()
-        t_ns = self.clock_ns()
-        for lid in ids - set(self._syncers):
-            self._seq += 1
-            self._desired[lid] = (True, self._seq)
-            self._confirmed[lid] = (True, self._seq, t_ns)
-            self._believed.add(lid)
-        self._publish_state()
-        try:
-            await transport.broadcast_awake_time(seconds)
-            self.stats.commands += 1
-            self.stats.broadcasts += 1
-        except RfGatewayError as exc:  # identification probes are then only slower
-            log.warning("broadcasting ST to every landmark: %s", exc)
-        return True
-
-    async def _verify_believed(self) -> None:
-        """Read back each LED believed lit since the start-up broadcast (housekeeping
-        priority: after the robots' probes). One that missed the broadcast is switched as
-        believed (announced, as any change); a confirmed command settles a landmark too. A
-        missed one is dark while believed lit: a steady spot-less landmark, which neither
-        identification (it compares switches) nor tracking (an occluded landmark) mistakes
-        for anything."""
-        transport = self.transport
-        if not isinstance(transport, BroadcastTransport):
-            return
-
-        async def one(lid: int) -> None:
-            seq = self._confirmed.get(lid, (False, 0, 0))[1]
-            send = partial(transport.read_pin, self._addresses[lid])
-            try:
-                high = await self._command(lid, Priority.HOUSEKEEPING, send)
-            except RfGatewayError:  # marked unreachable by `_command`: its LED is unknown
-                if lid in self._believed and self._confirmed.get(lid, (0, -1))[1] == seq:
-                    self._believed.discard(lid)
-                    del self._confirmed[lid]
-                    self._publish_state()
-                return
-            confirmed = self._confirmed.get(lid)
-            if lid not in self._believed or confirmed is None or confirmed[1] != seq:
-                return  # a command settled it meanwhile
-            self._believed.discard(lid)
-            if high != confirmed[0]:
-                self.stats.broadcast_missed += 1
-                del self._confirmed[lid]  # unknown: sent again
-                async with self.sweep():
-                    await self._apply({lid: confirmed[0]}, Priority.HOUSEKEEPING)
-
-        await asyncio.gather(*(one(lid) for lid in sorted(self._believed)), return_exceptions=True)
-
     async def close(self) -> None:
         """Stop the schedule and the syncers, close the transport."""
         background = [self._battery_task, self._start_task, *self._syncers.values()]
@@ -233,6 +138,13 @@ class Gateway:
     def _on_transport_state(self, state: TransportState) -> None:
         self._events_hub.publish(TransportStateChanged(self.clock_ns(), state))
 
+    def _publish_event(self, event: GatewayEvent) -> None:
+        self._events_hub.publish(event)
+
+    async def _command(self, lid: int, priority: Priority, send: Callable[[], Awaitable[T]]) -> T:
+        """One command to one landmark with retries (`commands.RadioCommands.run`)."""
+        return await self._commands.run(lid, priority, send)
+
     # -- landmarks -----------------------------------------------------------------------
     @property
     def landmarks(self) -> dict[int, str]:
@@ -241,7 +153,7 @@ class Gateway:
 
     @property
     def unreachable(self) -> frozenset[int]:
-        return frozenset(self._unreachable)
+        return frozenset(self._commands.unreachable)
 
     def address_of(self, landmark_id: int) -> str:
         """Radio address of a landmark; UnknownLandmarkError names an unknown id."""
@@ -260,8 +172,7 @@ class Gateway:
             self._waiters.fail(lid, ALL, UnknownLandmarkError(lid))
             self._desired.pop(lid, None)
             self._confirmed.pop(lid, None)
-            self._failures.pop(lid, None)
-            self._unreachable.discard(lid)
+            self._commands.forget(lid)
             self.batteries.forget(lid)
         for lid, address in new.items():
             if self._addresses.get(lid) not in (None, address):
@@ -438,59 +349,6 @@ class Gateway:
         finally:
             self._syncers.pop(lid, None)
 
-    # -- commands with retries ------------------------------------------------------------------
-    async def _command(self, lid: int, priority: Priority, send: Callable[[], Awaitable[T]]) -> T:
-        address = self._addresses[lid]
-        last: Exception | None = None
-        radio_failures = 0
-        tries = self.config.unreachable_tries if lid in self._unreachable else self.config.max_tries
-        for attempt in range(tries):
-            if attempt:
-                self.stats.retries += 1
-                await asyncio.sleep(self.config.retry_backoff_s * 2 ** (attempt - 1))
-            loop = asyncio.get_running_loop()
-            delay = self.wake.send_delay_s(lid, loop.time())
-            if delay > 0:  # a sleeping landmark: take a slot just before it wakes
-                await asyncio.sleep(delay)
-            try:
-                async with self._slots.slot(priority):
-                    self.stats.commands += 1
-                    sent = loop.time()
-                    result = await asyncio.wait_for(send(), self.config.command_timeout_s)
-                    self.wake.answered(lid, sent, loop.time())
-            except (RadioTimeout, TimeoutError) as exc:
-                self.wake.forget(lid)
-                last, radio_failures = exc, radio_failures + 1
-            except RemoteCommandError as exc:
-                last, radio_failures = exc, radio_failures + 1
-                if not exc.retryable:
-                    break
-            except TransportUnavailable as exc:
-                last = exc
-            else:
-                self._mark_reachable(lid)
-                return result
-        self.stats.failures += 1
-        if radio_failures == 0 and isinstance(last, TransportUnavailable):
-            raise last
-        self._mark_unreachable(lid, radio_failures)
-        cause = str(last) if last is not None and str(last) else type(last).__name__
-        raise LandmarkUnreachableError(lid, address, radio_failures, cause)
-
-    def _mark_reachable(self, lid: int) -> None:
-        self._failures[lid] = 0
-        if lid in self._unreachable:
-            self._unreachable.discard(lid)
-            event = LandmarkReachable(self.clock_ns(), lid, self._addresses[lid])
-            self._events_hub.publish(event)
-
-    def _mark_unreachable(self, lid: int, tries: int) -> None:
-        self._failures[lid] = self._failures.get(lid, 0) + tries
-        if lid not in self._unreachable and tries > 0:
-            self._unreachable.add(lid)
-            event = LandmarkUnreachable(self.clock_ns(), lid, self._addresses[lid], tries)
-            self._events_hub.publish(event)
-
     # -- sleep ---------------------------------------------------------------------------------
     async def set_awake_time(
         self, landmark_ids: Iterable[int], seconds: float, *, priority: Priority = Priority.IDENTIFY
@@ -516,45 +374,3 @@ class Gateway:
             if isinstance(r, BaseException) and not isinstance(r, RfGatewayError):
                 raise r
         return frozenset(r for r in results if isinstance(r, int))
-
-    # -- battery and discovery ----------------------------------------------------------------
-    async def battery(self, landmark_id: int) -> BatteryReading:
-        """Read one landmark's supply now (battery-poll priority), record it, tell the
-        battery listeners, and raise a LowBattery event at or below the threshold; raises
-        as `set_leds`."""
-        address = self.address_of(landmark_id)
-        mv = await self._command(
-            landmark_id, Priority.BATTERY, lambda: self.transport.read_supply_mv(address)
-        )
-        reading = self.batteries.add(landmark_id, self.clock_ns(), int(mv))
-        for listener in list(self._battery_listeners):
-            listener(reading)
-        if self.batteries.became_low(reading):
-            event = LowBattery(reading.t_ns, landmark_id, reading.supply_mv, reading.days_left)
-            self._events_hub.publish(event)
-        return reading
-
-    async def poll_batteries(self) -> list[BatteryReading]:
-        """Read every landmark once (a landmark that fails is skipped, its event raised)."""
-        return await read_all(self.battery, sorted(self._addresses), self.config.max_in_flight)
-
-    async def _battery_loop(self) -> None:
-        if self.config.light_all_on_start:
-            async with self._sweep_lock:  # after the start-up sweep
-                pass
-        if self.config.battery.first_read_s > 0:
-            await asyncio.sleep(self.config.battery.first_read_s)
-        while self.config.battery.interval_s is not None:
-            await self.poll_batteries()
-            await asyncio.sleep(self.config.battery.interval_s)
-
-    async def discover(self) -> list[DiscoveredRadio]:
-        """Radios that answer node discovery (`discover_rounds` of them, merged) and are not
-        in the landmark map, by address."""
-        found: dict[str, DiscoveredRadio] = {}
-        for _ in range(max(1, self.config.discover_rounds)):
-            async with self._slots.slot(Priority.HOUSEKEEPING):
-                for r in await self.transport.discover():
-                    found.setdefault(r.address, r)
-        known = set(self._addresses.values())
-        return [r for a, r in sorted(found.items()) if a not in known]

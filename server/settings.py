@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import Any, Literal
 
 import yaml
-from pydantic import Field, field_validator
+from pydantic import Field, field_validator, model_validator
 from pydantic_settings import BaseSettings, PydanticBaseSettingsSource, SettingsConfigDict
 
 Source = Literal["sim", "camera", "remote"]
@@ -72,7 +72,12 @@ class Settings(BaseSettings):
         sim_robots: localize the virtual site's robots here (false: the site only, robots
             come as agents).
         led_policy: `scheduled` lights only the landmarks the robots need
-            (`server.led_schedule`); `all_lit` lights every landmark (the paper's way).
+            (`server.led_schedule`); `all_lit` lights every landmark (the paper's way);
+            `auto` (the default) is `scheduled` with sleeping radios
+            (`radio_sleep_period_s` set), where it meets the battery and accuracy targets,
+            and `all_lit` with awake ones, where a listening receiver caps a landmark's life
+            at days whatever is lit and the schedule costs accuracy (docs/sim.md, "The
+            fourth pass"). Resolved when the settings are made: never `auto` after.
         radio_sleep_period_s: the landmarks' radios sleep in cycles of this period (XBee
             `SP`, seconds; the virtual site's radios then sleep too, and LED commands are
             sent that much ahead of need); None: always-awake radios (`SM=0`).
@@ -100,7 +105,7 @@ class Settings(BaseSettings):
     serial_robot: str | None = None
     log_format: Literal["text", "json"] = "text"
     allow_remote_viewer_without_auth: bool = False
-    led_policy: Literal["scheduled", "all_lit"] = "all_lit"
+    led_policy: Literal["auto", "scheduled", "all_lit"] = "auto"
     radio_sleep_period_s: float | None = Field(default=None, ge=0.32, le=28.0)
     mqtt_url: str | None = None
     mqtt_site: str = Field(default="default", pattern=r"^[A-Za-z0-9_.-]{1,64}$")
@@ -114,6 +119,13 @@ class Settings(BaseSettings):
         if text != "sim" and not text.startswith("xbee:"):
             raise ValueError(f"radio: expected 'sim' or 'xbee:PORT[@BAUD]', got {value!r}")
         return text
+
+    @model_validator(mode="after")
+    def _resolve_led_policy(self) -> Settings:
+        if self.led_policy == "auto":
+            sleeping = self.radio_sleep_period_s is not None
+            self.led_policy = "scheduled" if sleeping else "all_lit"
+        return self
 
     @field_validator("mqtt_url")
     @classmethod

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Literal
+from typing import Any, Literal
 
 import pytest
 
@@ -51,3 +51,24 @@ def test_a_window_the_gateway_opened_at_start_costs_no_st_commands() -> None:
     assert w.update(6.0, identifying=False) == 1.0  # closing is sent
     closed = wake_window(sched, opened_s=None)
     assert closed is not None and not closed.open
+
+
+def test_the_default_led_policy_follows_the_radios_sleep(monkeypatch: pytest.MonkeyPatch) -> None:
+    """`auto`, the default: the schedule with sleeping radios (where it meets the battery
+    and accuracy targets), every LED lit with awake ones; a policy given is kept, from the
+    environment too."""
+
+    def policy(**kw: Any) -> str:
+        return Settings(data_dir=Path("/nonexistent"), **kw).led_policy
+
+    assert policy() == "all_lit"
+    assert policy(radio_sleep_period_s=0.5) == "scheduled"
+    assert policy(led_policy="auto", radio_sleep_period_s=2.0) == "scheduled"
+    assert policy(led_policy="all_lit", radio_sleep_period_s=0.5) == "all_lit"
+    assert policy(led_policy="scheduled") == "scheduled"
+    monkeypatch.setenv("IRLOC_RADIO_SLEEP_PERIOD_S", "0.5")
+    assert policy() == "scheduled"
+    monkeypatch.setenv("IRLOC_LED_POLICY", "all_lit")
+    assert policy() == "all_lit"
+    with pytest.raises(ValueError, match="led_policy"):
+        policy(led_policy="sometimes")
