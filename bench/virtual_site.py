@@ -21,6 +21,7 @@ from typing import Any, TypeVar
 import numpy as np
 
 from localizer.landmark_map import LandmarkMap
+from localizer.localizer import Localizer
 from rf_gateway.gateway import Gateway
 from rf_gateway.sim_transport import SimTransport
 from server.led_schedule.runtime import LedScheduler
@@ -79,7 +80,7 @@ def run_virtual(coro: Coroutine[Any, Any, T]) -> T:
 
 def parked(scenario: Scenario, seconds: float) -> Scenario:
     """The scenario with every robot standing at its start for `seconds` (an idle site)."""
-    robots = [dataclasses.replace(r, route=Route((Wait(seconds),))) for r in scenario.robots]
+    robots = tuple(dataclasses.replace(r, route=Route((Wait(seconds),))) for r in scenario.robots)
     return dataclasses.replace(scenario, robots=robots)
 
 
@@ -173,7 +174,9 @@ async def run_site(
         for name, runner in runners.items():
             x, y, th = site.true_pose(name)
             dx, dy = rng.normal(0.0, 0.02, 2)
-            runner.localizer.set_initial_pose(x + dx, y + dy, th, clock_ns())
+            localizer = runner.localizer
+            assert isinstance(localizer, Localizer)  # `make_localizer`'s
+            localizer.set_initial_pose(x + dx, y + dy, th, clock_ns())
     await gateway.start()
     leds.start()
     ids = [int(i) for i in lmap.ids]
@@ -218,15 +221,17 @@ async def run_site(
     return run
 
 
-def robot_stats(run: SiteRun, name: str, *, settle_s: float = 10.0) -> dict[str, float]:
-    """Per robot: time to the first fix from the start (s); over its steady state (frames
-    from `measure_from_s`, or from `settle_s` after its first fix when that came later):
-    share of frames in landmark mode, p95 position error (cm), and where that began (s)."""
+def steady_frames(
+    run: SiteRun, name: str, *, settle_s: float = 10.0
+) -> tuple[list[str], list[float], float, float]:
+    """Per robot, its steady state (frames from `measure_from_s`, or from `settle_s` after its
+    first fix when that came later): each frame's mode, the position errors (cm) of the
+    frames with a pose, the first fix from the start (s; nan: none) and where the steady
+    state began (s; nan: no fix)."""
     rows = run.poses[name]
     first = next((u.t_ns for u, _ in rows if u.x is not None), None)
     if not rows or first is None:
-        return {"landmark": 0.0, "p95_cm": math.nan, "first_fix_s": math.nan,
-                "from_s": math.nan}  # fmt: skip
+        return [], [], math.nan, math.nan
     first_s = (first - run.t0_ns) * 1e-9
     from_s = max(run.measure_from_s, first_s + settle_s)
     steady = [(u, tr) for u, tr in rows if (u.t_ns - run.t0_ns) * 1e-9 >= from_s]
@@ -235,8 +240,16 @@ def robot_stats(run: SiteRun, name: str, *, settle_s: float = 10.0) -> dict[str,
         for u, tr in steady
         if u.x is not None and u.y is not None and tr is not None
     ]
+    return [u.mode for u, _ in steady], err, first_s, from_s
+
+
+def robot_stats(run: SiteRun, name: str, *, settle_s: float = 10.0) -> dict[str, float]:
+    """Per robot: time to the first fix from the start (s); over its steady state
+    (`steady_frames`): share of frames in landmark mode, p95 position error (cm), and where
+    that began (s)."""
+    modes, err, first_s, from_s = steady_frames(run, name, settle_s=settle_s)
     return {
-        "landmark": sum(u.mode == "landmark" for u, _ in steady) / max(len(steady), 1),
+        "landmark": sum(m == "landmark" for m in modes) / max(len(modes), 1),
         "p95_cm": float(np.percentile(err, 95)) if err else math.nan,
         "first_fix_s": first_s,
         "from_s": from_s,

@@ -152,16 +152,53 @@ def drive(case: Case, seconds: float, start_s: float) -> Motion:
         x, y, th = pose[k - 1]
         if case.kidnap_s is not None and t[k - 1] < case.kidnap_s <= t[k]:
             x, y, th = case.kidnap_to  # lifted and set down: nothing of it in the odometry
-        pose[k] = (
-            x + v * dt * math.cos(th + 0.5 * w * dt),
-            y + v * dt * math.sin(th + 0.5 * w * dt),
-            th + w * dt,
-        )
+        if case.stall_s is not None and case.stall_s[0] <= t[k] < case.stall_s[1]:
+            pose[k] = (x, y, th)  # against an obstacle: the wheels spin, the robot stays
+        else:
+            pose[k] = (
+                x + v * dt * math.cos(th + 0.5 * w * dt),
+                y + v * dt * math.sin(th + 0.5 * w * dt),
+                th + w * dt,
+            )
         half = 0.5 * case.wheel_base_m * w
         wheels[k] = (v - half, v + half)
     pose[:, 2] = (pose[:, 2] + math.pi) % (2 * math.pi) - math.pi
     pose[pose[:, 2] == -math.pi, 2] = math.pi
     return Motion(t, pose, wheels)
+
+
+def wheel_spin(case: Case, motion: Motion) -> FloatArray:
+    """(N, 2) factors by which each wheel turns faster than the floor moves under it: 1
+    except where the axle's midpoint is inside one of `case.slip_zones` (a wet patch)."""
+    spin = np.ones((len(motion.t), 2))
+    for x0, y0, x1, y1, f_left, f_right in case.slip_zones:
+        inside = (
+            (motion.pose[:, 0] >= x0)
+            & (motion.pose[:, 0] <= x1)
+            & (motion.pose[:, 1] >= y0)
+            & (motion.pose[:, 1] <= y1)
+        )
+        spin[inside] = (f_left, f_right)
+    return spin
+
+
+def odometry_stamps(case: Case, t_sample: FloatArray, rng: np.random.Generator) -> list[int]:
+    """The stamps (ns from the epoch) of odometry samples taken at `t_sample` (s): each one
+    late by a random `odom_jitter_s`; with `odom_burst` > 1 the samples reach the host (and
+    are stamped) that many at a time, 1 ms apart, when the last of them is taken (a USB or
+    CAN bridge that buffers). Strictly increasing, as a driver would write them."""
+    t = t_sample.copy()
+    if case.odom_burst > 1:
+        n = case.odom_burst
+        for i in range(len(t)):
+            last = min((i // n + 1) * n - 1, len(t) - 1)
+            t[i] = t_sample[last] + 1e-3 * (i - (i // n) * n)
+    if case.odom_jitter_s > 0:
+        t = t + rng.uniform(0.0, case.odom_jitter_s, len(t))
+    ns = [round(v * NS) for v in t]
+    for i in range(1, len(ns)):
+        ns[i] = max(ns[i], ns[i - 1] + 1000)
+    return ns
 
 
 @functools.cache
@@ -290,12 +327,14 @@ def generate(case: Case, out: Path, seconds: float, seed: int) -> None:
 
     # odometry: wheel radii and wheel base off by a little, noise per sample, at its own rate
     scale = 1 + np.array(case.wheel_scale_error)
+    spin = wheel_spin(case, motion)
     odo_lines = ["#timestamp [ns],v_left [m/s],v_right [m/s]"]
     step = round(1.0 / case.odom_hz / 1e-3)
-    for k in range(step, len(motion.t), step):
-        mean = motion.wheels[k - step + 1 : k + 1].mean(axis=0)
+    stamps = odometry_stamps(case, motion.t[step::step], rng)
+    for k, t_stamp in zip(range(step, len(motion.t), step), stamps, strict=True):
+        mean = (motion.wheels[k - step + 1 : k + 1] * spin[k - step + 1 : k + 1]).mean(axis=0)
         meas = mean / scale + rng.normal(0, case.odom_noise, 2) * np.maximum(np.abs(mean), 0.02)
-        odo_lines.append(f"{case.epoch_ns + round(motion.t[k] * NS)},{meas[0]:.6f},{meas[1]:.6f}")
+        odo_lines.append(f"{case.epoch_ns + t_stamp},{meas[0]:.6f},{meas[1]:.6f}")
     (out / "odom0" / "data.csv").write_text("\n".join(odo_lines) + "\n")
 
     # LEDs: dark, then the nearest landmarks one at a time, then all (the start-up sweep)
@@ -316,8 +355,10 @@ def generate(case: Case, out: Path, seconds: float, seed: int) -> None:
     truth = ["timestamp_ns,x,y,theta"]
     n_sub = 5
     t_frame = frame_dt * 0.5
-    while t_frame < seconds - case.exposure_s:
-        t_ns = case.epoch_ns + round(t_frame * NS)
+    while t_frame < seconds - case.exposure_s - case.camera_lag_s:
+        # the camera's clock runs `camera_lag_s` behind the exposure's mid-point (a stamp
+        # taken on arrival, or an unsynchronised clock); the truth is the pose at the stamp
+        t_ns = case.epoch_ns + round((t_frame + case.camera_lag_s) * NS)
         state = [s for t0, s in lit_state if t0 <= t_frame][-1]
         lit = np.ones(len(ids), bool) if state is None else np.isin(ids, list(state))
         samples, ok = [], np.ones(len(ids), bool)
@@ -326,8 +367,9 @@ def generate(case: Case, out: Path, seconds: float, seed: int) -> None:
             px, inside = true_lens.project(in_camera(motion.pose[k], T_BS, p_true))
             samples.append(px)
             ok &= inside
+        k_stamp = min(round((t_frame + case.camera_lag_s) / 1e-3), len(motion.t) - 1)
+        x, y, th = motion.pose[k_stamp]
         k = min(round(t_frame / 1e-3), len(motion.t) - 1)
-        x, y, th = motion.pose[k]
         p_cam = in_camera(motion.pose[k], T_BS, p_true)
         dist_m = np.linalg.norm(p_cam, axis=1)
         cos_a = np.clip(p_cam[:, 2] / dist_m, 0, 1)
