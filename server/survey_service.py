@@ -9,8 +9,9 @@ landmarks the surveying robot expects in view, those not yet identified or not y
 converged, never one another robot uses or expects (`server.survey_live.blink_choice`). Every
 few seconds the drive so far is solved again (the live estimate, with each landmark's state,
 and a suggested route over what is still uncertain: `survey.route`). `stop` ends the drive
-and solves on the recording in a worker thread; the locked landmarks are the anchors, every
-other landmark's map position is its rough position. Results are proposals: `accept` writes
+and solves on the recording; both solves run in a worker process (`server.survey_solver`).
+The locked landmarks are the anchors, every other landmark's map position is its rough
+position. Results are proposals: `accept` writes
 the chosen landmarks' positions through the map's data layer (audited, undoable), never
 silently; `cancel` drops the survey.
 """
@@ -39,9 +40,9 @@ from server.survey_live import (
     LiveSurveyConfig,
     landmark_state,
 )
+from server.survey_solver import SolveCancelledError, SurveySolver
 from survey.blinks import BlinkConfig
-from survey.bundle import BundleConfig, solve_survey
-from survey.drive import read_survey_drive, survey_problem
+from survey.bundle import BundleConfig
 from survey.result import LandmarkEstimate, SurveyResult
 from survey.route import suggest_route
 from survey.survey_map import SurveyLandmark
@@ -147,6 +148,7 @@ class LiveSurvey:
         self._threads: list[threading.Thread] = []
         self._drive: LiveDrive | None = None
         self._tap: tuple[str, Callable[[Event], None]] | None = None
+        self._solver = SurveySolver()  # the solves, in a process of their own
 
     def anchors(self) -> list[int]:
         """The locked landmarks: they keep their surveyed positions and fix the map's frame."""
@@ -183,6 +185,7 @@ class LiveSurvey:
             self._message, self._result, self._accepted = "", None, []
             self._drive_s, self._estimates, self._route = 0.0, 0, ()
             self._stop = stop = threading.Event()  # this drive's: an old thread keeps its own
+            self._solver.start()
             blinker = BlinkDriver(
                 self.leds, self.robots, robot, sorted(lm.id for lm in lms), self._settled,
                 self.blinks, self._counted, anchors,
@@ -228,7 +231,9 @@ class LiveSurvey:
             if len(snap.frame_t_ns) < 2 or len(snap.odom_t_ns) == 0:
                 continue
             try:
-                result = solve_survey(survey_problem(snap, anchors), cfg.bundle)
+                result = self._solver.drive(snap, anchors, cfg.bundle)
+            except SolveCancelledError:
+                return
             except ValueError as exc:  # e.g. an anchor not identified yet
                 with self._lock:
                     if self._state == "driving" and not stop.is_set():
@@ -277,7 +282,8 @@ class LiveSurvey:
     def _end_drive(self) -> None:
         """Stop blinking, estimating and the tap (the caller set the state)."""
         self._stop.set()
-        for t in self._threads[:1]:  # the blinks end at once; a live solve ends by itself
+        self._solver.cancel()  # a live solve still running is not wanted any more
+        for t in self._threads:
             t.join(timeout=5.0)
         self._threads = []
         if self._tap is not None:
@@ -308,9 +314,9 @@ class LiveSurvey:
         try:
             if path is None:
                 raise ValueError("the robot's recording was lost")
-            drive = read_survey_drive(path)
-            problem = survey_problem(drive, self.anchors())
-            result = solve_survey(problem, self.bundle)
+            result = self._solver.recording(path, self.anchors(), self.bundle)
+        except SolveCancelledError:
+            return
         except ValueError as exc:
             with self._lock:
                 if self._state == "solving":  # not cancelled meanwhile

@@ -11,8 +11,16 @@ naming spots (predict each landmark's pixel from the pose) does not apply. Inste
    blinks dark keeps its track.
 2. **Names.** A track that vanishes exactly while one landmark is dark and is back when it is
    lit again votes for that landmark (`survey.blinks`); a track seen in a frame where only
-   one landmark was lit (the start-up sweep, Sec. III-A) votes for it. A track takes the name
-   most of its votes give, if they agree clearly.
+   one landmark was lit (the start-up sweep, Sec. III-A) votes for it. A track seen while a
+   landmark was surely dark (a frame exposed after the switch was stamped and before the next
+   switch can have happened) cannot be that landmark: each such dark window counts against
+   the name. A track takes the name most of its votes give, if they agree clearly with the
+   evidence against counted in.
+3. **One spot per name at a time.** Two tracks seen in one frame cannot both be one
+   landmark: the one with fewer votes loses the name (a spot that vanished by chance during
+   another landmark's blink), both on a tie. Only if both are sure (`sure_votes`: a chance
+   vanishing rarely repeats) do they keep it, reported as a conflict: two landmarks answering
+   to one radio address.
 
 Everything here is pure: frames arrive as detected spot pixels with their time and the LED
 state in force.
@@ -22,7 +30,7 @@ from __future__ import annotations
 
 import math
 from collections import Counter
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -44,7 +52,10 @@ class TrackingConfig:
 
     Attributes:
         gate_px: a spot pairs with a track's prediction within this distance, pixels.
-        max_coast_frames: a track with no spot for longer ends.
+        max_coast_frames: a track with no spot for this many frames in which no landmark
+            was dark ends (a spot gone while every LED is lit is gone).
+        max_coast_s: ... or for this long, blinks or not (a dark window lasts as long as the
+            radio and the camera take: a fraction of a second, more on a busy server).
         edge_margin_px: a coasting track whose prediction comes this close to the image edge
             (or leaves the field of view) cannot vote: it may just have left the image.
         vote_margin_px: a track votes only if it vanished and came back this far inside the
@@ -56,16 +67,24 @@ class TrackingConfig:
         min_agreement: share of a track's votes its name needs.
         led_time_tolerance_s: how late an LED state may be stamped after the LED switched
             (a live recording stamps the radio's confirmation), seconds.
+        exposure_s: how long before its stamp a frame's exposure may begin, seconds (a frame
+            is evidence of a dark LED only if it began after the switch was stamped).
+        sure_votes: two tracks seen at once with one name both keep it only if each has this
+            many votes (two landmarks answering to one address, reported as a conflict);
+            otherwise the one with fewer votes loses it, both on a tie.
     """
 
     gate_px: float = 8.0
     max_coast_frames: int = 8
+    max_coast_s: float = 1.0
     edge_margin_px: float = 6.0
     vote_margin_px: float = 25.0
     min_gap_frames: int = 2
     max_dark_landmarks: int = 1
     min_agreement: float = 0.75
     led_time_tolerance_s: float = 0.06
+    exposure_s: float = 0.01
+    sure_votes: int = 3
 
 
 @dataclass(frozen=True, eq=False)
@@ -114,19 +133,40 @@ class _Track:
     pixels: list[tuple[float, float]] = field(default_factory=list)
     coast: list[int] = field(default_factory=list)  # frames coasted in the current gap
     coast_ok: bool = True  # the current gap's predictions stayed well inside the image
+    coast_unexplained: int = 0  # frames of the current gap with every LED lit
     votes: Counter[int] = field(default_factory=Counter)
+    seen_in: set[int] = field(default_factory=set)  # settled LED states it was seen in
+
+
+def lit_index_at_frames(frame_t_ns: Sequence[int], leds: Sequence[LedsChanged]) -> list[int]:
+    """Index into `leds` of the state in force at each frame time (-1 before the first)."""
+    times = [c.t_ns for c in leds]
+    return [int(np.searchsorted(times, t, side="right")) - 1 for t in frame_t_ns]
 
 
 def lit_state_at_frames(
     frame_t_ns: Sequence[int], leds: Sequence[LedsChanged]
 ) -> list[LedsChanged | None]:
     """The LED state in force at each frame time (None before the first state)."""
-    times = [c.t_ns for c in leds]
-    out: list[LedsChanged | None] = []
-    for t in frame_t_ns:
-        i = int(np.searchsorted(times, t, side="right")) - 1
-        out.append(leds[i] if i >= 0 else None)
-    return out
+    return [leds[i] if i >= 0 else None for i in lit_index_at_frames(frame_t_ns, leds)]
+
+
+def settled_states(
+    frame_t_ns: Sequence[int], leds: Sequence[LedsChanged], before_ns: int, after_ns: int
+) -> list[int]:
+    """Per frame, the index into `leds` of a state with some landmark dark that was stamped
+    `before_ns` or more before the frame and held until `after_ns` after it, else -1.
+
+    A state is stamped when the switch was confirmed, up to `after_ns` after the LEDs
+    switched: such a frame surely shows that state (the LEDs had switched before the stamp,
+    and switch again no earlier than `after_ns` before the next stamp)."""
+    now = lit_index_at_frames(frame_t_ns, leds)
+    early = lit_index_at_frames([int(t) - before_ns for t in frame_t_ns], leds)
+    late = lit_index_at_frames([int(t) + after_ns for t in frame_t_ns], leds)
+    return [
+        i if i >= 0 and i == e == la and not leds[i].all_lit else -1
+        for i, e, la in zip(now, early, late, strict=True)
+    ]
 
 
 def predict_pixels_after_motion(
@@ -184,6 +224,7 @@ def label_spot_tracks(
     tol_ns = round(cfg.led_time_tolerance_s * 1e9)
     later = lit_state_at_frames([int(t) + tol_ns for t in frame_t_ns], leds)
     dark_late = [_dark_of(s, ids) for s in later]
+    settled = settled_states(frame_t_ns, leds, round(cfg.exposure_s * 1e9), tol_ns)
     live: list[_Track] = []
     done: list[_Track] = []
     for f, spots in enumerate(frame_spots):
@@ -199,13 +240,21 @@ def label_spot_tracks(
         used_spots = {si for _, si in pairs}
         for ti, si in pairs:
             _resume(live[ti], f, spots[si], dark, dark_late, states, cfg, camera)
+            if settled[f] >= 0:
+                live[ti].seen_in.add(settled[f])
         still: list[_Track] = []
         for ti, t in enumerate(live):
             if ti in matched_tracks:
                 still.append(t)
                 continue
             inside = bool(valid[ti]) and _inside(camera, pred[ti], cfg.edge_margin_px)
-            if not inside or f - t.last_seen > cfg.max_coast_frames:
+            if not _either(dark[f], dark_late[f]):
+                t.coast_unexplained += 1
+            if (
+                not inside
+                or t.coast_unexplained > cfg.max_coast_frames
+                or (int(frame_t_ns[f]) - int(frame_t_ns[t.last_seen])) * 1e-9 > cfg.max_coast_s
+            ):
                 done.append(t)
                 continue
             t.pixel = pred[ti]
@@ -218,10 +267,12 @@ def label_spot_tracks(
             if si not in used_spots:
                 t = _Track(spots[si].copy(), f, f, [f], [(spots[si, 0], spots[si, 1])])
                 _vote_single_lit(t, f, states)
+                if settled[f] >= 0:
+                    t.seen_in.add(settled[f])
                 still.append(t)
         live = still
     done.extend(live)
-    return _observations(done, cfg)
+    return _observations(done, cfg, leds)
 
 
 def _pair(
@@ -279,6 +330,7 @@ def _resume(
                 if lid not in seen_before and after_lit:
                     t.votes[lid] += 1
         t.coast = []
+        t.coast_unexplained = 0
     t.pixel = spot.copy()
     t.last_seen = f
     t.frames.append(f)
@@ -300,24 +352,68 @@ def _vote_single_lit(t: _Track, f: int, states: list[LedsChanged | None]) -> Non
         t.votes[lid] += 1
 
 
-def _observations(tracks: list[_Track], cfg: TrackingConfig) -> LabelledObservations:
+def track_name(
+    votes: Counter[int], against: Callable[[int], int], min_agreement: float
+) -> tuple[int, int]:
+    """A track's name and the votes for it, (-1, 0) for none: the most voted landmark, if its
+    votes are `min_agreement` of all the track's votes and the dark windows it was seen in
+    (`against(lid)`: each says it is not that landmark)."""
+    if not votes:
+        return -1, 0
+    (best, top), total = votes.most_common(1)[0], sum(votes.values())
+    if top >= min_agreement * (total + against(best)):
+        return best, top
+    return -1, 0
+
+
+def _dark_windows_seen(t: _Track, leds: Sequence[LedsChanged]) -> Callable[[int], int]:
+    """How many settled states with landmark `lid` dark the track was seen in."""
+
+    def against(lid: int) -> int:
+        return sum(1 for i in t.seen_in if lid not in leds[i].lit)
+
+    return against
+
+
+def _one_spot_per_name(names: list[tuple[int, int]], tracks: list[_Track], sure: int) -> None:
+    """One spot per landmark at a time: of tracks seen in one frame with one name, unname
+    (in place) each with fewer votes than another, or as many, unless both have `sure`."""
+    by_name: dict[int, list[int]] = {}
+    for k, (lid, _) in enumerate(names):
+        if lid >= 0:
+            by_name.setdefault(lid, []).append(k)
+    for ks in by_name.values():
+        if len(ks) < 2:
+            continue
+        frames = {k: set(tracks[k].frames) for k in ks}
+        votes = {k: names[k][1] for k in ks}
+        for k in ks:
+            if any(
+                j != k
+                and votes[j] >= votes[k]
+                and min(votes[j], votes[k]) < sure
+                and not frames[k].isdisjoint(frames[j])
+                for j in ks
+            ):
+                names[k] = (-1, 0)
+
+
+def _observations(
+    tracks: list[_Track], cfg: TrackingConfig, leds: Sequence[LedsChanged]
+) -> LabelledObservations:
     frames: list[int] = []
     lids: list[int] = []
     n_votes: list[int] = []
     pixels: list[tuple[float, float]] = []
     track_ix: list[int] = []
     votes: Counter[int] = Counter()
-    named = 0
     seen_at: dict[tuple[int, int], int] = {}
     conflicts: Counter[int] = Counter()
-    for k, t in enumerate(tracks):
-        lid, n = -1, 0
-        if t.votes:
-            (best, top), total = t.votes.most_common(1)[0], sum(t.votes.values())
-            if top >= cfg.min_agreement * total:
-                lid, n = best, top
-                named += 1
-                votes[lid] += top
+    names = [track_name(t.votes, _dark_windows_seen(t, leds), cfg.min_agreement) for t in tracks]
+    _one_spot_per_name(names, tracks, cfg.sure_votes)
+    for k, (t, (lid, n)) in enumerate(zip(tracks, names, strict=True)):
+        if lid >= 0:
+            votes[lid] += n
         for f, px in zip(t.frames, t.pixels, strict=True):
             if lid >= 0:
                 other = seen_at.setdefault((f, lid), k)
@@ -338,5 +434,5 @@ def _observations(tracks: list[_Track], cfg: TrackingConfig) -> LabelledObservat
         dict(conflicts),
         dict(votes),
         len(tracks),
-        named,
+        sum(1 for lid, _ in names if lid >= 0),
     )

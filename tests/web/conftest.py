@@ -1,5 +1,6 @@
 """A live site for the viewer's end-to-end tests: the API app in-process (uvicorn on a free
-port, a temporary data folder, the `demo` virtual site), started once per test session."""
+port, a temporary data folder, the `demo` virtual site), started once per test module (a
+site left running takes most of a core from the tests after it)."""
 
 from __future__ import annotations
 
@@ -67,7 +68,7 @@ def server() -> Iterator[viser.ViserServer]:
         s.stop()
 
 
-@pytest.fixture(scope="session")
+@pytest.fixture(scope="module")
 def live_site(tmp_path_factory: pytest.TempPathFactory) -> Iterator[LiveSite]:
     with running_site(tmp_path_factory.mktemp("irloc-data")) as (app, port):
         services = app.state.services
