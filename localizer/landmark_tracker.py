@@ -469,7 +469,8 @@ class LandmarkTracker:
         if n < need:
             return ()
         chi2_per_dof = self._chi2_per_dof(fix, sig)
-        if chi2_per_dof > fc.max_chi2_per_dof:
+        gate_sig = sig if n > 2 else [self.noise.pair_sigma_px(s) for s in sig]
+        if self._chi2_per_dof(fix, gate_sig) > fc.max_chi2_per_dof:
             return ()
         # A fix that moved the floor: the pose the earlier fixes (on the old floor) gave is
         # read on the new one, as when a calibration is corrected (the filter's belief stays).

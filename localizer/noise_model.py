@@ -152,6 +152,7 @@ class PixelNoiseModel:
         base2 = config.centroid_sigma_px**2 + (config.survey_sigma_m * scale_px_per_m) ** 2
         self._step = float(radii[1] - radii[0]) if len(radii) > 1 else 1.0
         self._table = [math.sqrt(base2 + c * c) for c in cal.tolist()]
+        self._survey_px = config.survey_sigma_m * scale_px_per_m
         self._cu, self._cv = camera.cu, camera.cv
         self.consider = CalibrationConsider.for_camera(
             camera,
@@ -186,6 +187,23 @@ class PixelNoiseModel:
             return self.factor * table[-1]
         a = f - i
         return self.factor * ((1.0 - a) * table[i] + a * table[i + 1])
+
+    def pair_sigma_px(self, sigma_px: float) -> float:
+        """The sigma a fix of two landmarks is tested by, for a spot of this model's
+        `sigma_px`: the survey's part at its prior even when the factor has fallen below 1.
+
+        A two-landmark fix has one degree of freedom, the distance between its two spots,
+        and what moves that is the survey error of that one pair (and the focal scale), the
+        same on every frame of it. The factor is learnt from fixes of 3+ landmarks, whose
+        residuals say how much of the modelled calibration error a fit of many spots
+        absorbs (at the edges of a strong lens, most of it): a factor of 0.2 there made the
+        pair's sigma a fifth of its survey's, and a pair surveyed 1 cm apart from the truth
+        (two standard deviations at 4 mm per axis) was refused frame after frame while its
+        spots sat within a pixel of their predictions."""
+        f = self.factor
+        if f >= 1.0:
+            return sigma_px
+        return math.sqrt(sigma_px * sigma_px + (1.0 - f * f) * self._survey_px**2)
 
     def white_share(self, sigma_px: list[float]) -> float:
         """The share of a fix's variance that is white (the centroids' own noise, new on

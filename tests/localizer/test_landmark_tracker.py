@@ -165,3 +165,34 @@ def test_landmarks_darkened_since_the_last_fix_do_not_count_as_missing() -> None
     kidnapped = tracker.step(filt, _spots(px[few]), dt_frame_s=1 / 30, fresh_odometry=True,
                              candidates=None)  # fmt: skip
     assert kidnapped.used == ()
+
+
+def _pair_step(map_error_m: float, factor: float) -> tuple[int, ...]:
+    """Two landmarks 1.8 m apart straight above a robot, their map positions `map_error_m`
+    further apart than the truth (the survey), the spots exactly where the truth puts them,
+    the noise factor adapted to `factor`: the IDs the step fuses."""
+    truth = np.array([[-0.9, 0.0, 2.5], [0.9, 0.0, 2.5]])
+    mapped = truth + np.array([[-map_error_m / 2, 0.0, 0.0], [map_error_m / 2, 0.0, 0.0]])
+    lmap = LandmarkMap(np.array([1, 2]), mapped)
+    pose = (0.0, 0.0, 0.3)
+    true_px, ok = predict_pixels(CAM, T_world_body_from_pose(*pose), truth)
+    assert ok.all()
+    tracker = LandmarkTracker(CAM, ROBOT, LocalizerConfig(), lmap)
+    tracker.noise.factor = factor
+    filt = PoseFilter(*pose, np.diag([0.01**2, 0.01**2, 0.01**2]), wheel_base=ROBOT.wheel_base)
+    r = tracker.step(filt, _spots(true_px), dt_frame_s=1 / 30, fresh_odometry=True,
+                     candidates=None)  # fmt: skip
+    return r.used
+
+
+def test_a_pair_surveyed_a_centimetre_apart_is_fused_whatever_the_factor_learnt() -> None:
+    # 1 cm is two standard deviations of a 4 mm per axis survey for the pair's distance.
+    # The factor learnt from fixes of many landmarks (0.2: a fit of many spots absorbed most
+    # of the modelled calibration error) says nothing of a pair's one degree of freedom: the
+    # pair keeps the survey's sigma (floor50's r3 went from dead reckoning to lost on such a
+    # pair while its spots sat within a pixel of their predictions).
+    assert _pair_step(0.010, factor=1.0) == (1, 2)
+    assert _pair_step(0.010, factor=0.2) == (1, 2)
+    # a pair 6 cm off (a spot that is not the landmark's) is still refused
+    assert _pair_step(0.06, factor=0.2) == ()
+    assert _pair_step(0.06, factor=1.0) == ()
