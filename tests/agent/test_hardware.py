@@ -63,11 +63,13 @@ def test_camera_and_wheels_feed_the_localizer_which_probes_near_the_hint(tmp_pat
             time.sleep(0.02)
 
     writer = threading.Thread(target=robot_controller, daemon=True)
+    # The hint is taken before the camera runs: a frame stamped before the command would be
+    # identified without it (on a loaded machine the reader can get ahead of the first tick).
+    core.on_command(CommandMessage(command="relocalize", near=(1.75, 1.9, 0.25)))
+    outs = core.tick(time.monotonic_ns())
     source.start()
     writer.start()
     try:
-        core.on_command(CommandMessage(command="relocalize", near=(1.75, 1.9, 0.25)))
-        outs = []
         t_end = time.monotonic() + 10
         while time.monotonic() < t_end and source.frames < 40:
             outs += core.tick(time.monotonic_ns())
