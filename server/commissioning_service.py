@@ -66,6 +66,10 @@ log = logging.getLogger(__name__)
 WIZARD = "wizard"
 """The LED coordinator's name for the wizard's requests."""
 
+WIZARD_PIN_S = 60.0
+"""Under an LED schedule the landmark the wizard switches is kept lit this long after each
+switch (a pin of the schedule, "pinned: wizard"), or until the wizard finishes, seconds."""
+
 
 class Commissioning:
     """Doubt detection and the identification wizard on the live site.
@@ -175,6 +179,9 @@ class Commissioning:
             coordinator = self.leds.coordinator
             if coordinator is None:
                 raise UnavailableError("no radio: the site runs without a gateway")
+            # Under an LED schedule the landmark measured must be lit when it is "on": the
+            # request darkens it among the schedule's lit set, which needs it in that set.
+            self.leds.keep_lit([out.landmark_id], WIZARD, WIZARD_PIN_S)
             dark = frozenset() if out.on else frozenset({out.landmark_id})
             req = LedRequest(all_lit=True, dark=dark)
             coordinator.request(WIZARD, req)
@@ -183,6 +190,7 @@ class Commissioning:
         elif isinstance(out, SaveLandmark):
             self._save(out)
         elif isinstance(out, Finished):
+            self.leds.release(WIZARD)
             log.info("identification %s: saved %s, skipped %s", out.phase, out.saved, out.skipped)
 
     def _switch_radio(self, address: str, on: bool) -> None:

@@ -29,6 +29,7 @@ from rf_gateway.gateway import Gateway
 from rf_gateway.transport import DiscoveredRadio, normalize_address
 from server.crud import EventLog, MapRepository, RobotStore
 from server.errors import NotFoundError, UnavailableError
+from server.led_schedule.runtime import LedScheduler
 from server.models import RobotCreate, RobotPublic
 from server.poses import PoseUpdate
 from server.site.leds import LedCoordinator
@@ -160,16 +161,36 @@ class LedsAndRadio:
         self.log = log
         self.gateway: Gateway | None = None
         self.coordinator: LedCoordinator | None = None
+        self.scheduler: LedScheduler | None = None
         self.discovered: list[DiscoveredRadio] = []
 
-    def attach(self, gateway: Gateway | None, coordinator: LedCoordinator | None) -> None:
+    def attach(
+        self,
+        gateway: Gateway | None,
+        coordinator: LedCoordinator | None,
+        scheduler: LedScheduler | None = None,
+    ) -> None:
         """Called by the live site once its radio runs (`attach(None, None)` at stop):
         every supply reading of the gateway (its schedule, or `read_battery`) is stored."""
         if self.gateway is not None:
             self.gateway.remove_battery_listener(self._store_reading)
-        self.gateway, self.coordinator = gateway, coordinator
+        self.gateway, self.coordinator, self.scheduler = gateway, coordinator, scheduler
         if gateway is not None:
             gateway.add_battery_listener(self._store_reading)
+
+    def keep_lit(self, landmark_ids: Iterable[int], reason: str, duration_s: float) -> None:
+        """Keep landmarks lit for `duration_s` whatever the LED schedule needs for the robots
+        (thread-safe): what the survey and the wizard measure must be lit to be seen, and
+        their requests darken one landmark *of the schedule's lit set*. A pin of the schedule
+        (`GET /leds/schedule` shows it as "pinned: <reason>"); nothing to do with every LED
+        lit (`all_lit`)."""
+        if self.scheduler is not None:
+            self.scheduler.pin(landmark_ids, reason, duration_s)
+
+    def release(self, reason: str) -> None:
+        """End the pins given for `reason` (`keep_lit`)."""
+        if self.scheduler is not None:
+            self.scheduler.unpin_reason(reason)
 
     def _store_reading(self, reading: BatteryReading) -> None:
         self.log.add_battery(reading.landmark_id, reading.supply_mv)

@@ -2,7 +2,10 @@
 among those the surveying robot sees that the survey still needs, never one another robot
 cannot spare (one of the few its fix stands on).
 
-The requests go to the LED coordinator as the requester "survey" (`SURVEY`); each dark and
+Under an LED schedule the whole ceiling is kept lit while the survey drives (pins of the
+schedule, "pinned: survey"): a dark landmark is not seen, and a blink darkens one landmark of
+the schedule's lit set. The requests go to the LED coordinator as the requester "survey"
+(`SURVEY`); each dark and
 each lit window starts once the radio confirmed the switch, so that windows never run into
 each other and the recording names one dark landmark at a time (`survey.blinks.BlinkConfig`
 timing).
@@ -20,9 +23,17 @@ from survey.blinks import BlinkConfig
 
 if TYPE_CHECKING:  # the facades are handed in (server.services); typing only
     from server.facades import LedsAndRadio, Robots
+    from server.site.leds import LedCoordinator
 
 SURVEY = "survey"
-"""The LED coordinator's name for the survey's requests."""
+"""The LED coordinator's name for the survey's requests (and the reason of its pins)."""
+
+PIN_RENEW_S = 2.0
+"""How often the survey renews its pins of the whole ceiling under an LED schedule, seconds."""
+
+PIN_S = 10.0
+"""How long each of those pins lasts, seconds (longer than a blink's dark and lit windows
+with their confirmations; a survey that stopped without releasing them loses them then)."""
 
 
 def blink_choice(
@@ -123,7 +134,28 @@ class BlinkDriver:
         cfg = self.config
         dark_s = cfg.dark_frames * cfg.frame_period_s + cfg.radio_latency_s
         lit_s = cfg.lit_frames * cfg.frame_period_s + cfg.radio_latency_s
+        try:
+            self._blink(coordinator, stop, dark_s, lit_s)
+        finally:
+            coordinator.request(SURVEY, LedRequest(all_lit=True))
+            self.leds.release(SURVEY)
+
+    def _keep_ceiling_lit(self, renewed: float | None) -> float:
+        """Under an LED schedule, keep every landmark lit while the survey drives (a dark
+        one is neither seen nor named), renewed every `PIN_RENEW_S`; when it was renewed."""
+        now = time.monotonic()
+        if renewed is not None and now - renewed < PIN_RENEW_S:
+            return renewed
+        self.leds.keep_lit(self.ids, SURVEY, PIN_S)
+        return now
+
+    def _blink(
+        self, coordinator: LedCoordinator, stop: threading.Event, dark_s: float, lit_s: float
+    ) -> None:
+        cfg = self.config
+        renewed = self._keep_ceiling_lit(None)
         while not stop.is_set() and self.ids:
+            renewed = self._keep_ceiling_lit(renewed)
             lid = self.next_landmark()
             if lid is None:  # nothing the survey needs in view: a window stays lit
                 if stop.wait(dark_s + lit_s):
@@ -141,7 +173,6 @@ class BlinkDriver:
                 lid, stop, lit=True, frames=cfg.lit_frames, min_s=lit_s
             ):
                 break
-        coordinator.request(SURVEY, LedRequest(all_lit=True))
 
     def _hold(
         self, landmark_id: int, stop: threading.Event, *, lit: bool, frames: int, min_s: float

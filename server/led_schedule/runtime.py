@@ -14,6 +14,7 @@ import asyncio
 import contextlib
 import logging
 import math
+import threading
 from collections.abc import Awaitable, Callable, Iterable
 from dataclasses import dataclass
 from typing import Protocol
@@ -105,6 +106,7 @@ class LedScheduler:
         self._chosen_ns: dict[int, int] = {}
         self._motion: dict[str, _Motion] = {}
         self._pinned: dict[int, tuple[str, int]] = {}
+        self._pins_lock = threading.Lock()  # pins come from the API's and services' threads
         self._task: asyncio.Task[None] | None = None
         self._set_awake = set_awake
         self.wake_window = wake_window if set_awake is not None else None
@@ -116,20 +118,31 @@ class LedScheduler:
         """Keep landmarks lit for `duration_s` (the survey, a staff member's check); the
         next plan lights them (`POST /leds/pin`)."""
         until = self._clock_ns() + round(duration_s * 1e9)
-        for lid in landmark_ids:
-            self._pinned[int(lid)] = (reason, until)
+        with self._pins_lock:
+            for lid in landmark_ids:
+                self._pinned[int(lid)] = (reason, until)
 
     def unpin(self, landmark_id: int) -> bool:
         """End a landmark's pin; False when it had none."""
-        return self._pinned.pop(int(landmark_id), None) is not None
+        with self._pins_lock:
+            return self._pinned.pop(int(landmark_id), None) is not None
+
+    def unpin_reason(self, reason: str) -> int:
+        """End every pin given for `reason` (the survey's, the wizard's when they end); how
+        many there were."""
+        with self._pins_lock:
+            gone = [k for k, v in self._pinned.items() if v[0] == reason]
+            for k in gone:
+                del self._pinned[k]
+        return len(gone)
 
     def pins(self) -> list[tuple[int, str, float]]:
         """(landmark ID, reason, seconds left) of every pin still running."""
         now = self._clock_ns()
+        with self._pins_lock:
+            pinned = sorted(self._pinned.items())
         return [
-            (lid, reason, (until - now) * _NS)
-            for lid, (reason, until) in sorted(self._pinned.items())
-            if until > now
+            (lid, reason, (until - now) * _NS) for lid, (reason, until) in pinned if until > now
         ]
 
     def landmark_ids(self) -> list[int]:
@@ -232,7 +245,9 @@ class LedScheduler:
         self._account(t_ns)
         lit = self._heading()
         ids, positions = self._landmarks()
-        self._pinned = {k: v for k, v in self._pinned.items() if v[1] > t_ns}
+        with self._pins_lock:
+            self._pinned = {k: v for k, v in self._pinned.items() if v[1] > t_ns}
+            pinned = {k: v[0] for k, v in self._pinned.items()}
         robots = [self._robot_state(r, t_ns) for r in self._runners()]
         plan = plan_leds(
             robots,
@@ -241,7 +256,7 @@ class LedScheduler:
             lit_now=lit,
             last_chosen_s={k: (t_ns - v) * _NS for k, v in self._chosen_ns.items()},
             wear_h={k: v / 3600.0 for k, v in self.lit_s.items()},
-            pinned={k: v[0] for k, v in self._pinned.items()},
+            pinned=pinned,
             config=self.config,
             confirmed=self._confirmed(),
         )

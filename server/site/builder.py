@@ -77,7 +77,12 @@ class RobotHost(Protocol):
 class LedHost(Protocol):
     """What the live site needs of the LED facade (`server.facades.LedsAndRadio`)."""
 
-    def attach(self, gateway: Gateway | None, coordinator: LedCoordinator | None) -> None: ...
+    def attach(
+        self,
+        gateway: Gateway | None,
+        coordinator: LedCoordinator | None,
+        scheduler: LedScheduler | None = None,
+    ) -> None: ...
 
 
 class LiveSiteRunner:
@@ -88,7 +93,7 @@ class LiveSiteRunner:
         map, robot_store: the data layer.
         robots: the live robots (the runner adds and removes them; `Robots.deliver` is the
             sink of every source).
-        leds: the LED facade (the runner attaches its gateway and LED coordinator).
+        leds: the LED facade (the runner attaches its gateway, LED coordinator and schedule).
         events: the site's event hub.
         clock_ns: the site clock.
     """
@@ -260,7 +265,7 @@ class LiveSiteRunner:
                 self.map, self.robots.runners, self.leds, self.clock_ns, self.settings,
                 routes=self._routes,
             )  # fmt: skip
-        self.led_facade.attach(self.gateway, self.leds)
+        self.led_facade.attach(self.gateway, self.leds, self.scheduler)
         loop = asyncio.get_running_loop()
         self._tasks = [loop.create_task(self._gateway_events())]
 

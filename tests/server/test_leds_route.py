@@ -65,3 +65,26 @@ def test_with_all_lit_there_is_nothing_to_pin(tmp_path: Path) -> None:
         assert r.status_code == 409 and "all_lit" in r.text
         st = api.client.get("/api/v1/leds/schedule", headers=api.h("viewer")).json()
         assert st == {"policy": "all_lit", "lit": [], "pinned": [], "lit_fraction": 1.0}
+
+
+def test_what_the_survey_and_the_wizard_keep_lit_is_pinned_until_they_release_it(
+    scheduled: Api,
+) -> None:
+    """`LedsAndRadio.keep_lit` / `release`, as the survey (the whole ceiling) and the wizard
+    (the landmark it measures) use them: pins of the schedule under their own reason, lit
+    through the radio, and released by reason only."""
+    api = scheduled
+    leds = api.services.leds
+    a, b, c = sorted(leds.controlled)[1:4]
+    leds.keep_lit([a, b], "survey", 60.0)
+    leds.keep_lit([c], "wizard", 60.0)
+    api.wait_for("/api/v1/radio", lambda s: {a, b, c} <= set(s["lit"]), 10.0)
+    st = api.client.get("/api/v1/leds/schedule", headers=api.h("viewer")).json()
+    reasons = {p["landmark_id"]: p["reason"] for p in st["pinned"]}
+    assert reasons == {a: "survey", b: "survey", c: "wizard"}
+    leds.release("survey")
+    api.wait_for("/api/v1/radio", lambda s: not {a, b} & set(s["lit"]), 10.0)
+    st = api.client.get("/api/v1/leds/schedule", headers=api.h("viewer")).json()
+    assert [(p["landmark_id"], p["reason"]) for p in st["pinned"]] == [(c, "wizard")]
+    leds.release("wizard")
+    api.wait_for("/api/v1/radio", lambda s: c not in s["lit"], 10.0)

@@ -118,3 +118,47 @@ def test_a_live_survey_places_the_grid_and_keeps_the_fleet_tracking(live: Api) -
         )
     audit = live.services.map.audit(limit=5)
     assert any("(survey)" in a.actor for a in audit)
+
+
+@pytest.fixture(scope="module")
+def scheduled(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Api]:
+    """The live demo under the LED schedule with sleeping radios (`led_policy` auto)."""
+    yield from start_api(tmp_path_factory.mktemp("survey_sched"), seed=11,
+                         radio_sleep_period_s=0.5)  # fmt: skip
+
+
+@pytest.mark.slow
+def test_under_the_led_schedule_the_survey_lights_the_ceiling_and_gives_it_back(
+    scheduled: Api,
+) -> None:
+    """The schedule lights a few landmarks per robot; a survey needs every landmark lit (a
+    dark one is neither seen nor named, a blink darkens one of the lit set): while it drives
+    the whole ceiling is pinned lit for it, estimates converge, and cancelling hands the
+    LEDs back to the schedule."""
+    api = scheduled
+    c, h = api.client, api.h("admin")
+    assert api.services.settings.led_policy == "scheduled"
+    for lid in ANCHORS:
+        assert c.patch(f"/api/v1/landmarks/{lid}", json={"locked": True}, headers=h).is_success
+    controlled = set(api.services.leds.controlled)
+    robots = api.services.robots
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline and robots.mode("r1") != "landmark":
+        time.sleep(0.2)
+    api.wait_for("/api/v1/leds/schedule", lambda s: s["lit_fraction"] < 0.6, 30, role="viewer")
+    r = c.post(S + "/start", json={"robot": "r1"}, headers=h)
+    assert r.status_code == 200, r.text
+
+    def survey_pins(st: dict[str, Any]) -> set[int]:
+        return {p["landmark_id"] for p in st["pinned"] if p["reason"] == "survey"}
+
+    api.wait_for("/api/v1/leds/schedule", lambda s: survey_pins(s) == controlled, 10, role="viewer")
+
+    def converged(st: dict[str, Any]) -> int:
+        return sum(1 for p in st["proposals"] if p["state"] == "converged")
+
+    st = api.wait_for(S, lambda s: converged(s) >= 3, 150, every_s=2.0)
+    assert st["blinks"] > 5
+    r = c.post(S + "/cancel", headers=h)
+    assert r.status_code == 200, r.text
+    api.wait_for("/api/v1/leds/schedule", lambda s: not survey_pins(s), 10, role="viewer")
