@@ -101,7 +101,7 @@ def main(
     first_key = prepare_database(engine)
     engine.dispose()
     viewer = make_viewer(settings) if make_viewer is not None else None
-    from server.console import startup_lines
+    from server.console import leds_line, startup_lines
 
     lines = startup_lines(
         host=settings.host, port=settings.port, data_dir=settings.data_dir,
@@ -113,6 +113,8 @@ def main(
             f"irloc: the API listens on {settings.host}, beyond this machine: every endpoint "
             "and the viewer need an API key; viser itself stays on 127.0.0.1"
         )
+    if settings.site_enabled:
+        print(leds_line(settings.led_policy, settings.radio_sleep_period_s))
     if settings.mqtt_url:
         print(f"irloc: fleet     {settings.mqtt_url} (site {settings.mqtt_site!r})")
     if first_key is not None:

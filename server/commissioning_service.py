@@ -181,7 +181,7 @@ class Commissioning:
                 raise UnavailableError("no radio: the site runs without a gateway")
             # Under an LED schedule the landmark measured must be lit when it is "on": the
             # request darkens it among the schedule's lit set, which needs it in that set.
-            self.leds.keep_lit([out.landmark_id], WIZARD, WIZARD_PIN_S)
+            self.leds.keep_lit([out.landmark_id], WIZARD, WIZARD_PIN_S, awake=True)
             dark = frozenset() if out.on else frozenset({out.landmark_id})
             req = LedRequest(all_lit=True, dark=dark)
             coordinator.request(WIZARD, req)

@@ -21,6 +21,22 @@ def browser_host(host: str) -> str:
     return host
 
 
+def leds_line(led_policy: str, radio_sleep_period_s: float | None) -> str:
+    """How the landmarks' LEDs and radios run, and the setting that changes it."""
+    if led_policy == "scheduled":
+        radios = (
+            "awake radios"
+            if radio_sleep_period_s is None
+            else f"radios asleep between wake-ups every {radio_sleep_period_s:g} s"
+        )
+        how = f"only what the robots need lit, {radios}"
+        other = "IRLOC_LED_POLICY=all_lit: every LED lit"
+    else:
+        how = "every LED lit, the paper's way"
+        other = "IRLOC_LED_POLICY=scheduled: only what the robots need"
+    return f"irloc: LEDs      {how} ({other}; docs/server.md, the LED schedule)"
+
+
 def startup_lines(
     *,
     host: str,

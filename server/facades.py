@@ -178,14 +178,17 @@ class LedsAndRadio:
         if gateway is not None:
             gateway.add_battery_listener(self._store_reading)
 
-    def keep_lit(self, landmark_ids: Iterable[int], reason: str, duration_s: float) -> None:
+    def keep_lit(
+        self, landmark_ids: Iterable[int], reason: str, duration_s: float, *, awake: bool = False
+    ) -> None:
         """Keep landmarks lit for `duration_s` whatever the LED schedule needs for the robots
         (thread-safe): what the survey and the wizard measure must be lit to be seen, and
         their requests darken one landmark *of the schedule's lit set*. A pin of the schedule
         (`GET /leds/schedule` shows it as "pinned: <reason>"); nothing to do with every LED
-        lit (`all_lit`)."""
+        lit (`all_lit`). `awake`: the caller switches LEDs one at a time and waits for each,
+        so sleeping radios keep their wake window open meanwhile (`LedScheduler.pin`)."""
         if self.scheduler is not None:
-            self.scheduler.pin(landmark_ids, reason, duration_s)
+            self.scheduler.pin(landmark_ids, reason, duration_s, awake=awake)
 
     def release(self, reason: str) -> None:
         """End the pins given for `reason` (`keep_lit`)."""

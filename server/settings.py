@@ -44,6 +44,11 @@ class _FileSource(PydanticBaseSettingsSource):
         return data
 
 
+SIM_SLEEP_PERIOD_S = 0.5
+"""The simulated site's landmarks sleep in cycles of this period unless told otherwise (XBee
+`SP`; docs/rf_gateway.md's recommended setting, measured in docs/sim.md's battery passes)."""
+
+
 class Settings(BaseSettings):
     """Everything the server can be told.
 
@@ -74,13 +79,17 @@ class Settings(BaseSettings):
         led_policy: `scheduled` lights only the landmarks the robots need
             (`server.led_schedule`); `all_lit` lights every landmark (the paper's way);
             `auto` (the default) is `scheduled` with sleeping radios
-            (`radio_sleep_period_s` set), where it meets the battery and accuracy targets,
-            and `all_lit` with awake ones, where a listening receiver caps a landmark's life
-            at days whatever is lit and the schedule costs accuracy (docs/sim.md, "The
-            fourth pass"). Resolved when the settings are made: never `auto` after.
+            (`radio_sleep_period_s`, the simulated site's default), where it meets the
+            battery and accuracy targets, and `all_lit` with awake ones, where a listening
+            receiver caps a landmark's life at days whatever is lit and the schedule costs
+            accuracy (docs/sim.md, "The fourth pass" and "The fifth pass"). Resolved when
+            the settings are made: never `auto` after.
         radio_sleep_period_s: the landmarks' radios sleep in cycles of this period (XBee
-            `SP`, seconds; the virtual site's radios then sleep too, and LED commands are
-            sent that much ahead of need); None: always-awake radios (`SM=0`).
+            `SP`, 0.32-28 s; the virtual site's radios then sleep too, and LED commands are
+            sent that much ahead of need); 0 or None: always-awake radios (`SM=0`). Not
+            given: the simulated radio's landmarks sleep at `SIM_SLEEP_PERIOD_S` (modules
+            set up as docs/rf_gateway.md recommends), an XBee radio's are taken as awake
+            (the modules' own `SM` decides; set this to match them).
     """
 
     model_config = SettingsConfigDict(env_prefix="IRLOC_", extra="ignore")
@@ -106,7 +115,7 @@ class Settings(BaseSettings):
     log_format: Literal["text", "json"] = "text"
     allow_remote_viewer_without_auth: bool = False
     led_policy: Literal["auto", "scheduled", "all_lit"] = "auto"
-    radio_sleep_period_s: float | None = Field(default=None, ge=0.32, le=28.0)
+    radio_sleep_period_s: float | None = Field(default=None, ge=0.0, le=28.0)
     mqtt_url: str | None = None
     mqtt_site: str = Field(default="default", pattern=r"^[A-Za-z0-9_.-]{1,64}$")
     vda_manufacturer: str = Field(default="irloc", pattern=r"^[A-Za-z0-9_.-]{1,64}$")
@@ -121,7 +130,16 @@ class Settings(BaseSettings):
         return text
 
     @model_validator(mode="after")
-    def _resolve_led_policy(self) -> Settings:
+    def _resolve_radio_sleep_and_led_policy(self) -> Settings:
+        period = self.radio_sleep_period_s
+        if "radio_sleep_period_s" not in self.model_fields_set:
+            self.radio_sleep_period_s = SIM_SLEEP_PERIOD_S if self.radio == "sim" else None
+        elif period is not None and period <= 0.0:
+            self.radio_sleep_period_s = None
+        elif period is not None and period < 0.32:
+            raise ValueError(
+                f"radio_sleep_period_s: 0 (awake) or 0.32-28 s (XBee SP), got {period}"
+            )
         if self.led_policy == "auto":
             sleeping = self.radio_sleep_period_s is not None
             self.led_policy = "scheduled" if sleeping else "all_lit"

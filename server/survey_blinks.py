@@ -13,6 +13,7 @@ timing).
 
 from __future__ import annotations
 
+import logging
 import threading
 import time
 from collections.abc import Callable, Iterable, Sequence
@@ -24,6 +25,8 @@ from survey.blinks import BlinkConfig
 if TYPE_CHECKING:  # the facades are handed in (server.services); typing only
     from server.facades import LedsAndRadio, Robots
     from server.site.leds import LedCoordinator
+
+log = logging.getLogger(__name__)
 
 SURVEY = "survey"
 """The LED coordinator's name for the survey's requests (and the reason of its pins)."""
@@ -146,7 +149,7 @@ class BlinkDriver:
         now = time.monotonic()
         if renewed is not None and now - renewed < PIN_RENEW_S:
             return renewed
-        self.leds.keep_lit(self.ids, SURVEY, PIN_S)
+        self.leds.keep_lit(self.ids, SURVEY, PIN_S, awake=True)
         return now
 
     def _blink(
@@ -154,6 +157,8 @@ class BlinkDriver:
     ) -> None:
         cfg = self.config
         renewed = self._keep_ceiling_lit(None)
+        if self.leds.scheduler is not None and not self._ceiling_lit(stop):
+            return
         while not stop.is_set() and self.ids:
             renewed = self._keep_ceiling_lit(renewed)
             lid = self.next_landmark()
@@ -173,6 +178,29 @@ class BlinkDriver:
                 lid, stop, lit=True, frames=cfg.lit_frames, min_s=lit_s
             ):
                 break
+
+    def _ceiling_lit(self, stop: threading.Event, timeout_s: float = 10.0) -> bool:
+        """Wait until every landmark the radio controls is confirmed lit (the pins in force:
+        a blink against a ceiling the schedule still darkens in places would name nothing),
+        or `timeout_s` passed. False when stopped."""
+        gateway = self.leds.gateway
+        t0 = time.monotonic()
+        wanted: set[int] = set()
+        while gateway is not None and time.monotonic() < t0 + timeout_s:
+            state = gateway.leds
+            if state is not None and not state.changing:
+                wanted = set(gateway.landmarks) - self.leds.unreachable  # a dead one never lights
+                wanted -= state.lit_among(gateway.landmarks)
+                if not wanted:
+                    log.info("survey: the ceiling is lit after %.1f s", time.monotonic() - t0)
+                    return True
+            if stop.wait(0.02):
+                return False
+        if gateway is not None:
+            log.warning(
+                "survey: landmarks %s not lit after %.0f s; blinking", sorted(wanted), timeout_s
+            )
+        return not stop.is_set()
 
     def _hold(
         self, landmark_id: int, stop: threading.Event, *, lit: bool, frames: int, min_s: float

@@ -105,7 +105,8 @@ class LedScheduler:
         self._t_books_ns: int | None = None
         self._chosen_ns: dict[int, int] = {}
         self._motion: dict[str, _Motion] = {}
-        self._pinned: dict[int, tuple[str, int]] = {}
+        self._pinned: dict[tuple[int, str], int] = {}  # (landmark, reason) -> until, ns
+        self._awake_reasons: set[str] = set()  # pins that switch LEDs one at a time
         self._pins_lock = threading.Lock()  # pins come from the API's and services' threads
         self._task: asyncio.Task[None] | None = None
         self._set_awake = set_awake
@@ -114,26 +115,37 @@ class LedScheduler:
         self._routes = routes
 
     # -- what others need ----------------------------------------------------------------
-    def pin(self, landmark_ids: Iterable[int], reason: str, duration_s: float) -> None:
+    def pin(
+        self, landmark_ids: Iterable[int], reason: str, duration_s: float, *, awake: bool = False
+    ) -> None:
         """Keep landmarks lit for `duration_s` (the survey, a staff member's check); the
-        next plan lights them (`POST /leds/pin`)."""
+        next plan lights them (`POST /leds/pin`). `awake`: whoever pinned them switches
+        LEDs one at a time and waits for each (the survey's blinks, the wizard), so while
+        such a pin runs the sleeping radios' wake window is open, as while a robot
+        identifies."""
         until = self._clock_ns() + round(duration_s * 1e9)
         with self._pins_lock:
-            for lid in landmark_ids:
-                self._pinned[int(lid)] = (reason, until)
+            for lid in landmark_ids:  # a landmark pinned for two reasons keeps both
+                self._pinned[(int(lid), reason)] = until
+            if awake:
+                self._awake_reasons.add(reason)
 
     def unpin(self, landmark_id: int) -> bool:
-        """End a landmark's pin; False when it had none."""
+        """End a landmark's pins (whatever their reason); False when it had none."""
         with self._pins_lock:
-            return self._pinned.pop(int(landmark_id), None) is not None
+            gone = [k for k in self._pinned if k[0] == int(landmark_id)]
+            for k in gone:
+                del self._pinned[k]
+        return bool(gone)
 
     def unpin_reason(self, reason: str) -> int:
         """End every pin given for `reason` (the survey's, the wizard's when they end); how
         many there were."""
         with self._pins_lock:
-            gone = [k for k, v in self._pinned.items() if v[0] == reason]
+            gone = [k for k in self._pinned if k[1] == reason]
             for k in gone:
                 del self._pinned[k]
+            self._awake_reasons.discard(reason)
         return len(gone)
 
     def pins(self) -> list[tuple[int, str, float]]:
@@ -142,7 +154,7 @@ class LedScheduler:
         with self._pins_lock:
             pinned = sorted(self._pinned.items())
         return [
-            (lid, reason, (until - now) * _NS) for lid, (reason, until) in pinned if until > now
+            (lid, reason, (until - now) * _NS) for (lid, reason), until in pinned if until > now
         ]
 
     def landmark_ids(self) -> list[int]:
@@ -246,8 +258,13 @@ class LedScheduler:
         lit = self._heading()
         ids, positions = self._landmarks()
         with self._pins_lock:
-            self._pinned = {k: v for k, v in self._pinned.items() if v[1] > t_ns}
-            pinned = {k: v[0] for k, v in self._pinned.items()}
+            self._pinned = {k: v for k, v in self._pinned.items() if v > t_ns}
+            reasons: dict[int, list[str]] = {}
+            for lid, reason in sorted(self._pinned):
+                reasons.setdefault(lid, []).append(reason)
+            pinned = {lid: ", ".join(rs) for lid, rs in reasons.items()}
+            self._awake_reasons &= {reason for _, reason in self._pinned}
+            switching = bool(self._awake_reasons)
         robots = [self._robot_state(r, t_ns) for r in self._runners()]
         plan = plan_leds(
             robots,
@@ -262,7 +279,7 @@ class LedScheduler:
         )
         for lid in plan.wanted | plan.planned:
             self._chosen_ns[lid] = t_ns
-        self._update_wake_window(robots, t_ns)
+        self._update_wake_window(robots, t_ns, switching=switching)
         changed = self.plan is None or plan.lit != self.plan.lit
         self.plan = plan
         self.plans += 1
@@ -270,11 +287,17 @@ class LedScheduler:
             self.on_plan(plan)
         return plan
 
-    def _update_wake_window(self, robots: list[RobotState], t_ns: int) -> None:
+    def _update_wake_window(
+        self, robots: list[RobotState], t_ns: int, *, switching: bool = False
+    ) -> None:
+        """Open the window while a robot identifies or someone switching LEDs one at a time
+        holds a pin (`pin(awake=True)`); close it `relax_after_s` after neither is so."""
         window = self.wake_window
         if window is None or self._set_awake is None:
             return
-        identifying = any(r.pose is None or r.mode in ("identifying", "lost") for r in robots)
+        identifying = switching or any(
+            r.pose is None or r.mode in ("identifying", "lost") for r in robots
+        )
         wake_s = window.update(t_ns * _NS, identifying=identifying)
         if wake_s is None:
             return

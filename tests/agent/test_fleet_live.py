@@ -194,18 +194,25 @@ def test_a_broker_restart_heals_by_itself(fleet: Fleet) -> None:
     lmap = MapMessage.model_validate_json(fleet.watch.wait_for(TOPICS.map).payload)
     assert len(lmap.landmarks) == len(services.map.list())
     wait_until(lambda: not services.leds.coordinator.waiting, 5.0, "LED queue drained")
-    wait_until(lambda: services.leds.gateway.leds.all_lit, 5.0, "every LED lit again")
-    wait_until(
-        lambda: LedStateMessage.model_validate_json(fleet.watch.on(TOPICS.leds)[-1].payload).all_lit
-        if fleet.watch.on(TOPICS.leds) else False,
-        5.0,
-        "retained LED state all lit",
-    )  # fmt: skip
+
+    def retained_is_the_gateways() -> bool:
+        """The latest LED state on the broker is the one in force (every LED, or the
+        schedule's set), not a switch left in flight."""
+        msgs = fleet.watch.on(TOPICS.leds)
+        state = services.leds.gateway.leds
+        if not msgs or state is None or state.changing:
+            return False
+        m = LedStateMessage.model_validate_json(msgs[-1].payload)
+        return (m.all_lit, set(m.lit), set(m.changing)) == (state.all_lit, set(state.lit), set())
+
+    wait_until(retained_is_the_gateways, 5.0, "retained LED state the gateway's, settled")
     assert all(robots(fleet)[n]["mode"] == "landmark" for n in ("a1", "a2"))
 
 
 def test_kill_9_gives_connection_broken_and_an_event_within_2_s(fleet: Fleet) -> None:
     topic = vda_topic("irloc", "a2", "connection")
+    events = fleet.api.services.events
+    before = max((e.id for e in events.recent(20)), default=0)  # not an earlier test's
     t0 = time.monotonic()
     fleet.agents["a2"].send_signal(signal.SIGKILL)
     fleet.agents["a2"].wait(5)
@@ -214,9 +221,11 @@ def test_kill_9_gives_connection_broken_and_an_event_within_2_s(fleet: Fleet) ->
     )
     assert m.t_mono - t0 < 2.0
     validate_vda("connection", json.loads(m.payload))
-    events = fleet.api.services.events
     wait_until(
-        lambda: any(e.kind == "robot_disconnected" and e.robot == "a2" for e in events.recent(20)),
+        lambda: any(
+            e.kind == "robot_disconnected" and e.robot == "a2" and e.id > before
+            for e in events.recent(20)
+        ),
         max(0.05, 2.0 - (time.monotonic() - t0)),
         "robot_disconnected event for a2",
     )

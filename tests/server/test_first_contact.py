@@ -5,7 +5,7 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-from server.console import browser_host, startup_lines
+from server.console import browser_host, leds_line, startup_lines
 from tests.server.conftest import Api
 
 
@@ -46,3 +46,12 @@ def test_console_prints_a_ready_to_click_viewer_url() -> None:
     assert "<key>" not in viewer and "token=KEY" in viewer
     assert "irloc keys create --role viewer --data-dir /srv/irloc" in viewer
     assert browser_host("::1") == "[::1]"
+
+
+def test_console_says_how_the_leds_run_and_how_to_change_it() -> None:
+    line = leds_line("scheduled", 0.5)
+    assert "only what the robots need" in line and "every 0.5 s" in line
+    assert "IRLOC_LED_POLICY=all_lit" in line
+    assert "awake radios" in leds_line("scheduled", None)
+    line = leds_line("all_lit", None)
+    assert "every LED lit" in line and "IRLOC_LED_POLICY=scheduled" in line

@@ -2,14 +2,17 @@
 
 from __future__ import annotations
 
+import asyncio
 from pathlib import Path
 from typing import Any, Literal
 
+import numpy as np
 import pytest
 
+from server.led_schedule.runtime import LedScheduler
 from server.led_schedule.site import gateway_config, wake_window
 from server.led_schedule.wake_window import WakeWindow, WakeWindowConfig
-from server.settings import Settings
+from server.settings import SIM_SLEEP_PERIOD_S, Settings
 
 
 def test_the_window_opens_while_a_robot_identifies_and_closes_after_it_held_a_pose() -> None:
@@ -56,19 +59,71 @@ def test_a_window_the_gateway_opened_at_start_costs_no_st_commands() -> None:
 def test_the_default_led_policy_follows_the_radios_sleep(monkeypatch: pytest.MonkeyPatch) -> None:
     """`auto`, the default: the schedule with sleeping radios (where it meets the battery
     and accuracy targets), every LED lit with awake ones; a policy given is kept, from the
-    environment too."""
+    environment too. The simulated site's radios sleep unless told otherwise (0: awake), an
+    XBee radio's are awake unless told."""
+
+    def settings(**kw: Any) -> Settings:
+        return Settings(data_dir=Path("/nonexistent"), **kw)
 
     def policy(**kw: Any) -> str:
-        return Settings(data_dir=Path("/nonexistent"), **kw).led_policy
+        return settings(**kw).led_policy
 
-    assert policy() == "all_lit"
-    assert policy(radio_sleep_period_s=0.5) == "scheduled"
+    assert settings().radio_sleep_period_s == SIM_SLEEP_PERIOD_S
+    assert policy() == "scheduled"
+    assert policy(radio_sleep_period_s=0) == policy(radio_sleep_period_s=None) == "all_lit"
+    assert settings(radio_sleep_period_s=0).radio_sleep_period_s is None
+    assert settings(radio="xbee:/dev/ttyUSB0").radio_sleep_period_s is None
+    assert policy(radio="xbee:/dev/ttyUSB0") == "all_lit"
+    assert policy(radio="xbee:/dev/ttyUSB0", radio_sleep_period_s=0.5) == "scheduled"
     assert policy(led_policy="auto", radio_sleep_period_s=2.0) == "scheduled"
     assert policy(led_policy="all_lit", radio_sleep_period_s=0.5) == "all_lit"
-    assert policy(led_policy="scheduled") == "scheduled"
+    assert policy(led_policy="scheduled", radio_sleep_period_s=None) == "scheduled"
+    monkeypatch.setenv("IRLOC_RADIO_SLEEP_PERIOD_S", "0")
+    assert policy() == "all_lit"
     monkeypatch.setenv("IRLOC_RADIO_SLEEP_PERIOD_S", "0.5")
-    assert policy() == "scheduled"
+    assert policy(radio="xbee:/dev/ttyUSB0") == "scheduled"
     monkeypatch.setenv("IRLOC_LED_POLICY", "all_lit")
     assert policy() == "all_lit"
     with pytest.raises(ValueError, match="led_policy"):
         policy(led_policy="sometimes")
+    with pytest.raises(ValueError, match=r"radio_sleep_period_s.*0\.32"):
+        policy(radio_sleep_period_s=0.1)
+
+
+def test_a_pin_of_someone_switching_leds_opens_the_window_until_it_ends() -> None:
+    """The survey's blinks and the wizard switch one LED at a time and wait for each: their
+    pins (`awake=True`) open the window as a robot's identification does, a staff member's
+    pin does not, and releasing them lets it close."""
+    sent: list[float] = []
+
+    async def set_awake(wake_s: float) -> None:
+        sent.append(wake_s)
+
+    async def body() -> None:
+        now = [0]
+        window = WakeWindow(WakeWindowConfig(normal_wake_s=1.0, identify_wake_s=30.0))
+        sched = LedScheduler(
+            lambda: ([7, 8], np.zeros((2, 3))), lambda: [], lambda name: 1.0, lambda: None,
+            lambda: now[0], set_awake=set_awake, wake_window=window,
+        )  # fmt: skip
+
+        async def step(t_s: float) -> None:
+            now[0] = round(t_s * 1e9)
+            sched.step(now[0])
+            await asyncio.sleep(0)  # the `ST` task runs
+
+        sched.pin([7], "ladder check", 60.0)
+        await step(0.0)
+        assert sent == [] and not window.open
+        sched.pin([7, 8], "survey", 60.0, awake=True)
+        await step(1.0)
+        assert sent == [30.0]
+        await step(10.0)
+        assert sent == [30.0]  # sent once
+        assert sched.unpin_reason("survey") == 2
+        await step(11.0)
+        await step(16.5)
+        assert sent == [30.0, 1.0]  # closed 5 s after the last switching pin ended
+        assert [p[1] for p in sched.pins()] == ["ladder check"]
+
+    asyncio.run(body())
