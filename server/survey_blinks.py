@@ -5,10 +5,9 @@ cannot spare (one of the few its fix stands on).
 Under an LED schedule the whole ceiling is kept lit while the survey drives (pins of the
 schedule, "pinned: survey"): a dark landmark is not seen, and a blink darkens one landmark of
 the schedule's lit set. The requests go to the LED coordinator as the requester "survey"
-(`SURVEY`); each dark and
-each lit window starts once the radio confirmed the switch, so that windows never run into
-each other and the recording names one dark landmark at a time (`survey.blinks.BlinkConfig`
-timing).
+(`SURVEY`); each dark and each lit window starts once the radio confirmed the switch, so that
+windows never run into each other and the recording names one dark landmark at a time
+(`survey.blinks.BlinkConfig` timing).
 """
 
 from __future__ import annotations
@@ -183,24 +182,22 @@ class BlinkDriver:
         """Wait until every landmark the radio controls is confirmed lit (the pins in force:
         a blink against a ceiling the schedule still darkens in places would name nothing),
         or `timeout_s` passed. False when stopped."""
-        gateway = self.leds.gateway
         t0 = time.monotonic()
-        wanted: set[int] = set()
-        while gateway is not None and time.monotonic() < t0 + timeout_s:
-            state = gateway.leds
-            if state is not None and not state.changing:
-                wanted = set(gateway.landmarks) - self.leds.unreachable  # a dead one never lights
-                wanted -= state.lit_among(gateway.landmarks)
-                if not wanted:
-                    log.info("survey: the ceiling is lit after %.1f s", time.monotonic() - t0)
-                    return True
-            if stop.wait(0.02):
-                return False
-        if gateway is not None:
+        unlit: set[int] = set()
+
+        def all_lit(lit: frozenset[int], landmarks: frozenset[int]) -> bool:
+            unlit.clear()
+            unlit.update(landmarks - self.leds.unreachable - lit)  # a dead one never lights
+            return not unlit
+
+        met = self._wait_settled(all_lit, stop, timeout_s, poll_s=0.02)
+        if met:
+            log.info("survey: the ceiling is lit after %.1f s", time.monotonic() - t0)
+        elif met is None:
             log.warning(
-                "survey: landmarks %s not lit after %.0f s; blinking", sorted(wanted), timeout_s
+                "survey: landmarks %s not lit after %.0f s; blinking", sorted(unlit), timeout_s
             )
-        return not stop.is_set()
+        return met is not False
 
     def _hold(
         self, landmark_id: int, stop: threading.Event, *, lit: bool, frames: int, min_s: float
@@ -223,13 +220,30 @@ class BlinkDriver:
     ) -> bool:
         """Wait until the gateway confirmed `landmark_id` lit (or dark), or `timeout_s`
         passed (a lost command, other requesters first). False when stopped."""
-        gateway = self.leds.gateway
+        met = self._wait_settled(
+            lambda on, _: (landmark_id in on) == lit, stop, timeout_s, poll_s=0.005
+        )
+        return met is not False
+
+    def _wait_settled(
+        self,
+        until: Callable[[frozenset[int], frozenset[int]], bool],
+        stop: threading.Event,
+        timeout_s: float,
+        *,
+        poll_s: float,
+    ) -> bool | None:
+        """Poll the gateway's LED state, settled (nothing being switched), until
+        `until(lit, landmarks)` holds: True then, False when stopped, None after
+        `timeout_s`."""
         deadline = time.monotonic() + timeout_s
         while time.monotonic() < deadline:
+            gateway = self.leds.gateway
             state = None if gateway is None else gateway.leds
-            ready = state is not None and gateway is not None and not state.changing
-            if ready and (landmark_id in state.lit_among(gateway.landmarks)) == lit:  # type: ignore[union-attr]
-                return True
-            if stop.wait(0.005):
+            if gateway is not None and state is not None and not state.changing:
+                landmarks = frozenset(gateway.landmarks)
+                if until(state.lit_among(landmarks), landmarks):
+                    return True
+            if stop.wait(poll_s):
                 return False
-        return not stop.is_set()
+        return False if stop.is_set() else None

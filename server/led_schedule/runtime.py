@@ -132,20 +132,19 @@ class LedScheduler:
 
     def unpin(self, landmark_id: int) -> bool:
         """End a landmark's pins (whatever their reason); False when it had none."""
-        with self._pins_lock:
-            gone = [k for k in self._pinned if k[0] == int(landmark_id)]
-            for k in gone:
-                del self._pinned[k]
-        return bool(gone)
+        return self._unpin(lambda lid, _: lid == int(landmark_id)) > 0
 
     def unpin_reason(self, reason: str) -> int:
         """End every pin given for `reason` (the survey's, the wizard's when they end); how
         many there were."""
+        return self._unpin(lambda _, why: why == reason)
+
+    def _unpin(self, match: Callable[[int, str], bool]) -> int:
         with self._pins_lock:
-            gone = [k for k in self._pinned if k[1] == reason]
+            gone = [k for k in self._pinned if match(*k)]
             for k in gone:
                 del self._pinned[k]
-            self._awake_reasons.discard(reason)
+            self._awake_reasons &= {why for _, why in self._pinned}
         return len(gone)
 
     def pins(self) -> list[tuple[int, str, float]]:
