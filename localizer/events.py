@@ -91,13 +91,39 @@ class RelocalizeRequested:
         near: where the robot is thought to be, (x, y, theta) in metres and radians, or
             None: identification then tries the landmarks near it first and a
             map-consistent hand-off may fix the pose at once (as `set_initial_pose`).
+        radius_m: how far from `near` the robot may be, metres (a search radius, as
+            SICK's `LocInitializeAtPose` takes): 95 % of the prior's mass lies within it.
+            None: `FusionConfig.initial_sigma_m`.
     """
 
     t_ns: int
     near: tuple[float, float, float] | None = None
+    radius_m: float | None = None
 
 
-Event = FrameObserved | SpotsObserved | OdometryMeasured | LedsChanged | RelocalizeRequested
+@dataclass(frozen=True)
+class ImuMeasured:
+    """An IMU sample at `t_ns`, in the body frame (REP-103: x forward, y left, z up).
+
+    Attributes:
+        gyro: angular rate (x, y, z), rad/s; z is the heading rate.
+        accel: specific force (x, y, z), m/s^2: about (0, 0, +9.81) at rest on a level
+            floor; a tilted body sees gravity's direction tilt with it.
+    """
+
+    t_ns: int
+    gyro: tuple[float, float, float]
+    accel: tuple[float, float, float]
+
+
+Event = (
+    FrameObserved
+    | SpotsObserved
+    | OdometryMeasured
+    | LedsChanged
+    | RelocalizeRequested
+    | ImuMeasured
+)
 
 
 @dataclass(frozen=True, eq=False)

@@ -131,6 +131,7 @@ class LandmarkTracker:
         self.last_matched: frozenset[int] = frozenset()
         self.floor = FloorPlane.level(config.floor)
         self._floor_shift = (0.0, 0.0, 0.0)  # what the last solve's floor moved its pose by
+        self._unpredicted: tuple[float, float] | None = None  # this step's (`step`)
         self.set_map(landmark_map)
 
     def set_map(self, landmark_map: LandmarkMap) -> None:
@@ -168,6 +169,7 @@ class LandmarkTracker:
         reacquire: bool = False,
         since_sample_s: float = 0.0,
         travel_since_fix_m: float = 0.0,
+        unpredicted_bounds: tuple[float, float] | None = None,
     ) -> TrackResult:
         """Find the lit landmarks near their predictions, solve and fuse.
 
@@ -192,16 +194,31 @@ class LandmarkTracker:
             since_sample_s: time from the last odometry sample to the frame, seconds.
             travel_since_fix_m: the robot's travel (the mean of its wheels') by odometry
                 since the last fused fix, metres.
+            unpredicted_bounds: without odometry, the speed and turn rate the motion
+                model's prediction may miss (m/s, rad/s; `ConstantVelocity`): the windows'
+                motion term over the whole frame interval, instead of the robot's maximum
+                speed and turn rate.
         """
+        self._unpredicted = unpredicted_bounds
         result = self._attempt(filt, e, dt_frame_s, fresh_odometry, candidates, spots, reacquire)
         tc = self.config.tracking
         sv = math.hypot(
             tc.speed_change_sigma * self.robot.max_speed * max(since_sample_s, 0.0),
             tc.slip_sigma * max(travel_since_fix_m, 0.0),
         )
-        if result.used or not result.expected or sv <= 0 or reacquire:
+        if self._unpredicted is not None:
+            # Without odometry the second hypothesis is the paper's: any motion within the
+            # robot's top speed and turn rate over the frame interval (windows and gates of
+            # Sec. IV-A.1, the maximum reach `sigma_gate` sigmas out).
+            self._unpredicted = None
+            reach_m = self.robot.max_speed * dt_frame_s / tc.sigma_gate
+            reach_rad = self.max_angular_speed_rad_s * dt_frame_s / tc.sigma_gate
+            var_xy, var_th = reach_m * reach_m, reach_rad * reach_rad
+        else:
+            var_xy, var_th = 0.5 * sv * sv, 2.0 * (sv / self.robot.wheel_base) ** 2
+        if result.used or not result.expected or reacquire or not (var_xy > 0 or var_th > 0):
             return result
-        filt.inflate(0.5 * sv * sv, 2.0 * (sv / self.robot.wheel_base) ** 2)
+        filt.inflate(var_xy, var_th)
         retry = self._attempt(filt, e, dt_frame_s, fresh_odometry, candidates, spots, reacquire)
         if not retry.used:
             return result._replace(rejected=retry.rejected)  # (the one `last_rejected` holds)
@@ -238,8 +255,9 @@ class LandmarkTracker:
         px = pred.pixel_list
         cu, cv = self.camera.cu, self.camera.cv
         noise = self.noise.sigma_px
+        speed, omega = self._unpredicted or (self.robot.max_speed, self.max_angular_speed_rad_s)
         shift, turn = motion_bound_terms(  # `motion_bound_px`, its terms once per frame
-            self.robot.max_speed, self.max_angular_speed_rad_s, dt_free, self.scale_px_per_m
+            speed, omega, dt_free, self.scale_px_per_m
         )
         gates = [  # window half sizes and assignment gates, pixels
             tc.min_half_size_px

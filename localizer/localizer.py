@@ -31,6 +31,7 @@ from localizer.config import LocalizerConfig
 from localizer.events import (
     Event,
     FrameObserved,
+    ImuMeasured,
     LedRequest,
     LedsChanged,
     Mode,
@@ -50,6 +51,7 @@ from localizer.identification import Identifier
 from localizer.landmark_liveness import LandmarkLiveness
 from localizer.landmark_map import LandmarkMap
 from localizer.landmark_tracker import LandmarkTracker
+from localizer.motion_model import ConstantVelocity
 from localizer.odometry import integrate_arc
 from localizer.odometry_track import OdometryTrack
 from localizer.online_calibration import OnlineCalibration
@@ -60,6 +62,7 @@ from localizer.spots import Spots
 
 FloatArray = npt.NDArray[np.float64]
 _NS = 1e-9
+_CHI2_2DOF_95_RADIUS = 2.4477  # sqrt of chi-square's 95 % point with 2 dof: radius / sigma
 
 
 class Localizer:
@@ -117,6 +120,12 @@ class Localizer:
             tuple[frozenset[int] | None, frozenset[int], LandmarkMap, npt.NDArray[np.int64]] | None
         ) = None
         self._tracker = LandmarkTracker(camera, robot, self.config, landmark_map)
+        # speed and turn rate for frames without odometry (constant velocity and turn)
+        self._motion = ConstantVelocity(
+            self.config.motion,
+            max_speed_m_s=robot.max_speed,
+            max_turn_rad_s=self._tracker.max_angular_speed_rad_s,
+        )
         self._reseeded = False  # this frame's filter was re-seeded from a run of fixes
         sc = self.config.self_calibration
         self.calibration = OnlineCalibration(camera, sc) if sc.enabled else None
@@ -168,10 +177,33 @@ class Localizer:
         if self._filter is not None and self._mode != "lost":
             self._sweeping = False  # keep tracking with the new map; lost if it disagrees
 
-    def set_initial_pose(self, x: float, y: float, theta: float, t_ns: int) -> None:
-        """A prior pose (e.g. from the operator): outputs poses and guides identification."""
+    def set_initial_pose(
+        self,
+        x: float,
+        y: float,
+        theta: float,
+        t_ns: int,
+        *,
+        radius_m: float | None = None,
+        sigma_rad: float | None = None,
+    ) -> None:
+        """A prior pose (e.g. from the operator): outputs poses and guides identification.
+
+        Args:
+            radius_m: the robot is within this of (x, y) with 95 % probability (position
+                sigma radius / 2.45, the chi-square 2-dof 95 % point); None:
+                `FusionConfig.initial_sigma_m`.
+            sigma_rad: heading standard deviation; None: `FusionConfig.initial_sigma_rad`.
+        """
         f = self.config.fusion
-        cov = np.diag([f.initial_sigma_m**2, f.initial_sigma_m**2, f.initial_sigma_rad**2])
+        for name, v in (("x", x), ("y", y), ("theta", theta)):
+            if not math.isfinite(v):
+                raise ValueError(f"set_initial_pose: {name} must be finite, got {v!r}")
+        if radius_m is not None and not (math.isfinite(radius_m) and radius_m > 0):
+            raise ValueError(f"set_initial_pose: radius_m must be > 0 metres, got {radius_m!r}")
+        s = f.initial_sigma_m if radius_m is None else radius_m / _CHI2_2DOF_95_RADIUS
+        s_th = f.initial_sigma_rad if sigma_rad is None else sigma_rad
+        cov = np.diag([s * s, s * s, s_th * s_th])
         self._reset_filter(x, y, theta, cov, t_ns)
         self._start_identification()
 
@@ -204,10 +236,13 @@ class Localizer:
             self._t_filter = event.t_ns
             self._mode = "identifying"
             if event.near is not None:
-                self.set_initial_pose(*event.near, event.t_ns)
+                self.set_initial_pose(*event.near, event.t_ns, radius_m=event.radius_m)
             else:
                 self._start_identification()
             return self._requests(event.t_ns)
+        if isinstance(event, ImuMeasured):
+            self._on_imu(event)
+            return []
         if isinstance(event, FrameObserved | SpotsObserved):
             out: list[Output] = [self._on_frame(event)]
             return out + self._requests(event.t_ns)
@@ -233,21 +268,58 @@ class Localizer:
         self._hypotheses.clear()
         self._tracker.last_matched = frozenset()
         self._fix_run.clear()
+        self._motion.break_track()
 
     def _advance(self, t_ns: int, v_left: float, v_right: float) -> PoseFilter | None:
         """Extrapolate odometry (raw, and a copy of the filter) from the last state time to
         `t_ns` at the given speeds; returns the committed filter (None: none), which stays
-        as it was: the frame works on the copy (`self._filter`), kept only on `_settle`."""
+        as it was: the frame works on the copy (`self._filter`), kept only on `_settle`.
+        Without odometry (`_model_drives`) the motion model's speed and turn rate drive
+        both instead, with its process noise."""
+        model = self._model_drives(t_ns)
+        if model:
+            self._motion.predict(t_ns)
+            v_left, v_right = self._motion.wheel_speeds(self.robot.wheel_base)
         self._odometry.step(t_ns, v_left, v_right)
         base = self._filter
         if base is None:
             return None
         work = base.copy()
         dt = (t_ns - self._t_filter) * _NS
-        if dt > 0:
+        if dt > 0 and model:
+            q = self._motion.process_noise(dt)
+            work.predict_motion(self._motion.v, self._motion.w, dt, q.var_xy_m2, q.var_theta_rad2)
+        elif dt > 0:
             work.predict(v_left, v_right, dt)
         self._filter = work
         return base
+
+    def _model_drives(self, t_ns: int) -> bool:
+        """Whether the motion model predicts instead of the odometry: it is on and no
+        odometry sample arrived within `MotionModelConfig.silent_odometry_s` (or ever)."""
+        mc = self.config.motion
+        t_sample = self._odometry.t_sample_ns
+        return mc.enabled and (t_sample is None or (t_ns - t_sample) * _NS > mc.silent_odometry_s)
+
+    def _motion_fixed(self, t_ns: int, used: tuple[int, ...]) -> None:
+        """A frame fused a fix: the motion model measures the speed and turn rate from it
+        and the one before (the fix's own pose and covariance; after a reset, the filter's,
+        which is the fix's)."""
+        fused = self._tracker.last_fused
+        if fused is not None and tuple(fused[2].landmark_ids) == tuple(used):
+            fix = fused[2]
+            x, y, th, cov = fix.x, fix.y, fix.theta, fix.covariance
+        elif self._filter is not None:
+            x, y, th = self._filter.pose
+            cov = self._filter.covariance
+        else:
+            return
+        var_xy = 0.5 * float(cov[0, 0] + cov[1, 1])
+        self._motion.fixed(t_ns, x, y, th, var_xy, float(cov[2, 2]))
+        if self._model_drives(t_ns) and self.config.motion.snap_output and self._filter is not None:
+            # without odometry a fix's correction is mostly motion the model did not
+            # foresee (a turn begun or ended): smoothing it would only make a lag
+            self._filter.snap_output()
 
     def _settle(self, t_ns: int, base: PoseFilter | None) -> None:
         """End of a frame: keep its filter when it took a fix (or was reset, or odometry is
@@ -274,6 +346,10 @@ class Localizer:
             self._filter.predict(vl, vr, dt)
         self._t_filter = max(self._t_filter, e.t_ns)
 
+    def _on_imu(self, e: ImuMeasured) -> None:
+        """An IMU sample: its heading rate drives the motion model (without odometry)."""
+        self._motion.gyro(e.t_ns, e.gyro[2])
+
     def _motion_bound_px(self, t0_ns: int, t1_ns: int) -> float:
         """Bound on a spot's image motion between two times: from odometry (with 20 % slack)
         when there is any, else from the maximum speed and turn rate."""
@@ -281,8 +357,10 @@ class Localizer:
         scale = self._tracker.scale_px_per_m
         if track.t_sample_ns is None:
             dt = abs(t1_ns - t0_ns) * _NS
-            omega = self._tracker.max_angular_speed_rad_s
-            return dt * (self.robot.max_speed * scale + omega * self._half_diag)
+            speed, omega = self.robot.max_speed, self._tracker.max_angular_speed_rad_s
+            if self.config.motion.enabled:  # the motion model's bounds (from rest at start)
+                speed, omega = self._motion.speed_bounds(max(t0_ns, t1_ns))
+            return dt * (speed * scale + omega * self._half_diag)
         a, b = track.pose_at(t0_ns), track.pose_at(t1_ns)
         move = math.hypot(b[0] - a[0], b[1] - a[1]) * scale
         turn = abs(float(wrap_angle(b[2] - a[2]))) * self._half_diag
@@ -325,6 +403,8 @@ class Localizer:
             if used and self.calibration is not None and not self._reseeded:
                 self._self_calibrate(t)
         self._commit = self._commit or bool(used)
+        if used:
+            self._motion_fixed(t, used)
         self._check_lost(t)
         out = self._output(t, used)
         self._settle(t, base)
@@ -348,11 +428,15 @@ class Localizer:
         if fresh and track.t_sample_ns is not None:
             since = (e.t_ns - track.t_sample_ns) * _NS
             since = min(since, 1.5 * (track.interval_s or since))
+        unpredicted = None
+        if self._model_drives(e.t_ns):
+            unpredicted = self._motion.unpredicted_bounds()
         result = self._tracker.step(
             self._filter,
             e,
             dt_frame_s=dt_frame,
             fresh_odometry=fresh,
+            unpredicted_bounds=unpredicted,
             since_sample_s=since,
             travel_since_fix_m=self._travel_m,
             candidates=cand,

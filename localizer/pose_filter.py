@@ -405,6 +405,40 @@ class PoseFilter:
         else:
             self._offset = [0.0, 0.0, 0.0]
 
+    def predict_motion(
+        self, v: float, w: float, dt: float, var_xy_m2: float, var_theta_rad2: float
+    ) -> None:
+        """Predict over `dt` seconds without odometry: the pose moves along the arc of the
+        motion model (`motion_model`: forward speed `v` m/s, turn rate `w` rad/s; eq. (5)
+        with dT = v dt, dR = w dt, the arc's midpoint heading), and the model's process
+        noise is added: P_pose = F P_pose F^T + Q, Q = diag(var_xy, var_xy, var_theta). The
+        odometry calibration factors take no part (their rows and columns are carried by F).
+        """
+        if dt <= 0:
+            return
+        self._flush()
+        x, y, th = self._X[:3]
+        dT, dR = v * dt, w * dt
+        # the exact arc (its chord), as `integrate_arc`
+        chord = 2.0 * math.sin(0.5 * dR) / dR if abs(dR) > 1e-9 else 1.0
+        xT, yT, xR, yR = odometry_partials(th, dT * chord, dR)
+        self._X[:3] = [x + dT * chord * xT, y + dT * chord * yT, float(wrap_angle(th + dR))]
+        F = np.eye(6)
+        F[0, 2], F[1, 2] = 2.0 * xR, 2.0 * yR
+        P = F @ np.array(self._P) @ F.T
+        P[0, 0] += var_xy_m2
+        P[1, 1] += var_xy_m2
+        P[2, 2] += var_theta_rad2
+        self._P = (0.5 * (P + P.T)).tolist()
+        if self._C is not None:
+            self._C = (F @ np.array(self._C)).tolist()
+        self._age_s += dt
+        if self.config.output_time_constant_s > 0:
+            decay = math.exp(-dt / self.config.output_time_constant_s)
+            self._offset = [o * decay for o in self._offset]
+        else:
+            self._offset = [0.0, 0.0, 0.0]
+
     def _flush(self) -> None:
         """Apply the deferred covariance propagation (see `DeferredPropagation`)."""
         if self._propagation.pending:

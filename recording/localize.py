@@ -26,12 +26,13 @@ import numpy as np
 import numpy.typing as npt
 
 from localizer.config import LocalizerConfig
-from localizer.events import FrameObserved, NoPose, PoseEstimate
+from localizer.events import FrameObserved, NoPose, PoseEstimate, RelocalizeRequested
 from localizer.localizer import Localizer
 from recording.layout import LIVE_POSES_FILE
 from recording.poses_file import estimates_from_track
 from recording.reader import FrameEntry, Recording, RecordingError, iter_timeline
 from recording.scoring import read_poses
+from recording.start_pose import StartPose
 
 ImageU8 = npt.NDArray[np.uint8]
 PoseSource = Literal["replay", "live"]
@@ -77,6 +78,7 @@ def localize(
     *,
     config: LocalizerConfig | None = None,
     threads: int | None = None,
+    start_pose: StartPose | None = None,
 ) -> Iterator[Localized]:
     """Localize every listed frame of `rec`, in file order.
 
@@ -84,8 +86,15 @@ def localize(
         rec: the recording (`recording.reader.read_recording`).
         config: localizer tuning.
         threads: PNG decoding threads (default `decode_threads()`).
+        start_pose: a prior on the start pose, handed to the localizer as
+            `RelocalizeRequested(near=..., radius_m=...)` at its time (default: the
+            recording's first event); None: none (pass `rec.start_pose` for the recording's).
     """
     loc = Localizer(rec.camera, rec.landmark_map, rec.robot, config)
+    if start_pose is not None:
+        t0 = start_pose.t_ns if start_pose.t_ns is not None else first_time_ns(rec)
+        near = (start_pose.x, start_pose.y, start_pose.theta)
+        loc.handle(RelocalizeRequested(t0, near=near, radius_m=start_pose.radius_m))
     workers = threads or decode_threads()
     depth = 2 * workers + 2  # frames decoded ahead
     switch = sys.getswitchinterval()
@@ -95,6 +104,13 @@ def localize(
             yield from _run(rec, loc, pool, depth)
     finally:
         sys.setswitchinterval(switch)
+
+
+def first_time_ns(rec: Recording) -> int:
+    """The recording's first timestamp (frames, odometry, IMU, LEDs), 0 when it has none."""
+    starts = [f.t_ns for f in rec.frames[:1]] + [e.t_ns for e in rec.leds[:1]]
+    starts += [int(a[0]) for a in (rec.odom_t_ns, rec.imu_t_ns) if len(a)]
+    return min(starts, default=0)
 
 
 def _decoded(

@@ -14,7 +14,7 @@ import heapq
 import json
 import math
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, TypeVar
 
@@ -23,10 +23,11 @@ import numpy.typing as npt
 import yaml
 
 from localizer.camera import CameraModel, camera_from_sensor
-from localizer.events import LedsChanged, OdometryMeasured
+from localizer.events import ImuMeasured, LedsChanged, OdometryMeasured
 from localizer.landmark_map import LandmarkMap
 from localizer.robot import RobotGeometry, robot_from_yaml_dict
 from recording import layout
+from recording.start_pose import StartPose, start_pose_from_dict
 
 T = TypeVar("T")
 
@@ -76,6 +77,11 @@ class Recording:
         odom_t_ns: odometry timestamps, ns, int64 shape (N,).
         odom_v: measured wheel speeds (v_left, v_right), m/s, shape (N, 2).
         leds: LED states in force from their timestamps on, in time order.
+        start_pose: the prior on the start pose (`start_pose.yaml`), None without one.
+        imu_t_ns: IMU timestamps, ns, int64 shape (M,) (empty without `imu0/data.csv`).
+        imu: body-frame gyro (rad/s) and specific force (m/s^2), shape (M, 6):
+            (wx, wy, wz, ax, ay, az), rotated from the IMU's frame by `imu0/sensor.yaml`'s
+            T_BS (identity without one).
     """
 
     root: Path
@@ -87,9 +93,12 @@ class Recording:
     odom_t_ns: npt.NDArray[np.int64]
     odom_v: npt.NDArray[np.float64]
     leds: list[LedsChanged]
+    start_pose: StartPose | None = None
+    imu_t_ns: npt.NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, np.int64))
+    imu: npt.NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 6)))
 
 
-Item = OdometryMeasured | LedsChanged | FrameEntry
+Item = OdometryMeasured | ImuMeasured | LedsChanged | FrameEntry
 
 
 def _read_text(path: Path) -> str:
@@ -198,6 +207,52 @@ def read_odometry(path: Path) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.flo
     return np.array(times, dtype=np.int64), np.array(speeds, dtype=np.float64).reshape(-1, 2)
 
 
+def read_start_pose(path: Path) -> StartPose | None:
+    """start_pose.yaml -> the start-pose prior; None when the file is absent."""
+    if not path.exists():
+        return None
+    data = _load_structured(path, yaml.safe_load)
+    try:
+        return start_pose_from_dict(data)
+    except ValueError as exc:
+        raise RecordingError(path, None, str(exc)) from None
+
+
+def read_imu(
+    path: Path, sensor_path: Path
+) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.float64]]:
+    """imu0/data.csv (EuRoC: t, w_x, w_y, w_z, a_x, a_y, a_z in the IMU frame) -> (t_ns (M,),
+    body-frame (w, a) (M, 6)) rotated by imu0/sensor.yaml's T_BS when present; empty when
+    the data file is absent."""
+    if not path.exists():
+        return np.zeros(0, dtype=np.int64), np.zeros((0, 6))
+    R = np.eye(3)
+    if sensor_path.exists():
+        data = _load_structured(sensor_path, yaml.safe_load)
+        T_BS = data.get("T_BS") if isinstance(data, dict) else None
+        values = T_BS.get("data") if isinstance(T_BS, dict) else None
+        if not isinstance(values, list) or len(values) != 16:
+            raise RecordingError(sensor_path, None, "'T_BS' must be a 4x4 mapping of 16 numbers")
+        try:
+            R = np.array([float(v) for v in values]).reshape(4, 4)[:3, :3]
+        except (TypeError, ValueError):
+            raise RecordingError(sensor_path, None, "'T_BS' data must be numbers") from None
+        if not np.allclose(R @ R.T, np.eye(3), atol=1e-6):
+            raise RecordingError(sensor_path, None, "'T_BS' rotation is not orthonormal")
+    names = ("w_x", "w_y", "w_z", "a_x", "a_y", "a_z")
+    times: list[int] = []
+    rows: list[list[float]] = []
+    previous = 0
+    for number, fields in _data_lines(path):
+        t_text, *values_text = _fields(path, number, fields, 7, "timestamp, " + ", ".join(names))
+        previous = _timestamp(path, number, t_text, previous)
+        times.append(previous)
+        rows.append([_finite(path, number, v, n) for v, n in zip(values_text, names, strict=True)])
+    raw = np.array(rows, dtype=np.float64).reshape(-1, 6)
+    body = np.hstack([raw[:, :3] @ R.T, raw[:, 3:] @ R.T])
+    return np.array(times, dtype=np.int64), body
+
+
 def read_leds(path: Path, landmark_map: LandmarkMap) -> list[LedsChanged]:
     """leds.csv -> LED states; empty when the file is absent. Unknown IDs are errors."""
     if not path.exists():
@@ -263,8 +318,9 @@ def read_groundtruth_file(
 def read_recording(root: Path | str) -> Recording:
     """Read a recording folder (frames listed, not decoded).
 
-    Required: map.json, robot.yaml, cam0/sensor.yaml, cam0/data.csv. odom0/data.csv and
-    leds.csv may be absent (no odometry; no LED information). Extra files and extra CSV columns
+    Required: map.json, robot.yaml, cam0/sensor.yaml, cam0/data.csv. odom0/data.csv,
+    leds.csv, imu0/data.csv and start_pose.yaml may be absent (no odometry; no LED
+    information; no IMU; no start pose). Extra files and extra CSV columns
     are ignored.
 
     Raises:
@@ -283,14 +339,20 @@ def read_recording(root: Path | str) -> Recording:
     frames = read_frames(base / layout.FRAMES_FILE, base / layout.FRAMES_DIR)
     odom_t_ns, odom_v = read_odometry(base / layout.ODOMETRY_FILE)
     leds = read_leds(base / layout.LEDS_FILE, landmark_map)
-    return Recording(base, landmark_map, records, robot, camera, frames, odom_t_ns, odom_v, leds)
+    start_pose = read_start_pose(base / layout.START_POSE_FILE)
+    imu_t_ns, imu = read_imu(base / layout.IMU_FILE, base / layout.IMU_SENSOR_FILE)
+    return Recording(
+        base, landmark_map, records, robot, camera, frames, odom_t_ns, odom_v, leds,
+        start_pose, imu_t_ns, imu,
+    )  # fmt: skip
 
 
 def iter_timeline(recording: Recording) -> Iterator[Item]:
     """Odometry samples, LED changes and frame entries merged into one time-ordered stream.
 
-    At equal timestamps odometry comes first, then LED changes, then the frame (a frame shows
-    the LED state in force at its timestamp and the pose with odometry integrated up to it).
+    At equal timestamps odometry comes first, then IMU samples, LED changes, the frame (a
+    frame shows the LED state in force at its timestamp and the pose with odometry
+    integrated up to it).
     Frames are yielded as `FrameEntry`; the caller decodes the PNG.
     """
 
@@ -300,7 +362,12 @@ def iter_timeline(recording: Recording) -> Iterator[Item]:
         ):
             yield t, 0, OdometryMeasured(t, vl, vr)
 
-    leds = ((e.t_ns, 1, e) for e in recording.leds)
-    frames = ((f.t_ns, 2, f) for f in recording.frames)
-    for _, _, item in heapq.merge(odometry(), leds, frames, key=lambda x: (x[0], x[1])):
+    def imu() -> Iterator[tuple[int, int, Item]]:
+        for t, r in zip(recording.imu_t_ns.tolist(), recording.imu.tolist(), strict=True):
+            yield t, 1, ImuMeasured(t, (r[0], r[1], r[2]), (r[3], r[4], r[5]))
+
+    leds = ((e.t_ns, 2, e) for e in recording.leds)
+    frames = ((f.t_ns, 3, f) for f in recording.frames)
+    streams = (odometry(), imu(), leds, frames)
+    for _, _, item in heapq.merge(*streams, key=lambda x: (x[0], x[1])):
         yield item

@@ -11,6 +11,11 @@ used in that frame, space-separated. A missing or unreadable frame is skipped wi
 and counted (its row holds the odometry pose). A malformed file ends the run with one line
 naming the file and line and exit status 1.
 
+`--start-pose X,Y,THETA[,RADIUS]` (metres, radians, metres) tells the localizer where the
+robot starts (a recording's own `start_pose.yaml` is used unless `--no-start-pose`);
+`--config FILE` (YAML or JSON) sets detector and localizer settings. What the run used (every
+setting and the start pose) is written beside the output as `<out stem>.settings.yaml`.
+
 With ground truth (`--truth FILE`, by default `groundtruth.csv` beside the recording when
 there is one) the run is scored and the Sec. V table printed (`recording.scoring`).
 """
@@ -22,7 +27,7 @@ import sys
 import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import TextIO
+from typing import Literal, TextIO
 
 from localizer.config import LocalizerConfig
 from localizer.events import NoPose, PoseEstimate
@@ -31,6 +36,8 @@ from recording.localize import decode_threads, localize
 from recording.poses_file import HEADER, format_row
 from recording.reader import RecordingError, read_groundtruth_file, read_recording
 from recording.scoring import error_stats, sec_v, sec_v_table, track_from_estimates
+from recording.settings_file import read_config_file, write_settings_record
+from recording.start_pose import StartPose, parse_start_pose
 
 __all__ = ["HEADER", "decode_threads", "format_row", "main", "replay", "truth_summary"]
 PROG = "irloc replay"
@@ -45,6 +52,7 @@ def replay(
     progress: Callable[[int], Iterator[None]] | None = None,
     threads: int | None = None,
     estimates: list[PoseEstimate | NoPose] | None = None,
+    start_pose: StartPose | Literal["recording"] | None = "recording",
 ) -> tuple[int, int]:
     """Localize a recording, writing rows to `out`.
 
@@ -57,6 +65,8 @@ def replay(
             once per frame (a progress bar).
         threads: PNG decoding threads (default `decode_threads()`), see `recording.localize`.
         estimates: when given, every frame's output is appended to it as well.
+        start_pose: the prior on the start pose; "recording" (the default): the
+            recording's `start_pose.yaml`, if any; None: none.
 
     Returns:
         (frames written, frames skipped).
@@ -68,7 +78,8 @@ def replay(
     ticks = progress(len(rec.frames)) if progress is not None else None
     out.write(HEADER + "\n")
     written = skipped = 0
-    for done in localize(rec, config=config, threads=threads):
+    prior = rec.start_pose if start_pose == "recording" else start_pose
+    for done in localize(rec, config=config, threads=threads, start_pose=prior):
         if done.image is None:
             skipped += 1
             warn(
@@ -122,7 +133,40 @@ def main(argv: list[str] | None = None) -> int:
         "table; default groundtruth.csv beside the recording, when there is one",
     )
     parser.add_argument("--no-truth", action="store_true", help="do not score, even if present")
+    parser.add_argument(
+        "--start-pose",
+        metavar="X,Y,THETA[,RADIUS]",
+        default=None,
+        help="where the robot starts: metres, radians (REP-103), and the search radius in "
+        "metres (95 %% of the prior within it; default 1.2 m); overrides the recording's "
+        "start_pose.yaml",
+    )
+    parser.add_argument(
+        "--no-start-pose", action="store_true", help="ignore the recording's start_pose.yaml"
+    )
+    parser.add_argument(
+        "--config",
+        type=Path,
+        default=None,
+        metavar="FILE",
+        help="detector and localizer settings (YAML or JSON; only what differs from the "
+        "defaults, e.g. 'detection: {max_area_px: 1500}'); a replay's *.settings.yaml works too",
+    )
     args = parser.parse_args(argv)
+    prior: StartPose | Literal["recording"] | None = None if args.no_start_pose else "recording"
+    if args.start_pose is not None:
+        try:
+            prior = parse_start_pose(args.start_pose)
+        except ValueError as exc:
+            print(f"{PROG}: --start-pose: {exc}", file=sys.stderr)
+            return 2
+    config = None
+    if args.config is not None:
+        try:
+            config, _ = read_config_file(args.config)
+        except RecordingError as exc:
+            print(f"{PROG}: --config {exc}", file=sys.stderr)
+            return 2
     truth = None if args.no_truth else args.truth
     if truth is None and not args.no_truth and (args.recording / GROUNDTRUTH_FILE).is_file():
         truth = args.recording / GROUNDTRUTH_FILE
@@ -146,11 +190,21 @@ def main(argv: list[str] | None = None) -> int:
             written, skipped = replay(
                 args.recording,
                 f,
+                config=config,
                 warn=warn,
                 progress=_bar if show else None,
                 estimates=estimates,
+                start_pose=prior,
             )
         tmp.replace(args.out)
+        used = read_recording(args.recording).start_pose if prior == "recording" else prior
+        source = "none" if used is None else (
+            "recording" if prior == "recording" else "command line"
+        )  # fmt: skip
+        write_settings_record(
+            args.out, recording=args.recording, config=config or LocalizerConfig(),
+            start_pose=used, start_pose_source=source, config_file=args.config,
+        )  # fmt: skip
         table = None
         if truth is not None and not args.quiet:
             table = truth_summary(args.recording, truth, estimates)

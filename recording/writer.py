@@ -25,6 +25,7 @@ from localizer.events import LedsChanged, NoPose, PoseEstimate
 from localizer.landmark_map import LandmarkMap
 from localizer.robot import RobotGeometry
 from recording import layout, poses_file
+from recording.start_pose import StartPose, write_start_pose
 
 
 def _number(v: float) -> str:
@@ -113,6 +114,7 @@ class RecordingWriter:
         self._leds = _CsvFile(self.root / layout.LEDS_FILE, layout.LEDS_HEADER)
         self._groundtruth = _CsvFile(self.root / layout.GROUNDTRUTH_FILE, layout.GROUNDTRUTH_HEADER)
         self._live_poses = _CsvFile(self.root / layout.LIVE_POSES_FILE, poses_file.HEADER)
+        self._imu = _CsvFile(self.root / layout.IMU_FILE, layout.IMU_HEADER)
         for f in (self._frames, self._odometry, self._leds):
             f.open_empty()
 
@@ -146,6 +148,38 @@ class RecordingWriter:
     def add_odometry(self, t_ns: int, v_left: float, v_right: float) -> None:
         """Add measured wheel speeds (m/s) at `t_ns`."""
         self._odometry.write(t_ns, [_number(v_left), _number(v_right)])
+
+    def add_imu(
+        self, t_ns: int, gyro: tuple[float, float, float], accel: tuple[float, float, float]
+    ) -> None:
+        """Add an IMU sample to imu0/data.csv (EuRoC layout; the IMU's axes are the body's:
+        imu0/sensor.yaml holds an identity T_BS, written with the first sample)."""
+        if not (self.root / layout.IMU_SENSOR_FILE).exists():
+            self._imu.path.parent.mkdir(parents=True, exist_ok=True)
+            sensor = {
+                "sensor_type": "imu",
+                "T_BS": {"rows": 4, "cols": 4, "data": np.eye(4).reshape(-1).tolist()},
+            }
+            (self.root / layout.IMU_SENSOR_FILE).write_text(
+                yaml.safe_dump(sensor, sort_keys=False, default_flow_style=None), encoding="utf-8"
+            )
+        self._imu.write(t_ns, [_number(v) for v in (*gyro, *accel)])
+
+    def set_start_pose(
+        self,
+        x: float,
+        y: float,
+        theta: float,
+        radius_m: float | None = None,
+        t_ns: int | None = None,
+    ) -> None:
+        """Write start_pose.yaml: where the robot starts (a prior for the localizer; metres,
+        radians, the search radius in metres, when it holds).
+
+        Raises:
+            ValueError: a value `StartPose` refuses.
+        """
+        write_start_pose(self.root, StartPose(x, y, theta, radius_m, t_ns))
 
     def add_leds(self, event: LedsChanged) -> None:
         """Add the LED state in force from `event.t_ns` on. A landmark the event lists as
@@ -189,7 +223,8 @@ class RecordingWriter:
                 self._pending.popleft().result()
         finally:
             self._pool.shutdown(wait=True)
-        for f in (self._frames, self._odometry, self._leds, self._groundtruth, self._live_poses):
+        for f in (self._frames, self._odometry, self._leds, self._groundtruth, self._live_poses,
+                  self._imu):  # fmt: skip
             f.close()
 
     def __enter__(self) -> RecordingWriter:

@@ -1,7 +1,8 @@
 """Simulate one robot of a scenario offline into a recording sink, with its ground truth.
 
-The sink is anything with the writer's four `add_*` methods (`RecordingSink`): `sim` does
-not import `recording`; `irloc.simulated_recording` hands it a `recording.RecordingWriter`.
+The sink is anything with the writer's four `add_*` methods (`RecordingSink`; `add_imu` and
+`set_start_pose` too when the robot has an IMU or states its start pose): `sim` does not
+import `recording`; `irloc.simulated_recording` hands it a `recording.RecordingWriter`.
 
 The recording starts as a live start-up would (Sec. III-A): all LEDs dark, then one landmark
 at a time lit, nearest the robot first, for a few frames each, until two have been seen; then
@@ -11,6 +12,7 @@ every LED. The robot stands still during this sweep and sets off once all LEDs a
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from contextlib import AbstractContextManager
 from dataclasses import dataclass
@@ -25,6 +27,7 @@ from localizer.geometry import T_world_body_from_pose
 from localizer.robot import RobotGeometry
 from sim.build import RobotRig, build_robot, build_world, seed_generators
 from sim.cameras import Lens
+from sim.imu import SimImu
 from sim.live import render_view
 from sim.robot import FramePose
 from sim.scenario import Scenario
@@ -154,19 +157,31 @@ def simulate_recording(
         leds += [c for c in led_program(drive_ns) if c.t_ns > leds[-1].t_ns]
     rig.robot.paused_until_ns = drive_ns
     frames = odometry = 0
+    spec = rig.spec
+    # the IMU and the start pose draw from streams of their own: the rest of the
+    # recording is the same with or without them
+    extra = np.random.SeedSequence(scenario.seed if seed is None else seed).spawn(6)
+    imu = SimImu(spec.imu, np.random.default_rng(extra[4])) if spec.imu is not None else None
     with open_sink(rig.camera_nominal, rig.geometry, world.landmark_records()) as w:
+        if spec.start_pose_radius_m is not None:
+            _write_start_pose(w, spec.start, spec.start_pose_radius_m, extra[5])
         pending = list(leds)
         t_ns = 0
+        # with an IMU, one control tick at a time: its sample reads the robot's state then
+        chunk_ns = rig.robot.tick_ns if imu is not None else NS // 10
         while t_ns < end_ns:
-            t_ns = min(t_ns + NS // 10, end_ns)
+            t_ns = min(t_ns + chunk_ns, end_ns)
             for item in rig.robot.advance_to(t_ns):
                 while pending and pending[0].t_ns <= item.t_ns:
                     change = pending.pop(0)
                     world.set_lit(None if change.all_lit else set(change.lit))
                     w.add_leds(change)
                 if isinstance(item, OdometryMeasured):
-                    w.add_odometry(item.t_ns, item.v_left, item.v_right)
-                    odometry += 1
+                    if spec.odometry_recorded:
+                        w.add_odometry(item.t_ns, item.v_left, item.v_right)
+                        odometry += 1
+                    if imu is not None:
+                        _write_imu(w, imu, rig, item.t_ns)
                 else:
                     _write_frame(w, world, rig, item, gens[2], sc)
                     frames += 1
@@ -200,6 +215,34 @@ def recording_site(
     world = build_world(sc, gens[0])
     rig = build_robot(sc.robots[0], sc, gens[3], index=0)
     return sc, world, rig, gens
+
+
+def _write_imu(writer: RecordingSink, imu: SimImu, rig: RobotRig, t_ns: int) -> None:
+    """The IMU sample of the tick just driven (`simulate_recording` drives one tick at a
+    time then, so the robot's state is that tick's)."""
+    robot = rig.robot
+    pose = (robot.x, robot.y, robot.theta)
+    sample = imu.sample(t_ns, pose, robot.T_world_body(*pose, lift_m=robot.lift_m))
+    add = getattr(writer, "add_imu", None)
+    if sample is not None and add is not None:
+        add(sample.t_ns, sample.gyro, sample.accel)
+
+
+def _write_start_pose(
+    writer: RecordingSink,
+    start: tuple[float, float, float],
+    radius_m: float,
+    seed: np.random.SeedSequence,
+) -> None:
+    """start_pose.yaml: the true start as the robot would know it, off by a draw from the
+    prior it states (position sigma radius / 2.45, heading 2 deg)."""
+    rng = np.random.default_rng(seed)
+    sigma = radius_m / 2.4477
+    dx, dy = rng.normal(0.0, sigma, 2)
+    dth = float(rng.normal(0.0, math.radians(2.0)))
+    put = getattr(writer, "set_start_pose", None)
+    if put is not None:
+        put(start[0] + float(dx), start[1] + float(dy), start[2] + dth, radius_m)
 
 
 def _write_frame(

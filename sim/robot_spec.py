@@ -9,6 +9,7 @@ from dataclasses import dataclass, field
 
 from sim.cameras import CALIBRATION_LEVELS, LENSES, CalibrationError, Lens
 from sim.fields import Node
+from sim.imu import ImuSpec
 from sim.routes import Drive, DriveLimits, Goto, Kidnap, Route, Step, TurnTo, Wait, heading_sweep
 
 
@@ -45,6 +46,9 @@ class RobotSpec:
     camera: CameraSpec
     route: Route
     limits: DriveLimits = field(default_factory=DriveLimits)
+    odometry_recorded: bool = True  # False: no odom0/data.csv (a robot without odometry)
+    imu: ImuSpec | None = None  # an IMU, recorded as imu0/data.csv
+    start_pose_radius_m: float | None = None  # write start_pose.yaml within this of the start
 
 
 def route_from_node(n: Node, max_speed: float, start_theta: float) -> Route:
@@ -126,8 +130,17 @@ def calibration_from_node(n: Node) -> bool | CalibrationError:
 def limits_from_node(n: Node) -> DriveLimits:
     """`limits`: the controller's fastest turn and acceleration (defaults: `DriveLimits`)."""
     d = DriveLimits()
-    n.mapping(("max_turn_rate_deg_s", "accel_mps2", "distance_gain"))
+    n.mapping(
+        ("max_turn_rate_deg_s", "accel_mps2", "distance_gain", "turn_accel_deg_s2", "brake_mps2")
+    )
+    turn_accel = (
+        n.number("turn_accel_deg_s2", 0.0, low=0, high=1e5) if n.has("turn_accel_deg_s2") else None
+    )
     return DriveLimits(
+        angular_accel_radps2=None if turn_accel is None else math.radians(turn_accel),
+        brake_mps2=n.number("brake_mps2", 1.0, low=0.05, high=1000)
+        if n.has("brake_mps2")
+        else None,
         max_omega_radps=math.radians(
             n.number("max_turn_rate_deg_s", math.degrees(d.max_omega_radps), low=1, high=720)
         ),
@@ -149,11 +162,27 @@ def robot_from_node(n: Node, default_lens: Lens) -> RobotSpec:
             "camera",
             "route",
             "limits",
+            "imu",
+            "start_pose",
         )
     )
     sx, sy, sdeg = n.child_vector("start", 3, "[x, y, theta_deg]")
     max_speed = n.number("max_speed_mps", 1.0, low=0.05, high=5)
-    odo = n.child("odometry", {}).mapping(("rate_hz", "noise_rel"))
+    odo = n.child("odometry", {}).mapping(("rate_hz", "noise_rel", "recorded"))
+    imu = None
+    if n.has("imu"):
+        i = n.child("imu", {}).mapping(("gyro_noise_rad_s", "gyro_bias_rad_s", "accel_noise_m_s2"))
+        d = ImuSpec()
+        imu = ImuSpec(
+            gyro_noise_rad_s=i.number("gyro_noise_rad_s", d.gyro_noise_rad_s, low=0, high=1),
+            gyro_bias_rad_s=i.number("gyro_bias_rad_s", d.gyro_bias_rad_s, low=0, high=1),
+            accel_noise_m_s2=i.number("accel_noise_m_s2", d.accel_noise_m_s2, low=0, high=10),
+        )
+    start_radius = None
+    if n.has("start_pose"):
+        start_radius = (
+            n.child("start_pose").mapping(("radius_m",)).number("radius_m", 0.3, low=0.01, high=50)
+        )
     cam = n.child("camera", {}).mapping(
         (
             "lens",
@@ -190,4 +219,7 @@ def robot_from_node(n: Node, default_lens: Lens) -> RobotSpec:
         camera=camera,
         route=route_from_node(n.child("route", required=True), max_speed, math.radians(sdeg)),
         limits=limits_from_node(n.child("limits", {})),
+        odometry_recorded=odo.boolean("recorded", True),
+        imu=imu,
+        start_pose_radius_m=start_radius,
     )

@@ -87,6 +87,9 @@ class DriveLimits:
         turn_in_place_rad: heading error above which the robot stops and turns.
         position_tolerance_m: a goal is reached within this distance.
         heading_tolerance_rad: a turn is done within this error.
+        angular_accel_radps2: the turn rate changes at most this fast (None: at once, as
+            an ideal controller; a real base needs 0.2-0.5 s to reach a fast turn).
+        brake_mps2: the forward speed drops at most this fast (None: at once).
     """
 
     max_omega_radps: float = 1.5
@@ -96,6 +99,8 @@ class DriveLimits:
     turn_in_place_rad: float = 0.4
     position_tolerance_m: float = 0.01
     heading_tolerance_rad: float = 0.003
+    angular_accel_radps2: float | None = None
+    brake_mps2: float | None = None
 
 
 class RouteFollower:
@@ -110,6 +115,7 @@ class RouteFollower:
         self._index = 0
         self._step_started_s: float | None = None
         self._v = 0.0
+        self._out = (0.0, 0.0)  # the last command given (rate limits)
 
     @property
     def finished(self) -> bool:
@@ -154,7 +160,23 @@ class RouteFollower:
             self._index = 0
 
     def command(self, t_s: float, x: float, y: float, theta: float) -> tuple[float, float]:
-        """(v m/s, omega rad/s) to hold until the next tick, from the true pose at `t_s`."""
+        """(v m/s, omega rad/s) to hold until the next tick, from the true pose at `t_s`,
+        within the turn-rate and braking limits when set."""
+        v, w = self._command(t_s, x, y, theta)
+        lim = self.limits
+        v0, w0 = self._out
+        if lim.angular_accel_radps2 is not None:
+            dw = lim.angular_accel_radps2 * self.tick_s
+            w = min(max(w, w0 - dw), w0 + dw)
+        if lim.brake_mps2 is not None and abs(v) < abs(v0):
+            dv = lim.brake_mps2 * self.tick_s
+            v = v0 - dv if v0 - dv > v and v0 > 0 else (v0 + dv if v0 + dv < v and v0 < 0 else v)
+            self._v = v
+        self._out = (v, w)
+        return v, w
+
+    def _command(self, t_s: float, x: float, y: float, theta: float) -> tuple[float, float]:
+        """`command` before the rate limits."""
         lim = self.limits
         for _ in range(len(self.route.steps) + 1):  # skip finished steps within one tick
             if self.finished:

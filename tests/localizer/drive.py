@@ -106,12 +106,14 @@ def drive(
     extended: Sequence[ExtendedSource] = (),
     odom_scale: tuple[float, float] = (1.0, 1.0),
     true_camera: CameraModel | None = None,
+    odometry: bool = True,
 ) -> Run:
     """Drive the localizer in closed loop and collect its per-frame outputs.
 
     The wheel speeds come from finite differences of the trajectory; `odom_scale` multiplies
     the measured left/right speeds (an odometry bias). LEDs follow the localizer's requests one
     event later; `dead_ids` never light. `strays_world` are always-on unmapped sources.
+    `odometry=False`: no odometry at all (the localizer's motion model carries it).
     """
     rng = np.random.default_rng(seed)
     cam_true = true_camera or camera
@@ -122,7 +124,7 @@ def drive(
     frame_dt = int(1e9 / frame_rate_hz)
     odom_dt = int(1e9 / odom_rate_hz)
     t_end = int(duration_s * 1e9)
-    events += [(t, 0) for t in range(0, t_end + 1, odom_dt)]
+    events += [(t, 0) for t in range(0, t_end + 1, odom_dt)] if odometry else []
     events += [(t, 1) for t in range(frame_dt // 2, t_end + 1, frame_dt)]
     events.sort()
     pending: LedRequest | None = None
