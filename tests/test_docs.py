@@ -1,0 +1,68 @@
+"""The docs are reference pages, not lab notebooks: every page under docs/ (the dated decision
+records in docs/design/ excepted) stays under 500 lines, names no issue, wave or numbered pass,
+and its links to other pages of the repository resolve."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+DOCS = ROOT / "docs"
+REFERENCE_PAGES = sorted(DOCS.glob("*.md"))
+MAX_LINES = 500
+
+# "#12", "issue 14", "issues 12 and 14", "wave 2", "the third pass", "(speed pass)".
+HISTORY = re.compile(
+    r"(?<![\w&/])#\d+\b"
+    r"|\bissues? \d+"
+    r"|\bwaves?\b(?![-_.])"
+    r"|\b(first|second|third|fourth|fifth|sixth|speed|accuracy|later|next|last) pass(es)?\b",
+    re.IGNORECASE,
+)
+# Markdown links and "docs/NAME.md" citations to pages of this repository.
+LINK = re.compile(r"\]\(((?!https?:|#)[^)#\s]+)(?:#[^)]*)?\)")
+CITATION = re.compile(r"\bdocs/[\w./-]+\.md\b")
+
+
+def test_there_are_reference_pages() -> None:
+    assert len(REFERENCE_PAGES) >= 10, [p.name for p in REFERENCE_PAGES]
+
+
+@pytest.mark.parametrize("page", REFERENCE_PAGES, ids=lambda p: p.name)
+def test_a_reference_page_stays_under_500_lines(page: Path) -> None:
+    lines = page.read_text(encoding="utf-8").count("\n")
+    assert lines <= MAX_LINES, f"{page.name}: {lines} lines (split it by concept)"
+
+
+@pytest.mark.parametrize("page", REFERENCE_PAGES, ids=lambda p: p.name)
+def test_a_reference_page_names_no_issue_wave_or_pass(page: Path) -> None:
+    hits = [
+        f"{page.name}:{n}: {m.group(0)!r}"
+        for n, line in enumerate(page.read_text(encoding="utf-8").splitlines(), 1)
+        for m in HISTORY.finditer(line)
+    ]
+    assert not hits, "history belongs in docs/design/: " + "; ".join(hits)
+
+
+def test_the_history_pattern_catches_what_it_should() -> None:
+    for diary in ("see #12", "(issue 14)", "issues 12 and 14", "the second wave",
+                  "the third pass", "Tracking time (speed pass)"):  # fmt: skip
+        assert HISTORY.search(diary), diary
+    for reference in ("results/wave7_pair_sigma.json", "passes within 0.8 m", "a pass of metres",
+                      "`&#8203;`", "docs/api.md#events", "passes its frames"):  # fmt: skip
+        assert not HISTORY.search(reference), reference
+
+
+@pytest.mark.parametrize("page", [*REFERENCE_PAGES, ROOT / "README.md"], ids=lambda p: p.name)
+def test_links_and_citations_to_docs_resolve(page: Path) -> None:
+    text = page.read_text(encoding="utf-8")
+    missing = [
+        target
+        for target in LINK.findall(text)
+        if not (page.parent / target).exists() and not (ROOT / target).exists()
+    ]
+    missing += [c for c in CITATION.findall(text) if not (ROOT / c).exists()]
+    assert not missing, f"{page.name}: no such file: {sorted(set(missing))}"
