@@ -1,13 +1,18 @@
 """The docs are reference pages, not lab notebooks: every page under docs/ (the dated decision
 records in docs/design/ excepted) stays under 500 lines, names no issue, wave or numbered pass,
-and its links to other pages of the repository resolve."""
+and its links to other pages of the repository resolve; docs/localizer-config.md lists every
+field of `LocalizerConfig` with the default the code has."""
 
 from __future__ import annotations
 
+import dataclasses
+import math
 import re
 from pathlib import Path
 
 import pytest
+
+from localizer.config import LocalizerConfig
 
 ROOT = Path(__file__).resolve().parents[1]
 DOCS = ROOT / "docs"
@@ -48,11 +53,11 @@ def test_a_reference_page_names_no_issue_wave_or_pass(page: Path) -> None:
 
 
 def test_the_history_pattern_catches_what_it_should() -> None:
-    for diary in ("see #12", "(issue 14)", "issues 12 and 14", "the second wave",
-                  "the third pass", "Tracking time (speed pass)"):  # fmt: skip
+    diaries = ["see #12", "(issue 14)", "issues 12 and 14", "the second wave", "the third pass"]
+    for diary in [*diaries, "Tracking time (speed pass)"]:
         assert HISTORY.search(diary), diary
-    for reference in ("results/wave7_pair_sigma.json", "passes within 0.8 m", "a pass of metres",
-                      "`&#8203;`", "docs/api.md#events", "passes its frames"):  # fmt: skip
+    references = ["results/wave7_pair_sigma.json", "passes within 0.8 m", "a pass of metres"]
+    for reference in [*references, "`&#8203;`", "docs/api.md#events", "passes its frames"]:
         assert not HISTORY.search(reference), reference
 
 
@@ -66,3 +71,36 @@ def test_links_and_citations_to_docs_resolve(page: Path) -> None:
     ]
     missing += [c for c in CITATION.findall(text) if not (ROOT / c).exists()]
     assert not missing, f"{page.name}: no such file: {sorted(set(missing))}"
+
+
+def _default_cell(value: object) -> str:
+    """A default as docs/localizer-config.md writes it."""
+    if isinstance(value, float):
+        return "pi" if value == math.pi else f"{value:g}"
+    if isinstance(value, str):
+        return f'"{value}"'
+    if isinstance(value, tuple):
+        return "(" + ", ".join(_default_cell(v) for v in value) + ")"
+    return repr(value)
+
+
+def test_the_configuration_page_lists_every_field_with_its_default() -> None:
+    page = (DOCS / "localizer-config.md").read_text(encoding="utf-8")
+    sections = dict(re.findall(r"^## `(\w+)`: `\w+`\n(.*?)(?=^## |\Z)", page, re.M | re.S))
+    config = LocalizerConfig()
+    problems = []
+    for stage in dataclasses.fields(LocalizerConfig):
+        sub = getattr(config, stage.name)
+        rows = dict(
+            re.findall(r"^\| `(\w+)` \| [^|]* \| ([^|]*) \|", sections.get(stage.name, ""), re.M)
+        )
+        for f in dataclasses.fields(sub):
+            want = _default_cell(getattr(sub, f.name))
+            got = rows.get(f.name)
+            if got is None:
+                problems.append(f"{stage.name}.{f.name} missing")
+            elif got.strip() != want:
+                problems.append(f"{stage.name}.{f.name}: page {got.strip()}, code {want}")
+        names = {f.name for f in dataclasses.fields(sub)}
+        problems += [f"{stage.name}.{name} not in the code" for name in rows.keys() - names]
+    assert not problems, "docs/localizer-config.md: " + "; ".join(problems)
