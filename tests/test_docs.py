@@ -84,6 +84,14 @@ def _default_cell(value: object) -> str:
     return repr(value)
 
 
+def _row(config: object, name: str) -> str:
+    """The page's row for a field: its docstring's "name: ..." entry and its default."""
+    doc = " ".join((type(config).__doc__ or "").split())
+    found = re.search(rf"\b{name}: (.*?)(?= \w+(?:, \w+)*: |$)", doc)
+    what = found.group(1) if found else "(document it in the class's Attributes)"
+    return f"| `{name}` | UNIT | {_default_cell(getattr(config, name))} | {what} |"
+
+
 def test_the_configuration_page_lists_every_field_with_its_default() -> None:
     page = (DOCS / "localizer-config.md").read_text(encoding="utf-8")
     sections = dict(re.findall(r"^## `(\w+)`: `\w+`\n(.*?)(?=^## |\Z)", page, re.M | re.S))
@@ -91,6 +99,8 @@ def test_the_configuration_page_lists_every_field_with_its_default() -> None:
     problems = []
     for stage in dataclasses.fields(LocalizerConfig):
         sub = getattr(config, stage.name)
+        if stage.name not in sections:
+            problems.append(f"add a section: ## `{stage.name}`: `{type(sub).__name__}`")
         rows = dict(
             re.findall(r"^\| `(\w+)` \| [^|]* \| ([^|]*) \|", sections.get(stage.name, ""), re.M)
         )
@@ -98,7 +108,7 @@ def test_the_configuration_page_lists_every_field_with_its_default() -> None:
             want = _default_cell(getattr(sub, f.name))
             got = rows.get(f.name)
             if got is None:
-                problems.append(f"{stage.name}.{f.name} missing")
+                problems.append(f"{stage.name}.{f.name} missing: add the row {_row(sub, f.name)}")
             elif got.strip() != want:
                 problems.append(f"{stage.name}.{f.name}: page {got.strip()}, code {want}")
         names = {f.name for f in dataclasses.fields(sub)}
