@@ -222,9 +222,6 @@ class LedsAndRadio:
         """Light exactly `lit`, darken the other landmarks (waits for the radio)."""
         return await self._gw().set_leds(lit)
 
-    async def all_leds_on(self) -> LedsChanged:
-        return await self._gw().set_leds(self._gw().landmarks.keys())
-
     async def led(self, landmark_id: int, on: bool) -> LedsChanged:
         self.map.get(landmark_id)
         return await self._gw().led(landmark_id, on)
