@@ -9,6 +9,7 @@ from localizer.fix_run import FixRunConfig
 from localizer.floor_plane import FloorPlaneConfig
 from localizer.handoff import HandoffConfig
 from localizer.identification_config import IdentificationConfig
+from localizer.imu_tilt import ImuTiltConfig
 from localizer.motion_model import MotionModelConfig
 from localizer.noise_model import PixelNoiseConfig
 from localizer.pose_filter import FilterConfig
@@ -119,3 +120,4 @@ class LocalizerConfig:
     floor: FloorPlaneConfig = field(default_factory=FloorPlaneConfig)
     fix_run: FixRunConfig = field(default_factory=FixRunConfig)
     motion: MotionModelConfig = field(default_factory=MotionModelConfig)
+    imu: ImuTiltConfig = field(default_factory=ImuTiltConfig)

@@ -132,6 +132,8 @@ class LandmarkTracker:
         self.floor = FloorPlane.level(config.floor)
         self._floor_shift = (0.0, 0.0, 0.0)  # what the last solve's floor moved its pose by
         self._unpredicted: tuple[float, float] | None = None  # this step's (`step`)
+        # the body's (roll, pitch) from an IMU's gravity direction at this frame (`imu_tilt`)
+        self.imu_tilt: tuple[float, float] | None = None
         self.set_map(landmark_map)
 
     def set_map(self, landmark_map: LandmarkMap) -> None:
@@ -603,6 +605,12 @@ class LandmarkTracker:
         aware = carried is not None and cfg.calibration_aware and len(rows) >= 3
         sensitivity = self.floor.sensitivity_at(initial, cfg) if aware else None
         self._floor_shift = (0.0, 0.0, 0.0)
+        floor_prior = None if carried is None else self.floor.widened(carried, cfg)
+        if carried is None and self.imu_tilt is not None:
+            # the IMU's gravity says how the body is tilted: solve on that floor
+            ic = self.config.imu
+            s, h = ic.tilt_sigma_rad, ic.height_sigma_m
+            floor_prior = ((*self.imu_tilt, 0.0), np.diag([s * s, s * s, h * h]))
         fix = solve_pose(
             self.camera,
             px,
@@ -610,7 +618,7 @@ class LandmarkTracker:
             initial=initial,
             estimate_tilt=tilt and fc.tilt_from_landmarks and len(rows) >= 3,
             tilt_sigma_rad=fc.tilt_sigma_rad,
-            floor_prior=None if carried is None else self.floor.widened(carried, cfg),
+            floor_prior=floor_prior,
             calibration_jacobian=self.noise.calibration_jacobian if aware else None,
             floor_sensitivity=sensitivity,
             pixel_sigma_px=sig,

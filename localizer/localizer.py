@@ -48,6 +48,7 @@ from localizer.geometry import wrap_angle
 from localizer.handoff import position_sigma_m
 from localizer.hypothesis_set import HypothesisSet
 from localizer.identification import Identifier
+from localizer.imu_tilt import GravityTilt
 from localizer.landmark_liveness import LandmarkLiveness
 from localizer.landmark_map import LandmarkMap
 from localizer.landmark_tracker import LandmarkTracker
@@ -126,6 +127,7 @@ class Localizer:
             max_speed_m_s=robot.max_speed,
             max_turn_rad_s=self._tracker.max_angular_speed_rad_s,
         )
+        self._gravity = GravityTilt(self.config.imu)  # the body's tilt from an IMU
         self._reseeded = False  # this frame's filter was re-seeded from a run of fixes
         sc = self.config.self_calibration
         self.calibration = OnlineCalibration(camera, sc) if sc.enabled else None
@@ -347,8 +349,15 @@ class Localizer:
         self._t_filter = max(self._t_filter, e.t_ns)
 
     def _on_imu(self, e: ImuMeasured) -> None:
-        """An IMU sample: its heading rate drives the motion model (without odometry)."""
+        """An IMU sample: its heading rate drives the motion model (without odometry); its
+        gravity direction gives the body's tilt to the fixes (`imu_tilt`)."""
         self._motion.gyro(e.t_ns, e.gyro[2])
+        if self.config.imu.enabled:
+            if self._model_drives(e.t_ns):
+                speed = self._motion.v
+            else:
+                speed = 0.5 * (self._odometry.speeds[0] + self._odometry.speeds[1])
+            self._gravity.sample(e.t_ns, e.accel, speed, e.gyro[2])
 
     def _motion_bound_px(self, t0_ns: int, t1_ns: int) -> float:
         """Bound on a spot's image motion between two times: from odometry (with 20 % slack)
@@ -428,6 +437,7 @@ class Localizer:
         if fresh and track.t_sample_ns is not None:
             since = (e.t_ns - track.t_sample_ns) * _NS
             since = min(since, 1.5 * (track.interval_s or since))
+        self._tracker.imu_tilt = self._gravity.at(e.t_ns) if self.config.imu.enabled else None
         unpredicted = None
         if self._model_drives(e.t_ns):
             unpredicted = self._motion.unpredicted_bounds()
