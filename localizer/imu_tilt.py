@@ -16,8 +16,9 @@ of two exponential averages of the speed (time constants tau_1 < tau_2: on a ram
 they lag by a tau_1 and a tau_2, so a = (fast - slow) / (tau_2 - tau_1)), not the noisy
 difference of consecutive samples (1 % speed noise at 100 Hz would be 4 deg of pitch).
 Samples whose |f| is further than `max_force_error_m_s2` from g (a jolt) are not used.
-The tilt is smoothed with `time_constant_s` and handed to the fix as the floor's tilt (`solve_pose`'s `floor_prior`):
-the fix is solved on the tilted body, even from two landmarks.
+The tilt is smoothed with `time_constant_s` and handed to the fix as the floor's tilt
+(`solve_pose`'s `floor_prior`): the fix is solved on the tilted body, even from two
+landmarks.
 Pure: numbers in, numbers out.
 """
 
