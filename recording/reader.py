@@ -147,7 +147,8 @@ def _finite(path: Path, number: int, text: str, name: str) -> float:
     return v
 
 
-def _load_structured(path: Path, loader: Callable[[str], Any]) -> Any:
+def load_structured(path: Path, loader: Callable[[str], Any]) -> Any:
+    """A JSON or YAML file parsed by `loader`; RecordingError naming the file (and line)."""
     text = _read_text(path)
     try:
         return loader(text)
@@ -171,7 +172,7 @@ def _checked(path: Path, build: Callable[[], T]) -> T:
 
 def read_map(path: Path) -> tuple[LandmarkMap, list[dict[str, Any]]]:
     """map.json -> (map, the landmark objects as read)."""
-    data = _load_structured(path, json.loads)
+    data = load_structured(path, json.loads)
     if not isinstance(data, dict) or not isinstance(data.get("landmarks"), list):
         raise RecordingError(path, None, "expected an object with a 'landmarks' list")
     records = data["landmarks"]
@@ -211,7 +212,7 @@ def read_start_pose(path: Path) -> StartPose | None:
     """start_pose.yaml -> the start-pose prior; None when the file is absent."""
     if not path.exists():
         return None
-    data = _load_structured(path, yaml.safe_load)
+    data = load_structured(path, yaml.safe_load)
     try:
         return start_pose_from_dict(data)
     except ValueError as exc:
@@ -228,7 +229,7 @@ def read_imu(
         return np.zeros(0, dtype=np.int64), np.zeros((0, 6))
     R = np.eye(3)
     if sensor_path.exists():
-        data = _load_structured(sensor_path, yaml.safe_load)
+        data = load_structured(sensor_path, yaml.safe_load)
         T_BS = data.get("T_BS") if isinstance(data, dict) else None
         values = T_BS.get("data") if isinstance(T_BS, dict) else None
         if not isinstance(values, list) or len(values) != 16:
@@ -331,10 +332,10 @@ def read_recording(root: Path | str) -> Recording:
         raise RecordingError(base, None, "not a recording folder")
     landmark_map, records = read_map(base / layout.MAP_FILE)
     robot_path = base / layout.ROBOT_FILE
-    robot_data = _load_structured(robot_path, yaml.safe_load)
+    robot_data = load_structured(robot_path, yaml.safe_load)
     robot = _checked(robot_path, lambda: robot_from_yaml_dict(robot_data, source=str(robot_path)))
     sensor_path = base / layout.SENSOR_FILE
-    sensor_data = _load_structured(sensor_path, yaml.safe_load)
+    sensor_data = load_structured(sensor_path, yaml.safe_load)
     camera = _checked(sensor_path, lambda: camera_from_sensor(sensor_data, source=str(sensor_path)))
     frames = read_frames(base / layout.FRAMES_FILE, base / layout.FRAMES_DIR)
     odom_t_ns, odom_v = read_odometry(base / layout.ODOMETRY_FILE)

@@ -20,7 +20,7 @@ import yaml
 
 from localizer.config import LocalizerConfig
 from localizer.config_dict import ConfigError, config_from_dict, config_to_dict
-from recording.reader import RecordingError
+from recording.reader import RecordingError, load_structured
 from recording.start_pose import StartPose
 
 
@@ -32,19 +32,7 @@ def read_config_file(path: Path | str) -> tuple[LocalizerConfig, dict[str, Any]]
             (the message names the key and the value).
     """
     p = Path(path)
-    try:
-        text = p.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise RecordingError(p, None, f"cannot read: {exc.strerror or exc}") from None
-    try:
-        data = json.loads(text) if p.suffix.lower() == ".json" else yaml.safe_load(text)
-    except json.JSONDecodeError as exc:
-        raise RecordingError(p, exc.lineno, f"invalid JSON: {exc.msg}") from None
-    except yaml.MarkedYAMLError as exc:
-        line = exc.problem_mark.line + 1 if exc.problem_mark is not None else None
-        raise RecordingError(p, line, f"invalid YAML: {exc.problem}") from None
-    except yaml.YAMLError as exc:
-        raise RecordingError(p, None, f"invalid YAML: {exc}") from None
+    data = load_structured(p, json.loads if p.suffix.lower() == ".json" else yaml.safe_load)
     if data is None:
         data = {}
     if not isinstance(data, dict):
