@@ -11,9 +11,11 @@ R_tilt = Ry(pitch) Rx(roll) (as `pose_planar.level_mounting`),
 
 A moving body adds its own acceleration: the forward change of speed along x and the
 centripetal v w along y, taken out with the speed and the turn rate the localizer knows
-(odometry or the motion model; the gyro's rate). The forward acceleration is the difference
-of two exponential averages of the speed (time constants tau_1 < tau_2: on a ramp of slope a
-they lag by a tau_1 and a tau_2, so a = (fast - slow) / (tau_2 - tau_1)), not the noisy
+(the odometry's speed and the gyro's rate; without odometry the tilt is not used: the motion
+model's speed moves in steps at each fix, and their differences would read as pitch).
+The forward acceleration is the difference of two exponential averages of the speed (time
+constants tau_1 < tau_2: on a ramp of slope a they lag by a tau_1 and a tau_2, so
+a = (fast - slow) / (tau_2 - tau_1)), not the noisy
 difference of consecutive samples (1 % speed noise at 100 Hz would be 4 deg of pitch).
 Samples whose |f| is further than `max_force_error_m_s2` from g (a jolt) are not used.
 The tilt is smoothed with `time_constant_s` and handed to the fix as the floor's tilt

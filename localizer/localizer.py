@@ -352,11 +352,11 @@ class Localizer:
         """An IMU sample: its heading rate drives the motion model (without odometry); its
         gravity direction gives the body's tilt to the fixes (`imu_tilt`)."""
         self._motion.gyro(e.t_ns, e.gyro[2])
-        if self.config.imu.enabled:
-            if self._model_drives(e.t_ns):
-                speed = self._motion.v
-            else:
-                speed = 0.5 * (self._odometry.speeds[0] + self._odometry.speeds[1])
+        # The body's own acceleration must come out of the specific force: only measured
+        # wheel speeds say it (the motion model's speed moves in steps at each fix, and its
+        # differences read as degrees of pitch), so without odometry the tilt is not used.
+        if self.config.imu.enabled and not self._model_drives(e.t_ns):
+            speed = 0.5 * (self._odometry.speeds[0] + self._odometry.speeds[1])
             self._gravity.sample(e.t_ns, e.accel, speed, e.gyro[2])
 
     def _motion_bound_px(self, t0_ns: int, t1_ns: int) -> float:
