@@ -112,7 +112,7 @@ class Ros2Outputs:
     def on_pose(self, output: PoseEstimate | NoPose) -> None:
         changed = output.mode != self.mode
         self.mode = output.mode
-        if isinstance(output, PoseEstimate):
+        if isinstance(output, PoseEstimate) and output.mode in self.settings.publish_modes:
             stamp = self.ros_stamp(output.t_ns)
             self.last = output
             self.pose_pub.publish(self.pose_message(output, stamp))

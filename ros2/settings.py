@@ -46,6 +46,9 @@ class Ros2Settings:
         max_wait_transform_s: how long a pose waits for `odom -> base_link` at its stamp.
         camera_height_m: optical centre above the floor when the lens comes from camera_info
             (no sensor.yaml): an upward camera on the robot's centre.
+        publish_modes: the localizer modes whose poses go out on the pose topic and as
+            `map -> odom` (not `identifying` or `lost`: the localizer does not know where
+            the robot is, and a Nav2 stack must not drive on its guess).
     """
 
     namespace: str = ""
@@ -70,6 +73,7 @@ class Ros2Settings:
     future_tolerance_s: float = 0.1
     max_wait_transform_s: float = 0.2
     camera_height_m: float = 0.3
+    publish_modes: tuple[str, ...] = ("landmark", "dead_reckoning")
 
     def __post_init__(self) -> None:
         if self.namespace:
@@ -118,7 +122,9 @@ class Ros2Settings:
                     f"--ros2-param {pair!r}: expected KEY=VALUE with KEY one of {sorted(fields)}"
                 )
             current = getattr(self, key)
-            if isinstance(current, QosProfile):
+            if isinstance(current, tuple):
+                changes[key] = tuple(v.strip() for v in value.split(",") if v.strip())
+            elif isinstance(current, QosProfile):
                 changes[key] = parse_qos(value)
             elif isinstance(current, bool):
                 changes[key] = value.lower() in ("1", "true", "yes", "on")

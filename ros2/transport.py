@@ -22,6 +22,7 @@ from typing import Any, Literal
 
 from cyclonedds.core import InstanceState, ReadCondition, SampleState, ViewState, WaitSet
 from cyclonedds.domain import Domain, DomainParticipant
+from cyclonedds.internal import InvalidSample
 from cyclonedds.pub import DataWriter
 from cyclonedds.qos import Policy, Qos
 from cyclonedds.sub import DataReader
@@ -156,6 +157,8 @@ class Ros2Subscription:
         if self.reader is None:
             return
         for sample in self.reader.take(N=256):
+            if isinstance(sample, InvalidSample):
+                continue  # a writer left (dispose/unregister): no data
             self.received += 1
             try:
                 self.callback(sample)

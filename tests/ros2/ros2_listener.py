@@ -89,7 +89,13 @@ def main() -> None:
     ap.add_argument("--seconds", type=float, required=True)
     ap.add_argument("--out", required=True)
     ap.add_argument("--topic", action="append", default=[])
-    ap.add_argument("--initialpose", action="append", default=[], help="TOPIC@SECONDS:x,y,yaw")
+    ap.add_argument(
+        "--initialpose", action="append", default=[],
+        help="TOPIC@WHEN:x,y,yaw, or TOPIC@WHEN:truth+dx,dy,dyaw (the latest pose on "
+        "--truth-topic moved by dx, dy, dyaw: an operator clicking where the robot is); WHEN: "
+        "seconds after the start, or `lost` (when /diagnostics first says mode lost)",
+    )  # fmt: skip
+    ap.add_argument("--truth-topic", help="nav_msgs/Odometry of the true pose")
     args = ap.parse_args()
     _domain = Domain(args.domain, LOOPBACK)
     dp = DomainParticipant(args.domain)
@@ -100,11 +106,14 @@ def main() -> None:
     for spec in args.initialpose:
         topic, _, rest = spec.partition("@")
         at, _, pose = rest.partition(":")
-        plans.append(("rt" + topic, float(at), [float(v) for v in pose.split(",")]))
+        relative = pose.startswith("truth+")
+        values = [float(v) for v in pose.removeprefix("truth+").split(",")]
+        plans.append(("rt" + topic, math.inf if at == "lost" else float(at), values, relative))
     readers: dict[str, tuple[DataReader[Any], str]] = {}
     writers: dict[str, tuple[DataWriter[Any], Any]] = {}
     types: dict[str, str] = {}
     seen: dict[str, list[Any]] = {t: [] for t in args.topic}
+    sent: list[dict[str, Any]] = []
     start = time.monotonic()
     while time.monotonic() - start < args.seconds:
         for s in pubs.take(N=100):
@@ -135,16 +144,27 @@ def main() -> None:
                     seen[wanted[name]].append(summary(rtype, msg))
         elapsed = time.monotonic() - start
         for plan in list(plans):
-            topic, at, (x, y, th) = plan
-            if elapsed >= at and topic in writers:
+            topic, at, (x, y, th), relative = plan
+            if relative:
+                truth = seen.get(args.truth_topic or "", [])
+                if not truth:
+                    continue
+                x, y, th = truth[-1]["x"] + x, truth[-1]["y"] + y, truth[-1]["yaw"] + th
+            lost = any(
+                st["values"].get("mode") == "lost"
+                for msg in seen.get("/diagnostics", [])[-5:]
+                for st in msg
+            )
+            if (elapsed >= at or lost) and topic in writers:
                 writer, dtype = writers[topic]
                 rtype = ros_type(types[topic[2:]])
                 msg = initialpose(rtype, x, y, th)
                 writer.write(dtype.deserialize(bytes(STORE.serialize_cdr(msg, rtype))))
+                sent.append({"topic": topic[2:], "t": time.time_ns(), "x": x, "y": y, "yaw": th})
                 plans.remove(plan)
         time.sleep(0.02)
     with open(args.out, "w", encoding="utf-8") as f:
-        json.dump({"types": types, "messages": seen}, f)
+        json.dump({"types": types, "messages": seen, "sent": sent}, f)
 
 
 def initialpose(rtype: str, x: float, y: float, th: float) -> Any:
