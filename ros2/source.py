@@ -80,7 +80,7 @@ class Ros2Source:
         self._released_ns = 0
         self._last_image_ns = 0
         self._last_odom_ns = 0
-        self._info_ok = camera is None
+        self._info_ok = True  # until a camera_info disagrees with the sensor.yaml
         self._camera_ready = threading.Event()
         if camera is not None:
             self._camera_ready.set()

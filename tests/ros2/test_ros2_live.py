@@ -140,7 +140,7 @@ def test_a_ros2_participant_sees_ros2_types(run: Run) -> None:
 
 def kidnapped_at(seen: dict[str, Any]) -> int:
     """The stamp at which the robot left its route (picked up at (3.0, 0.6))."""
-    return min(g["t"] for g in seen["messages"]["/r1/ground_truth"] if g["y"] > 0.62)
+    return min(int(g["t"]) for g in seen["messages"]["/r1/ground_truth"] if g["y"] > 0.62)
 
 
 def test_map_to_odom_puts_the_robot_within_2_cm_of_the_truth(run: Run) -> None:
