@@ -109,6 +109,8 @@ def build_ros2(args: argparse.Namespace, scenario: Scenario | None) -> list[Ros2
         return [ros2_robot(node, config, base, geometry, camera=camera)]
     names = [r.name for r in scenario.robots]
     wanted = names if args.name == "all" else [args.name]
+    if args.name == "all" and args.ros2_namespace is not None:
+        raise ValueError("--name all puts each robot under its own name: no --ros2-namespace")
     robots = []
     for name in wanted:
         check_name("--name", name)
