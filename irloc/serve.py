@@ -8,6 +8,8 @@ its world and radio but not its robots (`--no-sim-robots`); beside it one `irloc
 --ros2 --sim --name all` process runs every robot of the scenario as a ROS 2 robot appears
 (a simulated driver publishing `/<robot>/image_raw`, `camera_info`, `odom`, `/tf`,
 `ground_truth`) and its localizer as a ROS 2 agent on those topics, on `ROS_DOMAIN_ID`.
+`--ros2-site`: the site server itself publishes every robot's pose and the landmark map on
+ROS 2 (`irloc.ros2_site`).
 """
 
 from __future__ import annotations
@@ -31,9 +33,17 @@ def make_viewer(settings: Settings) -> ViewerApp | None:
     return SiteViewer(host="127.0.0.1", port=settings.viewer_port)
 
 
+def make_viewer_with_ros2_site(settings: Settings) -> ViewerApp | None:
+    """The viewer, with every robot's pose and the map published on ROS 2 beside it."""
+    from irloc.ros2_site import SitePublisher, SiteWithRos2
+
+    return SiteWithRos2(make_viewer(settings), SitePublisher())
+
+
 def _ros2_options(argv: list[str]) -> tuple[argparse.Namespace, list[str]]:
     p = argparse.ArgumentParser(add_help=False)
     p.add_argument("--ros2", action="store_true")
+    p.add_argument("--ros2-site", action="store_true")
     p.add_argument("--ros2-camera-rate", type=float, default=10.0)
     p.add_argument("--mqtt")
     p.add_argument("--scenario")
@@ -58,8 +68,10 @@ def ros2_agents_command(
 def main(argv: list[str] | None = None) -> int:
     args = list(sys.argv[1:] if argv is None else argv)
     ros2, _ = _ros2_options(args)
+    viewer = make_viewer_with_ros2_site if ros2.ros2_site else make_viewer
+    args = [a for a in args if a != "--ros2-site"]
     if not ros2.ros2:
-        return serve_main(args, make_viewer=make_viewer)
+        return serve_main(args, make_viewer=viewer)
     if not ros2.mqtt:
         print(
             "irloc serve: --ros2 runs the robots as ROS 2 agents of this site: give the site's "
@@ -77,7 +89,7 @@ def main(argv: list[str] | None = None) -> int:
     print(f"irloc: ros2      robots on ROS_DOMAIN_ID={os.environ.get('ROS_DOMAIN_ID', '0')}")
     agents = subprocess.Popen(cmd)
     try:
-        return serve_main(rest, make_viewer=make_viewer)
+        return serve_main(rest, make_viewer=viewer)
     finally:
         agents.terminate()
         try:

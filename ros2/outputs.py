@@ -117,9 +117,10 @@ class Ros2Outputs:
             self.last = output
             self.pose_pub.publish(self.pose_message(output, stamp))
             self.poses += 1
-            with self._lock:
-                self._waiting.append((stamp, output))
-            self._flush_transforms()
+            if self.settings.publish_tf:
+                with self._lock:
+                    self._waiting.append((stamp, output))
+                self._flush_transforms()
         if changed:
             self.publish_diagnostics()
 
@@ -157,42 +158,12 @@ class Ros2Outputs:
 
     # -- messages ------------------------------------------------------------------------------
     def pose_message(self, est: PoseEstimate, stamp: int) -> Any:
-        return new(
-            "geometry_msgs/msg/PoseWithCovarianceStamped",
-            header=header(stamp, self.settings.map_frame),
-            pose=new(
-                "geometry_msgs/msg/PoseWithCovariance",
-                pose=pose_msg((est.x, est.y, est.theta)),
-                covariance=covariance6(est.covariance),
-            ),
+        return pose_with_covariance(
+            (est.x, est.y, est.theta), est.covariance, stamp, self.settings.map_frame
         )
 
     def markers(self, landmark_map: LandmarkMap) -> Any:
-        """One cylinder and one label a landmark, after a DELETEALL of the namespace."""
-        s = self.settings
-        now = time.time_ns()
-        hdr = header(now, s.map_frame)
-        color = new("std_msgs/msg/ColorRGBA", r=LANDMARK_RGBA[0], g=LANDMARK_RGBA[1],
-                    b=LANDMARK_RGBA[2], a=LANDMARK_RGBA[3])  # fmt: skip
-        white = new("std_msgs/msg/ColorRGBA", r=1.0, g=1.0, b=1.0, a=1.0)
-        out = [new("visualization_msgs/msg/Marker", header=hdr, ns="irloc_landmarks", action=3)]
-        for lid, p in zip(landmark_map.ids.tolist(), landmark_map.positions.tolist(), strict=True):
-            pos = new("geometry_msgs/msg/Point", x=p[0], y=p[1], z=p[2])
-            q = new("geometry_msgs/msg/Quaternion", w=1.0)
-            pose = new("geometry_msgs/msg/Pose", position=pos, orientation=q)
-            out.append(new(
-                "visualization_msgs/msg/Marker", header=hdr, ns="irloc_landmarks", id=int(lid),
-                type=3, action=0, pose=pose, color=color, frame_locked=True,
-                scale=new("geometry_msgs/msg/Vector3", x=0.12, y=0.12, z=0.03),
-            ))  # fmt: skip
-            label_pos = new("geometry_msgs/msg/Point", x=p[0], y=p[1], z=p[2] - 0.12)
-            out.append(new(
-                "visualization_msgs/msg/Marker", header=hdr, ns="irloc_landmark_ids", id=int(lid),
-                type=9, action=0, text=str(lid), color=white, frame_locked=True,
-                pose=new("geometry_msgs/msg/Pose", position=label_pos, orientation=q),
-                scale=new("geometry_msgs/msg/Vector3", z=0.15),
-            ))  # fmt: skip
-        return new("visualization_msgs/msg/MarkerArray", markers=out)
+        return landmark_markers(landmark_map, self.settings.map_frame, time.time_ns())
 
     def status(self) -> tuple[Level, str, list[tuple[str, str]]]:
         """The level, message and key-values of this robot's diagnostic status."""
@@ -249,3 +220,44 @@ class Ros2Outputs:
                     self.publish_diagnostics()
                 except Exception:
                     log.exception("%s: diagnostics failed", self.name)
+
+
+def pose_with_covariance(
+    pose: tuple[float, float, float], covariance: Any, stamp: int, frame: str
+) -> Any:
+    """geometry_msgs/PoseWithCovarianceStamped of a planar pose and its (3, 3) covariance."""
+    return new(
+        "geometry_msgs/msg/PoseWithCovarianceStamped",
+        header=header(stamp, frame),
+        pose=new(
+            "geometry_msgs/msg/PoseWithCovariance",
+            pose=pose_msg(pose),
+            covariance=covariance6(covariance),
+        ),
+    )
+
+
+def landmark_markers(landmark_map: LandmarkMap, frame: str, t_ns: int) -> Any:
+    """One cylinder and one id label a landmark, after a DELETEALL of the namespace."""
+    hdr = header(t_ns, frame)
+    color = new("std_msgs/msg/ColorRGBA", r=LANDMARK_RGBA[0], g=LANDMARK_RGBA[1],
+                b=LANDMARK_RGBA[2], a=LANDMARK_RGBA[3])  # fmt: skip
+    white = new("std_msgs/msg/ColorRGBA", r=1.0, g=1.0, b=1.0, a=1.0)
+    q = new("geometry_msgs/msg/Quaternion", w=1.0)
+    out = [new("visualization_msgs/msg/Marker", header=hdr, ns="irloc_landmarks", action=3)]
+    for lid, p in zip(landmark_map.ids.tolist(), landmark_map.positions.tolist(), strict=True):
+        pos = new("geometry_msgs/msg/Point", x=p[0], y=p[1], z=p[2])
+        out.append(new(
+            "visualization_msgs/msg/Marker", header=hdr, ns="irloc_landmarks", id=int(lid),
+            type=3, action=0, color=color, frame_locked=True,
+            pose=new("geometry_msgs/msg/Pose", position=pos, orientation=q),
+            scale=new("geometry_msgs/msg/Vector3", x=0.12, y=0.12, z=0.03),
+        ))  # fmt: skip
+        label_pos = new("geometry_msgs/msg/Point", x=p[0], y=p[1], z=p[2] - 0.12)
+        out.append(new(
+            "visualization_msgs/msg/Marker", header=hdr, ns="irloc_landmark_ids", id=int(lid),
+            type=9, action=0, text=str(lid), color=white, frame_locked=True,
+            pose=new("geometry_msgs/msg/Pose", position=label_pos, orientation=q),
+            scale=new("geometry_msgs/msg/Vector3", z=0.15),
+        ))  # fmt: skip
+    return new("visualization_msgs/msg/MarkerArray", markers=out)

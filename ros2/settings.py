@@ -46,6 +46,8 @@ class Ros2Settings:
         max_wait_transform_s: how long a pose waits for `odom -> base_link` at its stamp.
         camera_height_m: optical centre above the floor when the lens comes from camera_info
             (no sensor.yaml): an upward camera on the robot's centre.
+        publish_tf: publish `map -> odom` (off when robot_localization fuses the pose topic
+            and publishes the transform itself).
         publish_modes: the localizer modes whose poses go out on the pose topic and as
             `map -> odom` (not `identifying` or `lost`: the localizer does not know where
             the robot is, and a Nav2 stack must not drive on its guess).
@@ -73,6 +75,7 @@ class Ros2Settings:
     future_tolerance_s: float = 0.1
     max_wait_transform_s: float = 0.2
     camera_height_m: float = 0.3
+    publish_tf: bool = True
     publish_modes: tuple[str, ...] = ("landmark", "dead_reckoning")
 
     def __post_init__(self) -> None:
