@@ -24,7 +24,8 @@ the agent computes and publishes `map -> odom` too.
 CPU: the agent process's user + system time over the measured seconds (after 5 s of warm-
 up), in % of one core, and per frame (the device reader paces itself after each read, so it
 may run below 30 Hz on a loaded machine: compare per frame). Camera only in both (no
-odometry): the cost compared is the camera path. One run on a shared machine; the ratio is the figure to compare.
+odometry): the cost compared is the camera path. One run on a shared machine; the ratio is
+the figure to compare.
 """
 
 from __future__ import annotations
