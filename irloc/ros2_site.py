@@ -23,8 +23,8 @@ from ros2.outputs import landmark_markers, pose_with_covariance
 from ros2.transport import QOS_DEFAULT, QOS_LATCHED, Ros2Participant
 
 if TYPE_CHECKING:
+    from live.services import SiteServices
     from server.seams import Authenticate, ViewerApp
-    from server.services import SiteServices
 
 log = logging.getLogger(__name__)
 MAP_FRAME = "map"

@@ -19,9 +19,9 @@ import os
 import subprocess
 import sys
 
+from live.settings import Settings
 from server.cli import main as serve_main
 from server.seams import ViewerApp
-from server.settings import Settings
 
 
 def make_viewer(settings: Settings) -> ViewerApp | None:
