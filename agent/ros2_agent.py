@@ -12,6 +12,8 @@ from __future__ import annotations
 
 import argparse
 import logging
+import threading
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -21,11 +23,14 @@ from agent.sim_source import SimRobotSource
 from agent.timebase import TimeBase
 from fleet.topics import check_name
 from localizer.camera import CameraModel, camera_from_sensor
+from localizer.events import Event, FrameObserved, RelocalizeRequested
 from localizer.robot import RobotGeometry
+from ros2.initialpose import InitialPoseListener
 from ros2.outputs import Ros2Outputs
 from ros2.settings import Ros2Settings
-from ros2.source import Ros2Source
 from ros2.transport import Ros2Participant
+from sensors.event_buffer import EventBuffer
+from sensors.ros2 import Ros2Source
 from sim.scenario import Scenario
 
 log = logging.getLogger(__name__)
@@ -33,16 +38,94 @@ DEFAULT_HOLD_S = 0.1
 """Reorder hold of a ROS 2 agent: above a camera driver's publication delay and DDS's."""
 
 
+class Ros2SensorSource:
+    """The agent's sensor source on ROS 2: the robot's camera and odometry
+    (`sensors.ros2.Ros2Source`, a `FrameSource` pushing into an `EventBuffer`) and its
+    `/initialpose`, taken in time order by the agent's tick. An input that arrives after the
+    tick already went past its time is dropped and reported (fed late, it would reach the
+    localizer out of order).
+
+    Attributes:
+        led_sink: where the site's LED states go (None on a real robot, whose camera sees
+            the real LEDs; the simulated world of a demo driver).
+    """
+
+    def __init__(self, source: Ros2Source) -> None:
+        self.inputs = source
+        self.health = source.health
+        self._buffer = EventBuffer()
+        self._released_ns = 0
+        self._requests: list[tuple[float, float, float]] = []
+        self._lock = threading.Lock()
+        self.led_sink: Callable[[int, frozenset[int] | None], None] | None = None
+        self.initialpose: InitialPoseListener | None = None
+        self.late = 0
+
+    @property
+    def camera(self) -> CameraModel:
+        return self.inputs.camera
+
+    @property
+    def geometry(self) -> RobotGeometry:
+        return self.inputs.geometry
+
+    @property
+    def start_pose(self) -> tuple[float, float, float] | None:
+        return None
+
+    def start(self) -> None:
+        self.inputs.start(self._buffer)
+
+    def stop(self) -> None:
+        self.inputs.stop()
+
+    def relocalize(self, near: tuple[float, float, float]) -> None:
+        """Relocalize near `near` (x, y, yaw in map) at the next tick (`/initialpose`)."""
+        with self._lock:
+            self._requests.append(near)
+
+    def step(self, t_ns: int) -> list[Event]:
+        """The inputs stamped up to `t_ns` (monotonic), in time order; then the requests."""
+        due: list[Event] = []
+        for e in self._buffer.take_due(t_ns):
+            if e.t_ns <= self._released_ns:
+                self.late += 1
+                kind = "image" if isinstance(e, FrameObserved) else "odom"
+                self.health.report(
+                    kind, "warn",
+                    f"arrived {(self._released_ns - e.t_ns) / 1e6:.0f} ms after the agent passed "
+                    "its time (raise --hold above the transport latency): dropped",
+                )  # fmt: skip
+                continue
+            due.append(e)
+        self._released_ns = max(self._released_ns, t_ns)
+        with self._lock:
+            requests, self._requests = self._requests, []
+        return due + [RelocalizeRequested(t_ns, near) for near in requests]
+
+    def apply_leds(self, t_ns: int, lit: Iterable[int] | None) -> None:
+        """A real robot's camera sees the real LEDs: nothing to do (`led_sink`: a demo)."""
+        if self.led_sink is not None:
+            self.led_sink(t_ns, None if lit is None else frozenset(lit))
+
+    def true_pose_at(self, t_ns: int) -> tuple[float, float, float] | None:
+        return None
+
+    def ros_stamp(self, t_mono_ns: int) -> int:
+        return self.inputs.ros_stamp(t_mono_ns)
+
+
 @dataclass
 class Ros2Robot:
     """One robot of a ROS 2 agent process."""
 
     core: AgentCore
-    source: Ros2Source
+    source: Ros2SensorSource
     outputs: Ros2Outputs
     driver: SimRos2Driver | None = None
 
     def start(self) -> None:
+        self.source.start()
         self.outputs.start()
         if self.driver is not None:
             self.driver.start()
@@ -51,6 +134,7 @@ class Ros2Robot:
         if self.driver is not None:
             self.driver.stop()
         self.outputs.stop()
+        self.source.stop()
 
 
 def load_sensor(path: Path) -> CameraModel:
@@ -74,16 +158,16 @@ def ros2_robot(
     camera_timeout_s: float = 10.0,
 ) -> Ros2Robot:
     """An agent core on ROS 2 topics (and its simulated driver when `driver_source`)."""
-    source = Ros2Source(node, settings, geometry, camera=camera, name=config.name)
+    inputs = Ros2Source(config.name, node, settings, geometry, camera=camera)
+    source = Ros2SensorSource(inputs)
+    source.initialpose = InitialPoseListener(node, settings, source.health, source.relocalize)
     driver = None
     if driver_source is not None:
         driver = SimRos2Driver(node, driver_source, settings)
         source.led_sink = driver.apply_leds
-    outputs = Ros2Outputs(
-        node, settings, source.health, source.odom_base, source.ros_stamp, name=config.name
-    )
+    outputs = Ros2Outputs(node, settings, source.health, source.ros_stamp, name=config.name)
     if camera is None and driver is None:
-        source.wait_for_camera(camera_timeout_s)
+        inputs.wait_for_camera(camera_timeout_s)
     core = AgentCore(config, source, TimeBase())
     core.observers.append(outputs)
     return Ros2Robot(core, source, outputs, driver)

@@ -22,8 +22,8 @@ from localizer.odometry import integrate_odometry
 from ros2.camera_info import camera_info_of
 from ros2.messages import covariance6, header, new, pose_msg, transform_stamped
 from ros2.settings import Ros2Settings
-from ros2.source import wall_minus_mono_ns
 from ros2.transport import QOS_SENSOR_DATA, Ros2Participant
+from sensors.ros2 import wall_minus_mono_ns
 
 log = logging.getLogger(__name__)
 CAMERA_FRAME = "camera_optical_frame"

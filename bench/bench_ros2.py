@@ -89,21 +89,20 @@ def run_agent(args: argparse.Namespace) -> None:
     camera, geometry = sim.camera, sim.geometry
     extra: list[Any] = []
     if args.source == "ros2":
+        from agent.ros2_agent import Ros2SensorSource
         from ros2.outputs import Ros2Outputs
         from ros2.settings import Ros2Settings
-        from ros2.source import Ros2Source
         from ros2.transport import Ros2Participant
+        from sensors.ros2 import Ros2Source
 
         node = Ros2Participant()
         # pre-rendered frames cannot answer LED switching: the localizer stays identifying
         # (on its start prior), and its poses go out anyway to be timed
         modes = ("identifying", "landmark", "dead_reckoning")
         settings = Ros2Settings(namespace="r1", publish_modes=modes)
-        source: Any = Ros2Source(node, settings, geometry, camera=camera, name="r1")
-        outputs = Ros2Outputs(
-            node, settings, source.health, source.odom_base, source.ros_stamp, name="r1"
-        )
-        extra.append(outputs)
+        source: Any = Ros2SensorSource(Ros2Source("r1", node, settings, geometry, camera=camera))
+        outputs = Ros2Outputs(node, settings, source.health, source.ros_stamp, name="r1")
+        extra += [outputs, source]
     else:
         from agent.hardware import HardwareSource
 

@@ -19,6 +19,7 @@ import logging
 import threading
 import time
 from collections import deque
+from collections.abc import Callable
 from typing import Any
 
 from localizer.events import Mode, NoPose, PoseEstimate
@@ -30,7 +31,9 @@ from ros2.messages import (
     header,
     inverse,
     new,
+    pose2_of,
     pose_msg,
+    stamp_ns,
     transform_stamped,
 )
 from ros2.settings import Ros2Settings
@@ -55,9 +58,11 @@ class Ros2Outputs:
         node: the DDS participant.
         settings: topics, frames, QoS.
         health: the input problems to report.
-        odom_base: the robot's `odom -> base_link` history.
         ros_stamp: the ROS stamp of a frame the agent knows by its monotonic time.
         name: the robot's name (`hardware_id` of its diagnostics).
+
+    Attributes:
+        odom_base: the robot's own `odom -> base_link`, as received on `/tf`.
     """
 
     def __init__(
@@ -65,16 +70,16 @@ class Ros2Outputs:
         node: Ros2Participant,
         settings: Ros2Settings,
         health: Health,
-        odom_base: TransformHistory,
-        ros_stamp: Any,
+        ros_stamp: Callable[[int], int],
         *,
         name: str,
     ) -> None:
         s = settings
         self.settings = settings
         self.health = health
-        self.odom_base = odom_base
+        self.odom_base = TransformHistory(s.odom, s.base)
         self.ros_stamp = ros_stamp
+        node.subscribe(s.tf_topic, "tf2_msgs/msg/TFMessage", self.on_tf, s.tf_qos)
         self.name = name
         self.pose_pub = node.publisher(
             s.topic(s.pose_topic), "geometry_msgs/msg/PoseWithCovarianceStamped", s.pose_qos
@@ -103,6 +108,13 @@ class Ros2Outputs:
         self._stop.set()
         if self._thread.is_alive():
             self._thread.join(timeout=2)
+
+    def on_tf(self, msg: Any) -> None:
+        """Keep the robot's own `odom -> base_link` (the one transform irloc needs)."""
+        s = self.settings
+        for tf in msg.transforms:
+            if str(tf.header.frame_id) == s.odom and str(tf.child_frame_id) == s.base:
+                self.odom_base.add(stamp_ns(tf.header.stamp), pose2_of(tf.transform))
 
     # -- from the agent (its sensor thread) ----------------------------------------------------
     def on_map(self, landmark_map: LandmarkMap) -> None:

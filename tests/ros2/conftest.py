@@ -3,12 +3,9 @@
 
 from __future__ import annotations
 
-import os
-
 import pytest
 
-DOMAIN_ID = 100 + os.getpid() % 100
-"""One DDS domain per test run (and per xdist worker): runs side by side do not meet."""
+from tests.ros2.dds import DOMAIN_ID
 
 
 @pytest.fixture(autouse=True)

@@ -19,6 +19,7 @@ from ros2.outputs import Ros2Outputs
 from ros2.settings import Ros2Settings
 from ros2.transforms import TransformHistory
 from ros2.transport import Ros2Participant
+from tests.ros2.dds import DOMAIN_ID
 
 S = Ros2Settings(namespace="r1", max_wait_transform_s=0.05)
 
@@ -41,15 +42,15 @@ class Inbox:
 
 @pytest.fixture(scope="module")
 def node() -> Iterator[Ros2Participant]:
-    n = Ros2Participant(localhost_only=True)
+    n = Ros2Participant(DOMAIN_ID, localhost_only=True)
     yield n
     n.close()
 
 
 def outputs(node: Ros2Participant, name: str) -> tuple[Ros2Outputs, TransformHistory, Inbox, Inbox]:
     s = Ros2Settings(namespace=name, max_wait_transform_s=0.05)
-    history = TransformHistory(s.odom, s.base)
-    out = Ros2Outputs(node, s, Health(name), history, lambda t: t, name=name)
+    out = Ros2Outputs(node, s, Health(name), lambda t: t, name=name)
+    history = out.odom_base
     poses, tfs = Inbox(), Inbox()
     node.subscribe(s.topic(s.pose_topic), "geometry_msgs/msg/PoseWithCovarianceStamped", poses)
     node.subscribe("/tf", "tf2_msgs/msg/TFMessage", tfs)

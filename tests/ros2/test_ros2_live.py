@@ -29,7 +29,7 @@ pytestmark = [
     ),
 ]
 ROOT = Path(__file__).resolve().parents[2]
-LISTEN_S = 34.0
+LISTEN_S = 38.0
 TOLERANCE_NS = 1_000_000_000  # the agent's transform_tolerance_s (map -> odom post-dated)
 
 
@@ -41,7 +41,7 @@ def kidnap_scenario(path: Path) -> Path:
     demo = yaml.safe_load((Path(sim.scenarios.__file__).parent / "demo.yaml").read_text())
     r1 = next(r for r in demo["robots"] if r["name"] == "r1")
     r1["route"] = {"steps": [
-        {"goto": [3.0, 0.6]}, {"wait": 3.0},
+        {"goto": [3.0, 0.6]}, {"wait": 8.0},
         {"kidnap": {"to": [2.2, 2.9, 30.0], "carry_s": 2.0}}, {"wait": 60.0},
     ]}  # fmt: skip
     path.write_text(yaml.safe_dump(demo))

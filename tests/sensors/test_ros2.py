@@ -1,6 +1,7 @@
-"""Bad ROS 2 input is refused with a diagnostic naming what was wrong, never fed to the
-localizer: wrong encodings, a camera_info that disagrees with sensor.yaml, odometry stamped
-in the future or out of order, frames in the wrong frame ids."""
+"""A robot's camera and odometry from ROS 2 (`sensors.ros2.Ros2Source`); bad input is refused
+with a diagnostic naming what was wrong, never delivered: wrong encodings, a camera_info
+that disagrees with sensor.yaml, odometry stamped in the future or out of order, odometry
+in other frames."""
 
 from __future__ import annotations
 
@@ -11,13 +12,15 @@ import numpy as np
 import pytest
 
 from localizer.camera import CameraModel, T_body_camera_upward
-from localizer.events import FrameObserved, OdometryMeasured, RelocalizeRequested
+from localizer.events import FrameObserved, OdometryMeasured
 from localizer.robot import RobotGeometry
 from ros2.camera_info import camera_info_of
-from ros2.messages import header, new, pose_msg
+from ros2.messages import header, new
 from ros2.settings import Ros2Settings
-from ros2.source import Ros2Source, wall_minus_mono_ns
 from ros2.transport import Ros2Participant
+from sensors.event_buffer import EventBuffer
+from sensors.ros2 import Ros2Source, wall_minus_mono_ns
+from tests.ros2.dds import DOMAIN_ID
 
 CAMERA = CameraModel(
     width=64, height=48, fu=40.0, fv=40.0, cu=32.0, cv=24.0,
@@ -29,14 +32,16 @@ SETTINGS = Ros2Settings(namespace="r1")
 
 @pytest.fixture(scope="module")
 def node() -> Iterator[Ros2Participant]:
-    n = Ros2Participant(localhost_only=True)
+    n = Ros2Participant(DOMAIN_ID, localhost_only=True)
     yield n
     n.close()
 
 
 @pytest.fixture
 def source(node: Ros2Participant) -> Ros2Source:
-    return Ros2Source(node, SETTINGS, RobotGeometry(0.4, 1.0), camera=CAMERA, name="r1")
+    src = Ros2Source("r1", node, SETTINGS, RobotGeometry(0.4, 1.0), camera=CAMERA)
+    src.start(EventBuffer())
+    return src
 
 
 def image(t_ns: int, encoding: str = "mono8", data: bytes | None = None, step: int = 64) -> object:
@@ -67,7 +72,10 @@ def now_ros() -> int:
 
 
 def taken(source: Ros2Source) -> list[object]:
-    return list(source.step(time.monotonic_ns()))
+    """What the source delivered so far (its sink is an EventBuffer)."""
+    buffer = source._sink
+    assert isinstance(buffer, EventBuffer)
+    return list(buffer.take_due(time.monotonic_ns()))
 
 
 def test_a_mono8_frame_becomes_an_event_at_its_exposure(source: Ros2Source) -> None:
@@ -161,34 +169,9 @@ def test_odometry_in_other_frames_is_refused(source: Ros2Source) -> None:
     assert p is not None and "'odom' -> 'r1/base_link', expected 'r1/odom'" in p.message
 
 
-def test_an_input_later_than_the_agent_is_dropped_not_fed_out_of_order(
-    source: Ros2Source,
-) -> None:
-    source.step(time.monotonic_ns())  # the agent went past now
-    source.on_odometry(odometry(now_ros() - 50_000_000))
-    assert taken(source) == []
-    p = source.health.problem("odom")
-    assert p is not None and p.level == "warn" and "--hold" in p.message
-
-
-def test_initialpose_asks_to_relocalize_near_it(source: Ros2Source) -> None:
-    msg = new(
-        "geometry_msgs/msg/PoseWithCovarianceStamped", header=header(now_ros(), "map"),
-        pose=new("geometry_msgs/msg/PoseWithCovariance", pose=pose_msg((1.0, 2.0, 0.5))),
-    )  # fmt: skip
-    source.on_initialpose(msg)
-    (e,) = taken(source)
-    assert isinstance(e, RelocalizeRequested)
-    assert e.near == pytest.approx((1.0, 2.0, 0.5))
-    msg.header.frame_id = "odom"
-    source.on_initialpose(msg)
-    assert taken(source) == []
-    p = source.health.problem("initialpose")
-    assert p is not None and "expected 'map'" in p.message
-
-
 def test_without_sensor_yaml_the_lens_comes_from_camera_info(node: Ros2Participant) -> None:
-    src = Ros2Source(node, SETTINGS, RobotGeometry(0.4, 1.0), camera=None, name="r2")
+    src = Ros2Source("r2", node, SETTINGS, RobotGeometry(0.4, 1.0), camera=None)
+    src.start(EventBuffer())
     with pytest.raises(TimeoutError, match="/r1/camera_info"):
         src.wait_for_camera(0.01)
     src.on_image(image(now_ros()))
