@@ -6,11 +6,9 @@ from __future__ import annotations
 import time
 from collections.abc import Iterator
 
-import numpy as np
 import pytest
 
 from agent.ros2_agent import Ros2SensorSource
-from localizer.camera import CameraModel, T_body_camera_upward
 from localizer.events import OdometryMeasured, RelocalizeRequested
 from localizer.robot import RobotGeometry
 from ros2.initialpose import InitialPoseListener
@@ -18,21 +16,14 @@ from ros2.messages import header, new, pose_msg
 from ros2.settings import Ros2Settings
 from ros2.transport import Ros2Participant
 from sensors.ros2 import Ros2Source
-from tests.ros2.dds import DOMAIN_ID
+from tests.ros2.dds import CAMERA, participant
 
-CAMERA = CameraModel(
-    width=64, height=48, fu=40.0, fv=40.0, cu=32.0, cv=24.0,
-    distortion_model="radial-tangential", distortion=np.zeros(5),
-    T_body_camera=T_body_camera_upward(),
-)  # fmt: skip
 SETTINGS = Ros2Settings(namespace="r1")
 
 
 @pytest.fixture(scope="module")
 def node() -> Iterator[Ros2Participant]:
-    n = Ros2Participant(DOMAIN_ID, localhost_only=True)
-    yield n
-    n.close()
+    yield from participant()
 
 
 @pytest.fixture

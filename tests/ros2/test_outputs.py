@@ -19,7 +19,7 @@ from ros2.outputs import Ros2Outputs
 from ros2.settings import Ros2Settings
 from ros2.transforms import TransformHistory
 from ros2.transport import Ros2Participant
-from tests.ros2.dds import DOMAIN_ID
+from tests.ros2.dds import participant
 
 S = Ros2Settings(namespace="r1", max_wait_transform_s=0.05)
 
@@ -42,9 +42,7 @@ class Inbox:
 
 @pytest.fixture(scope="module")
 def node() -> Iterator[Ros2Participant]:
-    n = Ros2Participant(DOMAIN_ID, localhost_only=True)
-    yield n
-    n.close()
+    yield from participant()
 
 
 def outputs(node: Ros2Participant, name: str) -> tuple[Ros2Outputs, TransformHistory, Inbox, Inbox]:

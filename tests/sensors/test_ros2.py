@@ -11,7 +11,7 @@ from collections.abc import Iterator
 import numpy as np
 import pytest
 
-from localizer.camera import CameraModel, T_body_camera_upward
+from localizer.camera import T_body_camera_upward
 from localizer.events import FrameObserved, OdometryMeasured
 from localizer.robot import RobotGeometry
 from ros2.camera_info import camera_info_of
@@ -20,21 +20,14 @@ from ros2.settings import Ros2Settings
 from ros2.transport import Ros2Participant
 from sensors.event_buffer import EventBuffer
 from sensors.ros2 import Ros2Source, wall_minus_mono_ns
-from tests.ros2.dds import DOMAIN_ID
+from tests.ros2.dds import CAMERA, participant
 
-CAMERA = CameraModel(
-    width=64, height=48, fu=40.0, fv=40.0, cu=32.0, cv=24.0,
-    distortion_model="radial-tangential", distortion=np.zeros(5),
-    T_body_camera=T_body_camera_upward(),
-)  # fmt: skip
 SETTINGS = Ros2Settings(namespace="r1")
 
 
 @pytest.fixture(scope="module")
 def node() -> Iterator[Ros2Participant]:
-    n = Ros2Participant(DOMAIN_ID, localhost_only=True)
-    yield n
-    n.close()
+    yield from participant()
 
 
 @pytest.fixture
