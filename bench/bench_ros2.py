@@ -236,9 +236,10 @@ def main() -> None:
             )
     print(f"load average {os.getloadavg()[0]:.1f}; {args.seconds:.0f} s a row, 30 Hz 640x480 mono8")
     print(
-        "| agent input | frames/s | poses/s | final mode | CPU (% core) | latency p50 / p99 (ms) |"
+        "| agent input | frames/s | poses/s | final mode | CPU (% core) | CPU per frame (ms) "
+        "| latency p50 / p99 (ms) |"
     )
-    print("|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|")
     for name, r in rows:
         lat = f"{r['p50_ms']:.1f} / {r['p99_ms']:.1f}" if "p50_ms" in r else "-"
         per_frame = 10 * r["cpu_pct"] / max(r["frames_s"], 1e-9)

@@ -13,6 +13,7 @@ rmw_cyclonedds_cpp writes it since Iron), so ROS 2 tools see a well-formed endpo
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import os
 import threading
@@ -20,7 +21,14 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, Literal
 
-from cyclonedds.core import InstanceState, ReadCondition, SampleState, ViewState, WaitSet
+from cyclonedds.core import (
+    DDSException,
+    InstanceState,
+    ReadCondition,
+    SampleState,
+    ViewState,
+    WaitSet,
+)
 from cyclonedds.domain import Domain, DomainParticipant
 from cyclonedds.internal import InvalidSample
 from cyclonedds.pub import DataWriter
@@ -179,7 +187,11 @@ class Ros2Participant:
     def __init__(self, domain_id: int | None = None, *, localhost_only: bool | None = None) -> None:
         self.domain_id = domain_id_from_env() if domain_id is None else domain_id
         local = localhost_only_from_env() if localhost_only is None else localhost_only
-        self._domain = Domain(self.domain_id, LOOPBACK_CONFIG) if local else None
+        self._domain: Domain | None = None
+        if local:
+            # DDSException: this process is on the domain already (its first participant's config)
+            with contextlib.suppress(DDSException):
+                self._domain = Domain(self.domain_id, LOOPBACK_CONFIG)
         self.participant = DomainParticipant(self.domain_id)
         self._topics: dict[str, Topic[Any]] = {}
         self._lock = threading.Lock()
