@@ -35,6 +35,10 @@ class Ros2Settings:
         compressed: read `<image_topic>/compressed` (`sensor_msgs/CompressedImage`) instead.
         camera_info_topic: `sensor_msgs/CameraInfo`.
         odom_topic: `nav_msgs/Odometry` (its twist gives the wheel speeds).
+        wheel_joints: "LEFT,RIGHT" joint names: take the wheel speeds from
+            `sensor_msgs/JointState` on `joint_states_topic` instead of the odometry
+            (velocities in rad/s times `wheel_radius_m`); "" (default): from `odom_topic`.
+        joint_states_topic, wheel_radius_m: with `wheel_joints`.
         pose_topic: `geometry_msgs/PoseWithCovarianceStamped` published in `map_frame`.
         initialpose_topic: RViz's "2D Pose Estimate" (relocalize near that pose).
         markers_topic: the landmark map, `visualization_msgs/MarkerArray` (transient local).
@@ -58,6 +62,9 @@ class Ros2Settings:
     compressed: bool = False
     camera_info_topic: str = "camera_info"
     odom_topic: str = "odom"
+    wheel_joints: str = ""
+    joint_states_topic: str = "joint_states"
+    wheel_radius_m: float = 0.0
     pose_topic: str = "irloc/pose"
     initialpose_topic: str = "initialpose"
     markers_topic: str = "irloc/landmarks"
@@ -84,6 +91,16 @@ class Ros2Settings:
         for f in dataclasses.fields(self):
             if f.name.endswith(("_topic", "_frame")):
                 check_name(f.name, getattr(self, f.name))
+        if self.wheel_joints:
+            joints = [j.strip() for j in self.wheel_joints.split(",")]
+            if len(joints) != 2 or not all(joints):
+                raise ValueError(
+                    f"wheel_joints must be LEFT,RIGHT joint names: {self.wheel_joints!r}"
+                )
+            if not 0 < self.wheel_radius_m <= 2:
+                raise ValueError(
+                    f"wheel_joints needs wheel_radius_m in (0, 2] m: {self.wheel_radius_m}"
+                )
         for name in ("transform_tolerance_s", "future_tolerance_s", "max_wait_transform_s"):
             if not 0 <= getattr(self, name) <= 10:
                 raise ValueError(f"{name} must be in [0, 10] s, got {getattr(self, name)}")

@@ -1,7 +1,8 @@
 """A robot's camera and wheel odometry from its ROS 2 topics, as a `FrameSource`:
 `sensor_msgs/Image` (or `CompressedImage`) with `CameraInfo`, and `nav_msgs/Odometry`
-(its twist gives the wheel speeds), delivered as `FrameObserved` / `OdometryMeasured` to
-`sink(robot, event)` from the DDS participant's reader thread (docs/ros2.md).
+(its twist gives the wheel speeds) or the wheel joints of `sensor_msgs/JointState`,
+delivered as `FrameObserved` / `OdometryMeasured` to `sink(robot, event)` from the DDS
+participant's reader thread (docs/ros2.md).
 
 Stamps are ROS time (the robot's wall clock, Unix ns); events carry this machine's
 monotonic clock, as the agent's localizer does, and `ros_stamp(t)` gives a frame's own
@@ -86,7 +87,16 @@ class Ros2Source:
             s.topic(s.camera_info_topic), "sensor_msgs/msg/CameraInfo", self.on_camera_info,
             s.image_qos,
         )  # fmt: skip
-        node.subscribe(s.topic(s.odom_topic), "nav_msgs/msg/Odometry", self.on_odometry, s.odom_qos)
+        if s.wheel_joints:
+            self.joints = tuple(j.strip() for j in s.wheel_joints.split(","))
+            node.subscribe(
+                s.topic(s.joint_states_topic), "sensor_msgs/msg/JointState",
+                self.on_joint_states, s.odom_qos,
+            )  # fmt: skip
+        else:
+            node.subscribe(
+                s.topic(s.odom_topic), "nav_msgs/msg/Odometry", self.on_odometry, s.odom_qos
+            )
 
     # -- FrameSource --------------------------------------------------------------------------
     @property
@@ -222,13 +232,40 @@ class Ros2Source:
         if not (abs(v) < 1e3 and abs(w) < 1e3):  # also catches NaN
             self.health.report("odom", "error", f"twist ({v}, {w}) is not a speed: refused")
             return
-        t_ros = stamp_ns(msg.header.stamp)
+        half = 0.5 * self.geometry.wheel_base * w
+        self._wheels("odom", stamp_ns(msg.header.stamp), v - half, v + half)
+
+    def on_joint_states(self, msg: Any) -> None:
+        """Wheel speeds from the two wheel joints' velocities (rad/s) and the wheel radius."""
+        topic = self.settings.topic(self.settings.joint_states_topic)
+        names = [str(n) for n in msg.name]
+        if not all(j in names for j in self.joints):
+            if any(j in names for j in self.joints):  # a message of other joints is not ours
+                self.health.report(
+                    "odom", "error", f"{topic}: one wheel joint of {self.joints} missing"
+                )
+            return
+        idx = [names.index(j) for j in self.joints]
+        vel = list(msg.velocity)
+        if len(vel) != len(names):
+            self.health.report(
+                "odom", "error",
+                f"{topic}: {len(vel)} velocities for {len(names)} joints: refused",
+            )  # fmt: skip
+            return
+        r = self.settings.wheel_radius_m
+        left, right = float(vel[idx[0]]) * r, float(vel[idx[1]]) * r
+        if not (abs(left) < 1e3 and abs(right) < 1e3):
+            self.health.report("odom", "error", f"{topic}: wheel speeds ({left}, {right}): refused")
+            return
+        self._wheels("odom", stamp_ns(msg.header.stamp), left, right)
+
+    def _wheels(self, key: str, t_ros: int, v_left: float, v_right: float) -> None:
         with self._lock:
-            t_mono = self._admit("odom", t_ros, self._last_odom_ns)
+            t_mono = self._admit(key, t_ros, self._last_odom_ns)
             if t_mono is None:
                 return
             self._last_odom_ns = t_ros
-        self.health.clear("odom")
-        half = 0.5 * self.geometry.wheel_base * w
+        self.health.clear(key)
         self.odometry += 1
-        self._deliver(OdometryMeasured(t_mono, v - half, v + half))
+        self._deliver(OdometryMeasured(t_mono, v_left, v_right))

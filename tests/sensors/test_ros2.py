@@ -155,6 +155,32 @@ def test_odometry_from_the_future_or_out_of_order_is_refused(source: Ros2Source)
     assert p is not None and "out of order" in p.message and p.count >= 2
 
 
+def test_wheel_speeds_from_joint_states(node: Ros2Participant) -> None:
+    settings = Ros2Settings(
+        namespace="r1", wheel_joints="wheel_left_joint,wheel_right_joint", wheel_radius_m=0.05
+    )
+    src = Ros2Source("r1", node, settings, RobotGeometry(0.4, 1.0), camera=CAMERA)
+    src.start(EventBuffer())
+
+    def joints(t_ns: int, names: list[str], vel: list[float]) -> object:
+        return new(
+            "sensor_msgs/msg/JointState", header=header(t_ns, ""), name=names, velocity=vel,
+            position=[0.0] * len(names),
+        )  # fmt: skip
+
+    t = now_ros() - 10_000_000
+    src.on_joint_states(joints(t, ["caster", "wheel_right_joint", "wheel_left_joint"], [9, 12, 10]))
+    src.on_joint_states(joints(t + 1, ["arm_joint"], [1.0]))  # other joints: not ours
+    src.on_joint_states(joints(t + 2, ["wheel_left_joint", "wheel_right_joint"], [1.0]))
+    (e,) = taken(src)
+    assert isinstance(e, OdometryMeasured)
+    assert (e.v_left, e.v_right) == pytest.approx((0.5, 0.6))
+    p = src.health.problem("odom")
+    assert p is not None and "1 velocities for 2 joints" in p.message
+    with pytest.raises(ValueError, match="wheel_radius_m"):
+        Ros2Settings(wheel_joints="a,b")
+
+
 def test_odometry_in_other_frames_is_refused(source: Ros2Source) -> None:
     source.on_odometry(odometry(now_ros(), frame="odom"))
     assert taken(source) == []
