@@ -1,9 +1,10 @@
 """`irloc agent --ros2`: the on-robot agent with its inputs and outputs on ROS 2.
 
 The same `AgentCore` (localizer, MQTT link to the site for the map and the LED switching)
-takes its sensor events from a `ros2.source.Ros2Source` (the robot's image, camera_info,
-odometry, `/tf` and `/initialpose`) and tells a `ros2.outputs.Ros2Outputs` of every map and
-pose (`/irloc/pose`, `map -> odom` on `/tf`, `/diagnostics`, landmark markers). With `--sim`
+takes its sensor events from `Ros2SensorSource`: the robot's image, camera_info and
+odometry (`sensors.ros2.Ros2Source`, a frame source) and `/initialpose`; it tells a
+`ros2.outputs.Ros2Outputs` of every map and pose (`/irloc/pose`, `map -> odom` on `/tf`
+from the robot's own `odom -> base_link`, `/diagnostics`, landmark markers). With `--sim`
 each robot of the scenario also gets a simulated ROS 2 driver (`agent.ros2_driver`) in this
 process: the whole chain on one machine, as `irloc serve --ros2` runs it.
 """
