@@ -67,7 +67,7 @@ def run(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Run]:
             agent = subprocess.Popen(
                 [sys.executable, "-m", "irloc", "agent", "--mqtt", broker.url, "--ros2", "--sim",
                  "--name", "r1", "--scenario", str(scenario), "--start-known",
-                 "--camera-rate", "10", "--log-level", "warning"],
+                 "--camera-rate", "10", "--hold", "0.4", "--log-level", "warning"],
                 env=env, cwd=ROOT, stderr=subprocess.PIPE, text=True,
             )  # fmt: skip
             try:
@@ -133,7 +133,7 @@ def test_a_ros2_participant_sees_ros2_types(run: Run) -> None:
     assert all(m["frame"] == "map" and m["z"] > 2 for m in cylinders)
     statuses = [s for msg in run.seen["messages"]["/diagnostics"] for s in msg]
     ok = [s for s in statuses if s["level"] == 0]
-    assert ok and ok[-1]["values"]["mode"] == "landmark"
+    assert ok and ok[-1]["values"]["mode"] == "landmark", (statuses[-3:], run.agent_log[-3000:])
     assert len(ok[-1]["values"]["landmarks_in_use"].split()) >= 2
     assert "Traceback" not in run.agent_log, run.agent_log
 
