@@ -51,7 +51,9 @@ class Ros2SensorSource:
             the real LEDs; the simulated world of a demo driver).
     """
 
-    def __init__(self, source: Ros2Source) -> None:
+    def __init__(
+        self, source: Ros2Source, start_pose: tuple[float, float, float] | None = None
+    ) -> None:
         self.inputs = source
         self.health = source.health
         self._buffer = EventBuffer()
@@ -61,6 +63,7 @@ class Ros2SensorSource:
         self.led_sink: Callable[[int, frozenset[int] | None], None] | None = None
         self.initialpose: InitialPoseListener | None = None
         self.late = 0
+        self._start_pose = start_pose
 
     @property
     def camera(self) -> CameraModel:
@@ -72,7 +75,9 @@ class Ros2SensorSource:
 
     @property
     def start_pose(self) -> tuple[float, float, float] | None:
-        return None
+        """Where the robot starts, when known (a demo robot's dock; a real robot: None,
+        `/initialpose` tells it)."""
+        return self._start_pose
 
     def start(self) -> None:
         self.inputs.start(self._buffer)
@@ -160,7 +165,9 @@ def ros2_robot(
 ) -> Ros2Robot:
     """An agent core on ROS 2 topics (and its simulated driver when `driver_source`)."""
     inputs = Ros2Source(config.name, node, settings, geometry, camera=camera)
-    source = Ros2SensorSource(inputs)
+    source = Ros2SensorSource(
+        inputs, driver_source.start_pose if driver_source is not None else None
+    )
     source.initialpose = InitialPoseListener(node, settings, source.health, source.relocalize)
     driver = None
     if driver_source is not None:

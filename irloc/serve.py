@@ -56,7 +56,7 @@ def ros2_agents_command(
 ) -> list[str]:
     """The `irloc agent` process of the demo's ROS 2 robots."""
     cmd = [sys.executable, "-m", "irloc", "agent", "--mqtt", mqtt, "--ros2", "--sim",
-           "--name", "all", "--start-known", "--camera-rate", str(camera_rate), "--hold", "0.25",
+           "--name", "all", "--start-known", "--camera-rate", str(camera_rate),
            "--log-level", "warning"]  # fmt: skip
     if scenario is not None:
         cmd += ["--scenario", scenario]

@@ -67,7 +67,7 @@ def run(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Run]:
             agent = subprocess.Popen(
                 [sys.executable, "-m", "irloc", "agent", "--mqtt", broker.url, "--ros2", "--sim",
                  "--name", "r1", "--scenario", str(scenario), "--start-known",
-                 "--camera-rate", "10", "--hold", "0.4", "--log-level", "warning"],
+                 "--camera-rate", "10", "--hold", "0.15", "--log-level", "warning"],
                 env=env, cwd=ROOT, stderr=subprocess.PIPE, text=True,
             )  # fmt: skip
             try:
