@@ -93,7 +93,8 @@ def main() -> None:
         "--initialpose", action="append", default=[],
         help="TOPIC@WHEN:x,y,yaw, or TOPIC@WHEN:truth+dx,dy,dyaw (the latest pose on "
         "--truth-topic moved by dx, dy, dyaw: an operator clicking where the robot is); WHEN: "
-        "seconds after the start, or `lost` (when /diagnostics first says mode lost)",
+        "seconds after the start, or `lost[,SECONDS]` (when /diagnostics first says mode lost, "
+        "or at SECONDS at the latest)",
     )  # fmt: skip
     ap.add_argument("--truth-topic", help="nav_msgs/Odometry of the true pose")
     args = ap.parse_args()
@@ -108,7 +109,10 @@ def main() -> None:
         at, _, pose = rest.partition(":")
         relative = pose.startswith("truth+")
         values = [float(v) for v in pose.removeprefix("truth+").split(",")]
-        plans.append(("rt" + topic, math.inf if at == "lost" else float(at), values, relative))
+        # `lost` or `lost,SECONDS`: when /diagnostics first says lost, or at SECONDS at the latest
+        when, _, latest = at.partition(",")
+        deadline = (float(latest) if latest else math.inf) if when == "lost" else float(when)
+        plans.append(("rt" + topic, deadline, values, relative))
     readers: dict[str, tuple[DataReader[Any], str]] = {}
     writers: dict[str, tuple[DataWriter[Any], Any]] = {}
     types: dict[str, str] = {}
@@ -160,7 +164,10 @@ def main() -> None:
                 rtype = ros_type(types[topic[2:]])
                 msg = initialpose(rtype, x, y, th)
                 writer.write(dtype.deserialize(bytes(STORE.serialize_cdr(msg, rtype))))
-                sent.append({"topic": topic[2:], "t": time.time_ns(), "x": x, "y": y, "yaw": th})
+                sent.append({
+                    "topic": topic[2:], "t": time.time_ns(), "x": x, "y": y, "yaw": th,
+                    "when_lost": lost,
+                })  # fmt: skip
                 plans.remove(plan)
         time.sleep(0.02)
     with open(args.out, "w", encoding="utf-8") as f:

