@@ -65,6 +65,15 @@ def ros2_agents_command(
     return cmd
 
 
+def _die_with_parent() -> None:
+    """In the agents' process before it runs: SIGTERM when `irloc serve` dies (uvicorn
+    re-raises the signal that stopped it, so its `finally` does not always run)."""
+    import ctypes
+    import signal
+
+    ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG
+
+
 def main(argv: list[str] | None = None) -> int:
     args = list(sys.argv[1:] if argv is None else argv)
     ros2, _ = _ros2_options(args)
@@ -87,7 +96,8 @@ def main(argv: list[str] | None = None) -> int:
         rest.append("--no-sim-robots")
     cmd = ros2_agents_command(ros2.mqtt, ros2.scenario, ros2.seed, ros2.ros2_camera_rate)
     print(f"irloc: ros2      robots on ROS_DOMAIN_ID={os.environ.get('ROS_DOMAIN_ID', '0')}")
-    agents = subprocess.Popen(cmd)
+    linux = sys.platform.startswith("linux")
+    agents = subprocess.Popen(cmd, preexec_fn=_die_with_parent if linux else None)
     try:
         return serve_main(rest, make_viewer=viewer)
     finally:
