@@ -41,6 +41,7 @@ from web.services import ViewerSite
 from web.viser_compat import (
     ViserCompatError,
     check_viser,
+    disable_share,
     guard_connections,
     refuse,
     request_header,
@@ -166,6 +167,8 @@ class SiteViewer:
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self.ticks = 0
+        self.share_refusals = 0
+        """viser share requests refused (crafted clients: the button is hidden)."""
 
     @property
     def port(self) -> int:
@@ -196,6 +199,13 @@ class SiteViewer:
             guard_connections(self.server, self._admit)
         except ViserCompatError as exc:  # every browser will be refused
             log.error("viewer: %s", exc)
+        try:
+            disable_share(self.server, self._share_refused)
+        except ViserCompatError as exc:  # no tunnel can be refused: stop here
+            self.server.stop()
+            self.server = None
+            raise RuntimeError(f"viewer: {exc}") from exc
+        self.server.gui.configure_theme(show_share_button=False, control_width="medium")
         self.scene = SiteScene(self.server)
         lms = self.site.landmarks()
         pos = np.array([[lm.x, lm.y] for lm in lms]).reshape(-1, 2)
@@ -271,6 +281,14 @@ class SiteViewer:
             return request_header(self.server, client, "origin") is not None
         except ViserCompatError:
             return True  # cannot tell: refuse
+
+    def _share_refused(self, client_id: int) -> None:
+        """A browser sent viser's share request (the button is hidden: a crafted client)."""
+        self.share_refusals += 1
+        log.warning(
+            "viewer: refused viser's share tunnel requested by client %s (%s)",
+            client_id, self.session_of(client_id) or "no session",
+        )  # fmt: skip
 
     def session_of(self, client_id: int) -> Session | None:
         """The session of a connected browser."""

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import asyncio
+import contextlib
 
 import httpx
 import pytest
@@ -60,3 +61,49 @@ def test_viser_itself_listens_on_loopback_only(live_site: LiveSite) -> None:
 
     with pytest.raises(ValueError, match="no login"):
         SiteViewer(live_site.services, host="0.0.0.0")
+
+
+def test_a_crafted_share_request_opens_no_tunnel(
+    live_site: LiveSite, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """viser's Share button is hidden; a client that sends viser's share request anyway
+    (here a plain WebSocket through the keyed proxy, an admin's key) is refused: no tunnel
+    to viser's unkeyed port is opened, and the refusal is counted and logged."""
+    import msgspec
+    import viser._viser
+    from viser import _messages
+
+    opened: list[object] = []
+
+    class NoTunnel:
+        def __init__(self, *args: object, **kwargs: object) -> None:
+            opened.append(args)
+            raise AssertionError("a share tunnel was opened")
+
+    monkeypatch.setattr(viser._viser, "ViserTunnel", NoTunnel)
+    viewer = live_site.app.state.viewer
+    before = viewer.share_refusals
+    url = live_site.base.replace("http", "ws") + "/viewer"
+    cam = _messages.ViewerCameraMessage(
+        (1.0, 0.0, 0.0, 0.0), (0.0, -8.0, 6.0), 1.0, 0.01, 100.0, 800, 1280,
+        (3.0, 2.4, 1.0), (0.0, 0.0, 1.0),
+    )  # fmt: skip
+
+    async def run() -> None:
+        headers = {"Authorization": f"Bearer {live_site.admin_key}"}
+        async with websockets.connect(
+            url, subprotocols=[VISER], additional_headers=headers, max_size=None
+        ) as ws:
+            await ws.send(msgspec.msgpack.encode(cam.as_serializable_dict()))
+            request = _messages.ShareUrlRequest()
+            await ws.send(msgspec.msgpack.encode(request.as_serializable_dict()))
+            deadline = asyncio.get_running_loop().time() + 10
+            while viewer.share_refusals == before:
+                assert asyncio.get_running_loop().time() < deadline, "request never seen"
+                with contextlib.suppress(TimeoutError):
+                    await asyncio.wait_for(ws.recv(), timeout=0.2)
+
+    asyncio.run(run())
+    assert viewer.share_refusals == before + 1
+    assert opened == []
+    assert viewer.server.request_share_url.__name__ == "no_share"

@@ -125,7 +125,9 @@ class MonitorPanel:
                 self.gui_relocalize.on_click(lambda _: self._relocalize())
         with gui.add_folder("Uncertainty"):
             self.gui_plot = gui.add_uplot(
-                data=(np.zeros(0), np.zeros(0)),
+                # two placeholder points, not empty arrays: a uPlot created on empty data
+                # never draws the series the later updates bring (viser 1.1's client)
+                data=(np.array([-1.0, 0.0]), np.full(2, np.nan)),
                 series=({"label": "time"}, {"label": "error", "stroke": "#2a7", "width": 2}),
                 title=self._plot_title(),
                 scales={"x": {"time": False}},

@@ -21,6 +21,7 @@ from web.colors import (
     UNKNOWN_COLOR,
     UNREACHABLE_COLOR,
     battery_color,
+    robot_color,
 )
 from web.footprint import Bounds
 from web.services import RobotState
@@ -62,16 +63,18 @@ def gradient(stops: Sequence[RGB], left: str, right: str) -> str:
     )
 
 
-def legend_html() -> str:
-    """Every colour of the scene: robots by mode, landmarks by battery and state, lines."""
+def legend_html(robots: Sequence[str] = ()) -> str:
+    """Every colour of the scene: robots by mode, their trails, landmarks by battery and
+    state, lines (`robots`: the names in the order the scene met them, for their colours)."""
     head = '<div style="font-weight:600;margin-top:6px">{}</div>'
     rows = [head.format("Robots (box colour = localizer mode)")]
     rows += [swatch(MODE_COLORS[m], MODE_NAMES[m]) for m in MODE_NAMES]
     rows += [
         swatch((80, 160, 200), "blue outline: ceiling its camera can use"),
         swatch((250, 220, 90), "yellow lines: landmarks used in the last fix"),
-        swatch((90, 90, 200), "trail; ring: 3-sigma position uncertainty"),
+        swatch((150, 150, 150), "ring: 3-sigma position uncertainty"),
     ]
+    rows += [swatch(robot_color(i), f"trail of {name}") for i, name in enumerate(robots)]
     rows.append(head.format("Landmarks (sphere colour = battery)"))
     rows.append(gradient([battery_color(p) for p in (0, 25, 50, 75, 100)], "0 %", "100 %"))
     rows += [
@@ -109,7 +112,7 @@ class ViewPanel:
             self.gui_camera = gui.add_button_group("Camera", ("Top view", "Oblique view"))
             self.gui_follow = gui.add_dropdown("Follow robot", (NOBODY, *robot_names))
         with gui.add_folder("Legend", expand_by_default=False):
-            self.gui_legend = gui.add_html(legend_html())
+            self.gui_legend = gui.add_html(legend_html(robot_names))
         self.gui_camera.on_click(lambda e: self.set_view(str(e.target.value)))
 
     def set_view(self, which: str) -> None:

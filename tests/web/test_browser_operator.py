@@ -1,0 +1,93 @@
+"""The operator's screen in a real browser (Debian's Chromium, headless, Playwright) on the
+live demo site: what is drawn is checked by the pixels of the page, not by the messages
+sent to it (the uncertainty curve once reached the page as 600 points and drew nothing)."""
+
+from __future__ import annotations
+
+import io
+import time
+from typing import Any
+
+import numpy as np
+import pytest
+
+from tests.web.conftest import LiveSite
+from tests.web.test_browser import (  # noqa: F401  (the module's browser fixture)
+    CHROMIUM,
+    browser,
+    open_viewer,
+    save_shot,
+    wait_frames,
+)
+from web.colors import robot_color
+
+pytestmark = [
+    pytest.mark.browser,
+    pytest.mark.slow,
+    pytest.mark.skipif(not CHROMIUM.exists(), reason="no /usr/bin/chromium"),
+]
+SERIES_RGB = (0x22, 0xAA, 0x77)  # the uncertainty plot's stroke, "#2a7"
+
+
+def rgb_of(png: bytes) -> np.ndarray:
+    """A screenshot's pixels, shape (H, W, 3), uint8."""
+    from PIL import Image
+
+    return np.asarray(Image.open(io.BytesIO(png)).convert("RGB"))
+
+
+def pixels_of_hue(img: np.ndarray, rgb: tuple[int, int, int], tol_deg: float = 18.0) -> int:
+    """How many clearly coloured pixels (saturation >= 0.25) have the hue of `rgb` within
+    `tol_deg` (the scene's tone mapping lightens colours and shifts hues a little)."""
+    import colorsys
+
+    import cv2
+
+    hsv = cv2.cvtColor(np.ascontiguousarray(img), cv2.COLOR_RGB2HSV_FULL).astype(np.float64)
+    want = 360.0 * colorsys.rgb_to_hsv(*(c / 255.0 for c in rgb))[0]
+    hue = hsv[..., 0] * 360.0 / 256.0
+    off = np.abs((hue - want + 180.0) % 360.0 - 180.0)
+    return int(np.count_nonzero((off <= tol_deg) & (hsv[..., 1] >= 64) & (hsv[..., 2] >= 96)))
+
+
+def pixels_near(img: np.ndarray, rgb: tuple[int, int, int], tol: int = 24) -> int:
+    """How many pixels are within `tol` of `rgb` in every channel."""
+    d = np.abs(img.astype(np.int16) - np.array(rgb, dtype=np.int16))
+    return int(np.count_nonzero(np.all(d <= tol, axis=-1)))
+
+
+def test_uncertainty_curve_trails_in_each_robots_colour_and_no_share_button(
+    browser: Any,  # noqa: F811
+    live_site: LiveSite,
+) -> None:
+    page = open_viewer(browser, live_site, live_site.viewer_key)
+    try:
+        page.get_by_text("signed in as viewer").wait_for(timeout=20_000)
+        # viser's Share button (a public tunnel to viser's unkeyed port) is not there
+        assert page.locator("svg.tabler-icon-share").count() == 0
+        plot = page.locator(".uplot canvas").first
+        plot.scroll_into_view_if_needed()
+        deadline = time.monotonic() + 60
+        curve = 0
+        while time.monotonic() < deadline:  # the panel refreshes at 2 Hz
+            curve = pixels_near(rgb_of(plot.screenshot()), SERIES_RGB)
+            if curve > 150:
+                break
+            time.sleep(1.0)
+        assert curve > 150, f"the uncertainty curve drew {curve} pixels of its colour"
+        # every robot's trail in its own colour, on the 3D view
+        names = list(live_site.services.robots.names())
+        canvas = page.locator("canvas").first
+        counts: dict[str, int] = {}
+        deadline = time.monotonic() + 60
+        while time.monotonic() < deadline:
+            wait_frames(page, 3)
+            img = rgb_of(canvas.screenshot())
+            counts = {n: pixels_of_hue(img, robot_color(i)) for i, n in enumerate(names)}
+            if min(counts.values()) > 40:
+                break
+            time.sleep(2.0)
+        save_shot(page, "viewer-trails.png")
+        assert min(counts.values()) > 40, counts
+    finally:
+        page.close()
