@@ -26,6 +26,7 @@ from server.cli import is_loopback
 from server.seams import Authenticate
 from web.adapter import SiteAdapter
 from web.floorplan_view import FloorPlanLayer, FloorPlanPanel, floorplan_store_of
+from web.layout import ClientLayout
 from web.panels.calibration import CalibrationPanel
 from web.panels.commission import CommissionPanel
 from web.panels.coverage import CoveragePanel
@@ -84,6 +85,7 @@ class _ClientPanels:
             client.add_notification(title, body, auto_close_seconds=6.0)
 
         gui = client.gui
+        self.layout = ClientLayout(client)  # a phone gets the hall, a wide screen a panel
         gui.add_markdown(f"**irloc** - signed in as *{session.role}*")
         assert viewer.scene is not None  # started
         bounds, ceiling_z = viewer.scene.bounds, viewer.scene.ceiling_z
