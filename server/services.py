@@ -76,7 +76,12 @@ class SiteServices:
         self._t0_ns = time.monotonic_ns()
         self.robots = Robots(self.poses, self.robot_store, self.clock_ns)
         self.leds = LedsAndRadio(self.map, self.log)
-        self.recordings = Recordings(settings.recordings_dir, self.robots, self.map)
+        max_gb = settings.recordings_max_gb
+        self.recordings = Recordings(
+            settings.recordings_dir, self.robots, self.map,
+            keep_days=settings.recordings_keep_days,
+            max_total_bytes=None if max_gb is None else int(max_gb * 1024**3),
+        )  # fmt: skip
         self.commissioning = Commissioning(self.map, self.robots, self.leds, self.submit)
         self.survey = LiveSurvey(self.map, self.robots, self.leds, self.recordings)
         self.upkeep = MapUpkeepService(self.map, self.robots, emit=self.events.emit)

@@ -1,15 +1,16 @@
 """Fit one browser's panel to its window: a phone gets the hall, a wide screen a wider panel.
 
 viser reports each browser's canvas size with its camera. On a phone (narrow window) the
-panel is a bottom sheet that covered the whole hall: it starts minimized to its bar, which
-opens it. On a wide screen (1920 px) the default panel stayed 240 px wide and wrapped every
-table: it gets `wide_panel_px`. Applied when the size is first known and whenever the window
-changes class (a phone turned, a window resized).
+panel covered most of the hall: the viewer folds every panel into one "Panels" folder there
+(`wait_for_width` tells it the size when it builds the panel). On a wide screen (1920 px)
+the default panel stayed 240 px wide and wrapped every table: it gets `wide_panel_px`,
+applied when the size is first known and whenever the window becomes wide.
 """
 
 from __future__ import annotations
 
 import threading
+import time
 from dataclasses import dataclass
 from typing import Literal
 
@@ -37,6 +38,19 @@ def window_class(width_px: int, config: LayoutConfig | None = None) -> WindowCla
     return "desktop"
 
 
+def wait_for_width(client: viser.ClientHandle, *, timeout_s: float) -> int:
+    """The browser's canvas width in CSS pixels once its first camera message came, or 0
+    after `timeout_s` (call from a worker thread, e.g. viser's connect callback)."""
+    deadline = time.monotonic() + timeout_s
+    while True:
+        try:
+            return int(client.camera.image_width)
+        except AssertionError:  # viser: no camera message yet
+            if time.monotonic() > deadline:
+                return 0
+            time.sleep(0.02)
+
+
 class ClientLayout:
     """Keeps one browser's panel fitted to its window (`viser` camera updates)."""
 
@@ -59,11 +73,6 @@ class ClientLayout:
                 return kind
             self.applied = kind
         panel = self.client.gui.main_panel
-        if kind == "phone":
-            panel.minimize()  # the hall first; the bar at the bottom opens the panel
-        elif kind == "wide":
-            panel.expand()
+        if kind == "wide":
             panel.set_width(self.config.wide_panel_px)
-        else:
-            panel.expand()
         return kind

@@ -14,6 +14,8 @@ import logging
 import secrets
 import threading
 import time
+from collections.abc import Callable
+from contextlib import nullcontext
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 from urllib.parse import parse_qs, urlsplit
@@ -26,7 +28,7 @@ from server.cli import is_loopback
 from server.seams import Authenticate
 from web.adapter import SiteAdapter
 from web.floorplan_view import FloorPlanLayer, FloorPlanPanel, floorplan_store_of
-from web.layout import ClientLayout
+from web.layout import ClientLayout, wait_for_width, window_class
 from web.panels.calibration import CalibrationPanel
 from web.panels.commission import CommissionPanel
 from web.panels.coverage import CoveragePanel
@@ -79,14 +81,27 @@ class ViewerConfig:
 
 class _ClientPanels:
     def __init__(self, viewer: SiteViewer, client: viser.ClientHandle, session: Session) -> None:
-        site = viewer.site
 
         def notify(title: str, body: str) -> None:
             client.add_notification(title, body, auto_close_seconds=6.0)
 
         gui = client.gui
-        self.layout = ClientLayout(client)  # a phone gets the hall, a wide screen a panel
+        self.layout = ClientLayout(client)  # a wide screen gets a wider panel
         gui.add_markdown(f"**irloc** - signed in as *{session.role}*")
+        # on a phone every panel starts folded into one line: unfolded, the panel covered
+        # the hall (the browser's size arrives with its first camera message)
+        phone = window_class(wait_for_width(client, timeout_s=2.0)) == "phone"
+        with gui.add_folder("Panels", expand_by_default=False) if phone else nullcontext():
+            self._build(viewer, client, session, notify)
+
+    def _build(
+        self,
+        viewer: SiteViewer,
+        client: viser.ClientHandle,
+        session: Session,
+        notify: Callable[[str, str], None],
+    ) -> None:
+        site, gui = viewer.site, client.gui
         assert viewer.scene is not None  # started
         bounds, ceiling_z = viewer.scene.bounds, viewer.scene.ceiling_z
         self.view = ViewPanel(client, bounds, ceiling_z, [r.name for r in site.robots()])
