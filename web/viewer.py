@@ -17,6 +17,7 @@ import time
 from collections.abc import Callable
 from contextlib import nullcontext
 from dataclasses import dataclass
+from pathlib import Path
 from typing import TYPE_CHECKING
 from urllib.parse import parse_qs, urlsplit
 
@@ -25,6 +26,7 @@ import viser
 from fastapi import APIRouter
 
 from server.cli import is_loopback
+from server.errors import NotFoundError
 from server.seams import Authenticate
 from web.adapter import SiteAdapter
 from web.floorplan_view import FloorPlanLayer, FloorPlanPanel, floorplan_store_of
@@ -35,6 +37,7 @@ from web.panels.coverage import CoveragePanel
 from web.panels.history import HistoryPanel, map_repository_of
 from web.panels.monitor import MonitorPanel, UncertaintyHistory
 from web.panels.proposals import ProposalsPanel, map_upkeep_of
+from web.panels.recordings import RecordingsPanel, recordings_of
 from web.panels.survey import SurveyPanel
 from web.panels.view import ViewPanel
 from web.panels.wizard import WizardPanel
@@ -111,10 +114,12 @@ class _ClientPanels:
         self.commission: CommissionPanel | None = None
         self.history: HistoryPanel | None = None
         self.proposals: ProposalsPanel | None = None
+        self.recordings: RecordingsPanel | None = None
         if session.can_commission:
             tabs = gui.add_tab_group()
             with tabs.add_tab("Monitor"):
                 self.monitor = MonitorPanel(gui, site, session, viewer.history, notify)
+                self._recordings(viewer, gui, session, notify)
                 self.coverage = CoveragePanel(client, site, notify)
             with tabs.add_tab("Commission"):
                 self.wizard = WizardPanel(gui, site, session, notify)
@@ -133,7 +138,21 @@ class _ClientPanels:
                 self.survey = SurveyPanel(client, site, session, notify)
         else:
             self.monitor = MonitorPanel(gui, site, session, viewer.history, notify)
+            self._recordings(viewer, gui, session, notify)
             self.coverage = CoveragePanel(client, site, notify)
+
+    def _recordings(
+        self,
+        viewer: SiteViewer,
+        gui: viser.GuiApi,
+        session: Session,
+        notify: Callable[[str, str], None],
+    ) -> None:
+        """The recordings folder, for operators and admins of a site that records."""
+        store = recordings_of(viewer.services)
+        if store is not None and session.can_operate:
+            robot = self.monitor.gui_robot
+            self.recordings = RecordingsPanel(gui, store, session, lambda: robot.value, notify)
 
 
 class SiteViewer:
@@ -299,6 +318,14 @@ class SiteViewer:
         except ViserCompatError:
             return True  # cannot tell: refuse
 
+    def recording_zip(self, name: str) -> Path:
+        """A recording zipped into a temporary file (the caller deletes it), for the
+        viewer's download link; NotFoundError, ConflictError (still being written)."""
+        store = recordings_of(self.services)
+        if store is None:
+            raise NotFoundError("this site keeps no recordings")
+        return store.catalog.zip_file(name)
+
     def _share_refused(self, client_id: int) -> None:
         """A browser sent viser's share request (the button is hidden: a crafted client)."""
         self.share_refusals += 1
@@ -386,6 +413,8 @@ class SiteViewer:
                         p.history.refresh()
                     if p.proposals is not None:
                         p.proposals.refresh()
+                    if p.recordings is not None:
+                        p.recordings.refresh()
                 except Exception:  # its browser went away mid-update
                     log.debug("viewer: dropping the panels of client %s", cid, exc_info=True)
                     with self._lock:

@@ -85,3 +85,32 @@ def test_retention_removes_the_oldest_beyond_age_and_size(tmp_path: Path) -> Non
     assert sorted(r.name for r in cat.list()) == sorted(["r3-x", "r4-x", live.name])
     meta = json.loads((live / "irloc_recording.json").read_text())
     assert meta["trigger"] == "manual"
+
+
+def test_the_viewer_panel_records_lists_and_deletes_only_when_ticked(live: Api) -> None:
+    import viser
+
+    from web.panels.recordings import RecordingsPanel
+    from web.roles import Session
+
+    notes: list[str] = []
+    server = viser.ViserServer("127.0.0.1", 0, verbose=False)
+    try:
+        panel = RecordingsPanel(server.gui, live.services.recordings, Session("admin", "web:key:1"),
+                                lambda: "r3", lambda t, b: notes.append(b))  # fmt: skip
+        name = panel.start()
+        assert (
+            name is not None
+            and name.startswith("r3-")
+            and "(recording...)" in panel.gui_list.content
+        )
+        assert panel.stop() == name
+        assert f"/viewer/recordings/{name}.zip" in panel.gui_list.content
+        assert panel.gui_name is not None and panel.gui_sure is not None
+        panel.gui_name.value = name  # type: ignore[misc]
+        assert not panel.delete() and "tick" in notes[-1]  # not confirmed: kept
+        assert (live.services.settings.recordings_dir / name).is_dir()
+        panel.gui_sure.value = True  # type: ignore[misc]
+        assert panel.delete() and not (live.services.settings.recordings_dir / name).exists()
+    finally:
+        server.stop()

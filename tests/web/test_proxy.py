@@ -107,3 +107,27 @@ def test_a_crafted_share_request_opens_no_tunnel(
     assert viewer.share_refusals == before + 1
     assert opened == []
     assert viewer.server.request_share_url.__name__ == "no_share"
+
+
+def test_the_viewer_download_link_needs_an_operator(live_site: LiveSite) -> None:
+    import io
+    import time
+    import zipfile
+
+    recordings = live_site.services.recordings
+    name = recordings.start("r2").name
+    time.sleep(0.5)
+    recordings.stop("r2")
+    with httpx.Client(base_url=live_site.base) as http:
+        url = f"/viewer/recordings/{name}.zip"
+        assert http.get(url).status_code == 401
+        h = {"Authorization": f"Bearer {live_site.viewer_key}"}
+        assert http.get(url, headers=h).status_code == 403
+        h = {"Authorization": f"Bearer {live_site.operator_key}"}
+        r = http.get(url, headers=h)
+        assert (
+            r.status_code == 200
+            and f"{name}/map.json" in zipfile.ZipFile(io.BytesIO(r.content)).namelist()
+        )
+        assert http.get("/viewer/recordings/nothing.zip", headers=h).status_code == 404
+    recordings.catalog.delete(name)
