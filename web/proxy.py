@@ -34,7 +34,7 @@ from fastapi.responses import (
 from starlette.requests import HTTPConnection
 from websockets.asyncio.client import ClientConnection
 
-from server.errors import ConflictError, NotFoundError
+from store.errors import ConflictError, NotFoundError
 from server.seams import Authenticate
 from web.roles import TICKET_PARAM, Session
 

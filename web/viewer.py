@@ -25,19 +25,19 @@ import numpy as np
 import viser
 from fastapi import APIRouter
 
-from server.cli import is_loopback
-from server.errors import NotFoundError
+from server.loopback import is_loopback
+from store.errors import NotFoundError
 from server.seams import Authenticate
 from web.adapter import SiteAdapter
-from web.floorplan_view import FloorPlanLayer, FloorPlanPanel, floorplan_store_of
+from web.floorplan_view import FloorPlanLayer, FloorPlanPanel
 from web.layout import ClientLayout, wait_for_width, window_class
 from web.panels.calibration import CalibrationPanel
 from web.panels.commission import CommissionPanel
 from web.panels.coverage import CoveragePanel
-from web.panels.history import HistoryPanel, map_repository_of
+from web.panels.history import HistoryPanel
 from web.panels.monitor import MonitorPanel, UncertaintyHistory
-from web.panels.proposals import ProposalsPanel, map_upkeep_of
-from web.panels.recordings import RecordingsPanel, recordings_of
+from web.panels.proposals import ProposalsPanel
+from web.panels.recordings import RecordingsPanel
 from web.panels.survey import SurveyPanel
 from web.panels.view import ViewPanel
 from web.panels.wizard import WizardPanel
@@ -55,7 +55,7 @@ from web.viser_compat import (
 )
 
 if TYPE_CHECKING:
-    from server.services import SiteServices
+    from live.services import SiteServices
 
 log = logging.getLogger(__name__)
 __all__ = ["TICKET_PARAM", "SiteViewer", "ViewerConfig"]
@@ -124,14 +124,14 @@ class _ClientPanels:
             with tabs.add_tab("Commission"):
                 self.wizard = WizardPanel(gui, site, session, notify)
                 self.commission = CommissionPanel(client, site, session, notify)
-                repo = map_repository_of(viewer.services)
+                repo = site.map_history()
                 if repo is not None:
                     self.history = HistoryPanel(gui, repo, session, notify)
-                upkeep = map_upkeep_of(viewer.services)
+                upkeep = site.map_proposals()
                 if upkeep is not None:
                     self.proposals = ProposalsPanel(gui, upkeep, session, notify)
                 self.calibration = CalibrationPanel(gui, site, session, notify)
-                store = floorplan_store_of(viewer.services)
+                store = site.floorplan()
                 if store is not None:
                     self.floorplan = FloorPlanPanel(gui, store, bounds, notify)
             with tabs.add_tab("Survey"):
@@ -149,7 +149,7 @@ class _ClientPanels:
         notify: Callable[[str, str], None],
     ) -> None:
         """The recordings folder, for operators and admins of a site that records."""
-        store = recordings_of(viewer.services)
+        store = viewer.site.recordings()
         if store is not None and session.can_operate:
             robot = self.monitor.gui_robot
             self.recordings = RecordingsPanel(gui, store, session, lambda: robot.value, notify)
@@ -250,7 +250,7 @@ class SiteViewer:
         hi = pos.max(axis=0) + m if len(pos) else np.array([5.0, 5.0])
         self.scene.set_site((lo[0], hi[0], lo[1], hi[1]), self.site.ceiling_height())
         self.scene.update_landmarks(lms, self.site.lit())
-        store = floorplan_store_of(self.services)
+        store = self.site.floorplan()
         self.floorplan = None if store is None else FloorPlanLayer(self.server.scene, store)
         self.server.on_client_connect(self._on_connect)
         self.server.on_client_disconnect(self._on_disconnect)
@@ -321,7 +321,7 @@ class SiteViewer:
     def recording_zip(self, name: str) -> Path:
         """A recording zipped into a temporary file (the caller deletes it), for the
         viewer's download link; NotFoundError, ConflictError (still being written)."""
-        store = recordings_of(self.services)
+        store = self.site.recordings()
         if store is None:
             raise NotFoundError("this site keeps no recordings")
         return store.catalog.zip_file(name)

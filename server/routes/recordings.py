@@ -19,8 +19,8 @@ from pydantic import BaseModel, Field
 
 from server.auth import Admin, Operator, Viewer
 from server.deps import ServicesDep
-from server.errors import ConflictError
-from server.recording_catalog import RecordingInfo
+from store.errors import ConflictError
+from store.recording_catalog import RecordingInfo
 
 router = APIRouter(prefix="/recordings", tags=["recordings"])
 RecordingName = Annotated[

@@ -22,7 +22,7 @@ from pydantic import BaseModel, Field
 
 from server.auth import Viewer, websocket_principal
 from server.deps import ServicesDep
-from server.events import EventKind
+from live.events import EventKind
 from server.fanout import FanoutClient, PoseFanout
 from server.stream_guard import KEY_REVOKED, stream_end
 

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from server.recording_catalog import RecordingCatalog, write_meta
+from store.recording_catalog import RecordingCatalog, write_meta
 from tests.server.conftest import Api, start_api
 
 R = "/api/v1/recordings"

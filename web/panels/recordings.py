@@ -12,17 +12,11 @@ from collections.abc import Callable, Sequence
 
 import viser
 
-from server.errors import ConflictError, NotFoundError
-from server.facades import Recordings
-from server.recording_catalog import RecordingInfo
+from store.errors import ConflictError, NotFoundError
+from live.facades import Recordings
+from store.recording_catalog import RecordingInfo
 from web.panels.monitor import local_time_text
 from web.roles import Session
-
-
-def recordings_of(services: object) -> Recordings | None:
-    """The recordings behind the viewer's services (None for a site without them)."""
-    recordings = getattr(services, "recordings", None)
-    return recordings if isinstance(recordings, Recordings) else None
 
 
 def recordings_text(found: Sequence[RecordingInfo], limit: int = 8) -> str:
