@@ -34,8 +34,8 @@ from fastapi.responses import (
 from starlette.requests import HTTPConnection
 from websockets.asyncio.client import ClientConnection
 
-from store.errors import ConflictError, NotFoundError
 from server.seams import Authenticate
+from store.errors import ConflictError, NotFoundError
 from web.roles import TICKET_PARAM, Session
 
 log = logging.getLogger(__name__)

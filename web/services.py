@@ -17,8 +17,8 @@ import numpy.typing as npt
 
 from commissioning.types import Candidate
 from commissioning.wizard import WizardStatus
-from live.survey.service import SurveyStatus
 from live.facades import Recordings
+from live.survey.service import SurveyStatus
 from live.upkeep_service import MapUpkeepService
 from localizer.camera import CameraModel
 from localizer.events import PoseEstimate

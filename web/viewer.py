@@ -26,8 +26,8 @@ import viser
 from fastapi import APIRouter
 
 from server.loopback import is_loopback
-from store.errors import NotFoundError
 from server.seams import Authenticate
+from store.errors import NotFoundError
 from web.adapter import SiteAdapter
 from web.floorplan_view import FloorPlanLayer, FloorPlanPanel
 from web.layout import ClientLayout, wait_for_width, window_class

@@ -20,9 +20,9 @@ from fastapi import (
 from fastapi.responses import StreamingResponse
 from pydantic import BaseModel, Field
 
+from live.events import EventKind
 from server.auth import Viewer, websocket_principal
 from server.deps import ServicesDep
-from live.events import EventKind
 from server.fanout import FanoutClient, PoseFanout
 from server.stream_guard import KEY_REVOKED, stream_end
 

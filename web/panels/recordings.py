@@ -12,8 +12,8 @@ from collections.abc import Callable, Sequence
 
 import viser
 
-from store.errors import ConflictError, NotFoundError
 from live.facades import Recordings
+from store.errors import ConflictError, NotFoundError
 from store.recording_catalog import RecordingInfo
 from web.panels.monitor import local_time_text
 from web.roles import Session
