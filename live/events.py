@@ -28,6 +28,9 @@ EventKind = Literal[
     "robot_disconnected",
     "clock_offset",
     "map_proposal_rejected",
+    "zone_enter",
+    "zone_exit",
+    "zone_dwell",
 ]
 """What an event is about (the API's enumerated type)."""
 EVENT_KINDS: tuple[str, ...] = get_args(EventKind)

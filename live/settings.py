@@ -123,6 +123,7 @@ class Settings(BaseSettings):
     sim_robots: bool = True
     recordings_keep_days: float | None = Field(default=30.0, gt=0)
     recordings_max_gb: float | None = Field(default=20.0, gt=0)
+    history_keep_days: float = Field(default=30.0, gt=0)
 
     @field_validator("radio")
     @classmethod

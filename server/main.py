@@ -50,6 +50,7 @@ from server.routes import (
     robots,
     streams,
     survey,
+    zones,
 )
 from server.seams import ViewerApp
 from store.errors import ConflictError, NotFoundError, UnavailableError
@@ -152,7 +153,7 @@ def create_app(settings: Settings | None = None, viewer: ViewerApp | None = None
     api = APIRouter(prefix=API_PREFIX, dependencies=[Depends(refuse_unknown_query)])
     for module in (
         landmarks, map, history, floorplan, robots, calibration, remote, admin, streams,
-        commissioning, survey, leds, map_proposals, recordings,
+        commissioning, survey, leds, map_proposals, recordings, zones,
     ):  # fmt: skip
         api.include_router(module.router)
     api.add_api_route(

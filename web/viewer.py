@@ -93,9 +93,15 @@ class _ClientPanels:
         gui.add_markdown(f"**irloc** - signed in as *{session.role}*")
         # on a phone every panel starts folded into one line: unfolded, the panel covered
         # the hall (the browser's size arrives with its first camera message)
-        phone = window_class(wait_for_width(client, timeout_s=2.0)) == "phone"
-        with gui.add_folder("Panels", expand_by_default=False) if phone else nullcontext():
+        width = wait_for_width(client, timeout_s=2.0)
+        kind = window_class(width)
+        with (
+            gui.add_folder("Panels", expand_by_default=False) if kind == "phone" else nullcontext()
+        ):
             self._build(viewer, client, session, notify)
+        if width > 0:  # the top view fitted to this window, beside (or above) the panel
+            panel_px = {"phone": 0.0, "wide": self.layout.config.wide_panel_px}.get(kind, 320.0)
+            self.view.fit_window(width, client.camera.image_height, panel_px)
 
     def _build(
         self,

@@ -495,7 +495,7 @@ def test_live_survey_from_the_panel_shows_estimates_and_accepts_one_landmark(
         for lid in anchors:
             services.map.update(lid, LandmarkUpdate(locked=True), actor="test")
         start.click()
-        st = live_api_wait(api, lambda s: s["estimates"] >= 1, 90.0)
+        st = live_api_wait(api, lambda s: s["estimates"] >= 1, 180.0)  # a loaded machine
         assert st["no_radio"] == [950], st
         page.get_by_text(
             re.compile(r"not surveyed \(no radio, cannot blink\): 950")

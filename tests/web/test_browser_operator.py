@@ -93,35 +93,43 @@ def test_uncertainty_curve_trails_in_each_robots_colour_and_no_share_button(
         page.close()
 
 
+def _open_at(browser: Any, site: LiveSite, width: int, height: int) -> Any:
+    page = browser.new_page()
+    page.set_default_timeout(90_000)
+    page.set_viewport_size({"width": width, "height": height})
+    page.goto(f"{site.base}/viewer/?token={site.operator_key}")
+    page.wait_for_function("() => Object.keys((window.__viserMutable || {}).nodeRefFromName"
+                           " || {}).some(k => k.startsWith('/landmarks/'))")  # fmt: skip
+    page.get_by_text("Connecting...").wait_for(state="hidden", timeout=60_000)
+    page.get_by_text("signed in as operator").wait_for(timeout=30_000)
+    return page
+
+
 def test_phone_shows_the_hall_and_a_wide_screen_a_wide_panel(
     browser: Any,  # noqa: F811
     live_site: LiveSite,
 ) -> None:
-    """At 390x844 the panel starts as a bar and the hall fills the screen (it once covered
-    it); at 1920x1080 the panel is wide enough for the tables (it stayed 240 px and
+    """At 390x844 the panels start folded and the whole hall is in view (the panel once
+    covered it); at 1920x1080 the panel is wide enough for the tables (it stayed 240 px and
     wrapped). Screenshots of the three sizes for the docs."""
-    page = browser.new_page()
-    page.set_default_timeout(90_000)
+    landmarks = (40, 160, 60)  # the landmarks' green spheres (fresh batteries)
+    page = _open_at(browser, live_site, 390, 844)
     try:
-        page.set_viewport_size({"width": 390, "height": 844})
-        page.goto(f"{live_site.base}/viewer/?token={live_site.operator_key}")
-        page.wait_for_function("() => Object.keys((window.__viserMutable || {}).nodeRefFromName"
-                               " || {}).some(k => k.startsWith('/landmarks/'))")  # fmt: skip
-        page.get_by_text("Connecting...").wait_for(state="hidden", timeout=60_000)
         deadline = time.monotonic() + 60
         hall = 0
         while time.monotonic() < deadline:
             wait_frames(page, 3)
             img = rgb_of(page.screenshot())
-            # the landmarks' green spheres, in the top 70 % of the screen (above any bar)
-            hall = pixels_of_hue(img[: int(0.7 * img.shape[0])], (40, 160, 60), tol_deg=25)
+            hall = pixels_of_hue(img[: int(0.8 * img.shape[0])], landmarks, tol_deg=25)
             if hall > 300:
                 break
             time.sleep(1.0)
         save_shot(page, "viewer-phone.png", doc=True)
         assert hall > 300, f"{hall} pixels of the hall's landmarks in view on a phone"
-        page.set_viewport_size({"width": 1920, "height": 1080})
-        page.get_by_text("signed in as operator").wait_for(timeout=30_000)
+    finally:
+        page.close()
+    page = _open_at(browser, live_site, 1920, 1080)
+    try:
         table = page.locator("table").first
         deadline = time.monotonic() + 30
         width = 0.0
@@ -134,7 +142,10 @@ def test_phone_shows_the_hall_and_a_wide_screen_a_wide_panel(
         wait_frames(page, 5)
         save_shot(page, "viewer-wide.png", doc=True)
         assert width >= 340, f"the robots table is {width} px wide at 1920x1080"
-        page.set_viewport_size({"width": 1280, "height": 800})
+    finally:
+        page.close()
+    page = _open_at(browser, live_site, 1280, 800)
+    try:
         wait_frames(page, 5)
         save_shot(page, "viewer-desktop.png", doc=True)
     finally:

@@ -9,7 +9,7 @@ from collections.abc import Sequence
 import numpy as np
 import viser
 
-from web.camera_views import apply_oblique_view, apply_top_view, follow
+from web.camera_views import TopView, apply_oblique_view, apply_top_view, follow
 from web.colors import (
     DOUBTED_COLOR,
     LIT_COLOR,
@@ -105,6 +105,7 @@ class ViewPanel:
         follow_hz: float = 10.0,
     ) -> None:
         self.client, self.bounds, self.ceiling_z = client, bounds, ceiling_z
+        self.top: TopView | None = None  # fitted to the window once its size is known
         self.follow_period_s = 1.0 / follow_hz
         self._next_follow = 0.0
         gui = client.gui
@@ -119,9 +120,18 @@ class ViewPanel:
         """ "Top view" or "Oblique view" for this browser (keeps following a robot)."""
         cam = self.client.camera
         if which.startswith("Top"):
-            apply_top_view(cam, self.bounds)
+            apply_top_view(cam, self.bounds, self.top)
         else:
             apply_oblique_view(cam, self.bounds, self.ceiling_z)
+
+    def fit_window(self, width_px: int, height_px: int, panel_px: float) -> None:
+        """Fit the top view to this browser's window (`panel_px` of it covered by the panel
+        at the right: none on a phone, whose panel folds to a bar below) and show it."""
+        if width_px <= 0 or height_px <= 0:
+            return
+        self.top = TopView(screen_aspect=width_px / height_px,
+                           panel_share=min(0.6, panel_px / width_px))  # fmt: skip
+        apply_top_view(self.client.camera, self.bounds, self.top)
 
     def set_robots(self, names: Sequence[str]) -> None:
         options = (NOBODY, *names)
