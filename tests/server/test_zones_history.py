@@ -3,6 +3,7 @@ coverage heatmap): the keeper on synthetic poses, then the API on the live demo 
 
 from __future__ import annotations
 
+import itertools
 import time
 from collections.abc import Iterator
 from datetime import UTC, datetime, timedelta
@@ -91,7 +92,7 @@ def test_zones_and_history_through_the_api(live: Api) -> None:
     assert robots and len(poses) >= 2
     for name in robots:  # about one a second each
         ts = [datetime.fromisoformat(p["t"]) for p in poses if p["robot"] == name]
-        gaps = [(b - a).total_seconds() for a, b in zip(ts, ts[1:], strict=False)]
+        gaps = [(b - a).total_seconds() for a, b in itertools.pairwise(ts)]
         assert all(g >= 0.99 for g in gaps), gaps
     cov = c.get("/api/v1/history/coverage?cell_m=1", headers=viewer).json()
     assert cov["poses"] > 0 and sum(map(sum, cov["counts"])) == cov["poses"]

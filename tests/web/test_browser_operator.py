@@ -93,8 +93,8 @@ def test_uncertainty_curve_trails_in_each_robots_colour_and_no_share_button(
         page.close()
 
 
-def _open_at(browser: Any, site: LiveSite, width: int, height: int) -> Any:
-    page = browser.new_page()
+def _open_at(ctx: Any, site: LiveSite, width: int, height: int) -> Any:
+    page = ctx.new_page()
     page.set_default_timeout(90_000)
     page.set_viewport_size({"width": width, "height": height})
     page.goto(f"{site.base}/viewer/?token={site.operator_key}")
