@@ -434,6 +434,7 @@ def live_api_wait(api: Any, until: Any, timeout_s: float) -> dict[str, Any]:
     raise AssertionError(f"the survey did not get there in {timeout_s} s: {st}")
 
 
+@pytest.mark.timeout(600)  # a live survey on a loaded 2-core machine: minutes
 def test_live_survey_from_the_panel_shows_estimates_and_accepts_one_landmark(
     browser: Any, live_site: LiveSite
 ) -> None:
