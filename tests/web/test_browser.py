@@ -505,7 +505,7 @@ def test_live_survey_from_the_panel_shows_estimates_and_accepts_one_landmark(
         page.wait_for_function(
             "() => Object.keys(window.__viserMutable.nodeRefFromName)"
             ".some(k => k === '/survey/converging' || k === '/survey/converged')",
-            timeout=30_000,
+            timeout=90_000,
         )
         # staff accept what the panel shows converged (1 sigma <= 5 mm); an early
         # "converging" estimate is a few views' guess, and shown as such

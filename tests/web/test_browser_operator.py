@@ -109,6 +109,7 @@ def _open_at(ctx: Any, site: LiveSite, width: int, height: int) -> Any:
     return page
 
 
+@pytest.mark.timeout(600)  # three pages, software WebGL on a loaded machine
 def test_phone_shows_the_hall_and_a_wide_screen_a_wide_panel(
     browser: Any,  # noqa: F811
     live_site: LiveSite,
