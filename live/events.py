@@ -89,7 +89,7 @@ class EventHub:
 
     def emit(
         self,
-        kind: str,
+        kind: EventKind,
         message: str,
         *,
         robot: str | None = None,
