@@ -6,26 +6,34 @@ from __future__ import annotations
 
 import json
 import logging
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from datetime import datetime
-from typing import Any
+from typing import Any, Literal, get_args
 
 from pubsub.bus import Bus
 from store.log import EventLog
 
-EVENT_KINDS = (
+EventKind = Literal[
     "low_battery",
     "landmark_unreachable",
     "landmark_reachable",
     "robot_lost",
     "robot_localized",
+    "robot_identifying",
     "map_changed",
     "radio_state",
     "led_request_failed",
     "robot_connected",
     "robot_disconnected",
     "clock_offset",
-)
+    "map_proposal_rejected",
+    "zone_enter",
+    "zone_exit",
+    "zone_dwell",
+]
+"""What an event is about (the API's enumerated type)."""
+EVENT_KINDS: tuple[str, ...] = get_args(EventKind)
 WARNING_EVENTS = frozenset(
     {
         "low_battery",
@@ -81,13 +89,15 @@ class EventHub:
 
     def emit(
         self,
-        kind: str,
+        kind: EventKind,
         message: str,
         *,
         robot: str | None = None,
         landmark_id: int | None = None,
         data: dict[str, Any] | None = None,
     ) -> SiteEvent:
+        if kind not in EVENT_KINDS:  # the API lists the kinds: a new one is added there
+            raise ValueError(f"event kind {kind!r} is not one of EventKind: {EVENT_KINDS}")
         rec = self.log.add_event(kind, message, robot=robot, landmark_id=landmark_id, data=data)
         extra: dict[str, Any] = {"event": kind}
         if robot is not None:
@@ -100,9 +110,19 @@ class EventHub:
         self.bus.publish(event)
         return event
 
-    def recent(self, limit: int = 100) -> list[SiteEvent]:
-        """The newest events first."""
+    def recent(
+        self,
+        limit: int = 100,
+        *,
+        kinds: Sequence[str] | None = None,
+        before_id: int | None = None,
+        after_id: int | None = None,
+        robot: str | None = None,
+    ) -> list[SiteEvent]:
+        """The newest events first (`after_id`: the oldest after it first), filtered."""
         return [
             SiteEvent(r.id or 0, r.t, r.kind, r.message, r.robot, r.landmark_id, r.data)
-            for r in self.log.events(limit)
+            for r in self.log.events(
+                limit, kinds, before_id=before_id, after_id=after_id, robot=robot
+            )
         ]

@@ -121,6 +121,9 @@ class Settings(BaseSettings):
     mqtt_site: str = Field(default="default", pattern=r"^[A-Za-z0-9_.-]{1,64}$")
     vda_manufacturer: str = Field(default="irloc", pattern=r"^[A-Za-z0-9_.-]{1,64}$")
     sim_robots: bool = True
+    recordings_keep_days: float | None = Field(default=30.0, gt=0)
+    recordings_max_gb: float | None = Field(default=20.0, gt=0)
+    history_keep_days: float = Field(default=30.0, gt=0)
 
     @field_validator("radio")
     @classmethod

@@ -45,10 +45,12 @@ from server.routes import (
     leds,
     map,
     map_proposals,
+    recordings,
     remote,
     robots,
     streams,
     survey,
+    zones,
 )
 from server.seams import ViewerApp
 from store.errors import ConflictError, NotFoundError, UnavailableError
@@ -151,7 +153,7 @@ def create_app(settings: Settings | None = None, viewer: ViewerApp | None = None
     api = APIRouter(prefix=API_PREFIX, dependencies=[Depends(refuse_unknown_query)])
     for module in (
         landmarks, map, history, floorplan, robots, calibration, remote, admin, streams,
-        commissioning, survey, leds, map_proposals,
+        commissioning, survey, leds, map_proposals, recordings, zones,
     ):  # fmt: skip
         api.include_router(module.router)
     api.add_api_route(
