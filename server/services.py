@@ -21,7 +21,9 @@ from sqlalchemy import Engine
 from pubsub.bus import Bus
 from server.commissioning_service import Commissioning
 from server.crud import EventLog, KeyStore, MapRepository, RobotStore
+from server.crud.floors import FloorStore
 from server.crud.landmarks import parse_map_json
+from server.crud.map_versions import MapVersions
 from server.db import make_engine, migrate
 from server.errors import UnavailableError
 from server.events import EventHub
@@ -67,6 +69,8 @@ class SiteServices:
         self.engine = engine or make_engine(settings.db_url)
         self.initial_admin_key: str | None = prepare_database(self.engine)
         self.map = MapRepository(self.engine)
+        self.floors = FloorStore(self.engine)
+        self.map_versions = MapVersions(self.engine, self.map, self.floors)
         self.floorplan = FloorPlanStore(settings.data_dir)
         self.keys = KeyStore(self.engine)
         self.robot_store = RobotStore(self.engine)
@@ -136,6 +140,7 @@ class SiteServices:
             await self.live.stop()
             self.live = None
         self.map.remove_listener(self._on_map_changed)
+        self.map_versions.close()
         self.keys.close()  # pending last-use writes
         self.engine.dispose()
 
