@@ -10,10 +10,10 @@ from fastapi import APIRouter, Path, Query, Request, Response, status
 from pydantic import BaseModel, Field
 
 from server.auth import Admin, Viewer
-from server.crud.landmarks import decode_text, parse_map_text
-from server.crud.map_versions import FloorMap
 from server.deps import ServicesDep
-from server.models import (
+from store.landmarks import decode_text, parse_map_text
+from store.map_versions import FloorMap
+from store.models import (
     FLOOR_ID,
     Floor,
     FloorCreate,
