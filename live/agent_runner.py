@@ -125,8 +125,10 @@ class AgentRunner(RobotRunner):
     def relocalize(self, t_ns: int, near: tuple[float, float, float] | None = None) -> None:
         self._send_command(self.name, near)
 
-    def set_map(self, landmark_map: LandmarkMap) -> None:
+    def set_map(self, landmark_map: LandmarkMap, map_version: int | None = None) -> None:
         """The map reaches the agent over MQTT (`<site>/map`, retained)."""
+        if map_version is not None:
+            self.map_version = map_version
 
     def start_recording(self, root: Any, landmark_records: list[dict[str, Any]]) -> None:
         raise ValueError(

@@ -10,9 +10,10 @@ from typing import Any
 
 import numpy as np
 import numpy.typing as npt
-from pydantic import BaseModel
+from pydantic import BaseModel, Field
 
 from localizer.events import Mode, PoseEstimate
+from store.models import DEFAULT_FLOOR
 
 
 @dataclass(frozen=True, eq=False)
@@ -30,6 +31,8 @@ class PoseUpdate:
             (`PoseEstimate.expected_ids`; read by doubt detection, not sent by the API).
         computed_wall_ns: wall clock (`time.time_ns`) when the pose was computed, for ages
             and latency measurements.
+        floor: the floor whose map the pose is on (its frame: that floor's map frame).
+        map_version: the version of that floor's map the localizer held.
     """
 
     robot: str
@@ -42,9 +45,13 @@ class PoseUpdate:
     landmark_ids: tuple[int, ...] = ()
     computed_wall_ns: int = field(default_factory=time.time_ns)
     expected_ids: tuple[int, ...] = ()
+    floor: str = DEFAULT_FLOOR
+    map_version: int = 0
 
     @classmethod
-    def from_estimate(cls, robot: str, est: PoseEstimate) -> PoseUpdate:
+    def from_estimate(
+        cls, robot: str, est: PoseEstimate, *, floor: str = DEFAULT_FLOOR, map_version: int = 0
+    ) -> PoseUpdate:
         return cls(
             robot,
             est.t_ns,
@@ -55,6 +62,8 @@ class PoseUpdate:
             np.asarray(est.covariance, dtype=np.float64),
             tuple(est.landmark_ids),
             expected_ids=tuple(est.expected_ids),
+            floor=floor,
+            map_version=map_version,
         )
 
     def estimate(self) -> PoseEstimate | None:
@@ -79,6 +88,8 @@ class PoseUpdate:
             "covariance": cov,
             "landmark_ids": list(self.landmark_ids),
             "computed_wall_ns": self.computed_wall_ns,
+            "floor": self.floor,
+            "map_version": self.map_version,
         }
 
     @cached_property
@@ -87,8 +98,16 @@ class PoseUpdate:
         return json.dumps(self.to_dict(), separators=(",", ":"))
 
 
-def pose_json(robot: str, mode: Mode, upd: PoseUpdate | None) -> str:
-    """`PosePublic` as JSON text, built without a model round trip (the hot endpoint)."""
+def pose_json(
+    robot: str,
+    mode: Mode,
+    upd: PoseUpdate | None,
+    *,
+    floor: str = DEFAULT_FLOOR,
+    map_version: int = 0,
+) -> str:
+    """`PosePublic` as JSON text, built without a model round trip (the hot endpoint);
+    `floor` and `map_version` are the robot's now (used when it has no pose yet)."""
     if upd is None:
         return json.dumps(
             {
@@ -101,6 +120,8 @@ def pose_json(robot: str, mode: Mode, upd: PoseUpdate | None) -> str:
                 "covariance": None,
                 "landmark_ids": [],
                 "age_s": None,
+                "floor": floor,
+                "map_version": map_version,
             }
         )
     d = upd.to_dict()
@@ -122,3 +143,5 @@ class PosePublic(BaseModel):
     covariance: list[list[float]] | None = None
     landmark_ids: list[int] = []
     age_s: float | None = None
+    floor: str = Field(DEFAULT_FLOOR, description="the floor whose map the pose is on")
+    map_version: int = Field(0, description="the version of that floor's map it is on")

@@ -31,6 +31,7 @@ from localizer.landmark_map import LandmarkMap
 from localizer.localizer import Localizer
 from localizer.robot import RobotGeometry
 from recording.writer import RecordingWriter
+from store.models import DEFAULT_FLOOR
 
 log = logging.getLogger(__name__)
 
@@ -101,6 +102,10 @@ class RobotRunner:
         self._mode: Mode = localizer.mode
         self._pending: deque[Event] = deque()
         self._leds_in_force: LedsChanged | None = None  # the last LED state fed
+        self.floor = DEFAULT_FLOOR
+        """The floor whose map the localizer holds (every pose names it)."""
+        self.map_version = 0
+        """The version of that floor's map the localizer holds."""
 
     @property
     def mode(self) -> Mode:
@@ -152,14 +157,20 @@ class RobotRunner:
 
     def _route(self, out: Output) -> None:
         if isinstance(out, PoseEstimate):
-            upd = PoseUpdate.from_estimate(self.name, out)
+            upd = PoseUpdate.from_estimate(
+                self.name, out, floor=self.floor, map_version=self.map_version
+            )
             self.latest = upd
             self.poses += 1
             if out.mode == "landmark":
                 self.last_fix_t_ns = out.t_ns
             self._publish(upd)
         elif isinstance(out, NoPose):
-            self._publish(PoseUpdate(self.name, out.t_ns, out.mode))
+            self._publish(
+                PoseUpdate(
+                    self.name, out.t_ns, out.mode, floor=self.floor, map_version=self.map_version
+                )
+            )
         elif isinstance(out, LedRequest):
             self._request_leds(self.name, out)
 
@@ -174,9 +185,30 @@ class RobotRunner:
         """The operator's request: forget the pose and identify again (near a pose)."""
         self.handle(RelocalizeRequested(t_ns, near))
 
-    def set_map(self, landmark_map: LandmarkMap) -> None:
+    def set_map(self, landmark_map: LandmarkMap, map_version: int | None = None) -> None:
+        """A new version of the map of the robot's floor."""
         with self._lock:
             self.localizer.set_map(landmark_map)
+            if map_version is not None:
+                self.map_version = map_version
+
+    def set_floor(
+        self,
+        floor: str,
+        landmark_map: LandmarkMap,
+        map_version: int,
+        t_ns: int,
+        near: tuple[float, float, float] | None = None,
+    ) -> None:
+        """The robot is now on `floor` (out of the lift): its localizer takes that floor's
+        map and identifies again, near (x, y, theta) of that floor when given (the lift's
+        node). Every pose from here on names the new floor; none of the old floor's pose
+        is carried over (the pose is forgotten)."""
+        with self._lock:
+            self.floor, self.map_version = floor, map_version
+            self.localizer.set_map(landmark_map)
+            self.latest = None
+            self.handle(RelocalizeRequested(t_ns, near))
 
     # -- taps and recording ------------------------------------------------------------------
     def add_tap(self, tap: Callable[[Event], None]) -> None:

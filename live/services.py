@@ -21,6 +21,7 @@ from sqlalchemy import Engine
 from live.commissioning_service import Commissioning
 from live.events import EventHub
 from live.facades import LedsAndRadio, Recordings, Robots
+from live.floors import SiteFloors
 from live.leds.status import EnergyStatus, site_energy
 from live.poses import PoseUpdate
 from live.runner import LiveSiteRunner
@@ -79,6 +80,9 @@ class SiteServices:
         self.poses: Bus[PoseUpdate] = Bus(settings.pose_queue)
         self._t0_ns = time.monotonic_ns()
         self.robots = Robots(self.poses, self.robot_store, self.clock_ns)
+        self.site_floors = SiteFloors(
+            self.floors, self.map, self.map_versions, self.robots, self.events, self.clock_ns
+        )
         self.leds = LedsAndRadio(self.map, self.log)
         self.recordings = Recordings(settings.recordings_dir, self.robots, self.map)
         self.commissioning = Commissioning(self.map, self.robots, self.leds, self.submit)
@@ -126,6 +130,7 @@ class SiteServices:
                 leds=self.leds,
                 events=self.events,
                 clock_ns=self.clock_ns,
+                floors=self.site_floors,
             )
             await self.live.start()
         self.commissioning.start()

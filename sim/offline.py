@@ -167,7 +167,7 @@ def simulate_recording(
                 if isinstance(item, OdometryMeasured):
                     w.add_odometry(item.t_ns, item.v_left, item.v_right)
                     odometry += 1
-                else:
+                elif isinstance(item, FramePose):  # (a lift's arrival: one floor recorded)
                     _write_frame(w, world, rig, item, gens[2], sc)
                     frames += 1
             if progress is not None:

@@ -9,7 +9,18 @@ from dataclasses import dataclass, field
 
 from sim.cameras import CALIBRATION_LEVELS, LENSES, CalibrationError, Lens
 from sim.fields import Node
-from sim.routes import Drive, DriveLimits, Goto, Kidnap, Route, Step, TurnTo, Wait, heading_sweep
+from sim.routes import (
+    Drive,
+    DriveLimits,
+    Goto,
+    Kidnap,
+    Lift,
+    Route,
+    Step,
+    TurnTo,
+    Wait,
+    heading_sweep,
+)
 
 
 @dataclass(frozen=True)
@@ -45,6 +56,7 @@ class RobotSpec:
     camera: CameraSpec
     route: Route
     limits: DriveLimits = field(default_factory=DriveLimits)
+    floor: str = "0"
 
 
 def route_from_node(n: Node, max_speed: float, start_theta: float) -> Route:
@@ -63,7 +75,7 @@ def route_from_node(n: Node, max_speed: float, start_theta: float) -> Route:
             if sweep > 0:
                 steps += [TurnTo(start_theta), *heading_sweep(start_theta, sweep, sweep_dwell)]
     for s in n.child("steps").items():
-        s.mapping(("goto", "wait", "turn_to_deg", "sweep", "drive", "kidnap"))
+        s.mapping(("goto", "wait", "turn_to_deg", "sweep", "drive", "kidnap", "lift"))
         if s.has("goto"):
             x, y = s.child("goto").vector(2, "[x, y]")
             steps.append(Goto(x, y, speed))
@@ -79,6 +91,15 @@ def route_from_node(n: Node, max_speed: float, start_theta: float) -> Route:
                 start,
                 math.radians(w.number("step_deg", low=1, high=180)),
                 w.number("dwell_s", 0.5, low=0),
+            )
+        elif s.has("lift"):
+            lift = s.child("lift").mapping(("floor", "ride_s", "announce"))
+            steps.append(
+                Lift(
+                    lift.string("floor"),
+                    lift.number("ride_s", 8.0, low=0.5, high=600.0),
+                    lift.boolean("announce", True),
+                )
             )
         elif s.has("kidnap"):
             k = s.child("kidnap").mapping(("to", "carry_s", "lift_m"))
@@ -149,6 +170,7 @@ def robot_from_node(n: Node, default_lens: Lens) -> RobotSpec:
             "camera",
             "route",
             "limits",
+            "floor",
         )
     )
     sx, sy, sdeg = n.child_vector("start", 3, "[x, y, theta_deg]")
@@ -190,4 +212,5 @@ def robot_from_node(n: Node, default_lens: Lens) -> RobotSpec:
         camera=camera,
         route=route_from_node(n.child("route", required=True), max_speed, math.radians(sdeg)),
         limits=limits_from_node(n.child("limits", {})),
+        floor=n.string("floor", "0"),
     )

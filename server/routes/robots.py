@@ -29,6 +29,8 @@ class RobotStatus(BaseModel):
     clock_offset_s: float | None = None
     clock_error_s: float | None = None
     clock_ok: bool | None = None
+    floor: str = Field("0", description="the floor whose map its localizer holds")
+    map_version: int = Field(0, description="the version of that floor's map it holds")
 
 
 class WheelSpeeds(BaseModel):
@@ -58,6 +60,8 @@ def _status(services: ServicesDep, name: str) -> RobotStatus:
         errors=r.errors,
         last_fix_t_ns=r.last_fix_t_ns,
         recording=r.recorder is not None,
+        floor=r.floor,
+        map_version=r.map_version,
     )
 
 
@@ -75,7 +79,10 @@ async def get_robot(name: RobotName, services: ServicesDep, _: Viewer) -> RobotS
 async def get_pose(name: RobotName, services: ServicesDep, _: Viewer) -> Response:
     """The latest pose: x, y, theta, covariance, mode, landmarks used, timestamp, age."""
     runner = services.robots.get(name)
-    return Response(pose_json(name, runner.mode, runner.latest), media_type="application/json")
+    text = pose_json(
+        name, runner.mode, runner.latest, floor=runner.floor, map_version=runner.map_version
+    )
+    return Response(text, media_type="application/json")
 
 
 class PoseHint(BaseModel):
@@ -84,6 +91,14 @@ class PoseHint(BaseModel):
     x: float = Field(allow_inf_nan=False, ge=-1e4, le=1e4, description="metres")
     y: float = Field(allow_inf_nan=False, ge=-1e4, le=1e4, description="metres")
     theta: float = Field(0.0, allow_inf_nan=False, ge=-7.0, le=7.0, description="radians")
+
+
+class FloorChange(BaseModel):
+    """The robot is now on `floor` (it left the lift there), near a pose of that floor's
+    map when given (the lift's node)."""
+
+    floor: str = Field(min_length=1, max_length=32, description="floor ID")
+    near: PoseHint | None = Field(None, description="where on that floor (the lift's node)")
 
 
 # the routes that feed a localizer are plain `def` (threadpool): the robot's lock may be held
@@ -96,6 +111,18 @@ def relocalize(
     `{"x": .., "y": .., "theta": ..}` it starts from there (nearby landmarks first, and the
     pose may be confirmed from the map at once)."""
     services.robots.relocalize(name, None if near is None else (near.x, near.y, near.theta))
+    return _status(services, name)
+
+
+@router.post("/{name}/floor", status_code=status.HTTP_202_ACCEPTED)
+def change_floor(
+    name: RobotName, body: FloorChange, services: ServicesDep, who: Operator
+) -> RobotStatus:
+    """The robot is now on another floor (it left the lift there): its localizer takes that
+    floor's map and identifies again, near `x, y, theta` when given. 404 naming an unknown
+    robot or floor (nothing changes); an event `robot_floor_changed`."""
+    near = None if body.near is None else (body.near.x, body.near.y, body.near.theta)
+    services.site_floors.move(name, body.floor, near, by=who.actor)
     return _status(services, name)
 
 
