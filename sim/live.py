@@ -95,6 +95,7 @@ class LiveSite:
         self._frame_truth: dict[str, dict[int, tuple[float, float, float]]] = {
             name: {} for name in self._rigs
         }
+        self._floor_truth: dict[str, dict[int, str]] = {name: {} for name in self._rigs}
         if clock_ns is not None:
             # The radio switches LEDs between steps: log each switch at its own time, so
             # that a frame shows the LEDs as they were at the frame's time.
@@ -139,6 +140,11 @@ class LiveSite:
         """The robot's true (x, y, theta) when it took its frame stamped `t_ns` (one of the
         last `truth_history` frames), or None."""
         return self._frame_truth[name].get(t_ns)
+
+    def true_floor_at(self, name: str, t_ns: int) -> str | None:
+        """The floor robot `name` was on when it took its frame stamped `t_ns`
+        (`sim.world.IN_LIFT` in the lift; one of the last `truth_history` frames), or None."""
+        return self._floor_truth[name].get(t_ns)
 
     def true_floor(self, name: str) -> str:
         """The floor the robot is on (while in the lift: the one it boarded on)."""
@@ -201,8 +207,10 @@ class LiveSite:
                 self.world.advance(t_local)
                 truth = self._frame_truth[name]
                 truth[t_out] = item.pose
+                self._floor_truth[name][t_out] = IN_LIFT if item.in_lift else item.floor
                 if len(truth) > self.truth_history:
                     del truth[next(iter(truth))]
+                    del self._floor_truth[name][next(iter(self._floor_truth[name]))]
                 on = IN_LIFT if item.in_lift else item.floor
                 if self.observe == "spots":
                     cam = self.rig(name).camera_true

@@ -1,0 +1,81 @@
+"""The two-floor virtual site (`irloc serve --demo two-floors`): a robot rides the lift, its
+fleet manager tells the site the floor it leaves on, and it is localized there within 3 s;
+no pose of one floor is ever reported on another."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Iterator
+
+import numpy as np
+import pytest
+
+from sim.world import IN_LIFT
+from tests.server.conftest import Api, start_api
+
+
+@pytest.fixture(scope="module")
+def site(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Api]:
+    yield from start_api(tmp_path_factory.mktemp("two_floors"), scenario="two_floors")
+
+
+def test_the_two_floor_site_has_its_floors_and_each_landmark_its_floor(site: Api) -> None:
+    c, h = site.client, site.h("viewer")
+    floors = c.get("/api/v1/floors", headers=h).json()
+    assert [(f["id"], f["level"], f["landmarks"]) for f in floors] == [("0", 0, 34), ("1", 1, 24)]
+    m1 = c.get("/api/v1/floors/1/map", headers=h).json()
+    assert {lm["id"] // 100 for lm in m1["landmarks"]} == {4, 5}
+    assert all(lm["floor"] == "1" for lm in m1["landmarks"])
+    assert (m1["version"], m1["actor"]) == (2, "virtual site")  # 1: the floor, still empty
+    robots = {r["name"]: r["floor"] for r in c.get("/api/v1/robots", headers=h).json()}
+    assert robots == {"r1": "0", "r2": "0", "r3": "1"}
+
+
+def test_a_robot_told_its_floor_is_localized_there_within_3_s(site: Api) -> None:
+    sim = site.services.sim
+    assert sim is not None
+    told_at: float | None = None  # wall time the site was told r2 is on floor 1
+    fixed_after_s: float | None = None
+    wrong: list[tuple[str, int, str, str | None]] = []
+    worst = 0.0
+    with (
+        site.services.robots.subscribe_poses(maxsize=100_000) as sub,
+        site.services.events.bus.subscribe() as ev,
+    ):
+        deadline = time.time() + 60
+        while fixed_after_s is None and time.time() < deadline:
+            time.sleep(0.1)
+            for e in ev.drain():
+                if e.kind == "robot_floor_changed" and e.robot == "r2":
+                    told_at = time.time()
+                    assert e.data["floor"] == "1"
+            for u in sub.drain():
+                if u.x is None or u.y is None:
+                    continue
+                floor = sim.true_floor_at(u.robot, u.t_ns)
+                if floor is None or floor == IN_LIFT:
+                    continue
+                if u.mode == "landmark" and u.floor != floor:
+                    wrong.append((u.robot, u.t_ns, u.floor, floor))
+                truth = sim.true_pose_at(u.robot, u.t_ns)
+                if u.mode == "landmark" and truth is not None and u.floor == floor:
+                    worst = max(worst, float(np.hypot(u.x - truth[0], u.y - truth[1])))
+                if u.robot == "r2" and u.floor == "1" and u.mode == "landmark" and told_at:
+                    fixed_after_s = time.time() - told_at
+    assert told_at is not None, "r2 never left the lift"
+    assert fixed_after_s is not None and fixed_after_s < 3.0, fixed_after_s
+    assert not [w for w in wrong if w[0] != "r3"], wrong  # r3 rides unannounced
+    assert worst < 0.10
+    pose = site.client.get("/api/v1/robots/r2/pose", headers=site.h("viewer")).json()
+    assert pose["floor"] == "1" and pose["map_version"] == 2
+
+
+def test_sending_a_robot_to_a_floor_that_does_not_exist_is_404_and_changes_nothing(
+    site: Api,
+) -> None:
+    c, h = site.client, site.h("operator")
+    before = c.get("/api/v1/robots/r1", headers=h).json()
+    r = c.post("/api/v1/robots/r1/floor", json={"floor": "7"}, headers=h)
+    assert r.status_code == 404 and "floor '7' does not exist" in r.json()["detail"]
+    after = c.get("/api/v1/robots/r1", headers=h).json()
+    assert after["floor"] == before["floor"] == "0"
