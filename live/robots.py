@@ -55,6 +55,13 @@ def make_localizer(
     return Localizer(camera, landmark_map, robot, config)
 
 
+def only_landmarks(event: LedsChanged, ids: frozenset[int]) -> LedsChanged:
+    """An LED state restricted to the landmarks `ids` (one floor's map)."""
+    if event.all_lit:
+        return LedsChanged(event.t_ns, frozenset(), True, event.changing & ids)
+    return LedsChanged(event.t_ns, event.lit & ids, False, event.changing & ids)
+
+
 class RobotRunner:
     """Feed one robot's localizer and route what comes out (thread-safe).
 
@@ -106,6 +113,7 @@ class RobotRunner:
         """The floor whose map the localizer holds (every pose names it)."""
         self.map_version = 0
         """The version of that floor's map the localizer holds."""
+        self._map_ids: frozenset[int] | None = None  # None: every LED is the map's
 
     @property
     def mode(self) -> Mode:
@@ -135,7 +143,7 @@ class RobotRunner:
             for tap in self._taps:
                 tap(event)
             try:
-                outputs = self.localizer.handle(event)
+                outputs = self.localizer.handle(self._own(event))
             except Exception:
                 self.errors += 1
                 log.exception(
@@ -154,6 +162,13 @@ class RobotRunner:
             old, self._mode = self._mode, self.localizer.mode
         if old != self._mode and self.on_mode_change is not None:
             self.on_mode_change(self.name, old, self._mode)
+
+    def _own(self, event: Event) -> Event:
+        """The event as the localizer may see it: an LED state names only its map's
+        landmarks (an LED switched on another floor is no landmark of this one)."""
+        if self._map_ids is None or not isinstance(event, LedsChanged):
+            return event
+        return only_landmarks(event, self._map_ids)
 
     def _route(self, out: Output) -> None:
         if isinstance(out, PoseEstimate):
@@ -189,6 +204,7 @@ class RobotRunner:
         """A new version of the map of the robot's floor."""
         with self._lock:
             self.localizer.set_map(landmark_map)
+            self._map_ids = frozenset(int(i) for i in landmark_map.ids)
             if map_version is not None:
                 self.map_version = map_version
 
@@ -206,7 +222,7 @@ class RobotRunner:
         is carried over (the pose is forgotten)."""
         with self._lock:
             self.floor, self.map_version = floor, map_version
-            self.localizer.set_map(landmark_map)
+            self.set_map(landmark_map)
             self.latest = None
             self.handle(RelocalizeRequested(t_ns, near))
 

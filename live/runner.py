@@ -18,6 +18,7 @@ from collections.abc import Callable, Iterable
 from typing import Protocol
 
 from live.events import EventHub
+from live.floor_watch import FloorWatch
 from live.floors import SiteFloors
 from live.leds import LedScheduler
 from live.leds.coordinator import LedCoordinator
@@ -127,6 +128,8 @@ class LiveSiteRunner:
         self.wheels: dict[str, SerialWheelSource] = {}
         self.remotes: dict[str, RemoteSource] = {}
         self.serial: SerialSink | None = None
+        self.floor_watch: FloorWatch | None = None
+        """Proposes the floor a robot without a fix seems to be on (`live.floor_watch`)."""
         self._tasks: list[asyncio.Task[None]] = []
         self._loop: asyncio.AbstractEventLoop | None = None
 
@@ -289,6 +292,12 @@ class LiveSiteRunner:
                 routes=self._routes,
             )  # fmt: skip
         self.led_facade.attach(self.gateway, self.leds, self.scheduler)
+        if self.floors is not None:
+            self.floor_watch = FloorWatch(
+                self.floors, self.events, self._request_leds, self.clock_ns,
+                localizer_config(self.settings),
+            )  # fmt: skip
+            self.floor_watch.start()
         loop = asyncio.get_running_loop()
         self._tasks = [loop.create_task(self._gateway_events())]
 
@@ -302,6 +311,8 @@ class LiveSiteRunner:
 
     # -- running ---------------------------------------------------------------------------
     def _request_leds(self, robot: str, req: LedRequest) -> None:
+        if self.floor_watch is not None and self.floor_watch.trying(robot):
+            return  # its view is tried on other floors: their probes go first
         if self.leds is not None:
             self.leds.request(robot, req)
 
@@ -363,6 +374,8 @@ class LiveSiteRunner:
     async def stop(self) -> None:
         """Stop the clock and cameras, leave every LED on, close the radio, end recordings."""
         self.robots.attach(None, None)
+        if self.floor_watch is not None:
+            await asyncio.to_thread(self.floor_watch.stop)
         for source in self.sources:
             await asyncio.to_thread(source.stop)
         for runner in self.robots.runners():

@@ -6,11 +6,13 @@ from fastapi import APIRouter, Response, status
 from pydantic import BaseModel, Field
 
 from live.agent_runner import AgentRunner, agent_fields
+from live.floor_watch import FloorProposal, FloorWatch
 from live.poses import PosePublic, pose_json
 from localizer.camera import camera_from_sensor
 from localizer.events import Mode, OdometryMeasured
 from server.auth import Admin, Operator, Viewer
 from server.deps import RobotName, ServicesDep
+from store.errors import NotFoundError, UnavailableError
 from store.models import RobotCreate, RobotPublic
 
 router = APIRouter(prefix="/robots", tags=["robots"])
@@ -124,6 +126,63 @@ def change_floor(
     near = None if body.near is None else (body.near.x, body.near.y, body.near.theta)
     services.site_floors.move(name, body.floor, near, by=who.actor)
     return _status(services, name)
+
+
+class FloorProposalPublic(BaseModel):
+    """The floor a robot's view fits (it has no fix on its own floor's map), not yet taken."""
+
+    robot: str
+    floor: str = Field(description="the floor proposed")
+    current_floor: str = Field(description="the floor the robot is on now")
+    x: float = Field(description="its pose on the proposed floor's map: metres")
+    y: float = Field(description="metres")
+    theta: float = Field(description="radians")
+    t_ns: int = Field(description="the time of that pose (site clock)")
+    fixes: int = Field(description="landmark fixes in a row on the proposed floor")
+
+
+def _watch(services: ServicesDep) -> FloorWatch:
+    live = services.live
+    if live is None or live.floor_watch is None:
+        raise UnavailableError("floor proposals need the live site and its radio")
+    return live.floor_watch
+
+
+def _proposal(services: ServicesDep, p: FloorProposal) -> FloorProposalPublic:
+    return FloorProposalPublic(
+        robot=p.robot, floor=p.floor, current_floor=services.robots.get(p.robot).floor,
+        x=p.x, y=p.y, theta=p.theta, t_ns=p.t_ns, fixes=p.fixes,
+    )  # fmt: skip
+
+
+@router.get("/{name}/floor-proposal")
+def get_floor_proposal(name: RobotName, services: ServicesDep, _: Viewer) -> FloorProposalPublic:
+    """The floor the robot's view fits while it has no fix on its own (404 when none is
+    proposed): nothing changes until it is accepted."""
+    services.robots.get(name)
+    found = _watch(services).proposal(name)
+    if found is None:
+        raise NotFoundError(f"robot {name!r} has no floor proposal")
+    return _proposal(services, found)
+
+
+@router.post("/{name}/floor-proposal/accept", status_code=status.HTTP_202_ACCEPTED)
+def accept_floor_proposal(
+    name: RobotName, services: ServicesDep, who: Operator
+) -> FloorProposalPublic:
+    """Move the robot to the proposed floor, near its latest pose there (404 without a
+    proposal); an event `robot_floor_changed`."""
+    services.robots.get(name)
+    return _proposal(services, _watch(services).accept(name, by=f"{who.actor} (proposal)"))
+
+
+@router.post("/{name}/floor-proposal/reject")
+def reject_floor_proposal(
+    name: RobotName, services: ServicesDep, _: Operator
+) -> FloorProposalPublic:
+    """Drop the proposal (404 without one); the robot is tried again later."""
+    services.robots.get(name)
+    return _proposal(services, _watch(services).reject(name))
 
 
 @router.post("/{name}/odometry", status_code=status.HTTP_202_ACCEPTED)

@@ -13,6 +13,8 @@ import pytest
 from sim.world import IN_LIFT
 from tests.server.conftest import Api, start_api
 
+pytestmark = pytest.mark.slow
+
 
 @pytest.fixture(scope="module")
 def site(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Api]:
@@ -79,3 +81,43 @@ def test_sending_a_robot_to_a_floor_that_does_not_exist_is_404_and_changes_nothi
     assert r.status_code == 404 and "floor '7' does not exist" in r.json()["detail"]
     after = c.get("/api/v1/robots/r1", headers=h).json()
     assert after["floor"] == before["floor"] == "0"
+
+
+def test_a_robot_not_told_its_floor_is_proposed_the_right_one_and_moved_on_accept(
+    site: Api,
+) -> None:
+    """r3 rides down unannounced: its view fits no landmark of floor 1, so floor 0 is
+    proposed (an event and the API), never taken on its own; accepting it moves r3 there,
+    where it is localized near the truth."""
+    sim = site.services.sim
+    assert sim is not None
+    c, h = site.client, site.h("operator")
+    proposed = None
+    with site.services.events.bus.subscribe() as ev:
+        deadline = time.time() + 90
+        while proposed is None and time.time() < deadline:
+            time.sleep(0.2)
+            proposed = next(
+                (e for e in ev.drain() if e.kind == "floor_proposed" and e.robot == "r3"), None
+            )
+    assert proposed is not None, "r3 was never proposed a floor"
+    assert proposed.data["floor"] == sim.true_floor("r3") == "0"
+    assert site.services.robots.get("r3").floor == "1"  # not switched on its own
+    prop = c.get("/api/v1/robots/r3/floor-proposal", headers=h).json()
+    assert (prop["floor"], prop["current_floor"]) == ("0", "1")
+    truth = sim.true_pose("r3")
+    assert float(np.hypot(prop["x"] - truth[0], prop["y"] - truth[1])) < 0.3
+    r = c.post("/api/v1/robots/r3/floor-proposal/accept", headers=h)
+    assert r.status_code == 202, r.text
+    assert site.services.robots.get("r3").floor == "0"
+    with site.services.robots.subscribe_poses({"r3"}, maxsize=10_000) as sub:
+        deadline, good = time.time() + 20, False
+        while not good and time.time() < deadline:
+            time.sleep(0.1)
+            for u in sub.drain():
+                t = sim.true_pose_at("r3", u.t_ns)
+                if u.mode == "landmark" and u.x is not None and u.y is not None and t:
+                    assert u.floor == "0" == sim.true_floor_at("r3", u.t_ns)
+                    good = good or float(np.hypot(u.x - t[0], u.y - t[1])) < 0.05
+    assert good
+    assert c.get("/api/v1/robots/r3/floor-proposal", headers=h).status_code == 404
