@@ -101,6 +101,8 @@ class AgentRunner(RobotRunner):
             cov,
             tuple(msg.lm),
             msg.wall_ns,
+            floor=msg.floor if msg.floor is not None else self.floor,
+            map_version=msg.map_version if msg.map_version is not None else self.map_version,
         )
         with self._lock:
             if msg.x is not None:

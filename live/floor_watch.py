@@ -41,13 +41,17 @@ class FloorWatchConfig:
             proposal.
         trial_s: a trial that proposes nothing within this is dropped (wall seconds).
         retry_after_s: after a dropped trial or a rejected proposal, wait this long.
+        own_fix_hold_s: a trial ends once the robot has held fixes on its own floor this
+            long (wall seconds; a moment's fix on a ceiling that only looks like its own
+            floor's, by the lift, does not end it).
         period_s: how often robots are checked (wall seconds).
     """
 
     suspect_after_s: float = 8.0
     fixes_to_propose: int = 5
-    trial_s: float = 20.0
+    trial_s: float = 30.0
     retry_after_s: float = 10.0
+    own_fix_hold_s: float = 3.0
     period_s: float = 0.5
 
 
@@ -139,6 +143,7 @@ class FloorWatch:
         self._proposals: dict[str, FloorProposal] = {}
         self._quiet_until: dict[str, float] = {}
         self._first_seen_ns: dict[str, int] = {}
+        self._own_fix_since: dict[str, float] = {}
         self._lock = threading.Lock()
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
@@ -222,16 +227,20 @@ class FloorWatch:
                 if runner.source == "agent":  # localized on board: not ours to try
                     continue
                 if runner.mode == "landmark":  # fixed on its own floor: nothing to try
-                    if name in self._trials:
+                    since = self._own_fix_since.setdefault(name, now)
+                    if name in self._trials and now - since >= cfg.own_fix_hold_s:
                         self._end(name)
                         self._proposals.pop(name, None)
-                    continue
+                    if name not in self._trials:
+                        continue
+                else:
+                    self._own_fix_since.pop(name, None)
                 trials = self._trials.get(name)
                 if trials is None:
-                    since = runner.last_fix_t_ns
-                    if since is None:
-                        since = self._first_seen_ns.setdefault(name, now_ns)
-                    without_s = (now_ns - since) * 1e-9
+                    fixed_ns = runner.last_fix_t_ns
+                    if fixed_ns is None:
+                        fixed_ns = self._first_seen_ns.setdefault(name, now_ns)
+                    without_s = (now_ns - fixed_ns) * 1e-9
                     if without_s >= cfg.suspect_after_s and now >= self._quiet_until.get(name, 0):
                         self._start(runner)
                     continue

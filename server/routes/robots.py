@@ -8,6 +8,7 @@ from pydantic import BaseModel, Field
 from live.agent_runner import AgentRunner, agent_fields
 from live.floor_watch import FloorProposal, FloorWatch
 from live.poses import PosePublic, pose_json
+from live.vda5050 import init_positions
 from localizer.camera import camera_from_sensor
 from localizer.events import Mode, OdometryMeasured
 from server.auth import Admin, Operator, Viewer
@@ -126,6 +127,59 @@ def change_floor(
     near = None if body.near is None else (body.near.x, body.near.y, body.near.theta)
     services.site_floors.move(name, body.floor, near, by=who.actor)
     return _status(services, name)
+
+
+class VdaActionParameter(BaseModel):
+    key: str
+    value: float | str | bool | None = None
+
+
+class VdaAction(BaseModel):
+    actionType: str = Field(description="`initPosition` (the only one carried out here)")
+    actionId: str
+    blockingType: str = "NONE"
+    actionParameters: list[VdaActionParameter] = []
+
+
+class VdaInstantActions(BaseModel):
+    """A VDA 5050 `instantActions` message (its header fields are optional here)."""
+
+    headerId: int | None = None
+    timestamp: str | None = None
+    version: str | None = None
+    manufacturer: str | None = None
+    serialNumber: str | None = None
+    actions: list[VdaAction] = Field(min_length=1)
+
+
+class InstantActionsResult(BaseModel):
+    done: list[str] = Field(description="the actionIds carried out, in order")
+    floor: str = Field(description="the robot's floor now")
+
+
+@router.post("/{name}/instant-actions", status_code=status.HTTP_202_ACCEPTED)
+def instant_actions(
+    name: RobotName, body: VdaInstantActions, services: ServicesDep, who: Operator
+) -> InstantActionsResult:
+    """VDA 5050 `instantActions` for this robot: `initPosition` (`x`, `y`, `theta`,
+    `mapId` = a floor ID) sets its floor and pose, e.g. as it leaves the lift. 422 naming a
+    bad parameter or an action type not carried out, 404 naming an unknown floor; nothing
+    is done then."""
+    actions = [
+        (a.actionType, a.actionId, {p.key: p.value for p in a.actionParameters})
+        for a in body.actions
+    ]
+    inits = init_positions(actions)
+    for init in inits:
+        services.floors.check(init.map_id, what=f"action {init.action_id!r}: robot {name!r}")
+    services.robots.get(name)
+    for init in inits:
+        services.site_floors.move(
+            name, init.map_id, (init.x, init.y, init.theta), by=f"{who.actor} (initPosition)"
+        )
+    return InstantActionsResult(
+        done=[i.action_id for i in inits], floor=services.robots.get(name).floor
+    )
 
 
 class FloorProposalPublic(BaseModel):

@@ -121,3 +121,21 @@ def test_a_robot_not_told_its_floor_is_proposed_the_right_one_and_moved_on_accep
                     good = good or float(np.hypot(u.x - t[0], u.y - t[1])) < 0.05
     assert good
     assert c.get("/api/v1/robots/r3/floor-proposal", headers=h).status_code == 404
+
+
+def test_a_vda5050_init_position_to_an_unknown_floor_is_404_and_a_bad_one_422(
+    site: Api,
+) -> None:
+    c, h = site.client, site.h("operator")
+
+    def action(**params: object) -> dict[str, object]:
+        return {"actions": [{"actionType": "initPosition", "actionId": "a1",
+                             "actionParameters": [{"key": k, "value": v}
+                                                  for k, v in params.items()]}]}  # fmt: skip
+
+    r = c.post("/api/v1/robots/r1/instant-actions", json=action(x=1, y=2, theta=0, mapId="9"),
+               headers=h)  # fmt: skip
+    assert r.status_code == 404 and "floor '9' does not exist" in r.json()["detail"]
+    r = c.post("/api/v1/robots/r1/instant-actions", json=action(x=1, y=2, mapId="0"), headers=h)
+    assert r.status_code == 422 and "theta must be a number" in r.json()["detail"]
+    assert site.services.robots.get("r1").floor == "0"
