@@ -307,9 +307,9 @@ class Recordings:
         runner = self.robots.get(name)
         stamp = datetime.now(UTC).strftime("%Y%m%dT%H%M%S")
         root = self.root / f"{name}-{stamp}"
-        records = [
-            lm.model_dump(mode="json", exclude={"created_at", "updated_at", "note"})
-            for lm in self.map.list()
+        records = [  # the map of the robot's floor: the frame its poses are in
+            lm.model_dump(mode="json", exclude={"created_at", "updated_at", "note", "floor"})
+            for lm in self.map.on_floor(runner.floor)
         ]
         runner.start_recording(root, records)
         return root
