@@ -126,6 +126,8 @@ class AgentCore:
         self.time = timebase
         self.localizer: Localizer | None = None
         self.map_id: str | None = None
+        self.map_floor: str | None = None
+        self.map_version: int | None = None
         self.mode: Mode = "identifying"
         self.frames = 0
         self.poses = 0
@@ -212,6 +214,7 @@ class AgentCore:
         self.map_id = msg.map_id
         for observer in self.observers:
             observer.on_map(lmap)
+        self.map_floor, self.map_version = msg.floor, msg.version
         log.info("%s: map %s (%d landmarks)", self.config.name, msg.map_id, len(msg.landmarks))
 
     def _feed(self, event: Event, now_mono: int) -> list[Outgoing]:
@@ -253,10 +256,15 @@ class AgentCore:
         out: list[Outgoing] = []
         if isinstance(o, PoseEstimate):
             self.poses += 1
-            msg = PoseMessage.from_estimate(seq, o, t_site, wall)
+            msg = PoseMessage.from_estimate(seq, o, t_site, wall).model_copy(
+                update={"floor": self.map_floor, "map_version": self.map_version}
+            )
             self._log_truth(o, t_site)
         else:
-            msg = PoseMessage(seq=seq, t_ns=t_site, wall_ns=wall, mode=o.mode)
+            msg = PoseMessage(
+                seq=seq, t_ns=t_site, wall_ns=wall, mode=o.mode,
+                floor=self.map_floor, map_version=self.map_version,
+            )  # fmt: skip
         out.append(Outgoing("pose", msg.encode()))
         if mode_changed or (now_mono - self._last_vis_mono) * cfg.visualization_rate_hz >= 0.8 * NS:
             self._last_vis_mono = now_mono
@@ -304,4 +312,5 @@ class AgentCore:
             poses=self.poses,
             errors=self.errors,
             map_id=self.map_id,
+            map_version=self.map_version if self.map_id is not None else None,
         )

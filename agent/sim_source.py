@@ -21,7 +21,7 @@ from localizer.events import Event, FrameObserved, OdometryMeasured, SpotsObserv
 from localizer.robot import RobotGeometry
 from sim.build import build_robot, build_world, seed_generators
 from sim.render import render_frame
-from sim.robot import FramePose
+from sim.robot import FloorArrival, FramePose
 from sim.scenario import Scenario
 
 SPOT_AREA_PX = 9.0
@@ -111,6 +111,8 @@ class SimRobotSource:
             t_out = item.t_ns + self._t0_ns
             if isinstance(item, OdometryMeasured):
                 out.append(OdometryMeasured(t_out, item.v_left, item.v_right))
+                continue
+            if isinstance(item, FloorArrival):  # an agent's own site stays on one floor
                 continue
             self.world.advance(item.t_ns)
             out.append(self._frame(item, t_out))

@@ -53,6 +53,8 @@ class MapMessage(_Msg):
 
     map_id: str = Field(min_length=1, max_length=128)
     landmarks: list[MapLandmark]
+    floor: str = Field("0", min_length=1, max_length=32, description="the floor it maps")
+    version: int = Field(0, ge=0, description="that floor's map version (0: not versioned)")
 
     def records(self) -> list[dict[str, float]]:
         """The landmarks as `LandmarkMap.from_records` takes them."""
@@ -122,6 +124,8 @@ class PoseMessage(_Msg):
         cov: the covariance of (x, y, theta), upper triangle row by row
             (xx, xy, xt, yy, yt, tt), SI units.
         lm: the landmarks used for this pose.
+        floor, map_version: the floor and map version the agent localized on (absent from
+            agents that do not say).
     """
 
     seq: int = Field(ge=0)
@@ -133,6 +137,8 @@ class PoseMessage(_Msg):
     theta: float | None = Field(default=None, allow_inf_nan=False)
     cov: tuple[float, float, float, float, float, float] | None = None
     lm: list[int] = []
+    floor: str | None = Field(default=None, min_length=1, max_length=32)
+    map_version: int | None = Field(default=None, ge=0)
 
     @classmethod
     def from_estimate(cls, seq: int, est: PoseEstimate, t_ns: int, wall_ns: int) -> PoseMessage:
@@ -172,6 +178,8 @@ class AgentStatus(_Msg):
             absent before the first measurement.
         frames, poses, errors: counters of the agent's localizer.
         map_id: the map the agent localizes on.
+        map_version: that map's version (`MapMessage.version`); the server tells an agent
+            holding an old one (event `agent_map_outdated`, the map published again).
     """
 
     source: AgentSource
@@ -185,6 +193,7 @@ class AgentStatus(_Msg):
     poses: int = 0
     errors: int = 0
     map_id: str | None = None
+    map_version: int | None = None
 
 
 class ClockRequest(_Msg):

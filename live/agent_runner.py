@@ -101,6 +101,8 @@ class AgentRunner(RobotRunner):
             cov,
             tuple(msg.lm),
             msg.wall_ns,
+            floor=msg.floor if msg.floor is not None else self.floor,
+            map_version=msg.map_version if msg.map_version is not None else self.map_version,
         )
         with self._lock:
             if msg.x is not None:
@@ -125,8 +127,10 @@ class AgentRunner(RobotRunner):
     def relocalize(self, t_ns: int, near: tuple[float, float, float] | None = None) -> None:
         self._send_command(self.name, near)
 
-    def set_map(self, landmark_map: LandmarkMap) -> None:
+    def set_map(self, landmark_map: LandmarkMap, map_version: int | None = None) -> None:
         """The map reaches the agent over MQTT (`<site>/map`, retained)."""
+        if map_version is not None:
+            self.map_version = map_version
 
     def start_recording(self, root: Any, landmark_records: list[dict[str, Any]]) -> None:
         raise ValueError(

@@ -31,6 +31,9 @@ EventKind = Literal[
     "zone_enter",
     "zone_exit",
     "zone_dwell",
+    "robot_floor_changed",
+    "floor_proposed",
+    "agent_map_outdated",
 ]
 """What an event is about (the API's enumerated type)."""
 EVENT_KINDS: tuple[str, ...] = get_args(EventKind)
@@ -42,6 +45,7 @@ WARNING_EVENTS = frozenset(
         "led_request_failed",
         "radio_state",
         "clock_offset",
+        "agent_map_outdated",
     }
 )
 """Kinds logged as warnings (the others as info)."""

@@ -328,9 +328,9 @@ class Recordings:
         runner = self.robots.get(name)
         now = datetime.now(UTC)
         root = self.root / f"{name}-{now.strftime('%Y%m%dT%H%M%S')}"
-        records = [
-            lm.model_dump(mode="json", exclude={"created_at", "updated_at", "note"})
-            for lm in self.map.list()
+        records = [  # the map of the robot's floor: the frame its poses are in
+            lm.model_dump(mode="json", exclude={"created_at", "updated_at", "note", "floor"})
+            for lm in self.map.on_floor(runner.floor)
         ]
         runner.start_recording(root, records)
         write_meta(root, name, trigger, now)

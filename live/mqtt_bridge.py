@@ -48,6 +48,7 @@ from fleet.topics import (
     vda_serial_of,
 )
 from live.agent_runner import AgentRunner
+from live.events import EventKind
 from localizer.events import LedsChanged, Mode
 from store.models import LandmarkPublic
 
@@ -95,6 +96,7 @@ class MqttBridge:
         self._led_seq = 0
         self._led_last: bytes | None = None
         self._status: dict[str, AgentStatus] = {}
+        self._outdated_told: dict[str, int] = {}  # agent -> the old version it was told of
         self._online: set[str] = set()
         self._gateway_listening = False
         self._events = ThreadPoolExecutor(max_workers=1, thread_name_prefix="mqtt-events")
@@ -135,11 +137,15 @@ class MqttBridge:
         self._loop.call_soon_threadsafe(self._out.put_nowait, (topic, payload, qos, retain))
 
     def map_message(self, landmarks: list[LandmarkPublic] | None = None) -> bytes:
+        """The map the agents localize on: the agents' floor (the site's default floor)
+        with its version."""
+        floor = self.services.floors.default()
         items = landmarks if landmarks is not None else self.services.map.list()
-        lms = [MapLandmark(id=lm.id, x=lm.x, y=lm.y, z=lm.z) for lm in items]
+        lms = [MapLandmark(id=lm.id, x=lm.x, y=lm.y, z=lm.z) for lm in items if lm.floor == floor]
         body = json.dumps([lm.model_dump() for lm in lms], sort_keys=True).encode()
         map_id = f"{self.topics.site}-{hashlib.sha256(body).hexdigest()[:12]}"
-        return MapMessage(map_id=map_id, landmarks=lms).encode()
+        version = self.services.map_versions.version(floor)
+        return MapMessage(map_id=map_id, landmarks=lms, floor=floor, version=version).encode()
 
     def _on_map(self, landmarks: list[LandmarkPublic]) -> None:
         self._send(self.topics.map, self.map_message(landmarks), QOS_STATE, True)
@@ -254,7 +260,7 @@ class MqttBridge:
             self._on_led_request(robot, decode(LedRequestMessage, topic, payload))
 
     def _emit(
-        self, kind: str, message: str, *, robot: str, data: dict[str, Any] | None = None
+        self, kind: EventKind, message: str, *, robot: str, data: dict[str, Any] | None = None
     ) -> None:
         """A site event, written off the loop (each is a database commit: a hundred agents
         arriving at once must not stall the pose stream)."""
@@ -296,6 +302,7 @@ class MqttBridge:
 
     def _on_status(self, robot: str, status: AgentStatus) -> None:
         self._status[robot] = status
+        self._check_map_version(robot, status)
         runner = self._agent(robot)
         if runner is None:
             if robot in self._online:
@@ -304,6 +311,26 @@ class MqttBridge:
         was_ok = runner.clock_within_tolerance
         runner.update_status(status)
         self._check_clock(runner, was_ok)
+
+    def _check_map_version(self, robot: str, status: AgentStatus) -> None:
+        """An agent holding an old version of its floor's map is told: an event
+        `agent_map_outdated` (once per version it holds) and the map published again."""
+        held = status.map_version
+        if held is None:
+            return
+        floor = self.services.floors.default()
+        current = self.services.map_versions.version(floor)
+        if held >= current or self._outdated_told.get(robot) == held:
+            return
+        self._outdated_told[robot] = held
+        self._emit(
+            "agent_map_outdated",
+            f"agent {robot} localizes on version {held} of floor {floor}'s map; the current "
+            f"one is {current}: published again",
+            robot=robot,
+            data={"floor": floor, "held": held, "current": current},
+        )
+        self._send(self.topics.map, self.map_message(), QOS_STATE, True)
 
     def _arrive(self, robot: str, status: AgentStatus) -> None:
         """Register (or mark connected again) an agent's robot; an event either way."""

@@ -13,6 +13,7 @@ import numpy.typing as npt
 from pydantic import BaseModel, Field
 
 from localizer.events import Mode, PoseEstimate
+from store.models import DEFAULT_FLOOR
 
 
 @dataclass(frozen=True, eq=False)
@@ -30,6 +31,8 @@ class PoseUpdate:
             (`PoseEstimate.expected_ids`; read by doubt detection, not sent by the API).
         computed_wall_ns: wall clock (`time.time_ns`) when the pose was computed, for ages
             and latency measurements.
+        floor: the floor whose map the pose is on (its frame: that floor's map frame).
+        map_version: the version of that floor's map the localizer held.
     """
 
     robot: str
@@ -42,9 +45,13 @@ class PoseUpdate:
     landmark_ids: tuple[int, ...] = ()
     computed_wall_ns: int = field(default_factory=time.time_ns)
     expected_ids: tuple[int, ...] = ()
+    floor: str = DEFAULT_FLOOR
+    map_version: int = 0
 
     @classmethod
-    def from_estimate(cls, robot: str, est: PoseEstimate) -> PoseUpdate:
+    def from_estimate(
+        cls, robot: str, est: PoseEstimate, *, floor: str = DEFAULT_FLOOR, map_version: int = 0
+    ) -> PoseUpdate:
         return cls(
             robot,
             est.t_ns,
@@ -55,6 +62,8 @@ class PoseUpdate:
             np.asarray(est.covariance, dtype=np.float64),
             tuple(est.landmark_ids),
             expected_ids=tuple(est.expected_ids),
+            floor=floor,
+            map_version=map_version,
         )
 
     def estimate(self) -> PoseEstimate | None:
@@ -79,6 +88,8 @@ class PoseUpdate:
             "covariance": cov,
             "landmark_ids": list(self.landmark_ids),
             "computed_wall_ns": self.computed_wall_ns,
+            "floor": self.floor,
+            "map_version": self.map_version,
         }
 
     @cached_property
@@ -91,8 +102,16 @@ NO_POSE_MODES: frozenset[str] = frozenset({"identifying", "lost"})
 """Modes in which the robot has no pose to give (as the WebSocket sends none)."""
 
 
-def pose_json(robot: str, mode: Mode, upd: PoseUpdate | None) -> str:
-    """`PosePublic` as JSON text, built without a model round trip (the hot endpoint).
+def pose_json(
+    robot: str,
+    mode: Mode,
+    upd: PoseUpdate | None,
+    *,
+    floor: str = DEFAULT_FLOOR,
+    map_version: int = 0,
+) -> str:
+    """`PosePublic` as JSON text, built without a model round trip (the hot endpoint);
+    `floor` and `map_version` are the robot's now (used when it has no pose yet).
 
     While the robot identifies again (after a relocalize) or is lost, its last pose is not
     served as if current: x, y, theta, covariance are null and `stale` is true (`t_ns` and
@@ -110,6 +129,8 @@ def pose_json(robot: str, mode: Mode, upd: PoseUpdate | None) -> str:
                 "landmark_ids": [],
                 "age_s": None,
                 "stale": mode in NO_POSE_MODES,
+                "floor": floor,
+                "map_version": map_version,
             }
         )
     d = upd.to_dict()
@@ -150,3 +171,5 @@ class PosePublic(BaseModel):
         description="true while the robot identifies again or is lost: x, y, theta and "
         "covariance are then null (its last pose is no longer current)",
     )
+    floor: str = Field(DEFAULT_FLOOR, description="the floor whose map the pose is on")
+    map_version: int = Field(0, description="the version of that floor's map it is on")

@@ -31,6 +31,7 @@ from localizer.landmark_map import LandmarkMap
 from localizer.localizer import Localizer
 from localizer.robot import RobotGeometry
 from recording.writer import RecordingWriter
+from store.models import DEFAULT_FLOOR
 
 log = logging.getLogger(__name__)
 
@@ -52,6 +53,13 @@ def make_localizer(
 ) -> LocalizerLike:
     """The project's localizer for one robot (`config`: None for the defaults)."""
     return Localizer(camera, landmark_map, robot, config)
+
+
+def only_landmarks(event: LedsChanged, ids: frozenset[int]) -> LedsChanged:
+    """An LED state restricted to the landmarks `ids` (one floor's map)."""
+    if event.all_lit:
+        return LedsChanged(event.t_ns, frozenset(), True, event.changing & ids)
+    return LedsChanged(event.t_ns, event.lit & ids, False, event.changing & ids)
 
 
 class RobotRunner:
@@ -101,6 +109,11 @@ class RobotRunner:
         self._mode: Mode = localizer.mode
         self._pending: deque[Event] = deque()
         self._leds_in_force: LedsChanged | None = None  # the last LED state fed
+        self.floor = DEFAULT_FLOOR
+        """The floor whose map the localizer holds (every pose names it)."""
+        self.map_version = 0
+        """The version of that floor's map the localizer holds."""
+        self._map_ids: frozenset[int] | None = None  # None: every LED is the map's
 
     @property
     def mode(self) -> Mode:
@@ -130,7 +143,7 @@ class RobotRunner:
             for tap in self._taps:
                 tap(event)
             try:
-                outputs = self.localizer.handle(event)
+                outputs = self.localizer.handle(self._own(event))
             except Exception:
                 self.errors += 1
                 log.exception(
@@ -150,16 +163,29 @@ class RobotRunner:
         if old != self._mode and self.on_mode_change is not None:
             self.on_mode_change(self.name, old, self._mode)
 
+    def _own(self, event: Event) -> Event:
+        """The event as the localizer may see it: an LED state names only its map's
+        landmarks (an LED switched on another floor is no landmark of this one)."""
+        if self._map_ids is None or not isinstance(event, LedsChanged):
+            return event
+        return only_landmarks(event, self._map_ids)
+
     def _route(self, out: Output) -> None:
         if isinstance(out, PoseEstimate):
-            upd = PoseUpdate.from_estimate(self.name, out)
+            upd = PoseUpdate.from_estimate(
+                self.name, out, floor=self.floor, map_version=self.map_version
+            )
             self.latest = upd
             self.poses += 1
             if out.mode == "landmark":
                 self.last_fix_t_ns = out.t_ns
             self._publish(upd)
         elif isinstance(out, NoPose):
-            self._publish(PoseUpdate(self.name, out.t_ns, out.mode))
+            self._publish(
+                PoseUpdate(
+                    self.name, out.t_ns, out.mode, floor=self.floor, map_version=self.map_version
+                )
+            )
         elif isinstance(out, LedRequest):
             self._request_leds(self.name, out)
 
@@ -174,9 +200,31 @@ class RobotRunner:
         """The operator's request: forget the pose and identify again (near a pose)."""
         self.handle(RelocalizeRequested(t_ns, near))
 
-    def set_map(self, landmark_map: LandmarkMap) -> None:
+    def set_map(self, landmark_map: LandmarkMap, map_version: int | None = None) -> None:
+        """A new version of the map of the robot's floor."""
         with self._lock:
             self.localizer.set_map(landmark_map)
+            self._map_ids = frozenset(int(i) for i in landmark_map.ids)
+            if map_version is not None:
+                self.map_version = map_version
+
+    def set_floor(
+        self,
+        floor: str,
+        landmark_map: LandmarkMap,
+        map_version: int,
+        t_ns: int,
+        near: tuple[float, float, float] | None = None,
+    ) -> None:
+        """The robot is now on `floor` (out of the lift): its localizer takes that floor's
+        map and identifies again, near (x, y, theta) of that floor when given (the lift's
+        node). Every pose from here on names the new floor; none of the old floor's pose
+        is carried over (the pose is forgotten)."""
+        with self._lock:
+            self.floor, self.map_version = floor, map_version
+            self.set_map(landmark_map)
+            self.latest = None
+            self.handle(RelocalizeRequested(t_ns, near))
 
     # -- taps and recording ------------------------------------------------------------------
     def add_tap(self, tap: Callable[[Event], None]) -> None:

@@ -18,6 +18,8 @@ from collections.abc import Callable, Iterable
 from typing import Protocol
 
 from live.events import EventHub
+from live.floor_watch import FloorWatch
+from live.floors import SiteFloors
 from live.leds import LedScheduler
 from live.leds.coordinator import LedCoordinator
 from live.leds.wiring import (
@@ -49,6 +51,7 @@ from sensors.serial_wheels import SerialWheelSource
 from sensors.sim_source import SimSource
 from sensors.sources import FrameSource
 from sim.live import LiveSite
+from sim.robot import FloorArrival
 from store import MapRepository, RobotStore
 from store.landmarks import parse_map_json
 from store.models import LandmarkPublic, RobotCreate, RobotPublic
@@ -110,8 +113,10 @@ class LiveSiteRunner:
         leds: LedHost,
         events: EventHub,
         clock_ns: Callable[[], int],
+        floors: SiteFloors | None = None,
     ) -> None:
         self.settings = settings
+        self.floors = floors
         self.map, self.robot_store, self.robots = map, robot_store, robots
         self.led_facade, self.events, self.clock_ns = leds, events, clock_ns
         self.sim: LiveSite | None = None
@@ -123,6 +128,8 @@ class LiveSiteRunner:
         self.wheels: dict[str, SerialWheelSource] = {}
         self.remotes: dict[str, RemoteSource] = {}
         self.serial: SerialSink | None = None
+        self.floor_watch: FloorWatch | None = None
+        """Proposes the floor a robot without a fix seems to be on (`live.floor_watch`)."""
         self._tasks: list[asyncio.Task[None]] = []
         self._loop: asyncio.AbstractEventLoop | None = None
 
@@ -158,6 +165,7 @@ class LiveSiteRunner:
             self.sim_source = SimSource(
                 self.sim, self.clock_ns, step_hz=SITE_STEP_HZ, max_frame_lag_s=MAX_FRAME_LAG_S
             )
+            self.sim_source.on_floor = self._on_floor_arrival
             self.sim_source.start(self.robots.deliver)
 
     def start_robot(self, robot: RobotPublic) -> RobotRunner:
@@ -177,6 +185,8 @@ class LiveSiteRunner:
             source=robot.source,
         )
         runner.on_mode_change = self._on_mode_change
+        if self.floors is not None:
+            self.floors.place(runner, self.floors.initial(robot.name))
         self.robots.add(runner)
         if robot.source == "camera" and robot.device:
             cam = CameraSource(robot.name, robot.device, self.clock_ns)
@@ -221,11 +231,25 @@ class LiveSiteRunner:
             radio_sleep=radio_sleep(self.settings),
         )
 
+    def _on_floor_arrival(self, robot: str, arrival: FloorArrival) -> None:
+        """A virtual robot left the lift: its fleet manager tells the site (when the route
+        says it does) that it is on that floor at the lift's node."""
+        if arrival.announce and self.floors is not None:
+            try:
+                self.floors.move(robot, arrival.floor, arrival.pose, by="fleet (lift)")
+            except KeyError as exc:
+                log.error("robot %s left the lift: %s", robot, exc)
+
     def _sim_names(self) -> list[str]:
         return list(self.sim.robot_names) if self.sim is not None else []
 
     def _adopt_sim(self, sim: LiveSite) -> None:
-        """First start on a virtual site: take its surveyed map and its robots."""
+        """First start on a virtual site: take its floors, its surveyed map and its robots."""
+        if self.floors is not None:
+            self.floors.adopt([(f.id, f.name, f.level, f.height_m) for f in sim.floors])
+            self.floors.start_floor = lambda name: (
+                sim.true_floor(name) if name in sim.robot_names else None
+            )
         if not self.map.list():
             items = parse_map_json({"landmarks": sim.landmark_records()}, source="virtual site")
             self.map.replace_all(items, actor="virtual site")
@@ -268,6 +292,12 @@ class LiveSiteRunner:
                 routes=self._routes,
             )  # fmt: skip
         self.led_facade.attach(self.gateway, self.leds, self.scheduler)
+        if self.floors is not None:
+            self.floor_watch = FloorWatch(
+                self.floors, self.events, self._request_leds, self.clock_ns,
+                localizer_config(self.settings),
+            )  # fmt: skip
+            self.floor_watch.start()
         loop = asyncio.get_running_loop()
         self._tasks = [loop.create_task(self._gateway_events())]
 
@@ -281,6 +311,8 @@ class LiveSiteRunner:
 
     # -- running ---------------------------------------------------------------------------
     def _request_leds(self, robot: str, req: LedRequest) -> None:
+        if self.floor_watch is not None and self.floor_watch.trying(robot):
+            return  # its view is tried on other floors: their probes go first
         if self.leds is not None:
             self.leds.request(robot, req)
 
@@ -328,9 +360,12 @@ class LiveSiteRunner:
 
     def on_map_changed(self, landmarks: list[LandmarkPublic]) -> None:
         """Give the new map to every localizer and the new addresses to the gateway."""
-        lmap = self.map.landmark_map()  # built once per change (20,000: ms)
-        for runner in self.robots.runners():
-            runner.set_map(lmap)
+        if self.floors is not None:  # each robot its floor's map
+            self.floors.refresh()
+        else:
+            lmap = self.map.landmark_map()  # built once per change (20,000: ms)
+            for runner in self.robots.runners():
+                runner.set_map(lmap)
         if self.gateway is not None and self._loop is not None:
             addresses = {lm.id: lm.radio for lm in landmarks if lm.radio}
             self._loop.call_soon_threadsafe(self._update_addresses, addresses)
@@ -346,6 +381,8 @@ class LiveSiteRunner:
     async def stop(self) -> None:
         """Stop the clock and cameras, leave every LED on, close the radio, end recordings."""
         self.robots.attach(None, None)
+        if self.floor_watch is not None:
+            await asyncio.to_thread(self.floor_watch.stop)
         for source in self.sources:
             await asyncio.to_thread(source.stop)
         for runner in self.robots.runners():

@@ -21,6 +21,7 @@ from sqlalchemy import Engine
 from live.commissioning_service import Commissioning
 from live.events import EventHub
 from live.facades import LedsAndRadio, Recordings, Robots
+from live.floors import SiteFloors
 from live.leds.status import EnergyStatus, site_energy
 from live.poses import PoseUpdate
 from live.runner import LiveSiteRunner
@@ -33,7 +34,9 @@ from store import EventLog, KeyStore, MapRepository, RobotStore
 from store.db import make_engine, migrate
 from store.errors import UnavailableError
 from store.floorplan import FloorPlanStore
+from store.floors import FloorStore
 from store.landmarks import parse_map_json
+from store.map_versions import MapVersions
 from store.models import LandmarkPublic
 from store.zones import PoseHistory, ZoneStore
 
@@ -69,6 +72,8 @@ class SiteServices:
         self.engine = engine or make_engine(settings.db_url)
         self.initial_admin_key: str | None = prepare_database(self.engine)
         self.map = MapRepository(self.engine)
+        self.floors = FloorStore(self.engine)
+        self.map_versions = MapVersions(self.engine, self.map, self.floors)
         self.floorplan = FloorPlanStore(settings.data_dir)
         self.keys = KeyStore(self.engine)
         self.robot_store = RobotStore(self.engine)
@@ -77,6 +82,9 @@ class SiteServices:
         self.poses: Bus[PoseUpdate] = Bus(settings.pose_queue)
         self._t0_ns = time.monotonic_ns()
         self.robots = Robots(self.poses, self.robot_store, self.clock_ns)
+        self.site_floors = SiteFloors(
+            self.floors, self.map, self.map_versions, self.robots, self.events, self.clock_ns
+        )
         self.leds = LedsAndRadio(self.map, self.log)
         max_gb = settings.recordings_max_gb
         self.recordings = Recordings(
@@ -135,6 +143,7 @@ class SiteServices:
                 leds=self.leds,
                 events=self.events,
                 clock_ns=self.clock_ns,
+                floors=self.site_floors,
             )
             await self.live.start()
         self.commissioning.start()
@@ -151,6 +160,7 @@ class SiteServices:
             await self.live.stop()
             self.live = None
         self.map.remove_listener(self._on_map_changed)
+        self.map_versions.close()
         self.keys.close()  # pending last-use writes
         self.engine.dispose()
 

@@ -16,6 +16,7 @@ from collections.abc import Callable, Sequence
 from localizer.events import FrameObserved
 from sensors.sources import SensorEvent, SensorSink
 from sim.live import LiveSite, SensorSample
+from sim.robot import FloorArrival
 
 log = logging.getLogger(__name__)
 
@@ -46,6 +47,9 @@ class SimSource:
         self.step_hz = step_hz
         self.max_frame_lag_s = max_frame_lag_s
         self.frames_skipped = 0
+        self.on_floor: Callable[[str, FloorArrival], None] | None = None
+        """Called (on the feeding thread, in time order with the samples) when a robot
+        leaves the lift on a floor."""
         self._stop = threading.Event()
         self._samples: queue.SimpleQueue[list[SensorSample] | None] = queue.SimpleQueue()
         self._threads: list[threading.Thread] = []
@@ -86,6 +90,10 @@ class SimSource:
             if samples is None:
                 return
             for sample in samples:
+                if isinstance(sample.event, FloorArrival):
+                    if self.on_floor is not None:
+                        self.on_floor(sample.robot, sample.event)
+                    continue
                 event: SensorEvent = sample.event
                 if isinstance(event, FrameObserved):
                     lag_s = (self.clock_ns() - event.t_ns) * 1e-9

@@ -22,6 +22,10 @@ if TYPE_CHECKING:
     from server.seams import ViewerApp
 
 
+DEMOS = {"one-floor": "demo", "two-floors": "two_floors"}
+"""`--demo NAME`: the scenario each demo runs."""
+
+
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="irloc serve", description=__doc__.splitlines()[0])
     p.add_argument("--host", help="API address (default 127.0.0.1)")
@@ -33,6 +37,12 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--map", type=Path, dest="map_file", help="import this map.json at start")
     p.add_argument("--radio", help="sim | xbee:PORT[@BAUD] (default sim)")
     p.add_argument("--scenario", help="virtual site scenario name or file (default demo)")
+    p.add_argument(
+        "--demo",
+        choices=sorted(DEMOS),
+        help="a demo site: one-floor (the default scenario) or two-floors (a lift between "
+        "two floors)",
+    )
     p.add_argument("--seed", type=int, help="virtual site seed")
     p.add_argument("--no-viewer", action="store_true", help="do not start the viewer")
     p.add_argument("--mqtt", help="the site's MQTT broker, mqtt://HOST[:PORT]: robot agents")
@@ -77,6 +87,11 @@ def main(
     """`irloc serve`; `make_viewer(settings)` builds the viewer to serve (irloc/serve.py
     hands in `web.viewer.Viewer`; without it the API runs alone)."""
     args = _parser().parse_args(sys.argv[1:] if argv is None else argv)
+    if args.demo is not None:
+        if args.scenario is not None:
+            print("irloc serve: give --demo or --scenario, not both", file=sys.stderr)
+            return 2
+        args.scenario = DEMOS[args.demo]
     overrides = {
         k: v
         for k, v in {

@@ -40,6 +40,7 @@ from server.routes import (
     calibration,
     commissioning,
     floorplan,
+    floors,
     history,
     landmarks,
     leds,
@@ -153,7 +154,7 @@ def create_app(settings: Settings | None = None, viewer: ViewerApp | None = None
     api = APIRouter(prefix=API_PREFIX, dependencies=[Depends(refuse_unknown_query)])
     for module in (
         landmarks, map, history, floorplan, robots, calibration, remote, admin, streams,
-        commissioning, survey, leds, map_proposals, recordings, zones,
+        commissioning, survey, leds, map_proposals, recordings, zones, floors,
     ):  # fmt: skip
         api.include_router(module.router)
     api.add_api_route(

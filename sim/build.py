@@ -48,6 +48,7 @@ def build_world(scenario: Scenario, rng: np.random.Generator) -> World:
             spec.id, p_true, p_surveyed, (spec.address or default_address(spec.id)).upper(),
             Battery(BatteryConfig(capacity_mah=spec.capacity_mah), charge=spec.charge),
             radio_dead=spec.radio_dead, led_on=not spec.radio_dead, led_dead=spec.led_dead,
+            floor=spec.floor,
         )  # fmt: skip
     extended = []
     for e in scenario.extended:
@@ -87,7 +88,7 @@ def build_robot(
         camera_rate_hz=spec.camera.rate_hz, frame_drop=spec.camera.drop_rate,
         bumps=scenario.bumps, rng=rng, t0_ns=t0_ns,
         frame_offset_ns=(index * 7_000_000) % round(1e9 / spec.camera.rate_hz),
-        limits=spec.limits, slips=scenario.slips,
+        limits=spec.limits, slips=scenario.slips, floor=spec.floor,
     )  # fmt: skip
     geometry = RobotGeometry(spec.wheel_base_m, spec.max_speed_mps)
     return RobotRig(spec, robot, geometry, nominal, true)

@@ -21,10 +21,10 @@ from localizer.robot import RobotGeometry
 from sim.build import RobotRig, build_robot, build_world, seed_generators
 from sim.radio import SimRadio
 from sim.render import RenderConfig, render_frame
-from sim.robot import FramePose
-from sim.scenario import Scenario, load_scenario
+from sim.robot import FloorArrival, FramePose
+from sim.scenario import FloorSpec, Scenario, load_scenario
 from sim.spot_view import observe_spots
-from sim.world import World
+from sim.world import IN_LIFT, World
 
 
 def render_view(
@@ -48,7 +48,7 @@ class SensorSample:
     """A frame or an odometry sample of the robot `robot`."""
 
     robot: str
-    event: FrameObserved | SpotsObserved | OdometryMeasured
+    event: FrameObserved | SpotsObserved | OdometryMeasured | FloorArrival
 
 
 class LiveSite:
@@ -95,6 +95,7 @@ class LiveSite:
         self._frame_truth: dict[str, dict[int, tuple[float, float, float]]] = {
             name: {} for name in self._rigs
         }
+        self._floor_truth: dict[str, dict[int, str]] = {name: {} for name in self._rigs}
         if clock_ns is not None:
             # The radio switches LEDs between steps: log each switch at its own time, so
             # that a frame shows the LEDs as they were at the frame's time.
@@ -140,14 +141,35 @@ class LiveSite:
         last `truth_history` frames), or None."""
         return self._frame_truth[name].get(t_ns)
 
+    def true_floor_at(self, name: str, t_ns: int) -> str | None:
+        """The floor robot `name` was on when it took its frame stamped `t_ns`
+        (`sim.world.IN_LIFT` in the lift; one of the last `truth_history` frames), or None."""
+        return self._floor_truth[name].get(t_ns)
+
+    def true_floor(self, name: str) -> str:
+        """The floor the robot is on (while in the lift: the one it boarded on)."""
+        return self.rig(name).robot.floor
+
+    @property
+    def floors(self) -> tuple[FloorSpec, ...]:
+        """The building's floors (one, "0", for a scenario that names none)."""
+        return self.scenario.floors
+
     def render(
-        self, name: str, T_world_body: npt.NDArray[np.float64], *, t_ns: int | None = None
+        self,
+        name: str,
+        T_world_body: npt.NDArray[np.float64],
+        *,
+        t_ns: int | None = None,
+        floor: str | None = None,
     ) -> npt.NDArray[np.uint8]:
         """The frame robot `name`'s true camera sees from a body pose, with the world now
-        (with the LEDs as they were at site time `t_ns` when given)."""
+        (with the LEDs as they were at site time `t_ns` when given), on `floor` (None: the
+        robot's floor now; `sim.world.IN_LIFT`: in the lift cabin)."""
         cam = self.rig(name).camera_true
         p_cam = (T_world_body @ cam.T_body_camera)[:3, 3]
-        sources, intensities = self.world.point_sources(p_cam, t_ns=t_ns)
+        on = self.true_floor(name) if floor is None else floor
+        sources, intensities = self.world.point_sources(p_cam, t_ns=t_ns, floor=on)
         return render_frame(
             cam, T_world_body, sources, intensities, rng=self._render_rng,
             config=self.scenario.render, extended=self.world.extended,
@@ -167,10 +189,10 @@ class LiveSite:
         local = t_ns - self._t0_ns
         if local <= self._t_local_ns:
             return []
-        due: list[tuple[int, int, str, OdometryMeasured | FramePose]] = []
+        due: list[tuple[int, int, str, OdometryMeasured | FramePose | FloorArrival]] = []
         for name, rig in self._rigs.items():
             for item in rig.robot.advance_to(local):
-                kind = 0 if isinstance(item, OdometryMeasured) else 1
+                kind = 0 if isinstance(item, OdometryMeasured | FloorArrival) else 1
                 due.append((item.t_ns, kind, name, item))
         due.sort(key=lambda d: (d[0], d[1]))
         out: list[SensorSample] = []
@@ -178,21 +200,27 @@ class LiveSite:
             t_out = t_local + self._t0_ns
             if isinstance(item, OdometryMeasured):
                 out.append(SensorSample(name, OdometryMeasured(t_out, item.v_left, item.v_right)))
+            elif isinstance(item, FloorArrival):
+                arrival = FloorArrival(t_out, item.floor, item.pose, item.announce)
+                out.append(SensorSample(name, arrival))
             elif local - t_local <= self._max_lag_ns:
                 self.world.advance(t_local)
                 truth = self._frame_truth[name]
                 truth[t_out] = item.pose
+                self._floor_truth[name][t_out] = IN_LIFT if item.in_lift else item.floor
                 if len(truth) > self.truth_history:
                     del truth[next(iter(truth))]
+                    del self._floor_truth[name][next(iter(self._floor_truth[name]))]
+                on = IN_LIFT if item.in_lift else item.floor
                 if self.observe == "spots":
                     cam = self.rig(name).camera_true
                     spots = observe_spots(
                         self.world, cam, item.T_world_body, t_out, self._render_rng,
-                        self.scenario.render, led_t_ns=t_local,
+                        self.scenario.render, led_t_ns=t_local, floor=on,
                     )  # fmt: skip
                     out.append(SensorSample(name, spots))
                     continue
-                image = self.render(name, item.T_world_body, t_ns=t_local)
+                image = self.render(name, item.T_world_body, t_ns=t_local, floor=on)
                 out.append(SensorSample(name, FrameObserved(t_out, image)))
         self.world.advance(local)
         self._t_local_ns = local

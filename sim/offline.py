@@ -182,7 +182,7 @@ def simulate_recording(
                         odometry += 1
                     if imu is not None:
                         _write_imu(w, imu, rig, item.t_ns)
-                else:
+                elif isinstance(item, FramePose):  # (a lift's arrival: one floor recorded)
                     _write_frame(w, world, rig, item, gens[2], sc)
                     frames += 1
             if progress is not None:

@@ -23,7 +23,7 @@ import numpy.typing as npt
 from localizer.events import OdometryMeasured
 from localizer.geometry import rotation_z, wrap_angle
 from localizer.odometry import integrate_arc
-from sim.routes import DriveLimits, Route, RouteFollower
+from sim.routes import DriveLimits, Lift, Route, RouteFollower
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -118,6 +118,19 @@ class FramePose:
     t_ns: int
     T_world_body: FloatArray
     pose: tuple[float, float, float]
+    floor: str = "0"
+    in_lift: bool = False
+
+
+@dataclass(frozen=True)
+class FloorArrival:
+    """The robot left the lift at `t_ns` on `floor`, at its true planar `pose`; `announce`:
+    its fleet manager tells the site so."""
+
+    t_ns: int
+    floor: str
+    pose: tuple[float, float, float]
+    announce: bool
 
 
 class SimRobot:
@@ -152,6 +165,7 @@ class SimRobot:
         frame_offset_ns: int = 0,
         limits: DriveLimits | None = None,
         slips: tuple[SlipPatch, ...] = (),
+        floor: str = "0",
     ) -> None:
         self.name = name
         self.slips = slips
@@ -172,6 +186,10 @@ class SimRobot:
         self.lift_m = 0.0  # height above the floor while carried
         self._carry_from: tuple[float, float, float] | None = None
         self.kidnaps: list[tuple[int, int]] = []  # (picked up, put down) times, ns
+        self.floor = floor
+        """The floor it is on (while riding: the floor it boarded on)."""
+        self.in_lift = False
+        self._lift: Lift | None = None
 
     def _true_wheels(self, v: float, omega: float) -> tuple[float, float]:
         half = 0.5 * self.odometry.wheel_base_true_m * omega
@@ -220,12 +238,12 @@ class SimRobot:
         noise = self.rng.normal(0.0, self.odometry.noise_rel, 2)
         return vl * sl * (1.0 + noise[0]), vr * sr * (1.0 + noise[1])
 
-    def advance_to(self, t_ns: int) -> list[OdometryMeasured | FramePose]:
+    def advance_to(self, t_ns: int) -> list[OdometryMeasured | FramePose | FloorArrival]:
         """Drive up to `t_ns`; the odometry samples and (not dropped) frames due, in time order.
 
         At equal times the odometry sample comes before the frame.
         """
-        out: list[OdometryMeasured | FramePose] = []
+        out: list[OdometryMeasured | FramePose | FloorArrival] = []
         while True:
             tick = self.t_ns + self.tick_ns
             while self._next_frame_ns < tick and self._next_frame_ns <= t_ns:
@@ -235,6 +253,7 @@ class SimRobot:
             self.x, self.y, self.theta = self._arc(self._snapshot, tick)
             self.t_ns = tick
             self._carry(tick)
+            self._ride(out, tick)
             vl, vr = self._measure()
             out.append(OdometryMeasured(tick, vl, vr))
             if tick >= self.paused_until_ns:
@@ -263,9 +282,22 @@ class SimRobot:
             self.lift_m = 0.0
             self.kidnaps[-1] = (self.kidnaps[-1][0], tick_ns)
 
-    def _add_frame(self, out: list[OdometryMeasured | FramePose], t_ns: int) -> None:
+    def _ride(self, out: list[OdometryMeasured | FramePose | FloorArrival], tick_ns: int) -> None:
+        """In the lift while the route rides it; on its floor (a `FloorArrival`) after."""
+        lift = self.follower.riding()
+        if lift is not None:
+            self._lift, self.in_lift = lift, True
+            return
+        if self._lift is not None:
+            self.floor, self.in_lift = self._lift.floor, False
+            out.append(FloorArrival(tick_ns, self.floor, (self.x, self.y, self.theta),
+                                    self._lift.announce))  # fmt: skip
+            self._lift = None
+
+    def _add_frame(self, out: list[OdometryMeasured | FramePose | FloorArrival], t_ns: int) -> None:
         self._next_frame_ns += self.frame_period_ns
         if self.frame_drop > 0 and self.rng.random() < self.frame_drop:
             return
         pose = self.pose_at(t_ns)
-        out.append(FramePose(t_ns, self.T_world_body(*pose, lift_m=self.lift_m), pose))
+        T = self.T_world_body(*pose, lift_m=self.lift_m)
+        out.append(FramePose(t_ns, T, pose, self.floor, self.in_lift))

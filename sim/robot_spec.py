@@ -10,7 +10,18 @@ from dataclasses import dataclass, field
 from sim.cameras import CALIBRATION_LEVELS, LENSES, CalibrationError, Lens
 from sim.fields import Node
 from sim.imu import ImuSpec
-from sim.routes import Drive, DriveLimits, Goto, Kidnap, Route, Step, TurnTo, Wait, heading_sweep
+from sim.routes import (
+    Drive,
+    DriveLimits,
+    Goto,
+    Kidnap,
+    Lift,
+    Route,
+    Step,
+    TurnTo,
+    Wait,
+    heading_sweep,
+)
 
 
 @dataclass(frozen=True)
@@ -49,6 +60,7 @@ class RobotSpec:
     odometry_recorded: bool = True  # False: no odom0/data.csv (a robot without odometry)
     imu: ImuSpec | None = None  # an IMU, recorded as imu0/data.csv
     start_pose_radius_m: float | None = None  # write start_pose.yaml within this of the start
+    floor: str = "0"
 
 
 def route_from_node(n: Node, max_speed: float, start_theta: float) -> Route:
@@ -67,7 +79,7 @@ def route_from_node(n: Node, max_speed: float, start_theta: float) -> Route:
             if sweep > 0:
                 steps += [TurnTo(start_theta), *heading_sweep(start_theta, sweep, sweep_dwell)]
     for s in n.child("steps").items():
-        s.mapping(("goto", "wait", "turn_to_deg", "sweep", "drive", "kidnap"))
+        s.mapping(("goto", "wait", "turn_to_deg", "sweep", "drive", "kidnap", "lift"))
         if s.has("goto"):
             x, y = s.child("goto").vector(2, "[x, y]")
             steps.append(Goto(x, y, speed))
@@ -83,6 +95,15 @@ def route_from_node(n: Node, max_speed: float, start_theta: float) -> Route:
                 start,
                 math.radians(w.number("step_deg", low=1, high=180)),
                 w.number("dwell_s", 0.5, low=0),
+            )
+        elif s.has("lift"):
+            lift = s.child("lift").mapping(("floor", "ride_s", "announce"))
+            steps.append(
+                Lift(
+                    lift.string("floor"),
+                    lift.number("ride_s", 8.0, low=0.5, high=600.0),
+                    lift.boolean("announce", True),
+                )
             )
         elif s.has("kidnap"):
             k = s.child("kidnap").mapping(("to", "carry_s", "lift_m"))
@@ -164,6 +185,7 @@ def robot_from_node(n: Node, default_lens: Lens) -> RobotSpec:
             "limits",
             "imu",
             "start_pose",
+            "floor",
         )
     )
     sx, sy, sdeg = n.child_vector("start", 3, "[x, y, theta_deg]")
@@ -222,4 +244,5 @@ def robot_from_node(n: Node, default_lens: Lens) -> RobotSpec:
         odometry_recorded=odo.boolean("recorded", True),
         imu=imu,
         start_pose_radius_m=start_radius,
+        floor=n.string("floor", "0"),
     )

@@ -55,7 +55,18 @@ class Kidnap:
     lift_m: float = 0.3
 
 
-Step = Goto | Wait | TurnTo | Drive | Kidnap
+@dataclass(frozen=True)
+class Lift:
+    """Ride the lift (standing in its cabin, where the camera sees the cabin's ceiling and no
+    landmark) for `ride_s`, and leave it on `floor`. `announce`: the fleet manager tells
+    the site the robot is on that floor as it leaves (else the site must notice)."""
+
+    floor: str
+    ride_s: float = 8.0
+    announce: bool = True
+
+
+Step = Goto | Wait | TurnTo | Drive | Kidnap | Lift
 
 
 @dataclass(frozen=True)
@@ -139,8 +150,8 @@ class RouteFollower:
                 out.append((step.x, step.y))
                 if len(out) >= count:
                     break
-            elif isinstance(step, Kidnap | Drive):
-                break  # not a route a fleet manager plans
+            elif isinstance(step, Kidnap | Drive | Lift):
+                break  # not a route a fleet manager plans (a lift: on another floor)
             index += 1
         return tuple(out)
 
@@ -152,6 +163,13 @@ class RouteFollower:
         if not isinstance(step, Kidnap):
             return None
         return step, min(1.0, (t_s - self._step_started_s) / step.carry_s)
+
+    def riding(self) -> Lift | None:
+        """The lift ride under way (the step the robot is at), or None."""
+        if self.finished or self._step_started_s is None:
+            return None
+        step = self.route.steps[self._index]
+        return step if isinstance(step, Lift) else None
 
     def _next(self, t_s: float) -> None:
         self._index += 1
@@ -188,6 +206,10 @@ class RouteFollower:
             elapsed = t_s - self._step_started_s
             if isinstance(step, Wait):
                 if elapsed < step.seconds:
+                    self._v = 0.0
+                    return 0.0, 0.0
+            elif isinstance(step, Lift):
+                if elapsed < step.ride_s:
                     self._v = 0.0
                     return 0.0, 0.0
             elif isinstance(step, Kidnap):

@@ -30,6 +30,7 @@ SCENARIOS: tuple[str, ...] = (
     "dense_grid_fast",
     "hostile",
     "floor50",
+    "two_floors",
 )
 
 
@@ -46,6 +47,17 @@ class LandmarkSpec:
     address: str | None = None
     capacity_mah: float = 2500.0
     led_dead: bool = False
+    floor: str = "0"
+
+
+@dataclass(frozen=True)
+class FloorSpec:
+    """One floor of the building: its ID, name, level and height above level 0 (metres)."""
+
+    id: str
+    name: str
+    level: int
+    height_m: float
 
 
 @dataclass(frozen=True)
@@ -95,6 +107,7 @@ class Scenario:
     radio_loss: float
     render: RenderConfig
     slips: tuple[SlipPatch, ...] = ()
+    floors: tuple[FloorSpec, ...] = (FloorSpec("0", "Floor 0", 0, 0.0),)
 
     def with_lens(self, lens: Lens) -> Scenario:
         """The same scenario with every robot's camera on `lens`."""
@@ -127,6 +140,7 @@ _TOP = (
     "landmarks",
     "landmark_grid",
     "landmark_pairs",
+    "floors",
     "lamps",
     "sunlight",
     "glints",
@@ -258,6 +272,36 @@ def _clutter(doc: Node, ceiling: float) -> tuple[tuple[ExtendedSpec, ...], tuple
     return tuple(ext), tuple(glints)
 
 
+def _floors(doc: Node, layout: _Layout) -> tuple[tuple[FloorSpec, ...], tuple[LandmarkSpec, ...]]:
+    """The building's floors and every landmark (each floor's own `landmarks`,
+    `landmark_grid`, `landmark_pairs`; without `floors`: the document's, on floor "0")."""
+    if not doc.has("floors"):
+        return (FloorSpec("0", "Floor 0", 0, 0.0),), _landmarks(doc, layout)
+    floors: list[FloorSpec] = []
+    landmarks: list[LandmarkSpec] = []
+    for n in doc.child("floors").items():
+        n.mapping(("id", "name", "level", "height_m", "landmarks", "landmark_grid",
+                   "landmark_pairs"))  # fmt: skip
+        floor = FloorSpec(
+            n.string("id"),
+            n.string("name", f"Floor {n.string('id')}"),
+            n.integer("level"),
+            n.number("height_m", 0.0, low=-1000, high=1000),
+        )
+        if floor.id in {f.id for f in floors}:
+            raise n.error(f"floor {floor.id!r} appears twice")
+        floors.append(floor)
+        landmarks += [dataclasses.replace(lm, floor=floor.id) for lm in _landmarks(n, layout)]
+    seen: set[int] = set()
+    for lm in landmarks:
+        if lm.id in seen:
+            raise doc.child("floors").error(
+                f"landmark id {lm.id} appears twice (IDs are unique per site)"
+            )
+        seen.add(lm.id)
+    return tuple(floors), tuple(landmarks)
+
+
 def scenario_from_dict(data: object, *, source: str) -> Scenario:
     """Validate a parsed scenario document.
 
@@ -278,6 +322,10 @@ def scenario_from_dict(data: object, *, source: str) -> Scenario:
     if len({r.name for r in robots}) != len(robots):
         raise doc.child("robots").error("robot names must be unique")
     ext, glints = _clutter(doc, ceiling)
+    floors, landmarks = _floors(doc, layout)
+    for i, r in enumerate(robots):
+        if r.floor not in {f.id for f in floors}:
+            raise doc.child("robots").error(f"[{i}].floor: no floor {r.floor!r}")
     people = []
     for n in doc.child("people").items():
         n.mapping(("path", "speed_mps", "radius_m", "height_m"))
@@ -318,7 +366,8 @@ def scenario_from_dict(data: object, *, source: str) -> Scenario:
         seed=doc.integer("seed", 0),
         duration_s=doc.number("duration_s", 60.0, low=0.1),
         survey_sigma_m=doc.number("survey_sigma_m", 0.005, low=0, high=1),
-        landmarks=_landmarks(doc, layout),
+        landmarks=landmarks,
+        floors=floors,
         extended=ext,
         glints=glints,
         people=tuple(people),

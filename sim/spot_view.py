@@ -34,6 +34,7 @@ def observe_spots(
     led_t_ns: int | None = None,
     min_peak_counts: float = 12.0,
     centroid_sigma_px: float = 0.08,
+    floor: str | None = None,
 ) -> SpotsObserved:
     """The spots a frame taken at `t_ns` from body pose `T_world_body` (4, 4) would show.
 
@@ -42,9 +43,10 @@ def observe_spots(
         min_peak_counts: a spot whose peak pixel is fainter than this above the background
             is not detected (the detector's minimum contrast), counts.
         centroid_sigma_px: standard deviation of a detected centroid per axis, pixels.
+        floor: the robot's floor (`World.point_sources`); None: every landmark.
     """
     T_wc = T_world_body @ camera.T_body_camera
-    sources, intensities = world.point_sources(T_wc[:3, 3], t_ns=led_t_ns)
+    sources, intensities = world.point_sources(T_wc[:3, 3], t_ns=led_t_ns, floor=floor)
     empty = np.zeros((0, 2))
     if len(sources) == 0:
         return SpotsObserved(t_ns, empty, np.zeros(0), np.zeros(0))

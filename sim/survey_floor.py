@@ -16,6 +16,7 @@ from localizer.camera import CameraModel, predict_pixels
 from localizer.events import LedsChanged, OdometryMeasured
 from sim.build import build_robot, build_world, seed_generators
 from sim.cameras import perturbed_camera
+from sim.robot import FloorArrival
 from sim.scenario import Scenario, scenario_from_dict
 
 
@@ -163,6 +164,8 @@ def simulate_survey_spots(
             if isinstance(item, OdometryMeasured):
                 odom_t.append(item.t_ns)
                 odom_v.append((item.v_left, item.v_right))
+                continue
+            if isinstance(item, FloorArrival):  # a survey drive stays on its floor
                 continue
             state = leds[int(np.searchsorted(times, item.t_ns, side="right")) - 1]
             lit = np.ones(len(ids), dtype=bool) if state.all_lit else np.isin(ids, list(state.lit))

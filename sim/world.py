@@ -20,6 +20,8 @@ from lighting.energy import EnergyLedger
 from sim.render import ExtendedSource
 
 FloatArray = npt.NDArray[np.float64]
+IN_LIFT = "\x00lift"
+"""`point_sources(floor=IN_LIFT)`: what a camera in the lift cabin sees (no landmark)."""
 
 
 @dataclass
@@ -45,6 +47,7 @@ class SimLandmark:
     radio_dead: bool = False
     led_on: bool = True
     led_dead: bool = False
+    floor: str = "0"
 
     @property
     def node_id(self) -> str:
@@ -223,7 +226,7 @@ class World:
                 self.landmarks[landmark_id].battery.draw(q)
 
     def point_sources(
-        self, p_camera_world: FloatArray, *, t_ns: int | None = None
+        self, p_camera_world: FloatArray, *, t_ns: int | None = None, floor: str | None = None
     ) -> tuple[FloatArray, FloatArray]:
         """Lit point sources seen from a camera position (people block them).
 
@@ -231,6 +234,8 @@ class World:
             p_camera_world: the camera's optical centre, metres, shape (3,).
             t_ns: take the LEDs as they were at this time (on the LED clock, within the
                 last `led_log_s`); None: as they are now.
+            floor: only the landmarks of this floor (None: every landmark; `IN_LIFT`: none,
+                nor any glint: the lift cabin's ceiling).
 
         Returns:
             (positions shape (N, 3), intensities shape (N,)), 1.0 = a nominal LED.
@@ -238,10 +243,14 @@ class World:
         t_s = self.t_ns * 1e-9
         with self._lock:
             on = self._lit_at(t_ns)
-            lit = [lm for lid, lm in self.landmarks.items() if on[lid] and not lm.led_dead]
+            lit = [
+                lm
+                for lid, lm in self.landmarks.items()
+                if on[lid] and not lm.led_dead and (floor is None or lm.floor == floor)
+            ]
             pos = [lm.p_true for lm in lit]
             inten = [lm.battery.led_brightness() for lm in lit]
-        for g in self.glints:
+        for g in self.glints if floor != IN_LIFT else ():
             if g.blink_period_s <= 0 or (t_s % g.blink_period_s) < g.blink_period_s / 2:
                 pos.append(np.asarray(g.p_world, dtype=np.float64))
                 inten.append(g.intensity)
@@ -261,6 +270,7 @@ class World:
                 "y": float(lm.p_surveyed[1]),
                 "z": float(lm.p_surveyed[2]),
                 "radio": lm.address,
+                "floor": lm.floor,
             }
             for lm in sorted(self.landmarks.values(), key=lambda lm: lm.id)
         ]

@@ -25,10 +25,14 @@ from sqlalchemy import Engine, delete, update
 from sqlmodel import Session, col, func, select
 
 from store.errors import ConflictError
-from store.models import AuditRecord, Landmark, LandmarkPublic
+from store.floors import check_floors
+from store.models import DEFAULT_FLOOR, AuditRecord, Landmark, LandmarkPublic
 
-EDIT_ACTIONS = ("create", "update", "delete", "import", "clear")
-WHOLE_MAP_ACTIONS = ("import", "clear")
+EDIT_ACTIONS = ("create", "update", "delete", "import", "clear", "floor-import", "restore")
+WHOLE_MAP_ACTIONS = ("import", "clear", "floor-import", "restore")
+"""`floor-import` (one floor's map replaced) and `restore` (one floor's map set back to an
+old version, `store.map_versions`) are whole-map steps: their records hold the site's
+map before and after, plus `floor` (and `version`, for a restore)."""
 VIEWER_PREFIX = "web:"
 """How the viewer (the web app) names its users' edits: `web:key:3`."""
 OLD_VIEWER_PREFIX = "viewer:"
@@ -70,7 +74,10 @@ def _actors(owner: str) -> list[str]:
 
 
 def _content(rec: dict[str, Any] | None) -> dict[str, Any] | None:
-    return None if rec is None else {k: v for k, v in rec.items() if k not in _STAMPS}
+    if rec is None:
+        return None
+    # records written before floors existed name none: their landmarks are on floor "0"
+    return {"floor": DEFAULT_FLOOR} | {k: v for k, v in rec.items() if k not in _STAMPS}
 
 
 def _map_of(rec: dict[str, Any] | None) -> dict[int, dict[str, Any] | None]:
@@ -86,6 +93,13 @@ def describe(action: str, landmark_id: int | None, before: Any, after: Any) -> s
     if action == "import":
         n_before, n_after = len(_map_of(before)), len(_map_of(after))
         return f"map import ({n_before} -> {_n(n_after)})"
+    if action == "floor-import":
+        floor = (after or {}).get("floor")
+        n_floor = sum(1 for r in (after or {}).get("landmarks", []) if r.get("floor") == floor)
+        return f"map import of floor {floor} ({_n(n_floor)})"
+    if action == "restore":
+        a = after or {}
+        return f"map restore of floor {a.get('floor')} to version {a.get('version')}"
     if action == "clear":
         return f"map clear ({_n(len(_map_of(before)))} removed)"
     what = {"create": "add", "delete": "delete"}.get(action)
@@ -208,8 +222,8 @@ class MapHistory:
         now = int(s.exec(select(func.count()).select_from(Landmark)).one())
         target = rec.before if direction == "undo" else rec.after
         source = rec.after if direction == "undo" else rec.before
-        if rec.action in WHOLE_MAP_ACTIONS:
-            after = len(_map_of(target))
+        if rec.action in WHOLE_MAP_ACTIONS:  # the whole site's map, or one floor's
+            after = now - len(_map_of(source)) + len(_map_of(target))
         else:
             after = now + (target is not None) - (source is not None)
         return MapStep(
@@ -304,6 +318,8 @@ class MapHistory:
                     f"{step.title} refused: radio {target['radio']} now belongs to landmark "
                     f"{other.id}"
                 )
+        if target is not None:
+            check_floors(s, [target.get("floor", DEFAULT_FLOOR)], what=step.title)
         if row is not None:
             s.delete(row)
             s.flush()
@@ -311,15 +327,35 @@ class MapHistory:
             s.add(landmark_from_record(target))
 
     def _set_map(self, s: Session, step: MapStep, source: Any, target: Any) -> None:
-        current = {lm.id: _content(landmark_record(lm)) for lm in s.exec(select(Landmark))}
+        floor = (source or {}).get("floor")  # a floor's import or restore: only that floor
+        rows = (
+            select(Landmark) if floor is None else select(Landmark).where(Landmark.floor == floor)
+        )
+        current = {lm.id: _content(landmark_record(lm)) for lm in s.exec(rows)}
         if current != _map_of(source):
             raise ConflictError(
                 f"the map has changed since the {step.description}: {step.title} refused "
                 "(nothing changed)"
             )
-        s.exec(delete(Landmark))
+        records = (target or {}).get("landmarks", [])
+        if floor is not None:
+            taken = s.exec(
+                select(Landmark.id)
+                .where(col(Landmark.id).in_([int(r["id"]) for r in records]))
+                .where(Landmark.floor != floor)
+            ).first()
+            if taken is not None:
+                raise ConflictError(
+                    f"{step.title} refused: landmark {taken} now hangs on another floor"
+                )
+            check_floors(s, [floor], what=step.title)
+        s.exec(
+            delete(Landmark)
+            if floor is None
+            else delete(Landmark).where(col(Landmark.floor) == floor)
+        )
         s.flush()
-        for rec in (target or {}).get("landmarks", []):
+        for rec in records:
             s.add(landmark_from_record(rec))
 
 

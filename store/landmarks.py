@@ -30,6 +30,7 @@ from sqlmodel import Session, col, select
 
 from localizer.landmark_map import LandmarkMap
 from store.errors import ConflictError, NotFoundError
+from store.floors import check_floors, check_unique, floor_ids
 from store.history import MapHistory, drop_redo, landmark_record
 from store.models import (
     DECIMAL_ID,
@@ -44,7 +45,7 @@ from store.models import (
 
 log = logging.getLogger(__name__)
 MapListener = Callable[[list[LandmarkPublic]], None]
-CSV_FIELDS = ("id", "x", "y", "z", "radio", "locked", "note")
+CSV_FIELDS = ("id", "x", "y", "z", "radio", "locked", "note", "floor")
 
 
 def _public(row: Landmark) -> LandmarkPublic:
@@ -65,8 +66,11 @@ class MapRepository:
         self._revision = 0  # bumped after every committed change
         self._snapshot: tuple[int, builtins.list[LandmarkPublic]] | None = None
         self._map: tuple[int, LandmarkMap] | None = None
+        self._floor_maps: dict[str, tuple[int, LandmarkMap]] = {}
         self.history = MapHistory(engine, self._lock, self._notify)
         """Undo and redo of each author's own edits."""
+        self.write_lock = self._lock
+        """Held by every writer (other writers of the table take it too: floor maps)."""
 
     # -- listeners ---------------------------------------------------------------------------
     def add_listener(self, listener: MapListener) -> None:
@@ -76,6 +80,10 @@ class MapRepository:
     def remove_listener(self, listener: MapListener) -> None:
         if listener in self._listeners:
             self._listeners.remove(listener)
+
+    def committed(self) -> None:
+        """Another writer (holding `write_lock`) committed a change: notify the listeners."""
+        self._notify()
 
     def _notify(self) -> None:
         self._revision += 1
@@ -115,18 +123,27 @@ class MapRepository:
                 raise NotFoundError(f"landmark {landmark_id} does not exist")
             return _public(row)
 
-    def landmark_map(self) -> LandmarkMap:
-        """The map as the localizer wants it (built once per change of the map)."""
-        revision, cached = self._revision, self._map
+    def on_floor(self, floor: str) -> builtins.list[LandmarkPublic]:
+        """The landmarks of one floor, by ID."""
+        return [lm for lm in self._current() if lm.floor == floor]
+
+    def landmark_map(self, floor: str | None = None) -> LandmarkMap:
+        """The map as the localizer wants it (built once per change of the map): one
+        floor's landmarks, or (None) the whole site's."""
+        revision = self._revision
+        cached = self._map if floor is None else self._floor_maps.get(floor)
         if cached is not None and cached[0] == revision:
             return cached[1]
-        lms = self._current()
+        lms = self._current() if floor is None else self.on_floor(floor)
         out = LandmarkMap(
             np.array([lm.id for lm in lms], dtype=np.int64),
             np.array([(lm.x, lm.y, lm.z) for lm in lms], dtype=np.float64).reshape(-1, 3),
         )
         if self._revision == revision:
-            self._map = (revision, out)
+            if floor is None:
+                self._map = (revision, out)
+            else:
+                self._floor_maps[floor] = (revision, out)
         return out
 
     def addresses(self) -> dict[int, str]:
@@ -154,6 +171,7 @@ class MapRepository:
         with self._lock, Session(self.engine) as s:
             if s.get(Landmark, data.id) is not None:
                 raise ConflictError(f"landmark {data.id} already exists")
+            check_floors(s, [data.floor], what=f"landmark {data.id}")
             self._check_radio_free(s, data.radio, data.id)
             row = Landmark.model_validate(data.model_dump())
             s.add(row)
@@ -182,6 +200,8 @@ class MapRepository:
             before = landmark_record(row)
             if "radio" in changes:
                 self._check_radio_free(s, changes["radio"], landmark_id)
+            if "floor" in changes:
+                check_floors(s, [changes["floor"]], what=f"landmark {landmark_id}")
             for key, value in changes.items():
                 setattr(row, key, value if key != "note" or value is not None else "")
             row.updated_at = utcnow()
@@ -231,27 +251,22 @@ class MapRepository:
     ) -> int:
         """Replace the whole map in one transaction (map import; with no landmarks: clear,
         which needs `confirm` when the map has any); returns the count. One undoable step.
+        (One floor's map: `store.map_versions.MapVersions.replace_floor`.)
 
         Raises:
             ConflictError: a duplicate ID or radio address in the new map, or a clear without
                 `confirm` (nothing changes).
+            UnknownFloorError: a landmark on a floor the site does not have (nothing changes).
         """
         items = list(landmarks)
-        ids: set[int] = set()
-        radios: dict[str, int] = {}
-        for lm in items:
-            if lm.id in ids:
-                raise ConflictError(f"map: duplicate landmark id {lm.id}")
-            ids.add(lm.id)
-            if lm.radio is not None:
-                if lm.radio in radios:
-                    raise ConflictError(
-                        f"map: landmarks {radios[lm.radio]} and {lm.id} share radio {lm.radio}"
-                    )
-                radios[lm.radio] = lm.id
+        check_unique(items, what="map")
         now = utcnow()
         rows = [{**lm.model_dump(), "created_at": now, "updated_at": now} for lm in items]
         with self._lock, Session(self.engine) as s:
+            known = set(floor_ids(s))
+            for lm in items:
+                if lm.floor not in known:
+                    check_floors(s, [lm.floor], what=f"map: landmark {lm.id}")  # raises
             # the snapshot's records are `landmark_record`'s (LandmarkPublic as JSON)
             before = {"landmarks": [lm.model_dump(mode="json") for lm in self._current()]}
             if not items and before["landmarks"] and not confirm:
@@ -327,7 +342,8 @@ def decode_text(raw: bytes, *, source: str) -> str:
 
 
 def parse_map_csv(text: str, *, source: str = "map.csv") -> builtins.list[LandmarkCreate]:
-    """Parse the CSV export (`id,x,y,z,radio,locked,note`; radio, locked, note optional).
+    """Parse the CSV export (`id,x,y,z,radio,locked,note,floor`; radio, locked, note,
+    floor optional).
 
     A leading byte-order mark is skipped. Raises ValueError naming the line and what is
     wrong: an unknown column, a row with more fields than the header, a field over

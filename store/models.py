@@ -14,7 +14,7 @@ from typing import Any, Literal
 
 from pydantic import field_validator
 from pydantic.json_schema import SkipJsonSchema
-from sqlalchemy import JSON, BigInteger, Column, ForeignKey, Integer, String
+from sqlalchemy import JSON, BigInteger, Column, ForeignKey, Integer, String, UniqueConstraint
 from sqlmodel import Field, SQLModel
 
 from rf_gateway.transport import normalize_address
@@ -29,6 +29,22 @@ MAX_ABS_XY_M = 10_000.0
 """Floor coordinates beyond this (10 km) are refused as absurd."""
 MAX_Z_M = 100.0
 """LED heights above this are refused as absurd (ceilings, not towers)."""
+
+
+DEFAULT_FLOOR = "0"
+"""The floor of a landmark that names none (a single-floor site's map is floor "0")."""
+FLOOR_ID = r"^[A-Za-z0-9_.-]{1,32}$"
+"""A floor ID: 1-32 letters, digits, `_`, `.` or `-` (it appears in paths and MQTT topics)."""
+
+
+FLOOR_SCHEMA = {"json_schema_extra": {"pattern": FLOOR_ID}}
+
+
+def check_floor_id(value: str) -> str:
+    """A floor ID (`FLOOR_ID`); ValueError names the bad value."""
+    if not re.fullmatch(FLOOR_ID, value):
+        raise ValueError(f"floor ID {value!r}: expected 1-32 letters, digits, '_', '.' or '-'")
+    return value
 
 
 RADIO_SCHEMA = {"json_schema_extra": {"pattern": "^[0-9A-Fa-f]{16}$"}}
@@ -73,11 +89,15 @@ class LandmarkBase(SQLModel):
     radio: str | None = Field(default=None, description=RADIO_DOC, schema_extra=RADIO_SCHEMA)
     locked: bool = Field(default=False, description="surveyed: not moved by commissioning")
     note: str = Field(default="", max_length=1000, description="free text")
+    floor: str = Field(
+        default=DEFAULT_FLOOR, max_length=32, description="the floor it hangs on (floor ID)"
+    )
 
 
 class Landmark(LandmarkBase, table=True):
     __tablename__ = "landmarks"
     id: int = Field(primary_key=True, sa_column_kwargs={"autoincrement": False})
+    floor: str = Field(default=DEFAULT_FLOOR, foreign_key="floors.id", index=True)
     radio: str | None = Field(default=None, unique=True, index=True)
     created_at: datetime = Field(default_factory=utcnow)
     updated_at: datetime = Field(default_factory=utcnow)
@@ -145,8 +165,11 @@ class LandmarkUpdate(SQLModel):
     radio: str | None = Field(default=None, description=RADIO_DOC, schema_extra=RADIO_SCHEMA)
     locked: bool | SkipJsonSchema[None] = None
     note: str | SkipJsonSchema[None] = Field(default=None, max_length=1000)
+    floor: str | SkipJsonSchema[None] = Field(
+        default=None, max_length=32, description="move it to this floor (floor ID)"
+    )
 
-    @field_validator("x", "y", "z", "locked", "note", mode="before")
+    @field_validator("x", "y", "z", "locked", "note", "floor", mode="before")
     @classmethod
     def _not_null(cls, v: object, info: Any) -> object:
         if v is None:
@@ -176,6 +199,77 @@ class MapDocument(SQLModel):
     """map.json: `{"landmarks": [{"id", "x", "y", "z", "radio"?, ...}]}`."""
 
     landmarks: list[LandmarkCreate]
+
+
+# -- floors -------------------------------------------------------------------------------
+class FloorBase(SQLModel):
+    name: str = Field(min_length=1, max_length=100, description="what people call it")
+    level: int = Field(
+        ge=-50, le=300, description="storey number: 0 ground floor, 1 the one above, -1 below"
+    )
+    height: float = Field(
+        default=0.0,
+        ge=-1000.0,
+        le=1000.0,
+        description="elevation of the floor above the site's datum (level 0's floor), metres",
+    )
+
+
+class Floor(FloorBase, table=True):
+    __tablename__ = "floors"
+    id: str = Field(primary_key=True, max_length=32)
+    created_at: datetime = Field(default_factory=utcnow)
+
+
+class FloorCreate(FloorBase):
+    id: str = Field(description="floor ID: 1-32 letters, digits, _ . -", schema_extra=FLOOR_SCHEMA)
+
+    @field_validator("id")
+    @classmethod
+    def _floor_id(cls, v: str) -> str:
+        return check_floor_id(v)
+
+
+class FloorUpdate(SQLModel):
+    """The fields to change; those left out keep their value."""
+
+    name: str | SkipJsonSchema[None] = Field(default=None, min_length=1, max_length=100)
+    level: int | SkipJsonSchema[None] = Field(default=None, ge=-50, le=300)
+    height: float | SkipJsonSchema[None] = Field(default=None, ge=-1000.0, le=1000.0)
+
+    @field_validator("name", "level", "height", mode="before")
+    @classmethod
+    def _not_null(cls, v: object, info: Any) -> object:
+        if v is None:
+            raise ValueError(f"{info.field_name} cannot be null (leave it out to keep it)")
+        return v
+
+
+class FloorPublic(FloorBase):
+    id: str
+    version: int = Field(description="its map's version (bumped by every change of its map)")
+    hash: str = Field(description="sha256 of its map's content, hex")
+    landmarks: int = Field(description="landmarks on it")
+
+
+class MapVersion(SQLModel, table=True):
+    """One version of a floor's map: its content as it was, and who made it."""
+
+    __tablename__ = "map_versions"
+    __table_args__ = (UniqueConstraint("floor", "version"),)
+    id: int | None = Field(default=None, primary_key=True)
+    floor: str = Field(
+        sa_column=Column(String, ForeignKey("floors.id", ondelete="CASCADE"), index=True)
+    )
+    version: int
+    hash: str
+    t: datetime = Field(default_factory=utcnow)
+    actor: str = ""
+    action: str = ""
+    audit_id: int | None = None
+    landmarks: list[dict[str, Any]] = Field(
+        default_factory=list, sa_column=Column(JSON, nullable=False)
+    )
 
 
 # -- robots ------------------------------------------------------------------------------

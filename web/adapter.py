@@ -65,6 +65,8 @@ class SiteAdapter:
         self._map_cache: list[LandmarkPublic] | None = None
         self._battery: dict[int, tuple[float, BatteryStatus]] = {}
         self._view: CameraView | None = None
+        self.shown_floor: str | None = None
+        """The floor whose landmarks and robots are shown (None: every floor)."""
         services.map.add_listener(self._on_map_changed)
 
     def close(self) -> None:
@@ -105,6 +107,8 @@ class SiteAdapter:
             self.services, lambda i: getattr(self._battery_of(i), "supply_mv", None)
         )
         for lm in self._map():
+            if self.shown_floor is not None and lm.floor != self.shown_floor:
+                continue
             b = self._battery_of(lm.id)
             e = energy.landmark(lm.id)
             out.append(
@@ -124,6 +128,8 @@ class SiteAdapter:
         now = self.services.clock_ns()
         out = []
         for runner in self.services.robots.runners():
+            if self.shown_floor is not None and runner.floor != self.shown_floor:
+                continue
             upd = runner.latest
             pose = None if upd is None else upd.estimate()
             out.append(
@@ -173,6 +179,20 @@ class SiteAdapter:
     def ceiling_height(self) -> float:
         zs = [lm.z for lm in self._map()]
         return float(statistics.median(zs)) if zs else 2.5
+
+    def floors(self) -> list[tuple[str, str]]:
+        return [(f.id, f.name) for f in self.services.floors.list()]
+
+    def show_floor(self, floor: str | None) -> None:
+        if floor is not None:
+            self.services.floors.get(floor)  # NotFoundError naming it
+        self.shown_floor = floor
+
+    def elsewhere(self) -> list[tuple[str, str]]:
+        shown = self.shown_floor
+        if shown is None:
+            return []
+        return [(r.name, r.floor) for r in self.services.robots.runners() if r.floor != shown]
 
     # -- actions -----------------------------------------------------------------------------
     def relocalize(self, robot: str, *, actor: str) -> None:

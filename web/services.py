@@ -168,6 +168,18 @@ class ViewerSite(Protocol):
         """The nominal ceiling (LED) height, metres."""
         ...
 
+    def floors(self) -> list[tuple[str, str]]:
+        """(id, name) of every floor, lowest level first."""
+        ...
+
+    def show_floor(self, floor: str | None) -> None:
+        """Show one floor's landmarks and robots (`landmarks`, `robots`); None: every floor."""
+        ...
+
+    def elsewhere(self) -> list[tuple[str, str]]:
+        """(robot, floor) of the robots on a floor not shown, by name."""
+        ...
+
     # -- actions (role checked by the caller); ValueError/KeyError carry the reason --------
     def relocalize(self, robot: str, *, actor: str) -> None: ...
 

@@ -34,6 +34,7 @@ from web.layout import ClientLayout, wait_for_width, window_class
 from web.panels.calibration import CalibrationPanel
 from web.panels.commission import CommissionPanel
 from web.panels.coverage import CoveragePanel
+from web.panels.floor import FloorPanel
 from web.panels.history import HistoryPanel
 from web.panels.monitor import MonitorPanel, UncertaintyHistory
 from web.panels.proposals import ProposalsPanel
@@ -114,6 +115,7 @@ class _ClientPanels:
         assert viewer.scene is not None  # started
         bounds, ceiling_z = viewer.scene.bounds, viewer.scene.ceiling_z
         self.view = ViewPanel(client, bounds, ceiling_z, [r.name for r in site.robots()])
+        self.floor = FloorPanel(gui, site) if len(site.floors()) > 1 else None
         self.monitor: MonitorPanel
         self.wizard: WizardPanel | None = None
         self.survey: SurveyPanel | None = None
@@ -411,6 +413,8 @@ class SiteViewer:
                 try:
                     p.monitor.refresh(robots, lms, events)
                     p.coverage.refresh(lms)
+                    if p.floor is not None:
+                        p.floor.refresh()
                     if p.wizard is not None:
                         p.wizard.refresh()
                     if p.survey is not None:

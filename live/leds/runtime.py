@@ -15,19 +15,21 @@ import contextlib
 import logging
 import math
 import threading
-from collections.abc import Awaitable, Callable, Iterable
+from collections.abc import Awaitable, Callable, Iterable, Mapping
 from dataclasses import dataclass
 from typing import Protocol
 
 import numpy as np
 import numpy.typing as npt
 
-from lighting.policy import LedPlan, RobotState, ScheduleConfig, plan_leds
+from lighting.floors import plan_leds_per_floor
+from lighting.policy import LedPlan, RobotState, ScheduleConfig
 from lighting.wake_window import WakeWindow
 from live.poses import PoseUpdate
 from localizer.camera import CameraModel
 from localizer.events import LedsChanged, Mode
 from localizer.geometry import wrap_angle
+from store.models import DEFAULT_FLOOR
 
 log = logging.getLogger(__name__)
 _NS = 1e-9
@@ -88,8 +90,10 @@ class LedScheduler:
         set_awake: Callable[[float], Awaitable[object]] | None = None,
         wake_window: WakeWindow | None = None,
         routes: Callable[[str], tuple[tuple[float, float], ...]] | None = None,
+        floors: Callable[[], Mapping[int, str]] | None = None,
     ) -> None:
         self.config = config or ScheduleConfig()
+        self._floors = floors  # landmark ID -> floor (None: one floor)
         self.period_s = period_s
         self._landmarks = landmarks
         self._runners = runners
@@ -264,11 +268,15 @@ class LedScheduler:
             pinned = {lid: ", ".join(rs) for lid, rs in reasons.items()}
             self._awake_reasons &= {reason for _, reason in self._pinned}
             switching = bool(self._awake_reasons)
-        robots = [self._robot_state(r, t_ns) for r in self._runners()]
-        plan = plan_leds(
+        runners = list(self._runners())
+        robots = [self._robot_state(r, t_ns) for r in runners]
+        floor_of = {} if self._floors is None else self._floors()
+        plan = plan_leds_per_floor(
             robots,
+            [str(getattr(r, "floor", DEFAULT_FLOOR)) for r in runners],
             ids,
             positions,
+            [floor_of.get(i, DEFAULT_FLOOR) for i in ids],
             lit_now=lit,
             last_chosen_s={k: (t_ns - v) * _NS for k, v in self._chosen_ns.items()},
             wear_h={k: v / 3600.0 for k, v in self.lit_s.items()},

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Mapping
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -144,9 +144,16 @@ def attach_scheduler(
         value: tuple[list[int], np.ndarray[Any, np.dtype[np.float64]]] = cache["value"]
         return value
 
+    def floors() -> dict[int, str]:
+        if "floors" not in cache:
+            cache["floors"] = {lm.id: lm.floor for lm in map.list()}
+        value: dict[int, str] = cache["floors"]
+        return value
+
     return make_scheduler(
-        landmarks, runners, coordinator, clock_ns, settings, period_s=period_s, routes=routes
-    )
+        landmarks, runners, coordinator, clock_ns, settings, period_s=period_s, routes=routes,
+        floors=floors,
+    )  # fmt: skip
 
 
 def make_scheduler(
@@ -158,8 +165,10 @@ def make_scheduler(
     *,
     period_s: float = 0.25,
     routes: Callable[[str], tuple[tuple[float, float], ...]] | None = None,
+    floors: Callable[[], Mapping[int, str]] | None = None,
 ) -> LedScheduler:
-    """A started scheduler whose plans become the coordinator's normal state."""
+    """A started scheduler whose plans become the coordinator's normal state (planned per
+    floor when `floors` maps landmark IDs to floors)."""
     by_name: dict[str, float] = {}
 
     def max_speed(name: str) -> float:
@@ -187,6 +196,7 @@ def make_scheduler(
         set_awake=None if window is None else set_awake,
         wake_window=window,
         routes=routes,
+        floors=floors,
     )
     coordinator.normal = scheduler.lit_ids
     scheduler.start()

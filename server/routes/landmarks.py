@@ -62,7 +62,14 @@ def _leds(services: ServicesDep, event: LedsChanged) -> LedState:
 
 
 @router.get("")
-def list_landmarks(services: ServicesDep, _: Viewer) -> list[LandmarkPublic]:
+def list_landmarks(
+    services: ServicesDep,
+    _: Viewer,
+    floor: str | None = Query(None, description="only this floor's landmarks (floor ID)"),
+) -> list[LandmarkPublic]:
+    if floor is not None:
+        services.floors.get(floor)  # 404 naming an unknown floor
+        return services.map.on_floor(floor)
     return services.map.list()
 
 

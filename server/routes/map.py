@@ -29,7 +29,7 @@ class ImportResult(BaseModel):
 def export_map(
     services: ServicesDep, _: Viewer, format: Literal["json", "csv"] = Query("json")
 ) -> Any:
-    """The map as map.json (`?format=csv` for CSV: `id,x,y,z,radio,locked,note`)."""
+    """The map as map.json (`?format=csv` for CSV: `id,x,y,z,radio,locked,note,floor`)."""
     if format == "csv":
         return PlainTextResponse(services.map.export_csv(), media_type="text/csv")
     return services.map.export_json()

@@ -6,11 +6,14 @@ from fastapi import APIRouter, Response, status
 from pydantic import BaseModel, Field
 
 from live.agent_runner import AgentRunner, agent_fields
+from live.floor_watch import FloorProposal, FloorWatch
 from live.poses import PosePublic, pose_json
+from live.vda5050 import init_positions
 from localizer.camera import camera_from_sensor
 from localizer.events import Mode, OdometryMeasured
 from server.auth import Admin, Operator, Viewer
 from server.deps import RobotName, ServicesDep
+from store.errors import NotFoundError, UnavailableError
 from store.models import RobotCreate, RobotPublic
 
 router = APIRouter(prefix="/robots", tags=["robots"])
@@ -29,6 +32,8 @@ class RobotStatus(BaseModel):
     clock_offset_s: float | None = None
     clock_error_s: float | None = None
     clock_ok: bool | None = None
+    floor: str = Field("0", description="the floor whose map its localizer holds")
+    map_version: int = Field(0, description="the version of that floor's map it holds")
 
 
 class WheelSpeeds(BaseModel):
@@ -61,6 +66,8 @@ def _status(services: ServicesDep, name: str) -> RobotStatus:
         errors=r.errors,
         last_fix_t_ns=r.last_fix_t_ns,
         recording=r.recorder is not None,
+        floor=r.floor,
+        map_version=r.map_version,
     )
 
 
@@ -78,7 +85,10 @@ async def get_robot(name: RobotName, services: ServicesDep, _: Viewer) -> RobotS
 async def get_pose(name: RobotName, services: ServicesDep, _: Viewer) -> Response:
     """The latest pose: x, y, theta, covariance, mode, landmarks used, timestamp, age."""
     runner = services.robots.get(name)
-    return Response(pose_json(name, runner.mode, runner.latest), media_type="application/json")
+    text = pose_json(
+        name, runner.mode, runner.latest, floor=runner.floor, map_version=runner.map_version
+    )
+    return Response(text, media_type="application/json")
 
 
 class PoseHint(BaseModel):
@@ -87,6 +97,14 @@ class PoseHint(BaseModel):
     x: float = Field(allow_inf_nan=False, ge=-1e4, le=1e4, description="metres")
     y: float = Field(allow_inf_nan=False, ge=-1e4, le=1e4, description="metres")
     theta: float = Field(0.0, allow_inf_nan=False, ge=-7.0, le=7.0, description="radians")
+
+
+class FloorChange(BaseModel):
+    """The robot is now on `floor` (it left the lift there), near a pose of that floor's
+    map when given (the lift's node)."""
+
+    floor: str = Field(min_length=1, max_length=32, description="floor ID")
+    near: PoseHint | None = Field(None, description="where on that floor (the lift's node)")
 
 
 # the routes that feed a localizer are plain `def` (threadpool): the robot's lock may be held
@@ -100,6 +118,128 @@ def relocalize(
     pose may be confirmed from the map at once)."""
     services.robots.relocalize(name, None if near is None else (near.x, near.y, near.theta))
     return _status(services, name)
+
+
+@router.post("/{name}/floor", status_code=status.HTTP_202_ACCEPTED)
+def change_floor(
+    name: RobotName, body: FloorChange, services: ServicesDep, who: Operator
+) -> RobotStatus:
+    """The robot is now on another floor (it left the lift there): its localizer takes that
+    floor's map and identifies again, near `x, y, theta` when given. 404 naming an unknown
+    robot or floor (nothing changes); an event `robot_floor_changed`."""
+    near = None if body.near is None else (body.near.x, body.near.y, body.near.theta)
+    services.site_floors.move(name, body.floor, near, by=who.actor)
+    return _status(services, name)
+
+
+class VdaActionParameter(BaseModel):
+    key: str
+    value: float | str | bool | None = None
+
+
+class VdaAction(BaseModel):
+    actionType: str = Field(description="`initPosition` (the only one carried out here)")
+    actionId: str
+    blockingType: str = "NONE"
+    actionParameters: list[VdaActionParameter] = []
+
+
+class VdaInstantActions(BaseModel):
+    """A VDA 5050 `instantActions` message (its header fields are optional here)."""
+
+    headerId: int | None = None
+    timestamp: str | None = None
+    version: str | None = None
+    manufacturer: str | None = None
+    serialNumber: str | None = None
+    actions: list[VdaAction] = Field(min_length=1)
+
+
+class InstantActionsResult(BaseModel):
+    done: list[str] = Field(description="the actionIds carried out, in order")
+    floor: str = Field(description="the robot's floor now")
+
+
+@router.post("/{name}/instant-actions", status_code=status.HTTP_202_ACCEPTED)
+def instant_actions(
+    name: RobotName, body: VdaInstantActions, services: ServicesDep, who: Operator
+) -> InstantActionsResult:
+    """VDA 5050 `instantActions` for this robot: `initPosition` (`x`, `y`, `theta`,
+    `mapId` = a floor ID) sets its floor and pose, e.g. as it leaves the lift. 422 naming a
+    bad parameter or an action type not carried out, 404 naming an unknown floor; nothing
+    is done then."""
+    actions = [
+        (a.actionType, a.actionId, {p.key: p.value for p in a.actionParameters})
+        for a in body.actions
+    ]
+    inits = init_positions(actions)
+    for init in inits:
+        services.floors.check(init.map_id, what=f"action {init.action_id!r}: robot {name!r}")
+    services.robots.get(name)
+    for init in inits:
+        services.site_floors.move(
+            name, init.map_id, (init.x, init.y, init.theta), by=f"{who.actor} (initPosition)"
+        )
+    return InstantActionsResult(
+        done=[i.action_id for i in inits], floor=services.robots.get(name).floor
+    )
+
+
+class FloorProposalPublic(BaseModel):
+    """The floor a robot's view fits (it has no fix on its own floor's map), not yet taken."""
+
+    robot: str
+    floor: str = Field(description="the floor proposed")
+    current_floor: str = Field(description="the floor the robot is on now")
+    x: float = Field(description="its pose on the proposed floor's map: metres")
+    y: float = Field(description="metres")
+    theta: float = Field(description="radians")
+    t_ns: int = Field(description="the time of that pose (site clock)")
+    fixes: int = Field(description="landmark fixes in a row on the proposed floor")
+
+
+def _watch(services: ServicesDep) -> FloorWatch:
+    live = services.live
+    if live is None or live.floor_watch is None:
+        raise UnavailableError("floor proposals need the live site and its radio")
+    return live.floor_watch
+
+
+def _proposal(services: ServicesDep, p: FloorProposal) -> FloorProposalPublic:
+    return FloorProposalPublic(
+        robot=p.robot, floor=p.floor, current_floor=services.robots.get(p.robot).floor,
+        x=p.x, y=p.y, theta=p.theta, t_ns=p.t_ns, fixes=p.fixes,
+    )  # fmt: skip
+
+
+@router.get("/{name}/floor-proposal")
+def get_floor_proposal(name: RobotName, services: ServicesDep, _: Viewer) -> FloorProposalPublic:
+    """The floor the robot's view fits while it has no fix on its own (404 when none is
+    proposed): nothing changes until it is accepted."""
+    services.robots.get(name)
+    found = _watch(services).proposal(name)
+    if found is None:
+        raise NotFoundError(f"robot {name!r} has no floor proposal")
+    return _proposal(services, found)
+
+
+@router.post("/{name}/floor-proposal/accept", status_code=status.HTTP_202_ACCEPTED)
+def accept_floor_proposal(
+    name: RobotName, services: ServicesDep, who: Operator
+) -> FloorProposalPublic:
+    """Move the robot to the proposed floor, near its latest pose there (404 without a
+    proposal); an event `robot_floor_changed`."""
+    services.robots.get(name)
+    return _proposal(services, _watch(services).accept(name, by=f"{who.actor} (proposal)"))
+
+
+@router.post("/{name}/floor-proposal/reject")
+def reject_floor_proposal(
+    name: RobotName, services: ServicesDep, _: Operator
+) -> FloorProposalPublic:
+    """Drop the proposal (404 without one); the robot is tried again later."""
+    services.robots.get(name)
+    return _proposal(services, _watch(services).reject(name))
 
 
 @router.post("/{name}/odometry", status_code=status.HTTP_202_ACCEPTED)

@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from fleet.payloads import LedStateMessage, MapMessage
+from fleet.payloads import AgentStatus, LedStateMessage, MapMessage
 from fleet.topics import SiteTopics, vda_topic
 from tests.fleet.mosquitto import Mosquitto, mosquitto_binary
 from tests.fleet.recorder import Recorder
@@ -138,6 +138,9 @@ def test_agents_localize_on_the_sites_leds_and_appear_as_robots(fleet: Fleet) ->
     ) as ws:
         batch = json.loads(ws.receive_text())
     assert {p["robot"] for p in batch} == {"a2"} and batch[-1]["x"] is not None
+    # an agent's poses name the floor and the map version it localizes on
+    version = fleet.api.services.map_versions.version("0")
+    assert (batch[-1]["floor"], batch[-1]["map_version"]) == ("0", version) and version >= 1
     time.sleep(1.0)
     for name in ("a1", "a2"):
         err = landmark_errors(fleet.truth[name])
@@ -231,3 +234,24 @@ def test_kill_9_gives_connection_broken_and_an_event_within_2_s(fleet: Fleet) ->
     )
     assert robots(fleet)["a2"]["connected"] is False
     assert robots(fleet)["a1"]["connected"] is True
+
+
+def test_an_agent_holding_an_old_map_version_is_told(fleet: Fleet) -> None:
+    """A status naming an older version of its floor's map than the server's: an event
+    `agent_map_outdated` and the current map published again (retained)."""
+    wait_until(lambda: "a1" in robots(fleet), 30.0, "a1 registered")
+    status = AgentStatus(source="sim", camera={}, wheel_base=0.36, max_speed=1.0,
+                         mode="landmark", map_id="old", map_version=0)  # fmt: skip
+    fleet.watch.client.publish(TOPICS.status("a1"), status.encode(), qos=1)
+    wait_until(
+        lambda: any(e.kind == "agent_map_outdated" and e.robot == "a1"
+                    for e in fleet.api.services.events.recent(50)),
+        10.0,
+        "agent_map_outdated for a1",
+    )  # fmt: skip
+    ev = next(e for e in fleet.api.services.events.recent(50) if e.kind == "agent_map_outdated")
+    assert ev.data["held"] == 0 and ev.data["current"] == fleet.api.services.map_versions.version(
+        "0"
+    )
+    maps = fleet.watch.on(TOPICS.map)
+    assert json.loads(maps[-1].payload)["version"] == ev.data["current"]

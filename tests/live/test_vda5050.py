@@ -10,8 +10,10 @@ import pytest
 
 from live.poses import PoseUpdate
 from live.vda5050 import (
+    InitPosition,
     VisualizationEncoder,
     deviation_range_m,
+    init_positions,
     iso8601_utc,
     visualization_topic,
 )
@@ -29,7 +31,7 @@ def test_message_carries_the_pose_and_counts_headers_per_robot() -> None:
     assert msg["timestamp"] == "2023-11-14T22:13:20.123Z"
     assert (msg["version"], msg["manufacturer"], msg["serialNumber"]) == ("2.1.0", "irloc", "r1")
     pos = msg["agvPosition"]
-    assert (pos["x"], pos["y"], pos["theta"], pos["mapId"]) == (1.5, -2.0, math.pi / 2, "hall-1")
+    assert (pos["x"], pos["y"], pos["theta"], pos["mapId"]) == (1.5, -2.0, math.pi / 2, "0")
     assert pos["positionInitialized"] is True
     # 95 % radius of the major axis: sqrt(5.991) * 2 cm
     assert pos["deviationRange"] == pytest.approx(0.02 * math.sqrt(5.991), rel=1e-3)
@@ -49,3 +51,22 @@ def test_topic_and_helpers() -> None:
         visualization_topic("irloc", "r/1")
     assert iso8601_utc(0) == "1970-01-01T00:00:00.000Z"
     assert deviation_range_m(np.zeros((3, 3))) == 0.0
+
+
+def test_map_id_is_the_floor_of_the_pose() -> None:
+    enc = VisualizationEncoder("irloc", "site")
+    u = PoseUpdate("r1", 5, "landmark", 1.0, 2.0, 0.0, np.eye(3) * 1e-4, floor="1")
+    assert enc.encode(u)["agvPosition"]["mapId"] == "1"
+
+
+def test_init_position_actions_are_read_and_bad_ones_named() -> None:
+    params = {"x": 8.0, "y": 2.4, "theta": 0.5, "mapId": "1", "lastNodeId": "lift-1"}
+    assert init_positions([("initPosition", "a1", params)]) == [
+        InitPosition("a1", "1", 8.0, 2.4, 0.5)
+    ]
+    with pytest.raises(ValueError, match="action 'a2': theta must be a number"):
+        init_positions([("initPosition", "a2", {**params, "theta": "north"})])
+    with pytest.raises(ValueError, match="action 'a3': mapId must name a floor"):
+        init_positions([("initPosition", "a3", {"x": 1, "y": 2, "theta": 0})])
+    with pytest.raises(ValueError, match="'startPause' is not supported"):
+        init_positions([("startPause", "a4", {})])

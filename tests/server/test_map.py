@@ -35,7 +35,7 @@ def test_csv_export_then_import_restores_the_map(api: Api) -> None:
     c, h = api.client, api.h("admin")
     c.put("/api/v1/map", json=MAP, headers=h)
     csv_text = c.get("/api/v1/map?format=csv", headers=h).text
-    assert csv_text.splitlines()[0] == "id,x,y,z,radio,locked,note"
+    assert csv_text.splitlines()[0] == "id,x,y,z,radio,locked,note,floor"
     assert c.put("/api/v1/map", json={"landmarks": []}, headers=h).status_code == 409
     c.put("/api/v1/map?confirm=true", json={"landmarks": []}, headers=h)
     assert c.get("/api/v1/landmarks", headers=h).json() == []

@@ -50,9 +50,11 @@ SAFE_INT = 2**53
 SEMANTIC = {
     ("PATCH", "/api/v1/map/floorplan/placement"),
     ("PUT", "/api/v1/map/floorplan"),
+    ("POST", "/api/v1/robots/{name}/instant-actions"),
 }
 """Operations with a rule their schema does not state (two distinct placement points, each
-given as `x,y` in a query string)."""
+given as `x,y` in a query string; a VDA 5050 action's parameters: `initPosition` needs
+numbers `x`, `y`, `theta` and a `mapId`)."""
 SIBLINGS = {"/api/v1/landmarks/audit"}
 """Paths that a templated sibling (`/landmarks/{landmark_id}`) also matches: another method
 there reaches the sibling and is refused by its ID check (422), not 405."""

@@ -117,6 +117,15 @@ class MemSite:
     def ceiling_height(self) -> float:
         return 2.5
 
+    def floors(self) -> list[tuple[str, str]]:
+        return [("0", "Floor 0")]  # one floor: the viewer shows no floor selector
+
+    def show_floor(self, floor: str | None) -> None:
+        return None
+
+    def elsewhere(self) -> list[tuple[str, str]]:
+        return []
+
     # -- actions -----------------------------------------------------------------------------
     def relocalize(self, robot: str, *, actor: str) -> None:
         self.relocalized.append(robot)
