@@ -242,6 +242,8 @@ class FloorUpdate(SQLModel):
     def _not_null(cls, v: object, info: Any) -> object:
         if v is None:
             raise ValueError(f"{info.field_name} cannot be null (leave it out to keep it)")
+        if isinstance(v, bool) and info.field_name != "name":
+            raise ValueError(f"{info.field_name} must be a number, not {v!r}")
         return v
 
 

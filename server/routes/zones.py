@@ -8,7 +8,7 @@ from typing import Annotated
 
 import numpy as np
 from fastapi import APIRouter, Path, Query, status
-from pydantic import BaseModel, Field
+from pydantic import BaseModel, BeforeValidator, Field
 
 from live.zones_history import coverage_grid
 from server.auth import Admin, Viewer
@@ -17,8 +17,28 @@ from store.models import PoseRecord, ZoneRecord
 
 router = APIRouter(tags=["zones and history"])
 ZoneId = Annotated[int, Path(ge=1, le=2**31, description="zone id")]
-Since = Annotated[datetime | None, Query(description="from (ISO 8601; UTC when no offset)")]
-Until = Annotated[datetime | None, Query(description="until, excluded (ISO 8601)")]
+
+
+def _iso_time(value: object) -> object:
+    """A time given as ISO 8601 text; a bare number (which pydantic would read as seconds
+    since 1970) is refused, as the schema's `date-time` format says."""
+    if isinstance(value, str):
+        try:
+            float(value)
+        except ValueError:
+            return value
+        raise ValueError(f"{value!r} is no ISO 8601 time (e.g. 2026-12-07T16:00:00Z)")
+    return value
+
+
+Since = Annotated[
+    datetime | None,
+    BeforeValidator(_iso_time),
+    Query(description="from (ISO 8601; UTC when no offset)"),
+]
+Until = Annotated[
+    datetime | None, BeforeValidator(_iso_time), Query(description="until, excluded (ISO 8601)")
+]
 
 
 class ZoneCreate(BaseModel):
