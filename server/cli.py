@@ -18,6 +18,8 @@ from server.logs import configure_logging
 from server.settings import Settings
 
 if TYPE_CHECKING:
+    import uvicorn
+
     from server.seams import ViewerApp
 
 
@@ -91,7 +93,6 @@ def main(
         print(f"irloc serve: --map {settings.map_file}: no such file", file=sys.stderr)
         return 2
     configure_logging(args.log_level, settings.log_format)
-    import uvicorn
 
     from server.db import make_engine
     from server.main import create_app
@@ -120,16 +121,37 @@ def main(
     if first_key is not None:
         print(lines[-1])  # the key, last: easy to spot
     sys.stdout.flush()
-    config = uvicorn.Config(
-        create_app(settings, viewer),
-        host=settings.host,
-        port=settings.port,
-        workers=1,
-        log_level=args.log_level,
-        log_config=None,  # uvicorn's loggers go through configure_logging's handler
-        lifespan="on",
-    )
+    config = uvicorn_config(settings, create_app(settings, viewer), args.log_level)
     from server.shutdown import serve
 
     serve(config)
     return 0
+
+
+def uvicorn_config(settings: Settings, app: object, log_level: str = "info") -> uvicorn.Config:
+    """uvicorn's configuration of `irloc serve`: the guarded HTTP protocol (header timeout,
+    connection caps: `server.connections`), forwarded-for headers only from
+    `trusted_proxies` (uvicorn believes loopback's by default), the open-file limit raised."""
+    import uvicorn
+
+    from server.connections import EdgeLimits, GuardedHttpProtocol, raise_open_file_limit
+
+    raise_open_file_limit()
+    config = uvicorn.Config(
+        app,  # type: ignore[arg-type]
+        host=settings.host,
+        port=settings.port,
+        workers=1,
+        log_level=log_level,
+        log_config=None,  # uvicorn's loggers go through configure_logging's handler
+        lifespan="on",
+        http=GuardedHttpProtocol,
+        proxy_headers=bool(settings.trusted_proxies),
+        forwarded_allow_ips=list(settings.trusted_proxies) or None,
+    )
+    config.edge_limits = EdgeLimits(  # type: ignore[attr-defined]  # read by guard_of
+        header_timeout_s=settings.header_timeout_s,
+        max_per_address=settings.max_connections_per_address,
+        max_connections=settings.max_connections,
+    )
+    return config

@@ -85,6 +85,15 @@ class JsonFormatter(logging.Formatter):
         return json.dumps(out, default=str, ensure_ascii=False)
 
 
+class QuietRefusals(logging.Filter):
+    """Leaves 401 and 429 answers out of uvicorn's access log: a flood of bad keys would
+    write a line each (`server.throttle` logs them as one line per burst)."""
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        args = record.args
+        return not (isinstance(args, tuple) and len(args) >= 5 and args[4] in (401, 429))
+
+
 def configure_logging(
     level: str = "info", fmt: LogFormat = "text", stream: IO[str] | None = None
 ) -> logging.Handler:
@@ -102,6 +111,9 @@ def configure_logging(
     root.setLevel(level.upper())
     for name, quiet_level in QUIET.items():
         logging.getLogger(name).setLevel(quiet_level)
+    access = logging.getLogger("uvicorn.access")
+    if not any(isinstance(f, QuietRefusals) for f in access.filters):
+        access.addFilter(QuietRefusals())
     for name in ("uvicorn", "uvicorn.error", "uvicorn.access"):
         lg = logging.getLogger(name)
         lg.handlers.clear()

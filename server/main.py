@@ -26,6 +26,7 @@ from rf_gateway.errors import (
     UnknownLandmarkError,
 )
 from server.auth import Viewer, authenticate
+from server.edge import EdgeGuard
 from server.errors import ConflictError, NotFoundError, UnavailableError
 from server.fanout import PoseFanout
 from server.health import Health, site_health
@@ -52,6 +53,7 @@ from server.routes import (
 from server.seams import ViewerApp
 from server.services import SiteServices
 from server.settings import Settings
+from server.storage_errors import install_storage_errors
 
 log = logging.getLogger(__name__)
 API_PREFIX = "/api/v1"
@@ -103,6 +105,7 @@ def _install_error_handlers(app: FastAPI) -> None:
         return JSONResponse({"detail": "; ".join(parts), "errors": listed}, status_code=422)
 
     app.add_exception_handler(RequestValidationError, bad_request)
+    install_storage_errors(app)
 
 
 def create_app(settings: Settings | None = None, viewer: ViewerApp | None = None) -> FastAPI:
@@ -148,6 +151,7 @@ def create_app(settings: Settings | None = None, viewer: ViewerApp | None = None
     )
     _install_error_handlers(app)
     install_body_errors(app)
+    app.add_middleware(EdgeGuard, default_body_bytes=settings.max_body_bytes)
     api = APIRouter(prefix=API_PREFIX, dependencies=[Depends(refuse_unknown_query)])
     for module in (
         landmarks, map, history, floorplan, robots, calibration, remote, admin, streams,

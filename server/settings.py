@@ -90,6 +90,15 @@ class Settings(BaseSettings):
             given: the simulated radio's landmarks sleep at `SIM_SLEEP_PERIOD_S` (modules
             set up as docs/rf_gateway.md recommends), an XBee radio's are taken as awake
             (the modules' own `SM` decides; set this to match them).
+        max_body_bytes: a request body's limit where the route sets none larger (413 past
+            it; the map, floor plan and lens photos have their own, `server.edge`).
+        header_timeout_s: a request's headers must be complete this long after its first
+            byte, seconds (else the connection is closed).
+        max_connections_per_address, max_connections: open connections per client address
+            and in all (the latter also kept under the open-file limit; `server.connections`).
+        trusted_proxies: addresses (or networks) of reverse proxies whose `X-Forwarded-For`
+            and `X-Forwarded-Proto` are believed; empty (the default): none, the client
+            address is the socket's.
     """
 
     model_config = SettingsConfigDict(env_prefix="IRLOC_", extra="ignore")
@@ -120,6 +129,11 @@ class Settings(BaseSettings):
     mqtt_site: str = Field(default="default", pattern=r"^[A-Za-z0-9_.-]{1,64}$")
     vda_manufacturer: str = Field(default="irloc", pattern=r"^[A-Za-z0-9_.-]{1,64}$")
     sim_robots: bool = True
+    max_body_bytes: int = Field(default=1024 * 1024, ge=1024)
+    header_timeout_s: float = Field(default=10.0, gt=0.0, le=300.0)
+    max_connections_per_address: int = Field(default=512, ge=4)
+    max_connections: int = Field(default=4096, ge=16)
+    trusted_proxies: list[str] = Field(default_factory=list)
 
     @field_validator("radio")
     @classmethod
@@ -144,6 +158,20 @@ class Settings(BaseSettings):
             sleeping = self.radio_sleep_period_s is not None
             self.led_policy = "scheduled" if sleeping else "all_lit"
         return self
+
+    @field_validator("trusted_proxies")
+    @classmethod
+    def _check_proxies(cls, value: list[str]) -> list[str]:
+        import ipaddress
+
+        for item in value:
+            try:
+                ipaddress.ip_network(item, strict=False)
+            except ValueError:
+                raise ValueError(
+                    f"trusted_proxies: {item!r} is not an IP address or network"
+                ) from None
+        return value
 
     @field_validator("mqtt_url")
     @classmethod
