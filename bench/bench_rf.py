@@ -16,13 +16,13 @@ from pathlib import Path
 
 import numpy as np
 
+from lighting.battery import Battery
 from rf_gateway import Gateway, GatewayConfig
 from rf_gateway.battery import BatteryConfig
 from rf_gateway.emulator import EmulatedRemote, FaultConfig, XBeeEmulator
 from rf_gateway.sim_transport import SimTransport
 from rf_gateway.transport import Transport
 from rf_gateway.xbee_transport import XBeeTransport, XBeeTransportConfig
-from sim.battery import Battery
 from sim.radio import SimRadio
 from sim.world import SimLandmark, World
 

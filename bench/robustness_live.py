@@ -19,6 +19,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from bench.robustness_score import FrameResult
+from live.leds.coordinator import LedCoordinator
 from localizer.config import LocalizerConfig
 from localizer.events import (
     Event,
@@ -34,7 +35,6 @@ from rf_gateway.battery import BatteryConfig
 from rf_gateway.config import GatewayConfig
 from rf_gateway.gateway import Gateway
 from rf_gateway.sim_transport import SimTransport
-from server.site.leds import LedCoordinator
 from sim.live import LiveSite
 from sim.scenario import Scenario
 

@@ -14,8 +14,8 @@ from typing import TYPE_CHECKING
 
 from pydantic import ValidationError
 
+from live.settings import Settings
 from server.logs import configure_logging
-from server.settings import Settings
 
 if TYPE_CHECKING:
     import uvicorn
@@ -94,9 +94,9 @@ def main(
         return 2
     configure_logging(args.log_level, settings.log_format)
 
-    from server.db import make_engine
+    from live.services import prepare_database
     from server.main import create_app
-    from server.services import prepare_database
+    from store.db import make_engine
 
     engine = make_engine(settings.db_url)
     first_key = prepare_database(engine)

@@ -1,7 +1,7 @@
 """The floor plan in the viewer: the image on the floor (`/floorplan`, shared by every
 browser) and the admin's controls to upload and place it by two points.
 
-Both go through `server.floorplan.FloorPlanStore`, as `PUT /map/floorplan` does; the layer
+Both go through `store.floorplan.FloorPlanStore`, as `PUT /map/floorplan` does; the layer
 redraws when the store's `version` changes (an upload through the API shows within a
 landmark refresh, 0.5 s).
 """
@@ -16,7 +16,7 @@ import cv2
 import numpy as np
 import viser
 
-from server.floorplan import FloorPlanInfo, FloorPlanStore, Placement, image_size
+from store.floorplan import FloorPlanInfo, FloorPlanStore, Placement, image_size
 from web.footprint import Bounds
 
 FLOORPLAN_Z_M = -0.01

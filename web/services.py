@@ -17,9 +17,9 @@ import numpy.typing as npt
 
 from commissioning.types import Candidate
 from commissioning.wizard import WizardStatus
+from live.survey.service import SurveyStatus
 from localizer.camera import CameraModel
 from localizer.events import PoseEstimate
-from server.survey_service import SurveyStatus
 
 __all__ = [
     "CameraView",
@@ -48,7 +48,7 @@ class LandmarkState:
             or every LED lit without a schedule).
         duty: share of the time it was lit since the site started.
         model_days: days its cells last at that duty from the measured voltage (the energy
-            model, `server.led_schedule.status`), None when never read.
+            model, `live.leds.status`), None when never read.
         low: flagged: its LED dims within a week at that duty, or is dim already.
     """
 
@@ -218,7 +218,7 @@ class ViewerSite(Protocol):
 
     def wizard_cancel(self, *, actor: str) -> None: ...
 
-    # -- the site's live survey (`server.survey_service.LiveSurvey`, run by the server) ------
+    # -- the site's live survey (`live.survey.service.LiveSurvey`, run by the server) ------
     def survey_status(self) -> SurveyStatus:
         """Where the survey is: its live estimate, route, or final proposals."""
         ...

@@ -48,7 +48,7 @@ from web.viser_compat import (
 )
 
 if TYPE_CHECKING:
-    from server.services import SiteServices
+    from live.services import SiteServices
 
 log = logging.getLogger(__name__)
 __all__ = ["TICKET_PARAM", "SiteViewer", "ViewerConfig"]

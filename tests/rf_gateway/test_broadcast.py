@@ -10,12 +10,12 @@ import numpy as np
 import pytest
 
 from bench.virtual_site import run_virtual
+from lighting.battery import Battery
+from lighting.energy import RadioSleep
 from rf_gateway.battery import BatteryConfig
 from rf_gateway.config import GatewayConfig, SleepConfig
 from rf_gateway.gateway import Gateway
 from rf_gateway.sim_transport import SimTransport
-from sim.battery import Battery
-from sim.energy import RadioSleep
 from sim.radio import SimRadio
 from sim.world import SimLandmark, World
 

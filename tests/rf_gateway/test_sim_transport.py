@@ -7,6 +7,7 @@ import asyncio
 import numpy as np
 import pytest
 
+from lighting.battery import Battery
 from localizer.events import LedsChanged
 from rf_gateway.battery import BatteryConfig
 from rf_gateway.config import GatewayConfig
@@ -16,7 +17,6 @@ from rf_gateway.gateway import Gateway
 from rf_gateway.sim_transport import SimTransport
 from rf_gateway.transport import DiscoveredRadio
 from rf_gateway.xbee_transport import XBeeTransport
-from sim.battery import Battery
 from sim.radio import SimRadio
 from sim.world import SimLandmark, World
 

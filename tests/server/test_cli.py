@@ -7,8 +7,8 @@ from pathlib import Path
 import pytest
 
 from server import cli, keys_cli
-from server.crud import KeyStore
-from server.db import make_engine
+from store import KeyStore
+from store.db import make_engine
 
 
 def test_keys_create_list_revoke(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -15,7 +15,7 @@ from sqlalchemy.exc import OperationalError
 from server.cli import uvicorn_config
 from server.edge import EdgeGuard, body_limit
 from server.logs import QuietRefusals
-from server.settings import Settings
+from live.settings import Settings
 from server.stream_guard import draining
 from tests.server.conftest import Api
 

@@ -26,10 +26,10 @@ from commissioning.wizard import (
     WizardEvent,
     WizardStatus,
 )
+from live.survey.service import SurveyStatus
 from localizer.camera import CameraModel, predict_pixels
 from localizer.events import PoseEstimate
 from localizer.geometry import T_world_body_from_pose
-from server.survey_service import SurveyStatus
 from sim.cameras import wide_angle_camera
 from web.services import CameraView, Candidate, EventLine, LandmarkState, RobotState
 

@@ -11,7 +11,7 @@ from collections.abc import Callable
 
 import viser
 
-from server.upkeep_service import MapUpkeepService, UpkeepStatus
+from live.upkeep_service import MapUpkeepService, UpkeepStatus
 from web.roles import Session
 
 NONE = "(no proposal)"
