@@ -10,6 +10,7 @@ from dataclasses import dataclass, field
 from datetime import datetime
 from typing import Any
 
+from live.event_writer import EventWriter, PendingEvent
 from pubsub.bus import Bus
 from store.log import EventLog
 
@@ -25,6 +26,8 @@ EVENT_KINDS = (
     "robot_connected",
     "robot_disconnected",
     "clock_offset",
+    "recording_stopped",
+    "site_thread_restarted",
 )
 WARNING_EVENTS = frozenset(
     {
@@ -34,6 +37,8 @@ WARNING_EVENTS = frozenset(
         "led_request_failed",
         "radio_state",
         "clock_offset",
+        "recording_stopped",
+        "site_thread_restarted",
     }
 )
 """Kinds logged as warnings (the others as info)."""
@@ -73,11 +78,26 @@ class SiteEvent:
 
 
 class EventHub:
-    """Record an event in the database, then publish it (thread-safe)."""
+    """Log an event at once, then store it in the database and publish it from the event
+    writer's thread (`live.event_writer`): whoever emits never waits on the database, and a
+    failing database loses no event and stops nothing (thread-safe)."""
 
     def __init__(self, log: EventLog, maxsize: int = 256) -> None:
         self.log = log
         self.bus: Bus[SiteEvent] = Bus(maxsize)
+        self.writer = EventWriter(log, self._publish)
+
+    def _publish(self, ev: PendingEvent, event_id: int) -> None:
+        self.bus.publish(
+            SiteEvent(event_id, ev.t, ev.kind, ev.message, ev.robot, ev.landmark_id, ev.data)
+        )
+
+    def flush(self, timeout_s: float = 2.0) -> bool:
+        """Wait until the events emitted so far are stored (or kept for a failing database)."""
+        return self.writer.flush(timeout_s)
+
+    def close(self) -> None:
+        self.writer.close()
 
     def emit(
         self,
@@ -87,8 +107,8 @@ class EventHub:
         robot: str | None = None,
         landmark_id: int | None = None,
         data: dict[str, Any] | None = None,
-    ) -> SiteEvent:
-        rec = self.log.add_event(kind, message, robot=robot, landmark_id=landmark_id, data=data)
+    ) -> None:
+        pending = PendingEvent(kind, message, robot, landmark_id, dict(data or {}))
         extra: dict[str, Any] = {"event": kind}
         if robot is not None:
             extra["robot"] = robot
@@ -96,12 +116,11 @@ class EventHub:
             extra["landmark"] = landmark_id
         level = logging.WARNING if kind in WARNING_EVENTS else logging.INFO
         log.log(level, "%s", message, extra=extra)
-        event = SiteEvent(rec.id or 0, rec.t, kind, message, robot, landmark_id, rec.data)
-        self.bus.publish(event)
-        return event
+        self.writer.submit(pending)
 
     def recent(self, limit: int = 100) -> list[SiteEvent]:
-        """The newest events first."""
+        """The newest events first (those emitted before the call included)."""
+        self.writer.flush(1.0)
         return [
             SiteEvent(r.id or 0, r.t, r.kind, r.message, r.robot, r.landmark_id, r.data)
             for r in self.log.events(limit)

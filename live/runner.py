@@ -15,6 +15,7 @@ import contextlib
 import dataclasses
 import logging
 from collections.abc import Callable, Iterable
+from pathlib import Path
 from typing import Protocol
 
 from live.events import EventHub
@@ -28,9 +29,11 @@ from live.leds.wiring import (
     xbee_config,
 )
 from live.poses import PoseUpdate
+from live.recording_queue import MIB, RecordingLimits
 from live.robots import RobotRunner, make_localizer
 from live.serial_sink import SerialSink
 from live.settings import Settings
+from live.supervisor import SiteSupervisor
 from localizer.camera import camera_from_sensor, sensor_from_camera
 from localizer.events import Event, LedRequest, Mode
 from localizer.robot import RobotGeometry
@@ -123,6 +126,7 @@ class LiveSiteRunner:
         self.serial: SerialSink | None = None
         self._tasks: list[asyncio.Task[None]] = []
         self._loop: asyncio.AbstractEventLoop | None = None
+        self.supervisor = SiteSupervisor(lambda: self.sources, self.robots.runners, events)
 
     @property
     def sources(self) -> list[FrameSource]:
@@ -157,6 +161,7 @@ class LiveSiteRunner:
                 self.sim, self.clock_ns, step_hz=SITE_STEP_HZ, max_frame_lag_s=MAX_FRAME_LAG_S
             )
             self.sim_source.start(self.robots.deliver)
+        self._tasks.append(asyncio.get_running_loop().create_task(self.supervisor.run()))
 
     def start_robot(self, robot: RobotPublic) -> RobotRunner:
         """Run (or restart with a new configuration) one robot's localizer and sources."""
@@ -175,6 +180,12 @@ class LiveSiteRunner:
             source=robot.source,
         )
         runner.on_mode_change = self._on_mode_change
+        runner.on_recording_stopped = self._on_recording_stopped
+        runner.recording_limits = RecordingLimits(
+            max_bytes=self.settings.recording_max_mb * MIB,
+            max_s=self.settings.recording_max_s,
+            min_free_bytes=self.settings.recording_min_free_mb * MIB,
+        )
         self.robots.add(runner)
         if robot.source == "camera" and robot.device:
             cam = CameraSource(robot.name, robot.device, self.clock_ns)
@@ -267,7 +278,7 @@ class LiveSiteRunner:
             )  # fmt: skip
         self.led_facade.attach(self.gateway, self.leds, self.scheduler)
         loop = asyncio.get_running_loop()
-        self._tasks = [loop.create_task(self._gateway_events())]
+        self._tasks.append(loop.create_task(self._gateway_events()))
 
     def _routes(self, robot: str) -> tuple[tuple[float, float], ...]:
         """Where a robot drives next, as far as the site knows (the virtual site's routes;
@@ -284,6 +295,14 @@ class LiveSiteRunner:
 
     def _on_led_error(self, robot: str, message: str) -> None:
         self.events.emit("led_request_failed", f"robot {robot}: {message}", robot=robot)
+
+    def _on_recording_stopped(self, robot: str, root: Path, reason: str) -> None:
+        self.events.emit(
+            "recording_stopped",
+            f"robot {robot}: recording stopped: {reason} ({root.name} keeps what was written)",
+            robot=robot,
+            data={"folder": root.name, "reason": reason},
+        )
 
     def _on_mode_change(self, robot: str, old: Mode, new: Mode) -> None:
         if new == "lost":

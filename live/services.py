@@ -137,6 +137,7 @@ class SiteServices:
             self.live = None
         self.map.remove_listener(self._on_map_changed)
         self.keys.close()  # pending last-use writes
+        self.events.close()  # events still queued
         self.engine.dispose()
 
     def _on_map_changed(self, landmarks: list[LandmarkPublic]) -> None:

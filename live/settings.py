@@ -99,6 +99,10 @@ class Settings(BaseSettings):
         trusted_proxies: addresses (or networks) of reverse proxies whose `X-Forwarded-For`
             and `X-Forwarded-Proto` are believed; empty (the default): none, the client
             address is the socket's.
+        recording_max_mb, recording_max_s: a live recording stops (with an event) when it
+            passes this size (MB) or duration (s).
+        recording_min_free_mb: a recording does not start (507), and stops, when the disk
+            has less free space than this (MB).
     """
 
     model_config = SettingsConfigDict(env_prefix="IRLOC_", extra="ignore")
@@ -134,6 +138,9 @@ class Settings(BaseSettings):
     max_connections_per_address: int = Field(default=512, ge=4)
     max_connections: int = Field(default=4096, ge=16)
     trusted_proxies: list[str] = Field(default_factory=list)
+    recording_max_mb: int = Field(default=4096, ge=1)
+    recording_max_s: float = Field(default=3600.0, gt=0.0)
+    recording_min_free_mb: int = Field(default=256, ge=0)
 
     @field_validator("radio")
     @classmethod

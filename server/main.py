@@ -31,7 +31,7 @@ from rf_gateway.errors import (
 from server.auth import Viewer, authenticate
 from server.edge import EdgeGuard
 from server.fanout import PoseFanout
-from server.health import Health, site_health
+from server.health import Health, check_health
 from server.http_errors import install_body_errors, refuse_unknown_query
 from server.landing import landing_router
 from server.metrics import make_registry, render
@@ -167,12 +167,20 @@ def create_app(settings: Settings | None = None, viewer: ViewerApp | None = None
         summary="Prometheus metrics",
     )
     app.include_router(api)
-    app.add_api_route("/healthz", _healthz, methods=["GET"], tags=["operations"])
+    app.add_api_route(
+        "/healthz",
+        _healthz,
+        methods=["GET"],
+        tags=["operations"],
+        response_model=Health,
+        responses={503: {"model": Health, "description": "degraded: `problems` names why"}},
+    )
     app.add_api_route(
         API_PREFIX + "/healthz",
         _healthz,
         methods=["GET"],
         tags=["operations"],
+        response_model=Health,
         include_in_schema=False,
     )
     if viewer is not None:
@@ -182,9 +190,11 @@ def create_app(settings: Settings | None = None, viewer: ViewerApp | None = None
     return app
 
 
-async def _healthz(request: Request) -> Health:
-    """Liveness (no key needed)."""
-    return site_health(request.app.state.services)
+async def _healthz(request: Request) -> JSONResponse:
+    """Health (no key needed): 200 when all is well, 503 naming the problems."""
+    health = await check_health(request.app.state.services)
+    code = 200 if not health.problems else 503
+    return JSONResponse(health.model_dump(), status_code=code)
 
 
 async def _metrics(request: Request, _: Viewer) -> Response:

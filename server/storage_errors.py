@@ -41,6 +41,9 @@ def is_disk_full(exc: BaseException) -> bool:
 def storage_answer(exc: BaseException) -> tuple[int, str] | None:
     """(status, detail) for a storage failure, None when `exc` is not one."""
     if is_disk_full(exc):
+        said = exc.strerror if isinstance(exc, OSError) else None
+        if said and "No space left" not in said:
+            return 507, f"disk full: {said}"
         return 507, "disk full: no space left for the data (free some space; nothing was saved)"
     if isinstance(exc, OperationalError | InterfaceError | PoolTimeoutError):
         text = str(getattr(exc, "orig", None) or exc).splitlines()[0][:160]

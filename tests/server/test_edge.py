@@ -12,10 +12,10 @@ from typing import Any
 import pytest
 from sqlalchemy.exc import OperationalError
 
+from live.settings import Settings
 from server.cli import uvicorn_config
 from server.edge import EdgeGuard, body_limit
 from server.logs import QuietRefusals
-from live.settings import Settings
 from server.stream_guard import draining
 from tests.server.conftest import Api
 
