@@ -39,7 +39,15 @@ log = logging.getLogger(__name__)
 
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="irloc agent", description=__doc__.splitlines()[0])
-    p.add_argument("--mqtt", required=True, help="the site's broker, mqtt://HOST[:PORT]")
+    p.add_argument("--mqtt", required=True, help="the site's broker, mqtt[s]://[USER@]HOST[:PORT]")
+    p.add_argument(
+        "--mqtt-password-file",
+        type=Path,
+        help="the broker password of USER (first line; else $IRLOC_MQTT_PASSWORD)",
+    )
+    p.add_argument("--mqtt-ca", type=Path, help="mqtts: the CA file that signed the broker")
+    p.add_argument("--mqtt-cert", type=Path, help="mqtts: this agent's client certificate")
+    p.add_argument("--mqtt-key", type=Path, help="mqtts: its private key")
     p.add_argument("--name", required=True, help="the robot's name (VDA 5050 serial number)")
     p.add_argument("--site", default="default", help="site name in the topics (default default)")
     p.add_argument("--manufacturer", default="irloc", help="VDA 5050 manufacturer")
@@ -188,7 +196,13 @@ def main(argv: list[str] | None = None) -> int:
         level=args.log_level.upper(), format="%(asctime)s %(levelname)s %(name)s: %(message)s"
     )
     try:
-        broker = parse_broker_url(args.mqtt)
+        broker = parse_broker_url(
+            args.mqtt,
+            password_file=args.mqtt_password_file,
+            ca_file=args.mqtt_ca,
+            cert_file=args.mqtt_cert,
+            key_file=args.mqtt_key,
+        )
         check_name("--site", args.site)
         cores = build_cores(args)
     except ValueError as exc:

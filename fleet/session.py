@@ -7,18 +7,51 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import logging
+import ssl
 from collections.abc import Awaitable, Callable, Coroutine
 from typing import Any
 
 import aiomqtt
 
-from fleet.broker import BrokerAddress
+from fleet.broker import BrokerAddress, BrokerTls
 
 log = logging.getLogger(__name__)
 RECONNECT_S = (0.2, 2.0)
 """First and longest wait between connection attempts, seconds."""
 KEEPALIVE_S = 10
 """MQTT keep-alive: a silent link is noticed after 1.5 x this (a closed socket at once)."""
+
+
+def tls_parameters(tls: BrokerTls | None) -> aiomqtt.TLSParameters | None:
+    """aiomqtt's TLS settings for `tls` (None: plain TCP): the broker verified against the
+    CA file (else the system's), this client's certificate presented when given."""
+    if tls is None:
+        return None
+    return aiomqtt.TLSParameters(
+        ca_certs=str(tls.ca_file) if tls.ca_file else None,
+        certfile=str(tls.cert_file) if tls.cert_file else None,
+        keyfile=str(tls.key_file) if tls.key_file else None,
+        cert_reqs=ssl.CERT_REQUIRED,
+        tls_version=ssl.PROTOCOL_TLS_CLIENT,
+    )
+
+
+def make_client(
+    broker: BrokerAddress, identifier: str, will: aiomqtt.Will | None = None
+) -> aiomqtt.Client:
+    """A client of `broker` logging in as its user (password, TLS files), not yet connected
+    (`async with` connects)."""
+    return aiomqtt.Client(
+        broker.host,
+        broker.port,
+        identifier=identifier,
+        username=broker.username,
+        password=broker.password,
+        tls_params=tls_parameters(broker.tls),
+        will=will,
+        keepalive=KEEPALIVE_S,
+        timeout=5.0,
+    )
 
 
 async def run_session(
@@ -36,14 +69,7 @@ async def run_session(
     wait = RECONNECT_S[0]
     while not stop.is_set():
         try:
-            async with aiomqtt.Client(
-                broker.host,
-                broker.port,
-                identifier=identifier,
-                will=will(),
-                keepalive=KEEPALIVE_S,
-                timeout=5.0,
-            ) as client:
+            async with make_client(broker, identifier, will()) as client:
                 wait = RECONNECT_S[0]
                 if await serve(client):
                     return

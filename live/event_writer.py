@@ -25,7 +25,7 @@ from store.log import EventLog
 from store.models import utcnow
 
 log = logging.getLogger(__name__)
-MAX_RETRY_S = 5.0
+MAX_RETRY_S = 2.0
 
 
 @dataclass

@@ -28,6 +28,7 @@ EVENT_KINDS = (
     "clock_offset",
     "recording_stopped",
     "site_thread_restarted",
+    "fleet_intrusion",
 )
 WARNING_EVENTS = frozenset(
     {
@@ -39,6 +40,7 @@ WARNING_EVENTS = frozenset(
         "clock_offset",
         "recording_stopped",
         "site_thread_restarted",
+        "fleet_intrusion",
     }
 )
 """Kinds logged as warnings (the others as info)."""

@@ -16,6 +16,9 @@ import yaml
 from pydantic import Field, field_validator, model_validator
 from pydantic_settings import BaseSettings, PydanticBaseSettingsSource, SettingsConfigDict
 
+from fleet.broker import BrokerAddress, parse_broker_url
+from fleet.topics import check_name
+
 Source = Literal["sim", "camera", "remote"]
 
 
@@ -130,6 +133,12 @@ class Settings(BaseSettings):
     led_policy: Literal["auto", "scheduled", "all_lit"] = "auto"
     radio_sleep_period_s: float | None = Field(default=None, ge=0.0, le=28.0)
     mqtt_url: str | None = None
+    mqtt_password_file: Path | None = None
+    mqtt_ca_file: Path | None = None
+    mqtt_cert_file: Path | None = None
+    mqtt_key_file: Path | None = None
+    mqtt_agents: list[str] = Field(default_factory=list)
+    mqtt_max_agents: int = Field(default=200, ge=1)
     mqtt_site: str = Field(default="default", pattern=r"^[A-Za-z0-9_.-]{1,64}$")
     vda_manufacturer: str = Field(default="irloc", pattern=r"^[A-Za-z0-9_.-]{1,64}$")
     sim_robots: bool = True
@@ -180,14 +189,26 @@ class Settings(BaseSettings):
                 ) from None
         return value
 
-    @field_validator("mqtt_url")
-    @classmethod
-    def _check_mqtt(cls, value: str | None) -> str | None:
-        if value:
-            from fleet.broker import parse_broker_url
+    @model_validator(mode="after")
+    def _check_mqtt(self) -> Settings:
+        if self.mqtt_url:
+            self.broker()
+        for name in self.mqtt_agents:
+            check_name("mqtt_agents", name)
+        return self
 
-            parse_broker_url(value)
-        return value or None
+    def broker(self) -> BrokerAddress:
+        """The broker's address and login (`mqtt_url` and the files); ValueError names what
+        is wrong."""
+        if not self.mqtt_url:
+            raise ValueError("mqtt_url: no broker configured")
+        return parse_broker_url(
+            self.mqtt_url,
+            password_file=self.mqtt_password_file,
+            ca_file=self.mqtt_ca_file,
+            cert_file=self.mqtt_cert_file,
+            key_file=self.mqtt_key_file,
+        )
 
     @classmethod
     def settings_customise_sources(

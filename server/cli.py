@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING
 from pydantic import ValidationError
 
 from live.settings import Settings
-from server.logs import configure_logging
+from server.logs import configure_logging, redact
 
 if TYPE_CHECKING:
     import uvicorn
@@ -36,7 +36,17 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--scenario", help="virtual site scenario name or file (default demo)")
     p.add_argument("--seed", type=int, help="virtual site seed")
     p.add_argument("--no-viewer", action="store_true", help="do not start the viewer")
-    p.add_argument("--mqtt", help="the site's MQTT broker, mqtt://HOST[:PORT]: robot agents")
+    p.add_argument(
+        "--mqtt", help="the site's MQTT broker, mqtt[s]://[USER@]HOST[:PORT]: robot agents"
+    )
+    p.add_argument(
+        "--mqtt-password-file",
+        type=Path,
+        help="the broker password of USER (first line; else $IRLOC_MQTT_PASSWORD)",
+    )
+    p.add_argument("--mqtt-ca", type=Path, help="mqtts: the CA file that signed the broker")
+    p.add_argument("--mqtt-cert", type=Path, help="mqtts: the server's client certificate")
+    p.add_argument("--mqtt-key", type=Path, help="mqtts: its private key")
     p.add_argument(
         "--no-sim-robots", action="store_true", help="the virtual site's robots are not run here"
     )
@@ -77,6 +87,10 @@ def main(
             "seed": args.seed,
             "log_format": args.log_format,
             "mqtt_url": args.mqtt,
+            "mqtt_password_file": args.mqtt_password_file,
+            "mqtt_ca_file": args.mqtt_ca,
+            "mqtt_cert_file": args.mqtt_cert,
+            "mqtt_key_file": args.mqtt_key,
         }.items()
         if v is not None
     }
@@ -86,8 +100,15 @@ def main(
         overrides["sim_robots"] = False
     try:
         settings = Settings(**overrides)
-    except (ValidationError, ValueError) as exc:
-        print(f"irloc serve: {exc}", file=sys.stderr)
+    except ValidationError as exc:  # its text repeats the input: a password, maybe
+        said = "; ".join(
+            ".".join(str(p) for p in e["loc"]) + (": " if e["loc"] else "") + e["msg"]
+            for e in exc.errors()
+        )
+        print(f"irloc serve: {redact(said)}", file=sys.stderr)
+        return 2
+    except ValueError as exc:
+        print(f"irloc serve: {redact(str(exc))}", file=sys.stderr)
         return 2
     if settings.map_file is not None and not settings.map_file.is_file():
         print(f"irloc serve: --map {settings.map_file}: no such file", file=sys.stderr)
@@ -117,7 +138,7 @@ def main(
     if settings.site_enabled:
         print(leds_line(settings.led_policy, settings.radio_sleep_period_s))
     if settings.mqtt_url:
-        print(f"irloc: fleet     {settings.mqtt_url} (site {settings.mqtt_site!r})")
+        print(f"irloc: fleet     {settings.broker()} (site {settings.mqtt_site!r})")
     if first_key is not None:
         print(lines[-1])  # the key, last: easy to spot
     sys.stdout.flush()

@@ -23,6 +23,7 @@ from starlette.requests import HTTPConnection
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from server.auth import TooManyBadKeysError, authenticate_async
+from server.storage_errors import storage_answer
 from server.stream_guard import SHUTTING_DOWN, draining
 
 MIB = 1024 * 1024
@@ -145,6 +146,11 @@ class EdgeGuard:
             principal = await authenticate_async(conn)
         except TooManyBadKeysError as exc:
             return 429, str(exc), [(b"retry-after", str(math.ceil(exc.retry_after_s)).encode())]
+        except Exception as exc:  # the key could not be checked: the database failed
+            answer = storage_answer(exc)
+            if answer is None:
+                raise
+            return answer[0], answer[1], [(b"retry-after", b"5")]
         if principal is None:
             return (
                 401,

@@ -35,6 +35,7 @@ _SECRETS = (
     (re.compile(r"(?i)\b(token|key|irloc_ticket)=[^&\s\"'#]+"), rf"\1={REDACTED}"),
     (re.compile(r"(?i)\bBearer\s+[^\s\"',;]+"), f"Bearer {REDACTED}"),
     (re.compile(r"\birloc_[A-Za-z0-9_-]{16,}"), f"irloc_{REDACTED}"),
+    (re.compile(r"(?i)\b([a-z][a-z0-9+.-]*://[^:/@\s]+):[^@/\s]+@"), rf"\1:{REDACTED}@"),
 )
 
 

@@ -163,10 +163,19 @@ class KeyStore:
         with self._lock:
             self.lookups += 1
             self.lookup_threads.add(threading.current_thread().name)
-        with Session(self.engine) as s:
-            row = s.exec(select(ApiKey).where(ApiKey.hash == digest)).first()
-            valid = row is not None and not row.revoked and row.id is not None
-            out: Found | None = (row.id, row.role) if valid else None  # type: ignore[union-attr,assignment]
+        try:
+            with Session(self.engine) as s:
+                row = s.exec(select(ApiKey).where(ApiKey.hash == digest)).first()
+                valid = row is not None and not row.revoked and row.id is not None
+                out: Found | None = (row.id, row.role) if valid else None  # type: ignore[union-attr,assignment]
+        except Exception:
+            # the database is down or locked: a key known valid before stays valid (unless
+            # revoked here) so robots and streams carry on; any other key waits for it
+            with self._lock:
+                stale = self._cache.get(digest)
+            if stale is not None and stale[0][0] not in self._revoked:
+                return stale[0]
+            raise
         now = self.clock()
         with self._lock:
             if out is None:
