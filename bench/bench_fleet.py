@@ -166,7 +166,8 @@ def start_server(broker: Mosquitto, data_dir: Path) -> tuple[subprocess.Popen[st
     cmd = [sys.executable, "-m", "irloc", "serve", "--port", str(port), "--mqtt", broker.url,
            "--no-viewer", "--no-sim-robots", "--data-dir", str(data_dir), "--log-level",
            "warning"]  # fmt: skip
-    proc = subprocess.Popen(cmd, env=ENV, stdout=subprocess.PIPE, text=True, cwd=ROOT)
+    env = {**ENV, "IRLOC_MQTT_AGENTS": '["*"]'}  # the benchmark's agents, on an open broker
+    proc = subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, text=True, cwd=ROOT)
     assert proc.stdout is not None
     key = ""
     for line in proc.stdout:

@@ -5,8 +5,10 @@ An agent's arrival (`connection` ONLINE) and loss (OFFLINE, or its last will
 CONNECTIONBROKEN) are site events. Topics and payloads: `fleet`, docs/fleet.md.
 
 What a hostile or broken client on the broker could do is bounded here too (the broker's
-ACL is the lock, docs/fleet.md): only admitted agents (`mqtt_agents`, else any up to
-`mqtt_max_agents`) are registered and have their LED requests served; poses outside the
+ACL is the lock, docs/fleet.md): only admitted agents (names or patterns in `mqtt_agents`,
+else any up to `mqtt_max_agents`) are registered; their LED requests are served when they
+are admitted by name, or when the server logs in to the broker (its ACL then vouches for
+who wrote what), never on an open broker without a list; poses outside the
 site are dropped and counted; a map on the map topic that this server did not publish is
 replaced by the site's at once. Each is a `fleet_intrusion` event.
 
@@ -19,6 +21,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import fnmatch
 import functools
 import hashlib
 import json
@@ -110,7 +113,10 @@ class MqttBridge:
         self._gateway_listening = False
         self._events = ThreadPoolExecutor(max_workers=1, thread_name_prefix="mqtt-events")
         s = services.settings
-        self.admitted = frozenset(s.mqtt_agents)
+        self.admitted = tuple(s.mqtt_agents)
+        self.trust_logins = broker.username is not None
+        self.led_requests_refused = 0
+        self._led_refusal_told: set[str] = set()
         self.max_agents = s.mqtt_max_agents
         self.foreign_maps = 0
         self.poses_outside = 0
@@ -390,9 +396,12 @@ class MqttBridge:
         )
         self._check_clock(runner, None)
 
+    def _admitted(self, robot: str) -> bool:
+        return any(fnmatch.fnmatchcase(robot, pattern) for pattern in self.admitted)
+
     def _refusal(self, robot: str) -> str | None:
         """Why a new agent may not join (None: it may)."""
-        if self.admitted and robot not in self.admitted:
+        if self.admitted and not self._admitted(robot):
             return "not among the admitted agents (setting mqtt_agents)"
         agents = sum(1 for r in self.services.robots.runners() if isinstance(r, AgentRunner))
         if agents >= self.max_agents:
@@ -457,6 +466,19 @@ class MqttBridge:
         coordinator = self.services.leds.coordinator
         runner = self._agent(robot)
         if coordinator is None or runner is None or not runner.connected:
+            return
+        if not self.admitted and not self.trust_logins:
+            # an open broker and no list: anyone could claim to be this agent
+            self.led_requests_refused += 1
+            if robot not in self._led_refusal_told:
+                self._led_refusal_told.add(robot)
+                self._emit(
+                    "fleet_intrusion",
+                    f"agent {robot}: its LED requests are not served: the broker is open (no "
+                    "login) and no agent is admitted (setting mqtt_agents, docs/fleet.md)",
+                    robot=robot,
+                    data={"what": "led_request_refused"},
+                )
             return
         coordinator.request(robot, msg.request())
 

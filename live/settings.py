@@ -194,7 +194,7 @@ class Settings(BaseSettings):
         if self.mqtt_url:
             self.broker()
         for name in self.mqtt_agents:
-            check_name("mqtt_agents", name)
+            check_name("mqtt_agents", name.replace("*", "x").replace("?", "x"))
         return self
 
     def broker(self) -> BrokerAddress:

@@ -138,7 +138,14 @@ def main(
     if settings.site_enabled:
         print(leds_line(settings.led_policy, settings.radio_sleep_period_s))
     if settings.mqtt_url:
-        print(f"irloc: fleet     {settings.broker()} (site {settings.mqtt_site!r})")
+        broker = settings.broker()
+        print(f"irloc: fleet     {broker} (site {settings.mqtt_site!r})")
+        if broker.username is None and not settings.mqtt_agents:
+            print(
+                "irloc: the broker is open (no login) and no agent is admitted by name: "
+                "agents' LED requests are not served (set mqtt_agents, or log in: "
+                "docs/fleet.md)"
+            )
     if first_key is not None:
         print(lines[-1])  # the key, last: easy to spot
     sys.stdout.flush()

@@ -132,3 +132,25 @@ def test_a_foreign_map_is_replaced_by_the_sites(site: tuple[Api, int]) -> None:
         assert late.seen[-1][1] == ours
     finally:
         late.close()
+
+
+def test_on_an_open_broker_without_a_list_led_requests_are_not_served(
+    site: tuple[Api, int],
+) -> None:
+    api, port = site
+    bridge = api.client.app.state.mqtt_bridge  # type: ignore[attr-defined]
+    coordinator = api.services.leds.coordinator
+    c = Client(port, "a1-leds")
+    kept = bridge.admitted
+    try:
+        c.arrive("a1")
+        wait_until(lambda: "a1" in api.services.robots.names(), 10, "a1 registered")
+        bridge.admitted = ()  # as with no mqtt_agents and no broker login
+        before = coordinator.requests
+        c.pub(T.led_request("a1"), json.dumps({"lit": [], "all_lit": True, "dark": [101]}).encode())
+        wait_until(lambda: bridge.led_requests_refused >= 1, 5, "the request refused")
+        assert coordinator.requests == before
+        assert any("not served" in m for k, _, m in kinds(api) if k == "fleet_intrusion")
+    finally:
+        bridge.admitted = kept
+        c.close()
