@@ -115,13 +115,23 @@ def main(
         return 2
     configure_logging(args.log_level, settings.log_format)
 
+    from sqlalchemy.exc import SQLAlchemyError
+
     from live.services import prepare_database
     from server.main import create_app
-    from store.db import make_engine
+    from store.db import DatabaseFileError, make_engine
 
-    engine = make_engine(settings.db_url)
-    first_key = prepare_database(engine)
-    engine.dispose()
+    try:
+        engine = make_engine(settings.db_url)
+        first_key = prepare_database(engine)
+        engine.dispose()
+    except DatabaseFileError as exc:
+        print(f"irloc serve: {exc}", file=sys.stderr)
+        return 2
+    except SQLAlchemyError as exc:
+        first = str(getattr(exc, "orig", None) or exc).splitlines()[0]
+        print(f"irloc serve: database {redact(settings.db_url)}: {first}", file=sys.stderr)
+        return 2
     viewer = make_viewer(settings) if make_viewer is not None else None
     from server.console import leds_line, startup_lines
 

@@ -42,6 +42,17 @@ SECURITY_HEADERS: tuple[tuple[bytes, bytes], ...] = (
 )
 
 
+def same_origin(conn: HTTPConnection) -> bool:
+    """Whether a browser's `Origin` (if it sent one) is this server itself: a WebSocket that
+    a page of another site opens (with the user's viewer cookie) must be refused."""
+    origin = conn.headers.get("origin")
+    if origin is None:
+        return True  # not a browser page (a script, a tool)
+    host = conn.headers.get("host", "")
+    _, _, rest = origin.partition("://")
+    return bool(host) and rest.rstrip("/").lower() == host.lower()
+
+
 def _shutting_down(scope: Scope) -> bool:
     app = scope.get("app")
     return app is not None and hasattr(app, "state") and draining(app).is_set()

@@ -50,6 +50,19 @@ def allowed_methods(app: FastAPI, scope: Scope) -> list[str]:
     return allowed
 
 
+def methods_of_other_routes(app: FastAPI, scope: Scope, prefix: str = "/api/v1") -> list[str]:
+    """The methods of routes with a fixed path (no parameter) whose path is that of `scope`
+    (with or without the API `prefix`): `PATCH /landmarks/audit` matched `PATCH
+    /landmarks/{landmark_id}` and failed its validation, but the path is `GET
+    /landmarks/audit`'s."""
+    path = scope["path"]
+    allowed: set[str] = set()
+    for route in api_routes(app.router.routes):
+        if "{" not in route.path and path in (route.path, prefix + route.path):
+            allowed |= route.methods
+    return [m for m in METHODS if m in allowed]
+
+
 def api_routes(routes: Iterable[Any]) -> Iterator[APIRoute]:
     """Every `APIRoute`, those of included routers too."""
     for route in routes:

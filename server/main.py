@@ -32,7 +32,11 @@ from server.auth import Viewer, authenticate
 from server.edge import EdgeGuard
 from server.fanout import PoseFanout
 from server.health import Health, check_health
-from server.http_errors import install_body_errors, refuse_unknown_query
+from server.http_errors import (
+    install_body_errors,
+    methods_of_other_routes,
+    refuse_unknown_query,
+)
 from server.landing import landing_router
 from server.metrics import make_registry, render
 from server.openapi import install_openapi
@@ -100,6 +104,14 @@ def _install_error_handlers(app: FastAPI) -> None:
 
     async def bad_request(request: Request, exc: Exception) -> JSONResponse:
         errors = exc.errors() if isinstance(exc, RequestValidationError) else []
+        if any(e["loc"][:1] == ("path",) for e in errors):
+            others = methods_of_other_routes(request.app, request.scope)
+            if others and request.method not in others:  # the path is another route's
+                return JSONResponse(
+                    {"detail": f"method {request.method} not allowed: use {', '.join(others)}"},
+                    status_code=405,
+                    headers={"Allow": ", ".join(others)},
+                )
         parts = [f"{'.'.join(str(p) for p in e['loc'])}: {e['msg']}" for e in errors[:5]]
         listed = [{"loc": list(e["loc"]), "msg": e["msg"], "type": e["type"]} for e in errors]
         return JSONResponse({"detail": "; ".join(parts), "errors": listed}, status_code=422)
