@@ -59,7 +59,7 @@ def methods_of_other_routes(app: FastAPI, scope: Scope, prefix: str = "/api/v1")
     allowed: set[str] = set()
     for route in api_routes(app.router.routes):
         if "{" not in route.path and path in (route.path, prefix + route.path):
-            allowed |= route.methods
+            allowed |= route.methods or set()
     return [m for m in METHODS if m in allowed]
 
 
