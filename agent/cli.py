@@ -45,6 +45,13 @@ def _parser() -> argparse.ArgumentParser:
         type=Path,
         help="the broker password of USER (first line; else $IRLOC_MQTT_PASSWORD)",
     )
+    p.add_argument(
+        "--connect-timeout",
+        type=float,
+        default=30.0,
+        help="give up (exit 1) when the broker cannot be reached for this long at start, "
+        "seconds (0: keep trying; once connected, it always reconnects)",
+    )
     p.add_argument("--mqtt-ca", type=Path, help="mqtts: the CA file that signed the broker")
     p.add_argument("--mqtt-cert", type=Path, help="mqtts: this agent's client certificate")
     p.add_argument("--mqtt-key", type=Path, help="mqtts: its private key")
@@ -213,7 +220,12 @@ def main(argv: list[str] | None = None) -> int:
     # the sensor thread localizes while the network loop publishes: hand the interpreter over
     # more often than every 5 ms, so that a pose leaves soon after it is computed
     sys.setswitchinterval(0.001)
-    asyncio.run(_run(AgentRuntime(broker, args.site, cores)))
+    first = args.connect_timeout if args.connect_timeout > 0 else None
+    runtime = AgentRuntime(broker, args.site, cores, first_connect_s=first)
+    asyncio.run(_run(runtime))
+    if runtime.failed is not None:
+        print(f"irloc agent: {runtime.failed}", file=sys.stderr)
+        return 1
     return 0
 
 

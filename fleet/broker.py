@@ -1,8 +1,9 @@
 """Where the broker is and how to log in: `mqtt://[USER@]HOST[:PORT]` (1883 by default) or
 `mqtts://[USER@]HOST[:PORT]` (TLS, 8883 by default).
 
-A password is never part of the URL (a URL is printed, logged and kept in shell history):
-it comes from a file (`password_file`) or the environment (`IRLOC_MQTT_PASSWORD`). TLS
+The password comes from a file (`password_file`) or the environment
+(`IRLOC_MQTT_PASSWORD`); one in the URL (`mqtt://USER:PASSWORD@HOST`) is used too, but a URL
+ends up in shell history and process lists: prefer the file. TLS
 verifies the broker against `ca_file` (the system's CAs when not given) and presents a
 client certificate when `cert_file` (and `key_file`) are given. `str()` of an address
 shows the user, never the password.
@@ -92,11 +93,6 @@ def parse_broker_url(
             f"broker {shown!r}: expected mqtt://[USER@]HOST[:PORT] or mqtts://... "
             "(TLS; scheme 'mqtt' or 'mqtts')"
         )
-    if parts.password is not None:
-        raise ValueError(
-            f"broker {shown!r}: no password in the URL (it would be printed and logged): "
-            f"give it in a file (mqtt_password_file, --mqtt-password-file) or ${PASSWORD_ENV}"
-        )
     if not parts.hostname:
         raise ValueError(f"broker {url!r}: no host (mqtt://HOST[:PORT])")
     if parts.path not in ("", "/") or parts.query:
@@ -109,7 +105,10 @@ def parse_broker_url(
     except ValueError:
         raise ValueError(f"broker {url!r}: port must be a number in 1-65535") from None
     username = unquote(parts.username) if parts.username else None
-    password = read_password(password_file) if username else None
+    if parts.password is not None and not username:
+        raise ValueError(f"broker {shown!r}: a password without a user name")
+    in_url = unquote(parts.password) if parts.password is not None else None
+    password = (in_url or read_password(password_file)) if username else None
     return BrokerAddress(
         parts.hostname,
         port,

@@ -22,6 +22,10 @@ KEEPALIVE_S = 10
 """MQTT keep-alive: a silent link is noticed after 1.5 x this (a closed socket at once)."""
 
 
+class BrokerUnreachableError(ConnectionError):
+    """The broker could not be reached (or refused the login) for the first connection."""
+
+
 def tls_parameters(tls: BrokerTls | None) -> aiomqtt.TLSParameters | None:
     """aiomqtt's TLS settings for `tls` (None: plain TCP): the broker verified against the
     CA file (else the system's), this client's certificate presented when given."""
@@ -62,19 +66,33 @@ async def run_session(
     serve: Callable[[aiomqtt.Client], Awaitable[bool]],
     stop: asyncio.Event,
     name: str,
+    first_connect_s: float | None = None,
 ) -> None:
     """Connect to `broker` and `await serve(client)` until `stop` is set; `serve` returns
     True to end for good, False when the connection was lost (then it reconnects). `will`
-    builds the last will for each attempt (VDA 5050 wills carry a fresh header)."""
+    builds the last will for each attempt (VDA 5050 wills carry a fresh header).
+
+    Raises:
+        BrokerUnreachableError: no first connection within `first_connect_s` (None: keep
+            trying; once connected, a lost connection is always retried).
+    """
     wait = RECONNECT_S[0]
+    t0 = asyncio.get_running_loop().time()
+    connected = False
     while not stop.is_set():
         try:
             async with make_client(broker, identifier, will()) as client:
+                connected = True
                 wait = RECONNECT_S[0]
                 if await serve(client):
                     return
                 log.warning("%s: connection to %s lost; reconnecting", name, broker)
         except aiomqtt.MqttError as exc:
+            late = asyncio.get_running_loop().time() - t0
+            if not connected and first_connect_s is not None and late > first_connect_s:
+                raise BrokerUnreachableError(
+                    f"{name}: no connection to the broker {broker} in {first_connect_s:g} s: {exc}"
+                ) from None
             if wait == RECONNECT_S[0]:
                 log.warning("%s: broker %s: %s; retrying", name, broker, exc)
         with contextlib.suppress(TimeoutError):
