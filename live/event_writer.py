@@ -131,31 +131,37 @@ class EventWriter:
         return True
 
     def _run(self) -> None:
-        pause = 0.25
+        pause, next_try = 0.25, 0.0
         while True:
-            if self._retry:
-                try:
-                    item = self._queue.get(timeout=pause)
-                except queue.Empty:
-                    if self._store(self._retry[0]):
-                        self._retry.popleft()
-                        pause = 0.25
-                    else:
-                        pause = min(MAX_RETRY_S, pause * 2)
-                    continue
-            else:
-                item = self._queue.get()
-            if item is None:
+            timeout = max(0.0, next_try - time.monotonic()) if self._retry else None
+            try:
+                item = self._queue.get(timeout=timeout)
+                got = True
+            except queue.Empty:
+                item, got = None, False
+            if got and item is None:
                 return
-            if self._retry or not self._store(item):  # behind those waiting: keep the order
-                if not item.published:
+            if item is not None:
+                self._retry.append(item)  # in order, behind those waiting
+                if self.problem is not None and not item.published:  # shown now, stored later
                     item.published = True
                     self.publish(item, 0)
-                self._retry.append(item)
                 if len(self._retry) > self._queue.maxsize:  # keep at most a queue's worth
                     self._retry.popleft()
                     self.dropped += 1
-            self._done()
+            while self._retry and time.monotonic() >= next_try:
+                if self._store(self._retry[0]):
+                    self._retry.popleft()
+                    pause = 0.25
+                    continue
+                for waiting in self._retry:  # shown at once, stored later
+                    if not waiting.published:
+                        waiting.published = True
+                        self.publish(waiting, 0)
+                pause = min(MAX_RETRY_S, pause * 2)
+                next_try = time.monotonic() + pause
+            if got:
+                self._done()
 
     def _done(self) -> None:
         with self._idle:

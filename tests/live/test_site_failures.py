@@ -204,3 +204,20 @@ def test_the_supervisor_restarts_a_dead_thread_and_reports_a_stalled_robot() -> 
     sup.check()
     assert sup.problems() == ["robot r1: no frame localized for 6 s"]
     hub.close()
+
+
+def test_a_steady_flow_of_events_does_not_hold_back_the_retries() -> None:
+    db = FlakyLog()
+    writer = EventWriter(db, lambda ev, i: None)  # type: ignore[arg-type]
+    db.down.set()
+    t_end = time.monotonic() + 1.5
+    n = 0
+    while time.monotonic() < t_end:
+        writer.submit(PendingEvent("map_changed", f"edit {n}", None, None, {}))
+        n += 1
+        if n == 10:
+            db.down.clear()  # the database is back while events keep coming
+        time.sleep(0.05)
+    assert wait_until(lambda: len(db.stored) == n, 5.0), (len(db.stored), n)
+    assert writer.problem is None
+    writer.close()
