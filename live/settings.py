@@ -102,6 +102,10 @@ class Settings(BaseSettings):
         trusted_proxies: addresses (or networks) of reverse proxies whose `X-Forwarded-For`
             and `X-Forwarded-Proto` are believed; empty (the default): none, the client
             address is the socket's.
+        device_dirs: folders (beside the data folder) whose video files a robot's `device`
+            may name.
+        allow_network_devices: let a robot's `device` be a URL (IP camera) and its
+            `wheel_port` a network pyserial URL (`socket://`); off: only local devices.
         recording_max_mb, recording_max_s: a live recording stops (with an event) when it
             passes this size (MB) or duration (s).
         recording_min_free_mb: a recording does not start (507), and stops, when the disk
@@ -147,6 +151,8 @@ class Settings(BaseSettings):
     max_connections_per_address: int = Field(default=512, ge=4)
     max_connections: int = Field(default=4096, ge=16)
     trusted_proxies: list[str] = Field(default_factory=list)
+    device_dirs: list[Path] = Field(default_factory=list)
+    allow_network_devices: bool = False
     recording_max_mb: int = Field(default=4096, ge=1)
     recording_max_s: float = Field(default=3600.0, gt=0.0)
     recording_min_free_mb: int = Field(default=256, ge=0)

@@ -11,6 +11,7 @@ from localizer.camera import camera_from_sensor
 from localizer.events import Mode, OdometryMeasured
 from server.auth import Admin, Operator, Viewer
 from server.deps import RobotName, ServicesDep
+from server.robot_devices import check_devices
 from store.models import RobotCreate, RobotPublic
 
 router = APIRouter(prefix="/robots", tags=["robots"])
@@ -120,6 +121,7 @@ def put_config(name: RobotName, body: RobotPublic, services: ServicesDep, _: Adm
     in the virtual site."""
     data = RobotCreate.model_validate({**body.model_dump(), "name": name})
     camera_from_sensor(data.camera, source="camera")  # 422 naming the field before saving
+    check_devices(data, services.settings)  # nothing it may not open, a camera that opens
     record = services.robot_store.upsert(data)
     services.robots.apply(record)
     return record
