@@ -9,7 +9,9 @@ from pathlib import Path
 import pytest
 
 from live.settings import Settings
+from localizer.camera import sensor_from_camera
 from server.robot_devices import check_camera_device, check_devices, check_wheel_port
+from sim.cameras import wide_angle_camera
 from store.models import RobotCreate
 from tests.server.conftest import Api
 
@@ -64,7 +66,9 @@ def test_with_the_site_running_a_camera_that_does_not_open_is_refused(tmp_path: 
 
 
 def test_the_api_answers_422_naming_the_device(api: Api) -> None:
-    body = {"name": "cam9", "source": "camera", "device": "/etc/shadow", "wheel_base": 0.4}
+    camera = sensor_from_camera(wide_angle_camera("fisheye"))
+    body = {"name": "cam9", "source": "camera", "device": "/etc/shadow", "wheel_base": 0.4,
+            "camera": camera}  # fmt: skip
     r = api.client.put("/api/v1/robots/cam9/config", json=body, headers=api.h("admin"))
     assert r.status_code == 422 and "/etc/shadow" in r.json()["detail"]
     r = api.client.get("/api/v1/robots/cam9/config", headers=api.h("viewer"))
