@@ -270,13 +270,23 @@ def run_round(
     try:
         deadline = time.monotonic() + args.warmup_s
         ready = 0
+        slow_answers = 0
         while time.monotonic() < deadline:
-            mine = [r for r in robots(port, key) if r["name"].startswith(prefix)]
+            try:
+                listed = robots(port, key)
+            except OSError:  # a server too busy to answer in 10 s: count it and go on
+                slow_answers += 1
+                continue
+            mine = [r for r in listed if r["name"].startswith(prefix)]
             ready = sum(r["mode"] == "landmark" and bool(r["connected"]) for r in mine)
             if ready == n:
                 break
             time.sleep(0.5)
-        names = sorted(r["name"] for r in robots(port, key) if r["name"].startswith(prefix))
+        names = []  # as `irloc agent --count` names them (no suffix for a count of 1)
+        for k, start in enumerate(range(0, n, args.per_process)):
+            count = min(args.per_process, n - start)
+            base = f"{prefix}p{k}"
+            names += [base] if count == 1 else [f"{base}-{i:03d}" for i in range(count)]
         sample = names[:: max(1, len(names) // SAMPLED)]
         counter.sampled = set(sample)
         query = "".join(f"&robot={r}" for r in sample)
