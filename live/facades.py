@@ -28,7 +28,7 @@ from live.poses import PoseUpdate
 from live.robots import RobotRunner
 from localizer.events import Event, LedsChanged, Mode
 from pubsub.bus import Bus, Subscription
-from rf_gateway.battery import BatteryConfig, BatteryReading, days_left
+from rf_gateway.battery import BatteryMonitorConfig, BatteryReading, days_left
 from rf_gateway.errors import RadioTimeout
 from rf_gateway.gateway import Gateway
 from rf_gateway.transport import DiscoveredRadio, normalize_address
@@ -228,9 +228,6 @@ class LedsAndRadio:
         """Light exactly `lit`, darken the other landmarks (waits for the radio)."""
         return await self._gw().set_leds(lit)
 
-    async def all_leds_on(self) -> LedsChanged:
-        return await self._gw().set_leds(self._gw().landmarks.keys())
-
     async def led(self, landmark_id: int, on: bool) -> LedsChanged:
         self.map.get(landmark_id)
         return await self._gw().led(landmark_id, on)
@@ -293,7 +290,7 @@ class LedsAndRadio:
         rows = self.log.battery_history(landmark_id)
         if not rows:
             return BatteryStatus(landmark_id, None, None, None, [])
-        cfg = self.gateway.config.battery if self.gateway is not None else BatteryConfig()
+        cfg = self.gateway.config.battery if self.gateway is not None else BatteryMonitorConfig()
         mv = rows[-1].supply_mv
         span = FULL_SUPPLY_MV - cfg.cutoff_mv
         pct = max(0.0, min(100.0, 100.0 * (mv - cfg.cutoff_mv) / span))

@@ -46,9 +46,11 @@ from rf_gateway.events import (
     TransportStateChanged,
 )
 from rf_gateway.gateway import Gateway
+from sensors.camera import CameraSource
+from sensors.remote import RemoteSource
 from sensors.serial_wheels import SerialWheelSource
 from sensors.sim_source import SimSource
-from sensors.sources import CameraSource, FrameSource, RemoteSource
+from sensors.sources import FrameSource
 from sim.live import LiveSite
 from store import MapRepository, RobotStore
 from store.landmarks import parse_map_json

@@ -49,7 +49,8 @@ class _FileSource(PydanticBaseSettingsSource):
 
 SIM_SLEEP_PERIOD_S = 0.5
 """The simulated site's landmarks sleep in cycles of this period unless told otherwise (XBee
-`SP`; docs/rf_gateway.md's recommended setting, measured in docs/sim.md's battery passes)."""
+`SP`; docs/rf_gateway.md's recommended setting, measured in docs/sim.md, "Landmark battery
+benchmark")."""
 
 
 class Settings(BaseSettings):
@@ -85,7 +86,7 @@ class Settings(BaseSettings):
             (`radio_sleep_period_s`, the simulated site's default), where it meets the
             battery and accuracy targets, and `all_lit` with awake ones, where a listening
             receiver caps a landmark's life at days whatever is lit and the schedule costs
-            accuracy (docs/sim.md, "The fourth pass" and "The fifth pass"). Resolved when
+            accuracy (docs/sim.md, "Landmark battery benchmark"). Resolved when
             the settings are made: never `auto` after.
         radio_sleep_period_s: the landmarks' radios sleep in cycles of this period (XBee
             `SP`, 0.32-28 s; the virtual site's radios then sleep too, and LED commands are

@@ -11,7 +11,7 @@ board (`irloc agent`) send poses without frames and are not used.
 Accepting a proposal is an ordinary map edit through the map's data layer (`MapRepository`:
 audited as "<actor> (map upkeep)", undoable); rejecting one drops that landmark's evidence
 and is logged as a site event. Locked landmarks are proposed too, flagged: accepting every
-proposal leaves them out, naming one accepts it. docs/survey.md ("Keeping the map true").
+proposal leaves them out, naming one accepts it. docs/map-upkeep.md.
 """
 
 from __future__ import annotations

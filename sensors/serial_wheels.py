@@ -44,8 +44,12 @@ class SerialWheelSource:
         port: device path or pyserial URL (a stable name such as /dev/serial/by-id/... is
             best: it comes back under the same name after a reconnect).
         baud: baud rate.
-        clock_ns: the site clock, stamping lines without `t_ns`.
+        clock_ns: the clock stamping lines on receipt (the site clock on the server, the
+            agent's monotonic clock on a robot).
         retry_s: pause between attempts to open a missing port, seconds.
+        line_time: trust a line's own `t_ns` (it is on `clock_ns`'s clock); False: stamp
+            every line on receipt (the on-robot agent: the robot controller's clock is not
+            the agent's).
 
     Attributes:
         lines: good lines fed to the robot; bad_lines: lines skipped;
@@ -60,8 +64,10 @@ class SerialWheelSource:
         clock_ns: Callable[[], int],
         *,
         retry_s: float = 1.0,
+        line_time: bool = True,
     ) -> None:
         self.robot = robot
+        self.line_time = line_time
         self.robots = (robot,)
         self._sink: SensorSink | None = None
         self.port = port
@@ -98,7 +104,7 @@ class SerialWheelSource:
                 extra={"robot": self.robot, "port": self.port},
             )
             return
-        stamp = self.clock_ns() if t_ns is None else t_ns
+        stamp = t_ns if t_ns is not None and self.line_time else self.clock_ns()
         if self._sink is not None:
             self._sink(self.robot, OdometryMeasured(stamp, v_left, v_right))
         self.lines += 1

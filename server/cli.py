@@ -6,7 +6,6 @@ With no arguments: the `demo` virtual site, the API on http://127.0.0.1:8000 and
 from __future__ import annotations
 
 import argparse
-import ipaddress
 import sys
 from collections.abc import Callable
 from pathlib import Path
@@ -16,6 +15,7 @@ from pydantic import ValidationError
 
 from live.settings import Settings
 from server.logs import configure_logging, redact
+from server.loopback import is_loopback
 
 if TYPE_CHECKING:
     import uvicorn
@@ -57,15 +57,6 @@ def _parser() -> argparse.ArgumentParser:
         help="text (default) or json: one JSON object a line (setting log_format)",
     )
     return p
-
-
-def is_loopback(host: str) -> bool:
-    if host == "localhost":
-        return True
-    try:
-        return ipaddress.ip_address(host).is_loopback
-    except ValueError:
-        return False
 
 
 def main(

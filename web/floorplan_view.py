@@ -25,12 +25,6 @@ MAX_TEXTURE_PX = 2048
 """Larger plans are scaled down for the browser (the stored file is kept as uploaded)."""
 
 
-def floorplan_store_of(services: object) -> FloorPlanStore | None:
-    """The floor plan store behind the viewer's services (None for a site without one)."""
-    store = getattr(services, "floorplan", None)
-    return store if isinstance(store, FloorPlanStore) else None
-
-
 def floorplan_pixels(content: bytes, *, max_px: int = MAX_TEXTURE_PX) -> np.ndarray:
     """The image as viser's `add_image` wants it for a north-up plan: RGB (H, W, 3)
     uint8, bottom row first, at most `max_px` a side."""

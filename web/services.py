@@ -18,8 +18,11 @@ import numpy.typing as npt
 from commissioning.types import Candidate
 from commissioning.wizard import WizardStatus
 from live.survey.service import SurveyStatus
+from live.upkeep_service import MapUpkeepService
 from localizer.camera import CameraModel
 from localizer.events import PoseEstimate
+from store.floorplan import FloorPlanStore
+from store.landmarks import MapRepository
 
 __all__ = [
     "CameraView",
@@ -142,6 +145,18 @@ class ViewerSite(Protocol):
 
     def camera_view(self, robot: str) -> CameraView | None:
         """The robot's latest frame with its detections; None when it has none."""
+        ...
+
+    def map_history(self) -> MapRepository | None:
+        """The stored map with its undo/redo history (None: no database behind the site)."""
+        ...
+
+    def map_proposals(self) -> MapUpkeepService | None:
+        """The map upkeep's proposals from the robots' views (None: no upkeep runs)."""
+        ...
+
+    def floorplan(self) -> FloorPlanStore | None:
+        """The floor plan image and its placement (None: the site keeps none)."""
         ...
 
     def ceiling_height(self) -> float:

@@ -13,7 +13,7 @@ from lighting.wake_window import WakeWindow, WakeWindowConfig
 from live.leds.runtime import LedScheduler
 from live.settings import Settings
 from localizer.config import LocalizerConfig
-from rf_gateway.battery import BatteryConfig
+from rf_gateway.battery import BatteryMonitorConfig
 from rf_gateway.config import GatewayConfig, SleepConfig
 from rf_gateway.scheduler import Priority
 
@@ -84,7 +84,7 @@ def gateway_config(settings: Settings) -> GatewayConfig:
     wake window the start-up sweep opens by one broadcast, as robots identify after it)."""
     sleep = settings.radio_sleep_period_s
     return GatewayConfig(
-        battery=BatteryConfig(
+        battery=BatteryMonitorConfig(
             interval_s=settings.battery_interval_s,
             first_read_s=0.0 if sleep is None else FIRST_BATTERY_READ_S,
         ),

@@ -3,7 +3,7 @@
 Reading needs a viewer key; accepting (it writes landmark positions into the map) and
 rejecting an admin key, as map edits do. The estimator runs on the server
 (`live.upkeep_service.MapUpkeepService`); these routes and the viewer's panel are two
-clients of it. docs/survey.md ("Keeping the map true"), docs/api.md.
+clients of it. docs/map-upkeep.md, docs/api.md.
 """
 
 from __future__ import annotations

@@ -29,8 +29,10 @@ from calibration.uploads import decode_image
 from live.robots import RobotRunner
 from live.services import SiteServices
 from localizer.events import FrameObserved, OdometryMeasured, SpotsObserved
+from sensors.camera import to_gray
+from sensors.remote import RemoteSource
 from sensors.serial_wheels import MAX_WHEEL_SPEED
-from sensors.sources import RemoteSource, SensorEvent, to_gray
+from sensors.sources import SensorEvent
 from server.auth import refuse_websocket, websocket_principal
 from store.errors import NotFoundError
 

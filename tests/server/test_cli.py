@@ -7,6 +7,7 @@ from pathlib import Path
 import pytest
 
 from server import cli, keys_cli
+from server.loopback import is_loopback
 from store import KeyStore
 from store.db import make_engine
 
@@ -52,6 +53,6 @@ def test_serve_refuses_bad_options(
 
 
 def test_loopback_check() -> None:
-    assert cli.is_loopback("127.0.0.1") and cli.is_loopback("::1")
-    assert cli.is_loopback("localhost")
-    assert not cli.is_loopback("0.0.0.0") and not cli.is_loopback("192.168.1.5")
+    assert is_loopback("127.0.0.1") and is_loopback("::1")
+    assert is_loopback("localhost")
+    assert not is_loopback("0.0.0.0") and not is_loopback("192.168.1.5")

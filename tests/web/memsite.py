@@ -102,6 +102,15 @@ class MemSite:
         img = np.zeros((self.camera.height, self.camera.width), np.uint8)
         return CameraView(time.monotonic_ns(), img, px[ok])
 
+    def map_history(self) -> None:
+        return None
+
+    def map_proposals(self) -> None:
+        return None
+
+    def floorplan(self) -> None:
+        return None
+
     def ceiling_height(self) -> float:
         return 2.5
 

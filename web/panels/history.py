@@ -25,12 +25,6 @@ if TYPE_CHECKING:  # viser 1.1 does not export the modal's handle type
     from viser._gui_handles import GuiModalHandle
 
 
-def map_repository_of(services: object) -> MapRepository | None:
-    """The map data layer behind the viewer's services (None for a site without one)."""
-    repo = getattr(services, "map", None)
-    return repo if isinstance(repo, MapRepository) else None
-
-
 def parse_map_file(name: str, content: bytes) -> list[LandmarkCreate]:
     """A map file (map.json or the CSV export) as landmarks; ValueError names the file."""
     try:

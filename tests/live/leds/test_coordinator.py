@@ -10,7 +10,7 @@ import numpy as np
 from lighting.battery import Battery
 from live.leds.coordinator import LedCoordinator
 from localizer.events import Event, LedRequest, LedsChanged
-from rf_gateway.battery import BatteryConfig
+from rf_gateway.battery import BatteryMonitorConfig
 from rf_gateway.config import GatewayConfig
 from rf_gateway.gateway import Gateway
 from rf_gateway.sim_transport import SimTransport
@@ -49,7 +49,7 @@ def run_site(body: Callable[[LedCoordinator, World, Inbox], Awaitable[None]], **
 
     async def main() -> None:
         gw = Gateway(
-            SimTransport(radio), ADDR, GatewayConfig(battery=BatteryConfig(interval_s=None))
+            SimTransport(radio), ADDR, GatewayConfig(battery=BatteryMonitorConfig(interval_s=None))
         )
         await gw.start()
         inbox = Inbox()
