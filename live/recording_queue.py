@@ -1,7 +1,8 @@
 """`QueuedRecording`: a live recording written from its own thread, never the frame path's.
 
 The robot's feeding thread only queues (a bounded queue of `RecordingLimits.queue_items`;
-a frame that finds it full is dropped and counted in `frames_dropped`). The writer thread
+a frame that finds it full is dropped and counted in `frames_dropped`, an odometry sample
+in `samples_dropped`). The writer thread
 writes through a `recording.writer.RecordingWriter` and stops the recording, and only it,
 with a reason handed to `on_stop`, when:
 
@@ -106,6 +107,7 @@ class QueuedRecording:
         self.on_stop = on_stop
         self.frames_dropped = 0
         self.late_dropped = 0
+        self.samples_dropped = 0
         self.frames_written = 0
         self.stopped: str | None = None
         self._queue: queue.Queue[Item | None] = queue.Queue(limits.queue_items)
@@ -135,7 +137,7 @@ class QueuedRecording:
 
     def add_odometry(self, t_ns: int, v_left: float, v_right: float) -> None:
         if not self._put(("sample", lambda w: w.add_odometry(t_ns, v_left, v_right))):
-            self.late_dropped += 0 if self.stopped else 1
+            self.samples_dropped += 0 if self.stopped else 1
 
     def add_leds(self, event: LedsChanged) -> None:
         self._put(("sample", lambda w: w.add_leds(event)))
