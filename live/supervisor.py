@@ -21,7 +21,7 @@ from live.robots import RobotRunner
 
 log = logging.getLogger(__name__)
 CHECK_S = 1.0
-STALL_S = 5.0
+STALL_S = 15.0
 WATCHED_SOURCES = ("sim", "camera")
 
 
