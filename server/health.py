@@ -9,9 +9,11 @@ site localizes no frame (`live.supervisor`).
 from __future__ import annotations
 
 import asyncio
+import weakref
 
 from pydantic import BaseModel, Field
-from sqlalchemy import text
+from sqlalchemy import Engine, create_engine, text
+from sqlalchemy.pool import NullPool
 
 from live.services import SiteServices
 
@@ -36,8 +38,22 @@ def site_problems(s: SiteServices) -> list[str]:
     return out
 
 
+_PROBES: weakref.WeakKeyDictionary[SiteServices, Engine] = weakref.WeakKeyDictionary()
+
+
+def _probe_engine(s: SiteServices) -> Engine:
+    """An engine of its own for the `SELECT 1` (no pool: a fresh connection each time, so a
+    database that went away is seen; the site's engine and its statistics untouched)."""
+    engine = _PROBES.get(s)
+    if engine is None:
+        url = s.settings.db_url
+        args = {"timeout": DB_TIMEOUT_S} if url.startswith("sqlite") else {}
+        engine = _PROBES[s] = create_engine(url, poolclass=NullPool, connect_args=args)
+    return engine
+
+
 def _select_one(s: SiteServices) -> None:
-    with s.engine.connect() as conn:
+    with _probe_engine(s).connect() as conn:
         conn.execute(text("SELECT 1"))
 
 
