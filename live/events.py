@@ -6,30 +6,38 @@ from __future__ import annotations
 
 import json
 import logging
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from datetime import datetime
-from typing import Any
+from typing import Any, Literal, get_args
 
 from live.event_writer import EventWriter, PendingEvent
 from pubsub.bus import Bus
 from store.log import EventLog
 
-EVENT_KINDS = (
+EventKind = Literal[
     "low_battery",
     "landmark_unreachable",
     "landmark_reachable",
     "robot_lost",
     "robot_localized",
+    "robot_identifying",
     "map_changed",
     "radio_state",
     "led_request_failed",
     "robot_connected",
     "robot_disconnected",
     "clock_offset",
+    "map_proposal_rejected",
+    "zone_enter",
+    "zone_exit",
+    "zone_dwell",
     "recording_stopped",
     "site_thread_restarted",
     "fleet_intrusion",
-)
+]
+"""What an event is about (the API's enumerated type)."""
+EVENT_KINDS: tuple[str, ...] = get_args(EventKind)
 WARNING_EVENTS = frozenset(
     {
         "low_battery",
@@ -103,13 +111,15 @@ class EventHub:
 
     def emit(
         self,
-        kind: str,
+        kind: EventKind,
         message: str,
         *,
         robot: str | None = None,
         landmark_id: int | None = None,
         data: dict[str, Any] | None = None,
     ) -> None:
+        if kind not in EVENT_KINDS:  # the API lists the kinds: a new one is added there
+            raise ValueError(f"event kind {kind!r} is not one of EventKind: {EVENT_KINDS}")
         pending = PendingEvent(kind, message, robot, landmark_id, dict(data or {}))
         extra: dict[str, Any] = {"event": kind}
         if robot is not None:
@@ -120,10 +130,21 @@ class EventHub:
         log.log(level, "%s", message, extra=extra)
         self.writer.submit(pending)
 
-    def recent(self, limit: int = 100) -> list[SiteEvent]:
-        """The newest events first (those emitted before the call included)."""
+    def recent(
+        self,
+        limit: int = 100,
+        *,
+        kinds: Sequence[str] | None = None,
+        before_id: int | None = None,
+        after_id: int | None = None,
+        robot: str | None = None,
+    ) -> list[SiteEvent]:
+        """The newest events first (`after_id`: the oldest after it first), filtered; those
+        emitted before the call included (the event writer is waited for, 1 s at most)."""
         self.writer.flush(1.0)
         return [
             SiteEvent(r.id or 0, r.t, r.kind, r.message, r.robot, r.landmark_id, r.data)
-            for r in self.log.events(limit)
+            for r in self.log.events(
+                limit, kinds, before_id=before_id, after_id=after_id, robot=robot
+            )
         ]

@@ -35,6 +35,7 @@ from rf_gateway.transport import DiscoveredRadio, normalize_address
 from store import EventLog, MapRepository, RobotStore
 from store.errors import NotFoundError, UnavailableError
 from store.models import RobotCreate, RobotPublic
+from store.recording_catalog import RecordingCatalog, write_meta
 
 log = logging.getLogger(__name__)
 FULL_SUPPLY_MV = 3200
@@ -303,23 +304,48 @@ class LedsAndRadio:
 
 
 class Recordings:
-    """Record robots to `<recordings_dir>/<name>-<UTC time>/` (EuRoC-style, docs/recording.md)."""
+    """Record robots to `<recordings_dir>/<name>-<UTC time>/` (EuRoC-style, docs/recording.md);
+    `catalog` lists, zips and deletes them and keeps them within the retention bounds."""
 
-    def __init__(self, root: Path, robots: Robots, map: MapRepository) -> None:
+    def __init__(
+        self,
+        root: Path,
+        robots: Robots,
+        map: MapRepository,
+        *,
+        keep_days: float | None = 30.0,
+        max_total_bytes: int | None = 20 * 1024**3,
+    ) -> None:
         self.root, self.robots, self.map = root, robots, map
+        self.catalog = RecordingCatalog(
+            root, self._live, keep_days=keep_days, max_total_bytes=max_total_bytes
+        )
 
-    def start(self, name: str) -> Path:
-        """Start recording a robot; returns the folder."""
+    def _live(self) -> set[Path]:
+        out: set[Path] = set()
+        for runner in self.robots.runners():
+            rec = runner.recorder
+            if rec is not None:
+                out.add(Path(rec.root))
+        return out
+
+    def start(self, name: str, *, trigger: str = "manual") -> Path:
+        """Start recording a robot (`trigger`: why, e.g. "manual", "survey"); the folder."""
         runner = self.robots.get(name)
-        stamp = datetime.now(UTC).strftime("%Y%m%dT%H%M%S")
-        root = self.root / f"{name}-{stamp}"
+        now = datetime.now(UTC)
+        root = self.root / f"{name}-{now.strftime('%Y%m%dT%H%M%S')}"
         records = [
             lm.model_dump(mode="json", exclude={"created_at", "updated_at", "note"})
             for lm in self.map.list()
         ]
         runner.start_recording(root, records)
+        write_meta(root, name, trigger, now)
         return root
 
     def stop(self, name: str) -> Path | None:
-        """Stop a robot's recording; its folder, or None when it was not recording."""
-        return self.robots.get(name).stop_recording()
+        """Stop a robot's recording; its folder, or None when it was not recording. The
+        oldest recordings beyond the retention bounds go then."""
+        path = self.robots.get(name).stop_recording()
+        if path is not None:
+            self.catalog.prune()
+        return path

@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 import numpy.typing as npt
-from pydantic import BaseModel
+from pydantic import BaseModel, Field
 
 from localizer.events import Mode, PoseEstimate
 
@@ -87,8 +87,16 @@ class PoseUpdate:
         return json.dumps(self.to_dict(), separators=(",", ":"))
 
 
+NO_POSE_MODES: frozenset[str] = frozenset({"identifying", "lost"})
+"""Modes in which the robot has no pose to give (as the WebSocket sends none)."""
+
+
 def pose_json(robot: str, mode: Mode, upd: PoseUpdate | None) -> str:
-    """`PosePublic` as JSON text, built without a model round trip (the hot endpoint)."""
+    """`PosePublic` as JSON text, built without a model round trip (the hot endpoint).
+
+    While the robot identifies again (after a relocalize) or is lost, its last pose is not
+    served as if current: x, y, theta, covariance are null and `stale` is true (`t_ns` and
+    `age_s` still say when the last pose was computed)."""
     if upd is None:
         return json.dumps(
             {
@@ -101,12 +109,16 @@ def pose_json(robot: str, mode: Mode, upd: PoseUpdate | None) -> str:
                 "covariance": None,
                 "landmark_ids": [],
                 "age_s": None,
+                "stale": mode in NO_POSE_MODES,
             }
         )
     d = upd.to_dict()
     d.pop("computed_wall_ns")
     d["mode"] = mode
     d["age_s"] = max(0.0, (time.time_ns() - upd.computed_wall_ns) / 1e9)
+    d["stale"] = stale = mode in NO_POSE_MODES
+    if stale:
+        d.update(x=None, y=None, theta=None, covariance=None, landmark_ids=[])
     return json.dumps(d, separators=(",", ":"))
 
 
@@ -115,10 +127,26 @@ class PosePublic(BaseModel):
 
     robot: str
     mode: Mode
-    t_ns: int | None = None
-    x: float | None = None
-    y: float | None = None
-    theta: float | None = None
-    covariance: list[list[float]] | None = None
-    landmark_ids: list[int] = []
-    age_s: float | None = None
+    t_ns: int | None = Field(
+        default=None,
+        description="when the frame of this pose was taken, on the site clock (nanoseconds "
+        "since the site's clock epoch: the server's start for the virtual site, the robot "
+        "agent's synchronised clock otherwise); not wall time",
+    )
+    x: float | None = Field(default=None, description="metres, world (map) frame")
+    y: float | None = Field(default=None, description="metres, world (map) frame")
+    theta: float | None = Field(
+        default=None, description="heading, radians, REP-103: CCW from +x, in (-pi, pi]"
+    )
+    covariance: list[list[float]] | None = Field(
+        default=None, description="of (x, y, theta): m^2, m*rad, rad^2; 3x3 row-major"
+    )
+    landmark_ids: list[int] = Field(default=[], description="landmarks this fix used")
+    age_s: float | None = Field(
+        default=None, description="seconds since the pose was computed (wall clock)"
+    )
+    stale: bool = Field(
+        default=False,
+        description="true while the robot identifies again or is lost: x, y, theta and "
+        "covariance are then null (its last pose is no longer current)",
+    )

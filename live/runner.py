@@ -311,6 +311,13 @@ class LiveSiteRunner:
             self.events.emit("robot_lost", f"robot {robot} is lost", robot=robot)
         elif new == "landmark" and old in ("lost", "identifying"):
             self.events.emit("robot_localized", f"robot {robot} localized", robot=robot)
+        elif new == "identifying" and old in ("landmark", "dead_reckoning"):
+            # after a relocalize: until its landmarks are named again it has no pose
+            self.events.emit(
+                "robot_identifying",
+                f"robot {robot} identifies its landmarks again (no pose until it has)",
+                robot=robot,
+            )
 
     async def _gateway_events(self) -> None:
         assert self.gateway is not None

@@ -27,6 +27,7 @@ from live.runner import LiveSiteRunner
 from live.settings import Settings
 from live.survey.service import LiveSurvey
 from live.upkeep_service import MapUpkeepService
+from live.zones_history import HistoryConfig, ZonesAndHistory
 from pubsub.bus import Bus
 from store import EventLog, KeyStore, MapRepository, RobotStore
 from store.db import make_engine, migrate
@@ -34,6 +35,7 @@ from store.errors import UnavailableError
 from store.floorplan import FloorPlanStore
 from store.landmarks import parse_map_json
 from store.models import LandmarkPublic
+from store.zones import PoseHistory, ZoneStore
 
 if TYPE_CHECKING:
     from sim.live import LiveSite
@@ -76,10 +78,21 @@ class SiteServices:
         self._t0_ns = time.monotonic_ns()
         self.robots = Robots(self.poses, self.robot_store, self.clock_ns)
         self.leds = LedsAndRadio(self.map, self.log)
-        self.recordings = Recordings(settings.recordings_dir, self.robots, self.map)
+        max_gb = settings.recordings_max_gb
+        self.recordings = Recordings(
+            settings.recordings_dir, self.robots, self.map,
+            keep_days=settings.recordings_keep_days,
+            max_total_bytes=None if max_gb is None else int(max_gb * 1024**3),
+        )  # fmt: skip
         self.commissioning = Commissioning(self.map, self.robots, self.leds, self.submit)
         self.survey = LiveSurvey(self.map, self.robots, self.leds, self.recordings)
         self.upkeep = MapUpkeepService(self.map, self.robots, emit=self.events.emit)
+        self.zones = ZoneStore(self.engine)
+        self.pose_history = PoseHistory(self.engine)
+        self.whereabouts = ZonesAndHistory(
+            self.robots, self.zones, self.pose_history, self.events.emit,
+            HistoryConfig(keep_days=settings.history_keep_days),
+        )  # fmt: skip
         self.live: LiveSiteRunner | None = None
         self.loop: asyncio.AbstractEventLoop | None = None
         self.map.add_listener(self._on_map_changed)
@@ -126,11 +139,13 @@ class SiteServices:
             await self.live.start()
         self.commissioning.start()
         self.upkeep.start()
+        self.whereabouts.start()
 
     async def stop(self) -> None:
         """Stop commissioning and the site (LEDs left all on), then close the database."""
         await self.commissioning.stop()
         await self.upkeep.stop()
+        await self.whereabouts.stop()
         self.survey.cancel()
         if self.live is not None:
             await self.live.stop()

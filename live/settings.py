@@ -157,6 +157,9 @@ class Settings(BaseSettings):
     recording_max_mb: int = Field(default=4096, ge=1)
     recording_max_s: float = Field(default=3600.0, gt=0.0)
     recording_min_free_mb: int = Field(default=256, ge=0)
+    recordings_keep_days: float | None = Field(default=30.0, gt=0)
+    recordings_max_gb: float | None = Field(default=20.0, gt=0)
+    history_keep_days: float = Field(default=30.0, gt=0)
 
     @field_validator("radio")
     @classmethod

@@ -25,6 +25,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import numpy.typing as npt
 
+from live.events import EventKind
 from live.pose_pump import PosePump
 from localizer.camera import CameraModel
 from localizer.events import FrameObserved, PoseEstimate
@@ -83,7 +84,7 @@ class MapUpkeepService:
         *,
         config: UpkeepConfig | None = None,
         detection: DetectionConfig | None = None,
-        emit: Callable[[str, str], object] | None = None,
+        emit: Callable[[EventKind, str], object] | None = None,
         batch_s: float = 0.1,
     ) -> None:
         self.map, self.robots = map, robots

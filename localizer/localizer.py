@@ -473,14 +473,21 @@ class Localizer:
         if self.calibration is None or fused is None or self._filter is None:
             return
         rows, px, fix = fused
-        if not self.calibration.wants(t_ns, len(rows)):
+        completed = self.calibration.wants(t_ns, len(rows)) and self.calibration.observe(
+            t_ns,
+            px,
+            self.map.positions[rows],
+            (fix.x, fix.y, fix.theta),
+            self._odometry.pose_at(t_ns),
+            fix.floor,
+        )
+        if not completed:  # a completed window's work goes on a step a frame, not all at once
+            self.calibration.step()
+        update = self.calibration.take_update()
+        if update is None:
             return
         P = self.map.positions[rows]
         pose = (fix.x, fix.y, fix.theta)
-        update = self.calibration.observe(t_ns, px, P, pose, self._odometry.pose_at(t_ns),
-                                          fix.floor)  # fmt: skip
-        if update is None:
-            return
         sigma = [self._tracker.noise.sigma_px(u, v) for u, v in px]
         # on the floor the fix stood on (its tilt and height), not the map's level one
         on = None if fix.floor is None else (

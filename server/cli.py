@@ -6,6 +6,7 @@ With no arguments: the `demo` virtual site, the API on http://127.0.0.1:8000 and
 from __future__ import annotations
 
 import argparse
+import socket
 import sys
 from collections.abc import Callable
 from pathlib import Path
@@ -59,6 +60,29 @@ def _parser() -> argparse.ArgumentParser:
     return p
 
 
+def _preflight(settings: Settings) -> str | None:
+    """What would make the server fail once started, said in one line (None: nothing):
+    the API's port taken, an unknown scenario. (They once failed after the ready banner and
+    a new admin key were printed; the scenario with a 50-line traceback.)"""
+    if settings.port != 0:
+        with socket.socket(socket.AF_INET6 if ":" in settings.host else socket.AF_INET) as s:
+            try:
+                s.bind((settings.host, settings.port))
+            except OSError as exc:
+                return (
+                    f"cannot listen on {settings.host}:{settings.port} ({exc.strerror}): another "
+                    "server (another irloc serve?) has it; choose one with --port"
+                )
+    if settings.site_enabled:
+        from sim.scenario import load_scenario
+
+        try:
+            load_scenario(settings.scenario)
+        except ValueError as exc:
+            return f"--scenario: {exc}"
+    return None
+
+
 def main(
     argv: list[str] | None = None, make_viewer: Callable[[Settings], ViewerApp | None] | None = None
 ) -> int:
@@ -103,6 +127,10 @@ def main(
         return 2
     if settings.map_file is not None and not settings.map_file.is_file():
         print(f"irloc serve: --map {settings.map_file}: no such file", file=sys.stderr)
+        return 2
+    problem = _preflight(settings)
+    if problem is not None:  # before the banner and before a new admin key is made
+        print(f"irloc serve: {problem}", file=sys.stderr)
         return 2
     configure_logging(args.log_level, settings.log_format)
 

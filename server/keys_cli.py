@@ -33,6 +33,15 @@ def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(sys.argv[1:] if argv is None else argv)
     data_dir = getattr(args, "data_dir_sub", None) or args.data_dir
     settings = Settings(data_dir=data_dir) if data_dir else Settings()
+    db_file = settings.data_dir / "irloc.db"
+    if settings.database_url is None and not db_file.is_file():
+        # a mistyped --data-dir once made an empty database and a key the server rejects
+        print(
+            f"irloc keys: no irloc database at {db_file} (irloc serve creates it on its first "
+            "start): check --data-dir, or start the server with it first",
+            file=sys.stderr,
+        )
+        return 2
     engine = make_engine(settings.db_url)
     migrate(engine)
     keys = KeyStore(engine)

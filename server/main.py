@@ -50,10 +50,12 @@ from server.routes import (
     leds,
     map,
     map_proposals,
+    recordings,
     remote,
     robots,
     streams,
     survey,
+    zones,
 )
 from server.seams import ViewerApp
 from server.storage_errors import install_storage_errors
@@ -167,7 +169,7 @@ def create_app(settings: Settings | None = None, viewer: ViewerApp | None = None
     api = APIRouter(prefix=API_PREFIX, dependencies=[Depends(refuse_unknown_query)])
     for module in (
         landmarks, map, history, floorplan, robots, calibration, remote, admin, streams,
-        commissioning, survey, leds, map_proposals,
+        commissioning, survey, leds, map_proposals, recordings, zones,
     ):  # fmt: skip
         api.include_router(module.router)
     api.add_api_route(

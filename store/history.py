@@ -1,6 +1,6 @@
 """Undo and redo of map edits, per author, on the audit log.
 
-Each author (an API key: the API acts as `key:3`, the viewer as `viewer:key:3`, one author)
+Each author (an API key: the API acts as `key:3`, the viewer as `web:key:3`, one author)
 undoes and redoes only their own edits, newest first, as in an editor: an undo reverts one
 edit (a landmark's add, change or delete, or a whole-map import or clear), a redo reapplies
 the edit undone last, and a new edit by the same author drops what they could still redo.
@@ -29,7 +29,10 @@ from store.models import AuditRecord, Landmark, LandmarkPublic
 
 EDIT_ACTIONS = ("create", "update", "delete", "import", "clear")
 WHOLE_MAP_ACTIONS = ("import", "clear")
-VIEWER_PREFIX = "viewer:"
+VIEWER_PREFIX = "web:"
+"""How the viewer (the web app) names its users' edits: `web:key:3`."""
+OLD_VIEWER_PREFIX = "viewer:"
+"""... as it did before (it read like the viewer role for an admin's edits): still theirs."""
 _STAMPS = ("created_at", "updated_at")
 
 
@@ -53,16 +56,16 @@ proposal); the edit is still theirs to undo."""
 
 
 def owner_of(actor: str) -> str:
-    """The author behind an audit actor: `viewer:key:3`, `key:3` and `key:3 (survey)` are
+    """The author behind an audit actor: `web:key:3`, `key:3` and `key:3 (survey)` are
     the same key."""
-    owner = actor.removeprefix(VIEWER_PREFIX)
+    owner = actor.removeprefix(VIEWER_PREFIX).removeprefix(OLD_VIEWER_PREFIX)
     for suffix in SOURCES:
         owner = owner.removesuffix(suffix)
     return owner
 
 
 def _actors(owner: str) -> list[str]:
-    plain = [owner, VIEWER_PREFIX + owner]
+    plain = [owner, VIEWER_PREFIX + owner, OLD_VIEWER_PREFIX + owner]
     return plain + [a + suffix for a in plain for suffix in SOURCES]
 
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from datetime import datetime
 from typing import Any
 
@@ -61,10 +62,31 @@ class EventLog:
             s.refresh(rec)
             return rec
 
-    def events(self, limit: int = 100, kind: str | None = None) -> list[EventRecord]:
-        """The newest events first."""
+    def events(
+        self,
+        limit: int = 100,
+        kind: str | Sequence[str] | None = None,
+        *,
+        before_id: int | None = None,
+        after_id: int | None = None,
+        robot: str | None = None,
+    ) -> list[EventRecord]:
+        """The newest events first (with `after_id`: the oldest after it first), of these
+        kinds and this robot, older than `before_id` (paging back) or newer than
+        `after_id` (catching up, as an SSE client does with Last-Event-ID)."""
         with Session(self.engine) as s:
-            q = select(EventRecord).order_by(col(EventRecord.id).desc()).limit(limit)
-            if kind is not None:
+            order = (
+                col(EventRecord.id).asc() if after_id is not None else col(EventRecord.id).desc()
+            )
+            q = select(EventRecord).order_by(order).limit(limit)
+            if isinstance(kind, str):
                 q = q.where(EventRecord.kind == kind)
+            elif kind is not None:
+                q = q.where(col(EventRecord.kind).in_(list(kind)))
+            if before_id is not None:
+                q = q.where(col(EventRecord.id) < before_id)
+            if after_id is not None:
+                q = q.where(col(EventRecord.id) > after_id)
+            if robot is not None:
+                q = q.where(EventRecord.robot == robot)
             return list(s.exec(q))

@@ -14,7 +14,7 @@ from typing import Any, Literal
 
 from pydantic import field_validator
 from pydantic.json_schema import SkipJsonSchema
-from sqlalchemy import JSON, Column, ForeignKey, Integer
+from sqlalchemy import JSON, BigInteger, Column, ForeignKey, Integer, String
 from sqlmodel import Field, SQLModel
 
 from rf_gateway.transport import normalize_address
@@ -276,3 +276,31 @@ class ApiKeyPublic(SQLModel):
     last_used_at: datetime | None = Field(
         default=None, description="last request with this key (UTC, to the minute)"
     )
+
+
+# -- zones and pose history ----------------------------------------------------------------
+class ZoneRecord(SQLModel, table=True):
+    """A zone: a polygon on the floor (world x, y metres), on a floor of the site."""
+
+    __tablename__ = "zones"
+    id: int | None = Field(default=None, primary_key=True)
+    name: str = Field(sa_column=Column(String, nullable=False, unique=True))
+    floor: str = ""
+    polygon: list[list[float]] = Field(sa_column=Column(JSON, nullable=False))
+    dwell_s: float | None = None
+    created_at: datetime = Field(default_factory=utcnow)
+
+
+class PoseRecord(SQLModel, table=True):
+    """One kept pose of a robot (the history keeps about one a second per robot)."""
+
+    __tablename__ = "pose_history"
+    id: int | None = Field(default=None, primary_key=True)
+    robot: str
+    t: datetime = Field(description="wall clock, UTC")
+    t_ns: int = Field(sa_column=Column(BigInteger, nullable=False), description="site clock")
+    x: float
+    y: float
+    theta: float
+    sigma_m: float | None = None
+    mode: str

@@ -20,7 +20,7 @@ import numpy as np
 
 from commissioning.doubt import Doubt
 from commissioning.wizard import WizardStatus
-from live.facades import BatteryStatus
+from live.facades import BatteryStatus, Recordings
 from live.leds.status import site_energy
 from live.services import SiteServices
 from live.survey.service import SurveyStatus
@@ -166,6 +166,9 @@ class SiteAdapter:
 
     def floorplan(self) -> FloorPlanStore:
         return self.services.floorplan
+
+    def recordings(self) -> Recordings:
+        return self.services.recordings
 
     def ceiling_height(self) -> float:
         zs = [lm.z for lm in self._map()]

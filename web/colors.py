@@ -65,3 +65,17 @@ SURVEY_STATE_NAMES: dict[str, str] = {
     "unseen": "not identified yet (map position)",
 }
 ROUTE_COLOR: RGB = (190, 50, 200)  # the survey's suggested route, on the floor
+
+ROBOT_COLORS: tuple[RGB, ...] = (  # trails, one per robot: hues far from the modes' and
+    (110, 50, 190),  # violet     the footprint's (the scene's tone mapping lightens
+    (190, 0, 110),  # magenta     every colour and shifts its hue by up to 20 degrees)
+    (0, 150, 140),  # teal
+    (120, 120, 0),  # olive
+    (90, 90, 90),  # dark grey
+)
+
+
+def robot_color(index: int) -> RGB:
+    """The colour of the `index`-th robot (in the order robots appear; it repeats after
+    `len(ROBOT_COLORS)` robots)."""
+    return ROBOT_COLORS[index % len(ROBOT_COLORS)]

@@ -23,13 +23,20 @@ from urllib.parse import urlencode
 
 import viser
 import websockets
-from fastapi import APIRouter, Request, WebSocket, WebSocketDisconnect
-from fastapi.responses import HTMLResponse, RedirectResponse, Response
+from fastapi import APIRouter, BackgroundTasks, Request, WebSocket, WebSocketDisconnect
+from fastapi.responses import (
+    FileResponse,
+    HTMLResponse,
+    PlainTextResponse,
+    RedirectResponse,
+    Response,
+)
 from starlette.requests import HTTPConnection
 from websockets.asyncio.client import ClientConnection
 
 from server.edge import same_origin
 from server.seams import Authenticate
+from store.errors import ConflictError, NotFoundError
 from web.roles import TICKET_PARAM, Session
 
 log = logging.getLogger(__name__)
@@ -74,6 +81,8 @@ class TicketIssuer(Protocol):
 
     def issue_ticket(self, session: Session) -> str: ...
 
+    def recording_zip(self, name: str) -> Path: ...
+
 
 def session_of(conn: HTTPConnection, authenticate: Authenticate) -> Session | None:
     """The viewer session of a request, or None without a valid key."""
@@ -86,7 +95,8 @@ def session_of(conn: HTTPConnection, authenticate: Authenticate) -> Session | No
         return None
     if principal is None:
         return None
-    return Session(str(principal.role), f"viewer:{principal.actor}")
+    # "web:key:3": the web app's user (not "viewer:", which read like the viewer role)
+    return Session(str(principal.role), f"web:{principal.actor}")
 
 
 NO_KEY_PAGE = """<!doctype html><meta charset="utf-8"><title>irloc viewer</title>
@@ -148,6 +158,25 @@ def viewer_router(
             )  # fmt: skip
             return resp
         return HTMLResponse(index.read_bytes(), headers={"Cache-Control": "no-store"})
+
+    @router.get("/viewer/recordings/{name}.zip")
+    def recording_download(name: str, request: Request, background: BackgroundTasks) -> Response:
+        """A recording for the Recordings panel's link (the key is the `/viewer` cookie):
+        operators and admins, as `GET /api/v1/recordings/{name}/download`."""
+        viewer = get_viewer()
+        session = session_of(request, authenticate)
+        if viewer is None or session is None:
+            return HTMLResponse(no_key_page(request), status_code=401)
+        if not session.can_operate:
+            return PlainTextResponse("downloading a recording needs an operator key", 403)
+        try:
+            tmp = viewer.recording_zip(name)
+        except NotFoundError as exc:
+            return PlainTextResponse(str(exc), 404)
+        except ConflictError as exc:
+            return PlainTextResponse(str(exc), 409)
+        background.add_task(tmp.unlink, missing_ok=True)
+        return FileResponse(tmp, media_type="application/zip", filename=f"{name}.zip")
 
     @router.websocket("/viewer")
     @router.websocket("/viewer/")

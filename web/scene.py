@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import numpy.typing as npt
@@ -32,6 +32,7 @@ from web.colors import (
     battery_color,
     landmark_color,
     mode_color,
+    robot_color,
 )
 from web.footprint import Bounds, footprint_in_site, usable_footprint_body
 from web.geometry import ellipse_points
@@ -52,9 +53,7 @@ class SceneConfig:
 
     Attributes:
         landmark_radius_m: radius of a landmark's sphere, metres.
-        trail_len: poses kept in a robot's trail (about; whole pieces are dropped).
-        trail_every: append to the trail every this many pose updates (15: 2 Hz at 30 Hz).
-        trail_piece: points per trail piece: only the newest piece is resent.
+        trail: how trails sample poses (by distance; broken at gaps in distance or time).
         ellipse_sigma: the uncertainty ellipse's scale, standard deviations.
         ellipse_min_m: ellipses are drawn at least this large, metres (to stay visible).
         ellipse_rtol: redraw the ellipse when its covariance changed by this share.
@@ -66,9 +65,7 @@ class SceneConfig:
     """
 
     landmark_radius_m: float = 0.1
-    trail_len: int = 300
-    trail_every: int = 15
-    trail_piece: int = 20
+    trail: TrailConfig = field(default_factory=lambda: TrailConfig())
     ellipse_sigma: float = 3.0
     ellipse_min_m: float = 0.02
     ellipse_rtol: float = 0.05
@@ -100,44 +97,95 @@ def set_segments(handle: viser.LineSegmentsHandle, segments: FloatArray, color: 
     handle.points = seg
 
 
-class Trail:
-    """A robot's trail as pieces of `piece` points: finished pieces stay in the scene as
-    they are, only the newest is resent; the oldest is removed beyond `max_points`."""
+@dataclass(frozen=True)
+class TrailConfig:
+    """How a robot's trail samples its poses.
 
-    def __init__(self, scene: viser.SceneApi, root: str, *, piece: int, max_points: int) -> None:
-        self.scene, self.root = scene, root
-        self.piece, self.max_pieces = max(2, piece), max(1, max_points // max(2, piece))
-        self._pieces: deque[viser.LineSegmentsHandle] = deque()
+    Attributes:
+        min_step_m: a pose is added once the robot moved this far from the last point,
+            metres (a robot standing still adds nothing; the trail follows the floor, not
+            the viewer's update rate).
+        max_jump_m: two consecutive points farther apart than this are not joined, metres
+            (a gap in the poses: a busy server, a robot lost and found again; joined, they
+            would draw a chord through the walls).
+        max_gap_s: ... nor two points further apart in time than this, seconds.
+        max_points: points kept (the oldest pieces are dropped beyond it).
+        piece: points per trail piece: only the newest piece is resent.
+    """
+
+    min_step_m: float = 0.1
+    max_jump_m: float = 1.0
+    max_gap_s: float = 5.0
+    max_points: int = 600
+    piece: int = 20
+
+
+class Trail:
+    """A robot's trail as pieces of at most `piece` points, in the robot's colour: finished
+    pieces stay in the scene as they are, only the newest is resent; the oldest go beyond
+    `max_points`. A jump in distance or time starts a new piece not joined to the last."""
+
+    def __init__(
+        self,
+        scene: viser.SceneApi,
+        root: str,
+        *,
+        color: RGB = TRAIL_COLOR,
+        config: TrailConfig | None = None,
+    ) -> None:
+        self.scene, self.root, self.color = scene, root, color
+        self.config = cfg = config or TrailConfig()
+        self.piece = max(2, cfg.piece)
+        self._pieces: deque[tuple[viser.LineSegmentsHandle, int]] = deque()
         self._points: list[tuple[float, float]] = []
+        self._last: tuple[float, float, float] | None = None  # x, y, t seconds
         self._k = 0
-        self.shown: deque[tuple[float, float]] = deque(maxlen=self.piece * self.max_pieces)
+        self.shown: deque[tuple[float, float]] = deque(maxlen=cfg.max_points)
         """The points drawn (about; for tests), oldest first."""
 
-    def append(self, x: float, y: float) -> None:
-        """Add a point (world x, y, metres) and send the newest piece."""
+    def append(self, x: float, y: float, t_s: float) -> bool:
+        """Offer a pose (world x, y metres at time `t_s` seconds); True when it was added
+        (it moved `min_step_m` since the last point), then the newest piece is resent."""
+        cfg = self.config
+        last = self._last
+        if last is not None:
+            step = math.hypot(x - last[0], y - last[1])
+            if step < cfg.min_step_m and t_s >= last[2]:
+                return False
+            if step > cfg.max_jump_m or abs(t_s - last[2]) > cfg.max_gap_s:
+                self._points = []  # a gap: the next piece starts here, not joined
+        self._last = (x, y, t_s)
         if len(self._points) >= self.piece:  # finish this piece; the next starts at its end
             self._points = self._points[-1:]
-            self._pieces.append(self._new_piece())
-            while len(self._pieces) > self.max_pieces:
-                self._pieces.popleft().remove()
-        if not self._pieces:
-            self._pieces.append(self._new_piece())
+            self._pieces.append((self._new_piece(), 0))
+        elif not self._points:
+            self._pieces.append((self._new_piece(), 0))
         self._points.append((x, y))
         self.shown.append((x, y))
+        handle, _ = self._pieces[-1]
+        self._pieces[-1] = (handle, len(self._points))
+        while sum(n for _, n in self._pieces) > cfg.max_points and len(self._pieces) > 1:
+            self._pieces.popleft()[0].remove()
         p = np.array(self._points)
         seg = polyline_segments(np.column_stack([p, np.full(len(p), 0.01)]))
-        set_segments(self._pieces[-1], seg, TRAIL_COLOR)
+        set_segments(handle, seg, self.color)
+        return True
 
     def _new_piece(self) -> viser.LineSegmentsHandle:
         self._k += 1
         return self.scene.add_line_segments(
-            f"{self.root}/{self._k}", np.zeros((0, 2, 3)), TRAIL_COLOR, thickness=0.01
+            f"{self.root}/{self._k}", np.zeros((0, 2, 3)), self.color, thickness=0.05
         )
 
     @property
     def pieces(self) -> list[viser.LineSegmentsHandle]:
         """The trail's nodes, oldest first."""
-        return list(self._pieces)
+        return [h for h, _ in self._pieces]
+
+
+def robot_label(name: str) -> str:
+    """The text beside a robot: "robot r3" (landmark labels are bare IDs)."""
+    return f"robot {name}"
 
 
 def landmark_label(lm: LandmarkState) -> str:
@@ -153,7 +201,7 @@ def landmark_label(lm: LandmarkState) -> str:
 
 
 class _RobotNodes:
-    def __init__(self, scene: viser.SceneApi, name: str, cfg: SceneConfig) -> None:
+    def __init__(self, scene: viser.SceneApi, name: str, cfg: SceneConfig, color: RGB) -> None:
         root = f"/robots/{name}"
         self.root = scene.add_frame(root, show_axes=False)
         at = f"{root}/position"
@@ -166,10 +214,16 @@ class _RobotNodes:
             f"{at}/body/nose", color=(30, 30, 30), dimensions=(0.15, 0.08, 0.05),
             position=(0.25, 0.0, 0.1),
         )  # fmt: skip
-        self.label = scene.add_label(f"{at}/body/label", name, position=(0.0, 0.0, 0.35))
+        # on the (unturned) position frame, beside the box and above the landmark labels'
+        # side, and named as a robot: a bare "r3" over landmark "201" read "r301"
+        self.label = scene.add_label(
+            f"{at}/label", robot_label(name), position=(0.3, 0.3, 0.35), anchor="bottom-left",
+            font_screen_scale=1.1,
+        )  # fmt: skip
         empty = np.zeros((0, 2, 3))
         scene.add_frame(f"{root}/trail", show_axes=False)
-        self.trail = Trail(scene, f"{root}/trail", piece=cfg.trail_piece, max_points=cfg.trail_len)
+        self.color = color
+        self.trail = Trail(scene, f"{root}/trail", color=color, config=cfg.trail)
         self.ellipse = scene.add_line_segments(f"{at}/ellipse", empty, UNKNOWN_COLOR)
         self.footprint = scene.add_line_segments(f"{at}/body/footprint", empty, FOOTPRINT_COLOR)
         self.footprint_body: FloatArray | None = None  # unclipped, body frame
@@ -192,8 +246,11 @@ class SiteScene:
         self.server = server
         self.config = config or SceneConfig()
         self._landmarks: dict[int, tuple[LandmarkState, bool]] = {}
-        self._spheres: dict[int, tuple[viser.SceneNodeHandle, ...]] = {}
+        self._spheres: dict[
+            int, tuple[viser.IcosphereHandle, viser.LabelHandle, viser.IcosphereHandle]
+        ] = {}
         self._robots: dict[str, _RobotNodes] = {}
+        self._colors_used: list[str] = []  # robots in the order they came: their colour
         self._positions: dict[int, FloatArray] = {}
         self.ceiling_z = 2.5
         self.bounds: Bounds = (-5.0, 5.0, -5.0, 5.0)
@@ -236,10 +293,21 @@ class SiteScene:
             color = landmark_rgb(lm)
             pos = (lm.x, lm.y, lm.z)
             self._positions[lm.id] = np.array(pos)
+            nodes = self._spheres.get(lm.id)
+            if nodes is not None:  # changed in place: removing and re-adding flickers
+                sphere, label, glow = nodes
+                if tuple(sphere.position) != pos:
+                    sphere.position = pos
+                if tuple(sphere.color) != color:
+                    sphere.color = color
+                text = landmark_label(lm)
+                if label.text != text:
+                    label.text = text
+                if glow.visible != (lm.id in lit):
+                    glow.visible = lm.id in lit
+                self._landmarks[lm.id] = state
+                continue
             name = f"/landmarks/{lm.id}"
-            old = self._spheres.pop(lm.id, None)
-            if old is not None:
-                old[0].remove()
             sphere = scene.add_icosphere(name, r, color, position=pos, subdivisions=2)
             label = scene.add_label(
                 f"{name}/label", landmark_label(lm), position=(0.0, 0.0, -2.0 * r),
@@ -286,7 +354,9 @@ class SiteScene:
         for rb in robots:
             nodes = self._robots.get(rb.name)
             if nodes is None:
-                nodes = self._robots[rb.name] = _RobotNodes(scene, rb.name, self.config)
+                color = robot_color(len(self._colors_used))
+                self._colors_used.append(rb.name)
+                nodes = self._robots[rb.name] = _RobotNodes(scene, rb.name, self.config, color)
             self._update_robot(nodes, rb)
 
     def _update_robot(self, nodes: _RobotNodes, rb: RobotState) -> None:
@@ -305,8 +375,7 @@ class SiteScene:
         nodes.at.position = (pose.x, pose.y, 0.0)
         nodes.body.wxyz = wxyz_from_heading(pose.theta)
         nodes.updates += 1
-        if nodes.updates % cfg.trail_every == 1 or cfg.trail_every == 1:
-            nodes.trail.append(pose.x, pose.y)
+        nodes.trail.append(pose.x, pose.y, pose.t_ns * 1e-9)
         cov = np.asarray(pose.covariance, dtype=np.float64)[:2, :2]
         old = nodes.cov
         if mode_changed or old is None or not np.allclose(cov, old, rtol=cfg.ellipse_rtol,

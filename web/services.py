@@ -17,6 +17,7 @@ import numpy.typing as npt
 
 from commissioning.types import Candidate
 from commissioning.wizard import WizardStatus
+from live.facades import Recordings
 from live.survey.service import SurveyStatus
 from live.upkeep_service import MapUpkeepService
 from localizer.camera import CameraModel
@@ -157,6 +158,10 @@ class ViewerSite(Protocol):
 
     def floorplan(self) -> FloorPlanStore | None:
         """The floor plan image and its placement (None: the site keeps none)."""
+        ...
+
+    def recordings(self) -> Recordings | None:
+        """The robots' recordings: start, stop, list, zip, delete (None: none kept)."""
         ...
 
     def ceiling_height(self) -> float:

@@ -14,7 +14,10 @@ import logging
 import secrets
 import threading
 import time
+from collections.abc import Callable
+from contextlib import nullcontext
 from dataclasses import dataclass
+from pathlib import Path
 from typing import TYPE_CHECKING
 from urllib.parse import parse_qs, urlsplit
 
@@ -24,14 +27,17 @@ from fastapi import APIRouter
 
 from server.loopback import is_loopback
 from server.seams import Authenticate
+from store.errors import NotFoundError
 from web.adapter import SiteAdapter
 from web.floorplan_view import FloorPlanLayer, FloorPlanPanel
+from web.layout import ClientLayout, wait_for_width, window_class
 from web.panels.calibration import CalibrationPanel
 from web.panels.commission import CommissionPanel
 from web.panels.coverage import CoveragePanel
 from web.panels.history import HistoryPanel
 from web.panels.monitor import MonitorPanel, UncertaintyHistory
 from web.panels.proposals import ProposalsPanel
+from web.panels.recordings import RecordingsPanel
 from web.panels.survey import SurveyPanel
 from web.panels.view import ViewPanel
 from web.panels.wizard import WizardPanel
@@ -41,6 +47,7 @@ from web.services import ViewerSite
 from web.viser_compat import (
     ViserCompatError,
     check_viser,
+    disable_share,
     guard_connections,
     refuse,
     request_header,
@@ -77,13 +84,33 @@ class ViewerConfig:
 
 class _ClientPanels:
     def __init__(self, viewer: SiteViewer, client: viser.ClientHandle, session: Session) -> None:
-        site = viewer.site
 
         def notify(title: str, body: str) -> None:
             client.add_notification(title, body, auto_close_seconds=6.0)
 
         gui = client.gui
+        self.layout = ClientLayout(client)  # a wide screen gets a wider panel
         gui.add_markdown(f"**irloc** - signed in as *{session.role}*")
+        # on a phone every panel starts folded into one line: unfolded, the panel covered
+        # the hall (the browser's size arrives with its first camera message)
+        width = wait_for_width(client, timeout_s=2.0)
+        kind = window_class(width)
+        with (
+            gui.add_folder("Panels", expand_by_default=False) if kind == "phone" else nullcontext()
+        ):
+            self._build(viewer, client, session, notify)
+        if width > 0:  # the top view fitted to this window, beside (or above) the panel
+            panel_px = {"phone": 0.0, "wide": self.layout.config.wide_panel_px}.get(kind, 320.0)
+            self.view.fit_window(width, client.camera.image_height, panel_px)
+
+    def _build(
+        self,
+        viewer: SiteViewer,
+        client: viser.ClientHandle,
+        session: Session,
+        notify: Callable[[str, str], None],
+    ) -> None:
+        site, gui = viewer.site, client.gui
         assert viewer.scene is not None  # started
         bounds, ceiling_z = viewer.scene.bounds, viewer.scene.ceiling_z
         self.view = ViewPanel(client, bounds, ceiling_z, [r.name for r in site.robots()])
@@ -93,10 +120,12 @@ class _ClientPanels:
         self.commission: CommissionPanel | None = None
         self.history: HistoryPanel | None = None
         self.proposals: ProposalsPanel | None = None
+        self.recordings: RecordingsPanel | None = None
         if session.can_commission:
             tabs = gui.add_tab_group()
             with tabs.add_tab("Monitor"):
                 self.monitor = MonitorPanel(gui, site, session, viewer.history, notify)
+                self._recordings(viewer, gui, session, notify)
                 self.coverage = CoveragePanel(client, site, notify)
             with tabs.add_tab("Commission"):
                 self.wizard = WizardPanel(gui, site, session, notify)
@@ -115,7 +144,21 @@ class _ClientPanels:
                 self.survey = SurveyPanel(client, site, session, notify)
         else:
             self.monitor = MonitorPanel(gui, site, session, viewer.history, notify)
+            self._recordings(viewer, gui, session, notify)
             self.coverage = CoveragePanel(client, site, notify)
+
+    def _recordings(
+        self,
+        viewer: SiteViewer,
+        gui: viser.GuiApi,
+        session: Session,
+        notify: Callable[[str, str], None],
+    ) -> None:
+        """The recordings folder, for operators and admins of a site that records."""
+        store = viewer.site.recordings()
+        if store is not None and session.can_operate:
+            robot = self.monitor.gui_robot
+            self.recordings = RecordingsPanel(gui, store, session, lambda: robot.value, notify)
 
 
 class SiteViewer:
@@ -166,6 +209,8 @@ class SiteViewer:
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self.ticks = 0
+        self.share_refusals = 0
+        """viser share requests refused (crafted clients: the button is hidden)."""
 
     @property
     def port(self) -> int:
@@ -196,6 +241,13 @@ class SiteViewer:
             guard_connections(self.server, self._admit)
         except ViserCompatError as exc:  # every browser will be refused
             log.error("viewer: %s", exc)
+        try:
+            disable_share(self.server, self._share_refused)
+        except ViserCompatError as exc:  # no tunnel can be refused: stop here
+            self.server.stop()
+            self.server = None
+            raise RuntimeError(f"viewer: {exc}") from exc
+        self.server.gui.configure_theme(show_share_button=False, control_width="medium")
         self.scene = SiteScene(self.server)
         lms = self.site.landmarks()
         pos = np.array([[lm.x, lm.y] for lm in lms]).reshape(-1, 2)
@@ -271,6 +323,22 @@ class SiteViewer:
             return request_header(self.server, client, "origin") is not None
         except ViserCompatError:
             return True  # cannot tell: refuse
+
+    def recording_zip(self, name: str) -> Path:
+        """A recording zipped into a temporary file (the caller deletes it), for the
+        viewer's download link; NotFoundError, ConflictError (still being written)."""
+        store = self.site.recordings()
+        if store is None:
+            raise NotFoundError("this site keeps no recordings")
+        return store.catalog.zip_file(name)
+
+    def _share_refused(self, client_id: int) -> None:
+        """A browser sent viser's share request (the button is hidden: a crafted client)."""
+        self.share_refusals += 1
+        log.warning(
+            "viewer: refused viser's share tunnel requested by client %s (%s)",
+            client_id, self.session_of(client_id) or "no session",
+        )  # fmt: skip
 
     def session_of(self, client_id: int) -> Session | None:
         """The session of a connected browser."""
@@ -351,6 +419,8 @@ class SiteViewer:
                         p.history.refresh()
                     if p.proposals is not None:
                         p.proposals.refresh()
+                    if p.recordings is not None:
+                        p.recordings.refresh()
                 except Exception:  # its browser went away mid-update
                     log.debug("viewer: dropping the panels of client %s", cid, exc_info=True)
                     with self._lock:

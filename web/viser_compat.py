@@ -127,3 +127,41 @@ def guard_connections(server: viser.ViserServer, admit: Admit) -> None:
             asyncio.get_running_loop().create_task(conn.close(1008, reason[:120]))
 
     register(check)
+
+
+def disable_share(server: viser.ViserServer, on_refused: Callable[[int], None]) -> None:
+    """Refuse viser's "Share" request from every browser: viser would open a public tunnel
+    to its own port, which has no key check (only the keyed `/viewer/` proxy may reach it).
+
+    viser 1.1 registers `ShareUrlRequest` and `ShareUrlDisconnect` handlers on its connection
+    layer; they are replaced by one that only reports the attempt (`on_refused(client_id)`),
+    and `request_share_url` itself is made to refuse, so a crafted client that sends the
+    message anyway opens nothing. (The button is hidden by `configure_theme`.)
+
+    Raises:
+        ViserCompatError: when the installed viser keeps its handlers elsewhere.
+    """
+    from viser import _messages
+
+    infra = getattr(server, "_websock_server", None)
+    handlers = getattr(infra, "_incoming_handlers", None)
+    unregister = getattr(infra, "unregister_handler", None)
+    register = getattr(infra, "register_handler", None)
+    if not isinstance(handlers, dict) or unregister is None or register is None:
+        raise ViserCompatError(
+            f"viser {viser.__version__}: ViserServer._websock_server's message handlers are "
+            "gone: the viewer cannot refuse viser's share tunnel; update web/viser_compat.py"
+        )
+    for message in (_messages.ShareUrlRequest, _messages.ShareUrlDisconnect):
+        if message in handlers:
+            unregister(message)
+
+    def refused(client_id: int, _: object) -> None:
+        on_refused(client_id)
+
+    register(_messages.ShareUrlRequest, refused)
+
+    def no_share(verbose: bool = True) -> str | None:
+        raise RuntimeError("irloc: viser's share tunnel is disabled (open /viewer/ with a key)")
+
+    server.request_share_url = no_share  # type: ignore[method-assign]

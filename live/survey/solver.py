@@ -14,6 +14,7 @@ shutdown never waits for a solve to finish.
 
 from __future__ import annotations
 
+import dataclasses
 import multiprocessing
 import multiprocessing.pool
 import threading
@@ -36,9 +37,16 @@ def solve_drive(drive: SurveyDrive, anchors: list[int], config: BundleConfig) ->
     return solve_survey(survey_problem(drive, anchors), config)
 
 
-def solve_recording(path: Path, anchors: list[int], config: BundleConfig) -> SurveyResult:
-    """Read a survey recording and solve it (in the worker)."""
-    return solve_drive(read_survey_drive(path), anchors, config)
+def solve_recording(
+    path: Path, anchors: list[int], config: BundleConfig, leave_out: tuple[int, ...] = ()
+) -> SurveyResult:
+    """Read a survey recording and solve it (in the worker), without the landmarks
+    `leave_out` (those the radio cannot switch: the LED states never list them lit)."""
+    drive = read_survey_drive(path)
+    if leave_out:
+        kept = [lm for lm in drive.landmarks if lm.id not in set(leave_out)]
+        drive = dataclasses.replace(drive, landmarks=kept)
+    return solve_drive(drive, anchors, config)
 
 
 def _ready() -> None:
@@ -60,9 +68,16 @@ class SurveySolver:
         cannot be solved yet), or SolveCancelledError."""
         return self._run(solve_drive, drive, list(anchors), config)
 
-    def recording(self, path: Path, anchors: Iterable[int], config: BundleConfig) -> SurveyResult:
+    def recording(
+        self,
+        path: Path,
+        anchors: Iterable[int],
+        config: BundleConfig,
+        *,
+        leave_out: tuple[int, ...] = (),
+    ) -> SurveyResult:
         """`solve_recording` in the worker; raises as `drive` does."""
-        return self._run(solve_recording, path, list(anchors), config)
+        return self._run(solve_recording, path, list(anchors), config, leave_out)
 
     def start(self) -> None:
         """Start the worker ahead of the first solve (it takes seconds to import what the

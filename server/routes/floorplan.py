@@ -79,11 +79,24 @@ def get_floorplan_placement(services: ServicesDep, _: Viewer) -> FloorPlanPublic
     return _public(info)
 
 
+def image_type_of(data: bytes) -> str:
+    """ "image/png" or "image/jpeg" from a file's first bytes (else what was sent, refused
+    by the store naming the types it takes)."""
+    if data.startswith(b"\x89PNG\r\n\x1a\n"):
+        return "image/png"
+    if data.startswith(b"\xff\xd8\xff"):
+        return "image/jpeg"
+    return "application/octet-stream"
+
+
 @router.put(
     "",
     openapi_extra={
         "requestBody": {
             "content": {
+                # octet-stream first: what client generators turn into a file argument (the
+                # image type is then read from the file's first bytes)
+                "application/octet-stream": {"schema": {"type": "string", "format": "binary"}},
                 "image/png": {"schema": {"type": "string", "format": "binary"}},
                 "image/jpeg": {"schema": {"type": "string", "format": "binary"}},
             },
@@ -100,8 +113,9 @@ async def put_floorplan(
     b_px: Annotated[list[float], Query(description="second image point: column, row (px)")],
     b_m: Annotated[list[float], Query(description="its floor position: x, y (metres)")],
 ) -> FloorPlanPublic:
-    """Upload the floor plan (the body is the PNG or JPEG file, `Content-Type` image/png
-    or image/jpeg), placed by two points: e.g. `?a_px=0&a_px=0&a_m=0&a_m=10&...`."""
+    """Upload the floor plan (the body is the PNG or JPEG file, `Content-Type` image/png,
+    image/jpeg, or application/octet-stream: then told apart by the file's first bytes),
+    placed by two points: e.g. `?a_px=0&a_px=0&a_m=0&a_m=10&...`."""
     for name, v in (("a_px", a_px), ("a_m", a_m), ("b_px", b_px), ("b_m", b_m)):
         if len(v) != 2:
             raise ValueError(f"floor plan placement: {name} needs two numbers, got {len(v)}")
@@ -110,6 +124,8 @@ async def put_floorplan(
     )
     media_type = request.headers.get("content-type", "").split(";")[0].strip()
     body = await request.body()
+    if media_type == "application/octet-stream":
+        media_type = image_type_of(body)
     info = await asyncio.to_thread(_store(services).put, body, media_type, placement)
     return _public(info)
 

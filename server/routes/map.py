@@ -43,6 +43,9 @@ def export_map(
                 # a reference, not the model's own schema: its `$defs` breaks ReDoc
                 "application/json": {"schema": {"$ref": "#/components/schemas/MapDocument"}},
                 "text/csv": {"schema": {"type": "string"}},
+                # a file as client generators send it: map.json or the CSV, told apart by
+                # its first character
+                "application/octet-stream": {"schema": {"type": "string", "format": "binary"}},
             },
             "required": True,
         }
@@ -58,11 +61,15 @@ async def import_map(
     confirm: Annotated[bool, Query(description="the same as allow_empty")] = False,
 ) -> ImportResult:
     """Replace the whole map (one transaction, audited, one step of your undo): JSON body,
-    or CSV with `Content-Type: text/csv` (UTF-8, a byte-order mark allowed). A map without
+    or CSV with `Content-Type: text/csv` (UTF-8, a byte-order mark allowed), or either as a
+    file (`application/octet-stream`: JSON when it starts with `{`). A map without
     landmarks is refused (409) unless `?allow_empty=true` (or `confirm=true`)."""
     raw = await request.body()
     ctype = request.headers.get("content-type", "application/json").split(";")[0].strip()
     items: list[LandmarkCreate]
+    if ctype == "application/octet-stream":
+        peek = raw.lstrip(b"\xef\xbb\xbf \t\r\n")[:1]
+        ctype = "application/json" if peek == b"{" else "text/csv"
     if ctype == "text/csv":
         text = decode_text(raw, source="map (CSV body)")
         items = await asyncio.to_thread(parse_map_csv, text, source="map (CSV body)")

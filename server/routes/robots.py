@@ -43,7 +43,10 @@ class WheelSpeeds(BaseModel):
 class RecordingStatus(BaseModel):
     robot: str
     recording: bool
-    path: str | None = None
+    path: str | None = Field(default=None, description="the folder on the server")
+    name: str | None = Field(
+        default=None, description="the recording's name in GET /recordings/{name}[/download]"
+    )
 
 
 def _status(services: ServicesDep, name: str) -> RobotStatus:
@@ -131,10 +134,15 @@ def put_config(name: RobotName, body: RobotPublic, services: ServicesDep, _: Adm
 def start_recording(name: RobotName, services: ServicesDep, _: Operator) -> RecordingStatus:
     """Record this robot's frames, odometry and LED changes (for `irloc replay`)."""
     path = services.recordings.start(name)
-    return RecordingStatus(robot=name, recording=True, path=str(path))
+    return RecordingStatus(robot=name, recording=True, path=str(path), name=path.name)
 
 
 @router.post("/{name}/recording/stop")
 def stop_recording(name: RobotName, services: ServicesDep, _: Operator) -> RecordingStatus:
     path = services.recordings.stop(name)
-    return RecordingStatus(robot=name, recording=False, path=None if path is None else str(path))
+    return RecordingStatus(
+        robot=name,
+        recording=False,
+        path=None if path is None else str(path),
+        name=None if path is None else path.name,
+    )

@@ -8,10 +8,19 @@ import json
 from collections.abc import AsyncIterator
 from typing import Annotated
 
-from fastapi import APIRouter, Query, Request, WebSocket, WebSocketDisconnect, status
+from fastapi import (
+    APIRouter,
+    Header,
+    Query,
+    Request,
+    WebSocket,
+    WebSocketDisconnect,
+    status,
+)
 from fastapi.responses import StreamingResponse
-from pydantic import BaseModel
+from pydantic import BaseModel, Field
 
+from live.events import EventKind
 from server.auth import Viewer, websocket_principal
 from server.deps import ServicesDep
 from server.fanout import FanoutClient, PoseFanout
@@ -23,13 +32,20 @@ RobotFilter = Annotated[list[str] | None, Query(description="only these robots")
 
 
 class EventPublic(BaseModel):
-    id: int
-    t: str
-    kind: str
-    message: str
+    """One site event."""
+
+    id: int = Field(description="increasing: page back with ?before_id=, resume SSE with it")
+    t: str = Field(description="when, ISO 8601 in UTC (wall clock)")
+    kind: EventKind
+    message: str = Field(description="for people")
     robot: str | None
     landmark_id: int | None
     data: dict[str, object]
+
+
+KindFilter = Annotated[
+    list[EventKind] | None, Query(description="only these kinds (repeat: ?kind=a&kind=b)")
+]
 
 
 async def _close_on_disconnect(ws: WebSocket, client: FanoutClient) -> None:
@@ -55,6 +71,17 @@ async def poses_ws(ws: WebSocket, robot: RobotFilter = None) -> None:
     if principal is None:
         return
     await ws.accept()
+    services = ws.app.state.services
+    known = set(services.robots.names()) | {r.name for r in services.robot_store.list()}
+    unknown = sorted(set(robot or ()) - known) if known else []  # no robots: cannot tell
+    if unknown:  # a filter that matches nothing would stay silent forever
+        await ws.close(
+            code=status.WS_1008_POLICY_VIOLATION,
+            reason=f"unknown robot(s) {', '.join(unknown)}; robots: {', '.join(sorted(known))}"[
+                :120
+            ],
+        )
+        return
     fanout: PoseFanout = ws.app.state.pose_fanout
     client = fanout.add_client(robot, ws.app.state.services.settings.ws_queue)
     watcher = asyncio.create_task(_close_on_disconnect(ws, client))
@@ -81,10 +108,21 @@ async def poses_ws(ws: WebSocket, robot: RobotFilter = None) -> None:
 
 @router.get("/events")
 def list_events(
-    services: ServicesDep, _: Viewer, limit: int = Query(100, ge=1, le=1000)
+    services: ServicesDep,
+    _: Viewer,
+    limit: int = Query(100, ge=1, le=1000),
+    kind: KindFilter = None,
+    robot: str | None = Query(None, max_length=64, description="only this robot's events"),
+    before_id: int | None = Query(
+        None,
+        ge=1,
+        description="only events older than this id: the next page is "
+        "?before_id=<the last id of this page>",
+    ),
 ) -> list[EventPublic]:
-    """The newest site events first."""
-    return [EventPublic(**e.to_dict()) for e in services.events.recent(limit)]
+    """The newest site events first, `limit` a page, filtered by kind and robot."""
+    events = services.events.recent(limit, kinds=kind, before_id=before_id, robot=robot)
+    return [EventPublic(**e.to_dict()) for e in events]
 
 
 @router.get("/events/stream", response_class=StreamingResponse)
@@ -93,18 +131,31 @@ async def event_stream(
     services: ServicesDep,
     who: Viewer,
     limit: int | None = Query(None, ge=1, le=10_000, description="end after this many events"),
+    last_event_id: int | None = Header(
+        None,
+        ge=0,
+        description="resume: first the stored events after this id (a browser's "
+        "EventSource sends it when it reconnects), then the live ones",
+    ),
 ) -> StreamingResponse:
-    """Server-sent events: `event: <kind>` with the event as JSON in `data:` (low_battery,
-    landmark_unreachable, robot_lost, map_changed, ...); a comment line every 15 s. The
+    """Server-sent events: `id: <id>`, `event: <kind>` with the event as JSON in `data:`
+    (low_battery, landmark_unreachable, robot_lost, map_changed, ...); a comment line every
+    15 s. With `Last-Event-ID` the events stored since that one come first (up to 1000). The
     stream ends with `event: key_revoked` when the key is revoked and `event: shutdown` when
     the server stops."""
-    sub = services.events.bus.subscribe()
+    sub = services.events.bus.subscribe()  # before the replay: nothing falls in between
+    missed = [] if last_event_id is None else services.events.recent(1000, after_id=last_event_id)
 
     async def stream() -> AsyncIterator[str]:
         sent = 0
+        newest = last_event_id or 0
         guard = asyncio.create_task(stream_end(request, who))
         try:
             yield ": connected\n\n"
+            for event in missed[: None if limit is None else limit]:
+                yield f"id: {event.id}\nevent: {event.kind}\ndata: {event.json()}\n\n"
+                sent += 1
+                newest = max(newest, event.id)
             while limit is None or sent < limit:
                 getter = asyncio.ensure_future(sub.get_batch())
                 done, _ = await asyncio.wait(
@@ -119,7 +170,8 @@ async def event_stream(
                     getter.cancel()
                     yield ": heartbeat\n\n"
                     continue
-                for event in getter.result()[: None if limit is None else limit - sent]:
+                fresh = [e for e in getter.result() if e.id > newest]  # not replayed already
+                for event in fresh[: None if limit is None else limit - sent]:
                     yield f"id: {event.id}\nevent: {event.kind}\ndata: {event.json()}\n\n"
                     sent += 1
         finally:

@@ -83,6 +83,11 @@ class SurveyStatusPublic(BaseModel):
     route: list[tuple[float, float]] = Field(
         description="suggested waypoints (x, y) metres over what is still uncertain, in order"
     )
+    no_radio: list[int] = Field(
+        default_factory=list,
+        description="landmarks left out: the radio cannot switch them (no radio address), "
+        "so they cannot blink and nothing names them",
+    )
 
 
 def _public(st: SurveyStatus) -> SurveyStatusPublic:
@@ -100,7 +105,7 @@ def _public(st: SurveyStatus) -> SurveyStatusPublic:
         ],
         accepted=list(st.accepted), unseen=list(st.unseen), drive_s=st.drive_s,
         estimates=st.estimates, route=list(st.route),
-        converged_sigma_m=st.converged_sigma_m,
+        converged_sigma_m=st.converged_sigma_m, no_radio=list(st.no_radio),
     )  # fmt: skip
 
 

@@ -9,10 +9,11 @@ import pytest
 from server import cli, keys_cli
 from server.loopback import is_loopback
 from store import KeyStore
-from store.db import make_engine
+from store.db import make_engine, migrate
 
 
 def test_keys_create_list_revoke(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    migrate(make_engine(f"sqlite:///{tmp_path / 'irloc.db'}"))  # as `irloc serve` leaves it
     assert (
         keys_cli.main(
             ["create", "--role", "operator", "--name", "ops", "--data-dir", str(tmp_path)]
@@ -30,6 +31,34 @@ def test_keys_create_list_revoke(tmp_path: Path, capsys: pytest.CaptureFixture[s
     assert KeyStore(engine).role_of(key) is None
     assert keys_cli.main(["revoke", "99", "--data-dir", str(tmp_path)]) == 1
     engine.dispose()
+
+
+def test_keys_refuse_a_data_dir_without_a_database(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    typo = tmp_path / "irlco"
+    assert keys_cli.main(["create", "--role", "viewer", "--data-dir", str(typo)]) == 2
+    assert "no irloc database" in capsys.readouterr().err and not typo.exists()
+
+
+def test_serve_says_what_is_wrong_before_the_banner_and_any_new_key(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    import socket
+
+    with socket.socket() as busy:
+        busy.bind(("127.0.0.1", 0))
+        busy.listen()
+        port = busy.getsockname()[1]
+        assert cli.main(["--data-dir", str(tmp_path), "--port", str(port)]) == 2
+    out = capsys.readouterr()
+    assert out.out == "" and f"127.0.0.1:{port}" in out.err and "--port" in out.err
+    assert len(out.err.strip().splitlines()) == 1
+    assert cli.main(["--data-dir", str(tmp_path), "--port", "0", "--scenario", "nope"]) == 2
+    out = capsys.readouterr()
+    assert out.out == "" and "nope" in out.err and "demo" in out.err
+    assert len(out.err.strip().splitlines()) == 1
+    assert not (tmp_path / "irloc.db").exists()  # no key made
 
 
 def test_keys_refuse_an_unknown_role(tmp_path: Path) -> None:

@@ -137,8 +137,22 @@ def test_every_robot_localizes_near_the_truth_and_never_far_from_it(site: Api) -
 
 
 def test_relocalize_sends_the_robot_back_to_identifying(site: Api) -> None:
+    deadline = time.monotonic() + 60
+    while site.services.robots.mode("r1") != "landmark" and time.monotonic() < deadline:
+        time.sleep(0.1)
     r = site.client.post("/api/v1/robots/r1/relocalize", headers=site.h("operator"))
     assert r.status_code == 202 and r.json()["mode"] in ("identifying", "lost")
+    # its last (tight) pose is no longer served as current, and the site says why
+    pose = site.client.get("/api/v1/robots/r1/pose", headers=site.h("viewer")).json()
+    if pose["mode"] in ("identifying", "lost"):  # (it may have identified already)
+        assert pose["stale"] is True and pose["x"] is None and pose["covariance"] is None
+    events: list[dict[str, object]] = []
+    while time.monotonic() < deadline + 10:
+        events = site.client.get("/api/v1/events", headers=site.h("viewer")).json()
+        if any(e["kind"] == "robot_identifying" and e["robot"] == "r1" for e in events):
+            break
+        time.sleep(0.1)
+    assert any(e["kind"] == "robot_identifying" and e["robot"] == "r1" for e in events), events
     x, y, theta = site.services.sim.true_pose("r1")
     r = site.client.post(
         "/api/v1/robots/r1/relocalize",
@@ -160,3 +174,14 @@ def test_metrics_count_poses_per_robot(site: Api) -> None:
         if line.startswith("irloc_frames_total{")
     }
     assert set(frames) == {"r1", "r2", "r3"} and min(frames.values()) > 0
+
+
+def test_pose_ws_filtered_on_an_unknown_robot_is_told_so(site: Api) -> None:
+    """A filter that matches no robot of the site would stay silent forever: closed with
+    1008, naming it and the site's robots."""
+    from starlette.websockets import WebSocketDisconnect
+
+    url = f"/api/v1/poses/ws?robot=r1&robot=nobody&token={site.keys['viewer']}"
+    with pytest.raises(WebSocketDisconnect) as exc, site.client.websocket_connect(url) as ws:
+        ws.receive_text()
+    assert exc.value.code == 1008 and "nobody" in exc.value.reason and "r2" in exc.value.reason

@@ -88,3 +88,27 @@ def test_sse_streams_map_changes(api: Api) -> None:
     assert [e["data"]["count"] for e in events] == [1, 0]
     listed = c.get("/api/v1/events", headers=api.h("viewer")).json()
     assert [e["id"] for e in listed] == [events[1]["id"], events[0]["id"]]
+
+
+def test_events_page_filter_by_kind_and_resume_the_stream(api: Api) -> None:
+    c, h = api.client, api.h("viewer")
+    hub = api.services.events
+    for i in range(5):
+        hub.emit("robot_lost", f"robot r{i} is lost", robot=f"r{i}")
+        hub.emit("low_battery", f"landmark {i} battery low", landmark_id=i)
+    lost = c.get("/api/v1/events?kind=robot_lost&limit=3", headers=h).json()
+    assert [e["message"] for e in lost] == [f"robot r{i} is lost" for i in (4, 3, 2)]
+    page2 = c.get(f"/api/v1/events?kind=robot_lost&before_id={lost[-1]['id']}", headers=h).json()
+    assert [e["robot"] for e in page2] == ["r1", "r0"]
+    both = c.get("/api/v1/events?kind=robot_lost&kind=low_battery&robot=r2", headers=h).json()
+    assert [e["kind"] for e in both] == ["robot_lost"]
+    r = c.get("/api/v1/events?kind=no_such_kind", headers=h)
+    assert r.status_code == 422 and "kind" in r.text
+    # a client that saw up to the 8th resumes with Last-Event-ID: the last two come first
+    everything = c.get("/api/v1/events?limit=1000", headers=h).json()
+    ids = sorted(e["id"] for e in everything)
+    headers = {**h, "Last-Event-ID": str(ids[-3])}
+    with c.stream("GET", "/api/v1/events/stream?limit=2", headers=headers) as resp:
+        text = "".join(resp.iter_text())
+    got = [int(line[4:]) for line in text.splitlines() if line.startswith("id: ")]
+    assert got == ids[-2:]

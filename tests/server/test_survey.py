@@ -50,6 +50,15 @@ def test_a_live_survey_places_the_grid_and_keeps_the_fleet_tracking(live: Api) -
         assert (
             c.patch(f"/api/v1/landmarks/{lid}", json={"locked": True}, headers=h).status_code == 200
         )
+    # a landmark without a radio (as the viewer's form once made them) in the middle of r1's
+    # loop: the radio cannot blink it, so the survey leaves it out and says so; counted as
+    # dark in every LED state, it made every blink ambiguous and the survey stalled for good
+    dumb = {"id": 950, "x": 3.0, "y": 3.0, "z": 2.5}
+    assert c.post("/api/v1/landmarks", json=dumb, headers=h).status_code == 201
+    assert c.patch("/api/v1/landmarks/950", json={"locked": True}, headers=h).status_code == 200
+    r = c.post(S + "/start", json={"robot": "r1"}, headers=h)
+    assert r.status_code == 409 and "950" in r.json()["detail"] and "radio" in r.json()["detail"]
+    assert c.patch("/api/v1/landmarks/950", json={"locked": False}, headers=h).status_code == 200
     robots = live.services.robots
     deadline = time.monotonic() + 60
     while time.monotonic() < deadline:  # the surveying robot and r2 tracking first
@@ -63,6 +72,7 @@ def test_a_live_survey_places_the_grid_and_keeps_the_fleet_tracking(live: Api) -
     sub = robots.subscribe_poses(maxsize=100_000)
     r = c.post(S + "/start", json={"robot": "r1"}, headers=h)
     assert r.status_code == 200 and r.json()["state"] == "driving", r.text
+    assert r.json()["no_radio"] == [950] and "950" in r.json()["message"], r.text
     assert c.post(S + "/start", json={"robot": "r1"}, headers=h).status_code == 409
 
     def converged(st: dict[str, Any]) -> int:

@@ -111,6 +111,9 @@ class MemSite:
     def floorplan(self) -> None:
         return None
 
+    def recordings(self) -> None:
+        return None
+
     def ceiling_height(self) -> float:
         return 2.5
 

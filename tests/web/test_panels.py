@@ -158,7 +158,7 @@ def test_events_are_in_local_time_with_a_zone_and_runs_are_folded() -> None:
     text = events_text(lines).splitlines()
     assert text == [
         "- `t0` **led request failed** robot r1: radio link down (x5)",
-        "- `t9` **robot lost** robot r2 is lost",
+        "- `t9` robot r2 is lost",  # the message says it: no "robot lost" before it
     ]
 
 
@@ -180,3 +180,21 @@ def test_coverage_uses_the_chosen_robot_and_follows_map_changes() -> None:
         assert "map of 11 landmarks" in panel.gui_text.content
     finally:
         server.stop()
+
+
+def test_battery_html_keeps_its_columns_and_its_length() -> None:
+    from web.battery_table import COLUMN_WIDTHS, battery_html
+
+    lms = [LandmarkState(i, 0, 0, 2.5, supply_mv=3000 - i, model_days=100.0 + i) for i in range(39)]
+    html = battery_html(lms, "id", max_rows=10)
+    assert "table-layout:fixed" in html and html.count("<col ") == len(COLUMN_WIDTHS)
+    assert html.count("<tr>") == 11 and "and 29 more" in html  # header + 10 rows
+    assert "settle within the first hour" in html  # what "days" means, on the panel
+
+
+def test_window_classes() -> None:
+    from web.layout import window_class
+
+    assert window_class(390) == "phone"
+    assert window_class(1280) == "desktop"
+    assert window_class(1920) == "wide"

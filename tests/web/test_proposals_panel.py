@@ -50,8 +50,11 @@ def test_the_panel_lists_accepts_and_rejects_as_the_api_does(
     notes: list[str] = []
     panel = ProposalsPanel(server.gui, upkeep, ME, lambda t, b: notes.append(b))
     text = panel.gui_list.content
-    assert "**17** moved" in text and "**12** moved **locked**" in text, text
+    assert "**17** moved " in text and "**12** moved " in text and "**locked**" in text, text
+    assert "chi2" not in text and "give or take" in text  # plain words
     assert set(panel.gui_choice.options) >= {"17 (moved)", "12 (moved, locked)"}
+    assert panel.gui_choice.value == panel.gui_choice.options[0]  # the first: a moved one
+    assert "moved" in panel.gui_choice.value
     assert not panel.gui_accept.disabled
     repo = upkeep.map
     old12 = repo.get(12).x

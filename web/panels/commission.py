@@ -52,6 +52,11 @@ class CommissionPanel:
             self.gui_x = gui.add_number("x (m)", 0.0, step=0.01)
             self.gui_y = gui.add_number("y (m)", 0.0, step=0.01)
             self.gui_z = gui.add_number("height (m)", round(h, 3), min=0.0, step=0.01)
+            self.gui_radio = gui.add_text(
+                "Radio address", "",
+                hint="16 hex digits, e.g. 0013A20041B2C3D4: without it the landmark cannot "
+                "be switched, identified by blinking or surveyed",
+            )  # fmt: skip
             self.gui_pick = gui.add_checkbox("Pick on ceiling", False)
             self.gui_add = gui.add_button("Add landmark")
             self.gui_move = gui.add_button("Move / set height")
@@ -86,8 +91,14 @@ class CommissionPanel:
     def add(self) -> str:
         lid = int(self.gui_id.value)
         x, y, z = float(self.gui_x.value), float(self.gui_y.value), float(self.gui_z.value)
-        self.site.add_landmark(lid, x, y, z, actor=self.session.actor)
-        return f"added landmark {lid} at ({x:.2f}, {y:.2f}, {z:.2f}) m"
+        radio = self.gui_radio.value.strip() or None
+        self.site.add_landmark(lid, x, y, z, actor=self.session.actor, radio=radio)
+        text = f"added landmark {lid} at ({x:.2f}, {y:.2f}, {z:.2f}) m"
+        if radio is None:
+            text += " without a radio: it cannot be switched, identified by blinking or surveyed"
+        else:
+            text += f", radio {radio}"
+        return text
 
     def move(self) -> str:
         lm = self._landmark()
@@ -132,6 +143,7 @@ class CommissionPanel:
         if lm is not None:
             self.gui_id.value = lm.id  # type: ignore[misc]
             self.gui_x.value, self.gui_y.value, self.gui_z.value = lm.x, lm.y, lm.z  # type: ignore[misc]
+            self.gui_radio.value = lm.radio or ""  # type: ignore[misc]
             self.gui_status.content = f"selected landmark {lm.id}"
         else:
             self.gui_x.value = round(float(p[0]), 3)  # type: ignore[misc]

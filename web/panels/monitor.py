@@ -10,7 +10,7 @@ from datetime import UTC, datetime
 import numpy as np
 import viser
 
-from web.battery_table import SORT_KEYS, battery_table
+from web.battery_table import SORT_KEYS, battery_html
 from web.roles import Session
 from web.services import EventLine, LandmarkState, RobotState, ViewerSite
 
@@ -78,7 +78,12 @@ def events_text(events: Sequence[EventLine]) -> str:
             runs.append((e, 1))
     for e, n in runs:
         times = f" (x{n})" if n > 1 else ""
-        lines.append(f"- `{e.when}` **{e.kind.replace('_', ' ')}** {e.message}{times}")
+        kind = e.kind.replace("_", " ")
+        # the kind in bold only when the message does not say it already ("robot lost:
+        # robot r2 is lost" said it twice)
+        said = set(kind.split()) <= set(e.message.lower().replace(":", " ").split())
+        head = "" if said else f"**{kind}** "
+        lines.append(f"- `{e.when}` {head}{e.message}{times}")
     return "\n".join(lines)
 
 
@@ -125,7 +130,9 @@ class MonitorPanel:
                 self.gui_relocalize.on_click(lambda _: self._relocalize())
         with gui.add_folder("Uncertainty"):
             self.gui_plot = gui.add_uplot(
-                data=(np.zeros(0), np.zeros(0)),
+                # two placeholder points, not empty arrays: a uPlot created on empty data
+                # never draws the series the later updates bring (viser 1.1's client)
+                data=(np.array([-1.0, 0.0]), np.full(2, np.nan)),
                 series=({"label": "time"}, {"label": "error", "stroke": "#2a7", "width": 2}),
                 title=self._plot_title(),
                 scales={"x": {"time": False}},
@@ -137,11 +144,11 @@ class MonitorPanel:
                 padding=(14, 12, 0, 0),  # room for the top tick's label
                 aspect=1.5,
             )
+        with gui.add_folder("Events"):  # above the batteries: 39 rows pushed it off screen
+            self.gui_events = gui.add_markdown("")
         with gui.add_folder("Landmark batteries", expand_by_default=False):
             self.gui_battery_sort = gui.add_dropdown("Sort", SORT_KEYS, initial_value=SORT_KEYS[0])
-            self.gui_batteries = gui.add_markdown("")
-        with gui.add_folder("Events", expand_by_default=False):
-            self.gui_events = gui.add_markdown("")
+            self.gui_batteries = gui.add_html("")
         self._last: dict[str, str] = {}
 
     def _relocalize(self) -> None:
@@ -153,7 +160,9 @@ class MonitorPanel:
             return
         self.notify("Relocalize", f"{name} is identifying its landmarks again")
 
-    def _set(self, key: str, handle: viser.GuiMarkdownHandle, text: str) -> None:
+    def _set(
+        self, key: str, handle: viser.GuiMarkdownHandle | viser.GuiHtmlHandle, text: str
+    ) -> None:
         if self._last.get(key) != text:
             handle.content = text
             self._last[key] = text
@@ -167,7 +176,7 @@ class MonitorPanel:
         """Update the tables and the plot (call at a few hertz)."""
         self._set("robots", self.gui_robots, robots_table(robots))
         self._set(
-            "batteries", self.gui_batteries, battery_table(landmarks, self.gui_battery_sort.value)
+            "batteries", self.gui_batteries, battery_html(landmarks, self.gui_battery_sort.value)
         )
         self._set("events", self.gui_events, events_text(events))
         names = tuple(r.name for r in robots)

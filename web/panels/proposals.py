@@ -18,16 +18,21 @@ NONE = "(no proposal)"
 
 
 def proposal_lines(st: UpkeepStatus) -> list[str]:
-    """One markdown line per proposal, moved ones first."""
+    """One markdown line per proposal in plain words, moved ones first: "moved 4.8 cm"
+    (beyond what the map said it knew), else "small correction of 3 mm" (within it)."""
     out = []
     for v in st.proposals:
         p = v.proposal
-        lock = " **locked**" if v.locked else ""
-        x, y, z = p.proposed
+        lock = " (**locked**: unlock it to accept)" if v.locked else ""
+        x, y, _ = p.proposed
+        what = (
+            f"**{p.landmark_id}** moved {100 * p.shift_m:.1f} cm"
+            if p.kind == "moved"
+            else f"{p.landmark_id}: small correction of {1000 * p.shift_m:.0f} mm"
+        )
         out.append(
-            f"- **{p.landmark_id}** {p.kind}{lock}: {1000 * p.shift_m:.1f} mm to "
-            f"({x:.3f}, {y:.3f}, {z:.3f}) +- {1000 * p.sigma_m:.1f} mm, "
-            f"{p.views} views, chi2 {p.statistic:.1f}"
+            f"- {what}{lock}: the robots see it at ({x:.2f}, {y:.2f}) m, give or take "
+            f"{1000 * p.sigma_m:.0f} mm, from {p.views} views"
         )
     return out
 
@@ -57,8 +62,15 @@ class ProposalsPanel:
         self.gui_accept.on_click(lambda _: self._do(self.accept, self.chosen()))
         self.gui_reject.on_click(lambda _: self._do(self.reject, self.chosen()))
         self.gui_accept_all.on_click(lambda _: self._do(self.accept, None))
+        self.gui_choice.on_update(lambda _: self._picked_by_hand())
         self._labels: dict[str, int] = {}
+        self._picked: str | None = None  # what this user chose (kept while it is listed)
         self.refresh()
+
+    def _picked_by_hand(self) -> None:
+        value = str(self.gui_choice.value)
+        if value in self._labels and value != next(iter(self._labels), None):
+            self._picked = value
 
     def chosen(self) -> int | None:
         """The landmark of the dropdown's proposal, or None."""
@@ -78,10 +90,12 @@ class ProposalsPanel:
                   for v in st.proposals}  # fmt: skip
         if labels != self._labels:
             self._labels = labels
-            current = str(self.gui_choice.value)
             self.gui_choice.options = tuple(labels) or (NONE,)
-            if current in labels:
-                self.gui_choice.value = current  # type: ignore[misc]
+            # the first (moved ones first) unless this user picked one still listed: kept
+            # from an earlier list, a 3 mm refinement stayed chosen over a 5 cm move
+            keep = self._picked if self._picked in labels else None
+            first = next(iter(labels), NONE)
+            self.gui_choice.value = keep or first  # type: ignore[misc]
         has = bool(labels)
         self.gui_accept.disabled = self.gui_reject.disabled = not has
         self.gui_accept_all.disabled = not any(not v.locked for v in st.proposals)

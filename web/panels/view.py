@@ -9,7 +9,7 @@ from collections.abc import Sequence
 import numpy as np
 import viser
 
-from web.camera_views import apply_oblique_view, apply_top_view, follow
+from web.camera_views import TopView, apply_oblique_view, apply_top_view, follow
 from web.colors import (
     DOUBTED_COLOR,
     LIT_COLOR,
@@ -21,6 +21,7 @@ from web.colors import (
     UNKNOWN_COLOR,
     UNREACHABLE_COLOR,
     battery_color,
+    robot_color,
 )
 from web.footprint import Bounds
 from web.services import RobotState
@@ -62,16 +63,18 @@ def gradient(stops: Sequence[RGB], left: str, right: str) -> str:
     )
 
 
-def legend_html() -> str:
-    """Every colour of the scene: robots by mode, landmarks by battery and state, lines."""
+def legend_html(robots: Sequence[str] = ()) -> str:
+    """Every colour of the scene: robots by mode, their trails, landmarks by battery and
+    state, lines (`robots`: the names in the order the scene met them, for their colours)."""
     head = '<div style="font-weight:600;margin-top:6px">{}</div>'
     rows = [head.format("Robots (box colour = localizer mode)")]
     rows += [swatch(MODE_COLORS[m], MODE_NAMES[m]) for m in MODE_NAMES]
     rows += [
         swatch((80, 160, 200), "blue outline: ceiling its camera can use"),
         swatch((250, 220, 90), "yellow lines: landmarks used in the last fix"),
-        swatch((90, 90, 200), "trail; ring: 3-sigma position uncertainty"),
+        swatch((150, 150, 150), "ring: 3-sigma position uncertainty"),
     ]
+    rows += [swatch(robot_color(i), f"trail of {name}") for i, name in enumerate(robots)]
     rows.append(head.format("Landmarks (sphere colour = battery)"))
     rows.append(gradient([battery_color(p) for p in (0, 25, 50, 75, 100)], "0 %", "100 %"))
     rows += [
@@ -102,6 +105,7 @@ class ViewPanel:
         follow_hz: float = 10.0,
     ) -> None:
         self.client, self.bounds, self.ceiling_z = client, bounds, ceiling_z
+        self.top: TopView | None = None  # fitted to the window once its size is known
         self.follow_period_s = 1.0 / follow_hz
         self._next_follow = 0.0
         gui = client.gui
@@ -109,16 +113,25 @@ class ViewPanel:
             self.gui_camera = gui.add_button_group("Camera", ("Top view", "Oblique view"))
             self.gui_follow = gui.add_dropdown("Follow robot", (NOBODY, *robot_names))
         with gui.add_folder("Legend", expand_by_default=False):
-            self.gui_legend = gui.add_html(legend_html())
+            self.gui_legend = gui.add_html(legend_html(robot_names))
         self.gui_camera.on_click(lambda e: self.set_view(str(e.target.value)))
 
     def set_view(self, which: str) -> None:
         """ "Top view" or "Oblique view" for this browser (keeps following a robot)."""
         cam = self.client.camera
         if which.startswith("Top"):
-            apply_top_view(cam, self.bounds)
+            apply_top_view(cam, self.bounds, self.top)
         else:
             apply_oblique_view(cam, self.bounds, self.ceiling_z)
+
+    def fit_window(self, width_px: int, height_px: int, panel_px: float) -> None:
+        """Fit the top view to this browser's window (`panel_px` of it covered by the panel
+        at the right: none on a phone, whose panel folds to a bar below) and show it."""
+        if width_px <= 0 or height_px <= 0:
+            return
+        self.top = TopView(screen_aspect=width_px / height_px,
+                           panel_share=min(0.6, panel_px / width_px))  # fmt: skip
+        apply_top_view(self.client.camera, self.bounds, self.top)
 
     def set_robots(self, names: Sequence[str]) -> None:
         options = (NOBODY, *names)
