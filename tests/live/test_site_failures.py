@@ -193,7 +193,7 @@ def test_the_supervisor_restarts_a_dead_thread_and_reports_a_stalled_robot() -> 
     hub = EventHub(db)  # type: ignore[arg-type]
     source, r1 = DyingSource(), Runner("r1")
     now = [0.0]
-    sup = SiteSupervisor(lambda: [source], lambda: [r1], hub, clock=lambda: now[0])  # type: ignore[arg-type, list-item]
+    sup = SiteSupervisor(lambda: [source], lambda: [r1], hub, stall_s=5.0, clock=lambda: now[0])  # type: ignore[arg-type, list-item]
     sup.check()
     assert source.revived == 1 and not sup.problems()
     assert hub.flush() and db.stored == ["site_thread_restarted"]
