@@ -52,7 +52,22 @@ class Startable(Protocol):
 
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="irloc agent", description=__doc__.splitlines()[0])
-    p.add_argument("--mqtt", required=True, help="the site's broker, mqtt://HOST[:PORT]")
+    p.add_argument("--mqtt", required=True, help="the site's broker, mqtt[s]://[USER@]HOST[:PORT]")
+    p.add_argument(
+        "--mqtt-password-file",
+        type=Path,
+        help="the broker password of USER (first line; else $IRLOC_MQTT_PASSWORD)",
+    )
+    p.add_argument(
+        "--connect-timeout",
+        type=float,
+        default=30.0,
+        help="give up (exit 1) when the broker cannot be reached for this long at start, "
+        "seconds (0: keep trying; once connected, it always reconnects)",
+    )
+    p.add_argument("--mqtt-ca", type=Path, help="mqtts: the CA file that signed the broker")
+    p.add_argument("--mqtt-cert", type=Path, help="mqtts: this agent's client certificate")
+    p.add_argument("--mqtt-key", type=Path, help="mqtts: its private key")
     p.add_argument("--name", required=True, help="the robot's name (VDA 5050 serial number)")
     p.add_argument("--site", default="default", help="site name in the topics (default default)")
     p.add_argument("--manufacturer", default="irloc", help="VDA 5050 manufacturer")
@@ -208,7 +223,13 @@ def main(argv: list[str] | None = None) -> int:
         level=args.log_level.upper(), format="%(asctime)s %(levelname)s %(name)s: %(message)s"
     )
     try:
-        broker = parse_broker_url(args.mqtt)
+        broker = parse_broker_url(
+            args.mqtt,
+            password_file=args.mqtt_password_file,
+            ca_file=args.mqtt_ca,
+            cert_file=args.mqtt_cert,
+            key_file=args.mqtt_key,
+        )
         check_name("--site", args.site)
         ros2_robots = []
         if args.ros2:
@@ -230,7 +251,12 @@ def main(argv: list[str] | None = None) -> int:
     # the sensor thread localizes while the network loop publishes: hand the interpreter over
     # more often than every 5 ms, so that a pose leaves soon after it is computed
     sys.setswitchinterval(0.001)
-    asyncio.run(_run(AgentRuntime(broker, args.site, cores), ros2_robots))
+    first = args.connect_timeout if args.connect_timeout > 0 else None
+    runtime = AgentRuntime(broker, args.site, cores, first_connect_s=first)
+    asyncio.run(_run(runtime, ros2_robots))
+    if runtime.failed is not None:
+        print(f"irloc agent: {runtime.failed}", file=sys.stderr)
+        return 1
     return 0
 
 

@@ -32,7 +32,7 @@ from fleet.payloads import (
     PayloadError,
     decode,
 )
-from fleet.session import run_session, until_first_ends
+from fleet.session import BrokerUnreachableError, run_session, until_first_ends
 from fleet.topics import QOS_CLOCK, QOS_POSE, QOS_STATE, SiteTopics, vda_topic
 from fleet.vda5050 import ConnectionState, HeaderIds, connection_message
 
@@ -75,8 +75,11 @@ class AgentRuntime:
         site: str,
         cores: list[AgentCore],
         clock: ClockConfig | None = None,
+        first_connect_s: float | None = None,
     ) -> None:
         self.broker = broker
+        self.first_connect_s = first_connect_s
+        self.failed: str | None = None
         self.topics = SiteTopics(site)
         self.clock_config = clock or ClockConfig()
         self.links = [_Link(c, ClockFilter(self.clock_config)) for c in cores]
@@ -207,14 +210,19 @@ class AgentRuntime:
             link.client = None
             return False
 
-        await run_session(
-            self.broker,
-            identifier=f"irloc-agent-{self.topics.site}-{cfg.name}",
-            will=will,
-            serve=serve,
-            stop=stop,
-            name=cfg.name,
-        )
+        try:
+            await run_session(
+                self.broker,
+                identifier=f"irloc-agent-{self.topics.site}-{cfg.name}",
+                will=will,
+                serve=serve,
+                stop=stop,
+                name=cfg.name,
+                first_connect_s=self.first_connect_s,
+            )
+        except BrokerUnreachableError as exc:
+            self.failed = str(exc)
+            stop.set()
         link.client = None
 
     async def _online(self, link: _Link, client: aiomqtt.Client, conn_topic: str) -> None:

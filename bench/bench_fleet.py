@@ -166,7 +166,8 @@ def start_server(broker: Mosquitto, data_dir: Path) -> tuple[subprocess.Popen[st
     cmd = [sys.executable, "-m", "irloc", "serve", "--port", str(port), "--mqtt", broker.url,
            "--no-viewer", "--no-sim-robots", "--data-dir", str(data_dir), "--log-level",
            "warning"]  # fmt: skip
-    proc = subprocess.Popen(cmd, env=ENV, stdout=subprocess.PIPE, text=True, cwd=ROOT)
+    env = {**ENV, "IRLOC_MQTT_AGENTS": '["*"]'}  # the benchmark's agents, on an open broker
+    proc = subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, text=True, cwd=ROOT)
     assert proc.stdout is not None
     key = ""
     for line in proc.stdout:
@@ -269,13 +270,23 @@ def run_round(
     try:
         deadline = time.monotonic() + args.warmup_s
         ready = 0
+        slow_answers = 0
         while time.monotonic() < deadline:
-            mine = [r for r in robots(port, key) if r["name"].startswith(prefix)]
+            try:
+                listed = robots(port, key)
+            except OSError:  # a server too busy to answer in 10 s: count it and go on
+                slow_answers += 1
+                continue
+            mine = [r for r in listed if r["name"].startswith(prefix)]
             ready = sum(r["mode"] == "landmark" and bool(r["connected"]) for r in mine)
             if ready == n:
                 break
             time.sleep(0.5)
-        names = sorted(r["name"] for r in robots(port, key) if r["name"].startswith(prefix))
+        names = []  # as `irloc agent --count` names them (no suffix for a count of 1)
+        for k, start in enumerate(range(0, n, args.per_process)):
+            count = min(args.per_process, n - start)
+            base = f"{prefix}p{k}"
+            names += [base] if count == 1 else [f"{base}-{i:03d}" for i in range(count)]
         sample = names[:: max(1, len(names) // SAMPLED)]
         counter.sampled = set(sample)
         query = "".join(f"&robot={r}" for r in sample)

@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 from datetime import datetime
 from typing import Any, Literal, get_args
 
+from live.event_writer import EventWriter, PendingEvent
 from pubsub.bus import Bus
 from store.log import EventLog
 
@@ -34,6 +35,9 @@ EventKind = Literal[
     "robot_floor_changed",
     "floor_proposed",
     "agent_map_outdated",
+    "recording_stopped",
+    "site_thread_restarted",
+    "fleet_intrusion",
 ]
 """What an event is about (the API's enumerated type)."""
 EVENT_KINDS: tuple[str, ...] = get_args(EventKind)
@@ -46,6 +50,9 @@ WARNING_EVENTS = frozenset(
         "radio_state",
         "clock_offset",
         "agent_map_outdated",
+        "recording_stopped",
+        "site_thread_restarted",
+        "fleet_intrusion",
     }
 )
 """Kinds logged as warnings (the others as info)."""
@@ -85,11 +92,26 @@ class SiteEvent:
 
 
 class EventHub:
-    """Record an event in the database, then publish it (thread-safe)."""
+    """Log an event at once, then store it in the database and publish it from the event
+    writer's thread (`live.event_writer`): whoever emits never waits on the database, and a
+    failing database loses no event and stops nothing (thread-safe)."""
 
     def __init__(self, log: EventLog, maxsize: int = 256) -> None:
         self.log = log
         self.bus: Bus[SiteEvent] = Bus(maxsize)
+        self.writer = EventWriter(log, self._publish)
+
+    def _publish(self, ev: PendingEvent, event_id: int) -> None:
+        self.bus.publish(
+            SiteEvent(event_id, ev.t, ev.kind, ev.message, ev.robot, ev.landmark_id, ev.data)
+        )
+
+    def flush(self, timeout_s: float = 2.0) -> bool:
+        """Wait until the events emitted so far are stored (or kept for a failing database)."""
+        return self.writer.flush(timeout_s)
+
+    def close(self) -> None:
+        self.writer.close()
 
     def emit(
         self,
@@ -99,10 +121,10 @@ class EventHub:
         robot: str | None = None,
         landmark_id: int | None = None,
         data: dict[str, Any] | None = None,
-    ) -> SiteEvent:
+    ) -> None:
         if kind not in EVENT_KINDS:  # the API lists the kinds: a new one is added there
             raise ValueError(f"event kind {kind!r} is not one of EventKind: {EVENT_KINDS}")
-        rec = self.log.add_event(kind, message, robot=robot, landmark_id=landmark_id, data=data)
+        pending = PendingEvent(kind, message, robot, landmark_id, dict(data or {}))
         extra: dict[str, Any] = {"event": kind}
         if robot is not None:
             extra["robot"] = robot
@@ -110,9 +132,7 @@ class EventHub:
             extra["landmark"] = landmark_id
         level = logging.WARNING if kind in WARNING_EVENTS else logging.INFO
         log.log(level, "%s", message, extra=extra)
-        event = SiteEvent(rec.id or 0, rec.t, kind, message, robot, landmark_id, rec.data)
-        self.bus.publish(event)
-        return event
+        self.writer.submit(pending)
 
     def recent(
         self,
@@ -123,7 +143,9 @@ class EventHub:
         after_id: int | None = None,
         robot: str | None = None,
     ) -> list[SiteEvent]:
-        """The newest events first (`after_id`: the oldest after it first), filtered."""
+        """The newest events first (`after_id`: the oldest after it first), filtered; those
+        emitted before the call included (the event writer is waited for, 1 s at most)."""
+        self.writer.flush(1.0)
         return [
             SiteEvent(r.id or 0, r.t, r.kind, r.message, r.robot, r.landmark_id, r.data)
             for r in self.log.events(

@@ -13,6 +13,7 @@ meet them through (docs/architecture.md, "Seams").
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from datetime import UTC, datetime
@@ -36,6 +37,7 @@ from store.errors import NotFoundError, UnavailableError
 from store.models import RobotCreate, RobotPublic
 from store.recording_catalog import RecordingCatalog, write_meta
 
+log = logging.getLogger(__name__)
 FULL_SUPPLY_MV = 3200
 """Two fresh AA cells (100 % in `BatteryStatus.percent`)."""
 
@@ -197,7 +199,11 @@ class LedsAndRadio:
             self.scheduler.unpin_reason(reason)
 
     def _store_reading(self, reading: BatteryReading) -> None:
-        self.log.add_battery(reading.landmark_id, reading.supply_mv)
+        try:
+            self.log.add_battery(reading.landmark_id, reading.supply_mv)
+        except Exception as exc:  # a failing database loses this reading, stops nothing
+            log.warning("battery reading of landmark %d not stored: %s", reading.landmark_id,
+                        str(exc).splitlines()[0][:160])  # fmt: skip
 
     def _gw(self) -> Gateway:
         if self.gateway is None:

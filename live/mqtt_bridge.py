@@ -4,6 +4,14 @@ clock exchanges, and brings their poses onto the pose bus as robots with source 
 An agent's arrival (`connection` ONLINE) and loss (OFFLINE, or its last will
 CONNECTIONBROKEN) are site events. Topics and payloads: `fleet`, docs/fleet.md.
 
+What a hostile or broken client on the broker could do is bounded here too (the broker's
+ACL is the lock, docs/fleet.md): only admitted agents (names or patterns in `mqtt_agents`,
+else any up to `mqtt_max_agents`) are registered; their LED requests are served when they
+are admitted by name, or when the server logs in to the broker (its ACL then vouches for
+who wrote what), never on an open broker without a list; poses outside the
+site are dropped and counted; a map on the map topic that this server did not publish is
+replaced by the site's at once. Each is a `fleet_intrusion` event.
+
 Runs on the server's event loop. When the broker goes away it reconnects by itself
 (backoff 0.2-2 s) and publishes the map and the current LED state again (retained), so a
 broker restarted without persistence is whole again; agents' robots stay registered.
@@ -13,11 +21,14 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import fnmatch
 import functools
 import hashlib
 import json
 import logging
+import math
 import time
+from collections import deque
 from concurrent.futures import ThreadPoolExecutor
 from typing import TYPE_CHECKING, Any
 
@@ -56,6 +67,9 @@ if TYPE_CHECKING:
     from live.services import SiteServices
 
 log = logging.getLogger(__name__)
+SITE_MARGIN_M = 50.0
+"""Poses farther than this outside the map's extent are dropped."""
+MAX_ABS_XY_M = 10_000.0
 MAX_PENDING = 1000
 """Messages handed to the connection and not yet written before the bridge waits."""
 
@@ -100,6 +114,18 @@ class MqttBridge:
         self._online: set[str] = set()
         self._gateway_listening = False
         self._events = ThreadPoolExecutor(max_workers=1, thread_name_prefix="mqtt-events")
+        s = services.settings
+        self.admitted = tuple(s.mqtt_agents)
+        self.trust_logins = broker.username is not None
+        self.led_requests_refused = 0
+        self._led_refusal_told: set[str] = set()
+        self.max_agents = s.mqtt_max_agents
+        self.foreign_maps = 0
+        self.poses_outside = 0
+        self.refused_agents: set[str] = set()
+        self._maps_sent: deque[bytes] = deque(maxlen=8)
+        self._outside_told: set[str] = set()
+        self._bounds = _extent(services.map.list())
 
     # -- lifecycle --------------------------------------------------------------------------------
     def start(self) -> None:
@@ -147,8 +173,32 @@ class MqttBridge:
         version = self.services.map_versions.version(floor)
         return MapMessage(map_id=map_id, landmarks=lms, floor=floor, version=version).encode()
 
+    def _map_now(self, landmarks: list[LandmarkPublic] | None = None) -> bytes:
+        """The map message to publish now, remembered as ours (`_on_foreign_map`)."""
+        msg = self.map_message(landmarks)
+        self._maps_sent.append(msg)
+        return msg
+
     def _on_map(self, landmarks: list[LandmarkPublic]) -> None:
-        self._send(self.topics.map, self.map_message(landmarks), QOS_STATE, True)
+        self._bounds = _extent(landmarks)
+        self._send(self.topics.map, self._map_now(landmarks), QOS_STATE, True)
+
+    def _on_map_seen(self, payload: bytes) -> None:
+        """A map on the map topic: ours comes back; any other was written by someone else
+        (a broker without irloc's ACL): publish ours again, with an event."""
+        if payload in self._maps_sent or not payload:
+            return
+        self.foreign_maps += 1
+        self._send(self.topics.map, self._map_now(), QOS_STATE, True)
+        if self.foreign_maps == 1 or self.foreign_maps % 100 == 0:
+            self._emit(
+                "fleet_intrusion",
+                f"a map not published by this server appeared on {self.topics.map} "
+                f"({self.foreign_maps} so far): the site's map was published again; "
+                "restrict the broker with irloc's ACL (docs/fleet.md)",
+                robot=None,
+                data={"what": "foreign_map", "count": self.foreign_maps},
+            )
 
     def _on_leds(self, event: LedsChanged) -> None:
         """Every LED state, as the gateway publishes it (before the LEDs switch)."""
@@ -206,10 +256,11 @@ class MqttBridge:
             [
                 (t.agents_wildcard, QOS_STATE),
                 (t.clock_request, QOS_CLOCK),
+                (t.map, QOS_STATE),
                 (vda_connection_wildcard(self.manufacturer), QOS_STATE),
             ]
         )
-        await client.publish(t.map, self.map_message(), qos=QOS_STATE, retain=True)
+        await client.publish(t.map, self._map_now(), qos=QOS_STATE, retain=True)
         if self._led_last is not None:
             await client.publish(t.leds, self._led_last, qos=QOS_STATE, retain=True)
         await client.publish(t.server, ServerState(state="ONLINE").encode(), qos=1, retain=True)
@@ -241,6 +292,9 @@ class MqttBridge:
             reply = ClockReply(n=req.n, t1=req.t1, t2=t2, t3=time.time_ns())
             self._out.put_nowait((t.clock_reply(req.robot), reply.encode(), QOS_CLOCK, False))
             return
+        if topic == t.map:
+            self._on_map_seen(payload)
+            return
         serial = vda_serial_of(topic)
         if serial is not None and topic.endswith("/connection"):
             self._on_connection(serial, payload, retained)
@@ -252,7 +306,9 @@ class MqttBridge:
         if leaf == "pose":
             runner = self._agent(robot)
             if runner is not None:
-                runner.receive(decode(PoseMessage, topic, payload))
+                msg = decode(PoseMessage, topic, payload)
+                if self._inside_site(robot, msg):
+                    runner.receive(msg)
         elif leaf == "status":
             if payload:
                 self._on_status(robot, decode(AgentStatus, topic, payload))
@@ -260,7 +316,12 @@ class MqttBridge:
             self._on_led_request(robot, decode(LedRequestMessage, topic, payload))
 
     def _emit(
-        self, kind: EventKind, message: str, *, robot: str, data: dict[str, Any] | None = None
+        self,
+        kind: EventKind,
+        message: str,
+        *,
+        robot: str | None,
+        data: dict[str, Any] | None = None,
     ) -> None:
         """A site event, written off the loop (each is a database commit: a hundred agents
         arriving at once must not stall the pose stream)."""
@@ -339,6 +400,13 @@ class MqttBridge:
             if robot in self.services.robots.names():
                 log.error("agent %s: a robot of that name is localized here; ignored", robot)
                 return
+            refusal = self._refusal(robot)
+            if refusal is not None:
+                if robot not in self.refused_agents:
+                    self.refused_agents.add(robot)
+                    self._emit("fleet_intrusion", f"agent {robot} refused: {refusal}",
+                               robot=robot, data={"what": "agent_refused"})  # fmt: skip
+                return
             runner = AgentRunner(
                 robot,
                 status,
@@ -359,6 +427,47 @@ class MqttBridge:
             data={"source": "agent"},
         )
         self._check_clock(runner, None)
+
+    def _admitted(self, robot: str) -> bool:
+        return any(fnmatch.fnmatchcase(robot, pattern) for pattern in self.admitted)
+
+    def _refusal(self, robot: str) -> str | None:
+        """Why a new agent may not join (None: it may)."""
+        if self.admitted and not self._admitted(robot):
+            return "not among the admitted agents (setting mqtt_agents)"
+        agents = sum(1 for r in self.services.robots.runners() if isinstance(r, AgentRunner))
+        if agents >= self.max_agents:
+            return f"the site has its {self.max_agents} agents (setting mqtt_max_agents)"
+        return None
+
+    def _inside_site(self, robot: str, msg: PoseMessage) -> bool:
+        """Whether a pose is on the site (the map's extent and `SITE_MARGIN_M` around it);
+        one outside is dropped and counted (an event the first time for each agent)."""
+        if msg.x is None or msg.y is None:
+            return True
+        box = self._bounds
+        if box is not None:
+            x0, y0, x1, y1 = box
+            m = SITE_MARGIN_M
+            if (
+                x0 - m <= msg.x <= x1 + m
+                and y0 - m <= msg.y <= y1 + m
+                and math.isfinite(msg.theta if msg.theta is not None else 0.0)
+            ):
+                return True
+        elif abs(msg.x) <= MAX_ABS_XY_M and abs(msg.y) <= MAX_ABS_XY_M:
+            return True
+        self.poses_outside += 1
+        if robot not in self._outside_told:
+            self._outside_told.add(robot)
+            self._emit(
+                "fleet_intrusion",
+                f"agent {robot}: a pose outside the site (x {msg.x:.4g}, y {msg.y:.4g} m) "
+                "dropped; such poses are dropped and counted",
+                robot=robot,
+                data={"what": "pose_outside", "x": msg.x, "y": msg.y},
+            )
+        return False
 
     def _check_clock(self, runner: AgentRunner, was_ok: bool | None) -> None:
         est = runner.clock
@@ -384,10 +493,34 @@ class MqttBridge:
             self._emit("robot_localized", f"robot {robot} localized", robot=robot)
 
     def _on_led_request(self, robot: str, msg: LedRequestMessage) -> None:
+        """An admitted, connected agent's LED request goes to the coordinator; others are
+        ignored (a phantom agent must not darken the ceiling)."""
         coordinator = self.services.leds.coordinator
-        if coordinator is None or self._agent(robot) is None:
+        runner = self._agent(robot)
+        if coordinator is None or runner is None or not runner.connected:
+            return
+        if not self.admitted and not self.trust_logins:
+            # an open broker and no list: anyone could claim to be this agent
+            self.led_requests_refused += 1
+            if robot not in self._led_refusal_told:
+                self._led_refusal_told.add(robot)
+                self._emit(
+                    "fleet_intrusion",
+                    f"agent {robot}: its LED requests are not served: the broker is open (no "
+                    "login) and no agent is admitted (setting mqtt_agents, docs/fleet.md)",
+                    robot=robot,
+                    data={"what": "led_request_refused"},
+                )
             return
         coordinator.request(robot, msg.request())
+
+
+def _extent(landmarks: list[LandmarkPublic]) -> tuple[float, float, float, float] | None:
+    """(x min, y min, x max, y max) of the map, None when it is empty."""
+    if not landmarks:
+        return None
+    xs, ys = [lm.x for lm in landmarks], [lm.y for lm in landmarks]
+    return min(xs), min(ys), max(xs), max(ys)
 
 
 def _count_failure(task: asyncio.Task[None]) -> None:
@@ -398,13 +531,9 @@ def _count_failure(task: asyncio.Task[None]) -> None:
 
 async def start_mqtt_bridge(services: SiteServices) -> MqttBridge | None:
     """The bridge for `settings.mqtt_url`, started (None without one)."""
-    from fleet.broker import parse_broker_url
-
     s = services.settings
     if not s.mqtt_url:
         return None
-    bridge = MqttBridge(
-        services, parse_broker_url(s.mqtt_url), site=s.mqtt_site, manufacturer=s.vda_manufacturer
-    )
+    bridge = MqttBridge(services, s.broker(), site=s.mqtt_site, manufacturer=s.vda_manufacturer)
     bridge.start()
     return bridge

@@ -12,6 +12,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from live.poses import PoseUpdate
+from live.recording_queue import QueuedRecording, RecordingLimits, check_free_space
 from localizer.camera import CameraModel
 from localizer.config import LocalizerConfig
 from localizer.events import (
@@ -103,7 +104,9 @@ class RobotRunner:
         self.frames = 0
         self.poses = 0
         self.errors = 0
-        self.recorder: RecordingWriter | None = None
+        self.recorder: QueuedRecording | None = None
+        self.recording_limits = RecordingLimits()
+        self.on_recording_stopped: Callable[[str, Path, str], None] | None = None
         self._taps: tuple[Callable[[Event], None], ...] = ()
         self.on_mode_change: Callable[[str, Mode, Mode], None] | None = None
         self._mode: Mode = localizer.mode
@@ -244,44 +247,46 @@ class RobotRunner:
         with self._lock:
             if self.recorder is not None:
                 raise ValueError(f"robot {self.name!r} is already recording")
-            rec = RecordingWriter(root, self.camera, self.geometry, landmark_records)
+            check_free_space(root, self.recording_limits)
+            writer = RecordingWriter(root, self.camera, self.geometry, landmark_records)
+            rec = QueuedRecording(
+                writer, self.recording_limits, self._recording_stopped, name=self.name
+            )
             if self._leds_in_force is not None:
                 rec.add_leds(self._leds_in_force)
             self.recorder = rec
+
+    def _recording_stopped(self, reason: str) -> None:
+        """The recording stopped by itself (writer thread): forget it and say why."""
+        with self._lock:
+            rec = self.recorder
+            if rec is not None and rec.stopped is not None:
+                self.recorder = None
+        if rec is not None and self.on_recording_stopped is not None:
+            self.on_recording_stopped(self.name, rec.root, reason)
 
     def stop_recording(self) -> Path | None:
         with self._lock:
             rec, self.recorder = self.recorder, None
         if rec is None:
             return None
-        rec.close()
-        return Path(rec.root)
+        return rec.close()
 
     def _record_pose(self, outputs: list[Output]) -> None:
-        """The localizer's answer to a recorded frame, to live_poses.csv."""
+        """The localizer's answer to a recorded frame, to live_poses.csv (queued)."""
         rec = self.recorder
         est = next((o for o in outputs if isinstance(o, PoseEstimate | NoPose)), None)
-        if rec is None or est is None:
-            return
-        try:
+        if rec is not None and est is not None:
             rec.add_pose(est)
-        except ValueError:
-            log.exception("robot %s: recording stopped", self.name, extra={"robot": self.name})
-            self.recorder = None
-            rec.close()
 
     def _record(self, event: Event) -> None:
+        """Queue `event` for the recording (the writer thread writes it)."""
         rec = self.recorder
         if rec is None:
             return
-        try:
-            if isinstance(event, FrameObserved):
-                rec.add_frame(event.t_ns, np.ascontiguousarray(event.image))
-            elif isinstance(event, OdometryMeasured):
-                rec.add_odometry(event.t_ns, event.v_left, event.v_right)
-            elif isinstance(event, LedsChanged):
-                rec.add_leds(event)
-        except ValueError:
-            log.exception("robot %s: recording stopped", self.name, extra={"robot": self.name})
-            self.recorder = None
-            rec.close()
+        if isinstance(event, FrameObserved):
+            rec.add_frame(event.t_ns, np.ascontiguousarray(event.image))
+        elif isinstance(event, OdometryMeasured):
+            rec.add_odometry(event.t_ns, event.v_left, event.v_right)
+        elif isinstance(event, LedsChanged):
+            rec.add_leds(event)

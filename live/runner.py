@@ -15,6 +15,7 @@ import contextlib
 import dataclasses
 import logging
 from collections.abc import Callable, Iterable
+from pathlib import Path
 from typing import Protocol
 
 from live.events import EventHub
@@ -30,9 +31,11 @@ from live.leds.wiring import (
     xbee_config,
 )
 from live.poses import PoseUpdate
+from live.recording_queue import MIB, RecordingLimits
 from live.robots import RobotRunner, make_localizer
 from live.serial_sink import SerialSink
 from live.settings import Settings
+from live.supervisor import SiteSupervisor
 from localizer.camera import camera_from_sensor, sensor_from_camera
 from localizer.events import Event, LedRequest, Mode
 from localizer.robot import RobotGeometry
@@ -132,6 +135,7 @@ class LiveSiteRunner:
         """Proposes the floor a robot without a fix seems to be on (`live.floor_watch`)."""
         self._tasks: list[asyncio.Task[None]] = []
         self._loop: asyncio.AbstractEventLoop | None = None
+        self.supervisor = SiteSupervisor(lambda: self.sources, self.robots.runners, events)
 
     @property
     def sources(self) -> list[FrameSource]:
@@ -167,6 +171,7 @@ class LiveSiteRunner:
             )
             self.sim_source.on_floor = self._on_floor_arrival
             self.sim_source.start(self.robots.deliver)
+        self._tasks.append(asyncio.get_running_loop().create_task(self.supervisor.run()))
 
     def start_robot(self, robot: RobotPublic) -> RobotRunner:
         """Run (or restart with a new configuration) one robot's localizer and sources."""
@@ -187,6 +192,12 @@ class LiveSiteRunner:
         runner.on_mode_change = self._on_mode_change
         if self.floors is not None:
             self.floors.place(runner, self.floors.initial(robot.name))
+        runner.on_recording_stopped = self._on_recording_stopped
+        runner.recording_limits = RecordingLimits(
+            max_bytes=self.settings.recording_max_mb * MIB,
+            max_s=self.settings.recording_max_s,
+            min_free_bytes=self.settings.recording_min_free_mb * MIB,
+        )
         self.robots.add(runner)
         if robot.source == "camera" and robot.device:
             cam = CameraSource(robot.name, robot.device, self.clock_ns)
@@ -299,7 +310,7 @@ class LiveSiteRunner:
             )  # fmt: skip
             self.floor_watch.start()
         loop = asyncio.get_running_loop()
-        self._tasks = [loop.create_task(self._gateway_events())]
+        self._tasks.append(loop.create_task(self._gateway_events()))
 
     def _routes(self, robot: str) -> tuple[tuple[float, float], ...]:
         """Where a robot drives next, as far as the site knows (the virtual site's routes;
@@ -318,6 +329,14 @@ class LiveSiteRunner:
 
     def _on_led_error(self, robot: str, message: str) -> None:
         self.events.emit("led_request_failed", f"robot {robot}: {message}", robot=robot)
+
+    def _on_recording_stopped(self, robot: str, root: Path, reason: str) -> None:
+        self.events.emit(
+            "recording_stopped",
+            f"robot {robot}: recording stopped: {reason} ({root.name} keeps what was written)",
+            robot=robot,
+            data={"folder": root.name, "reason": reason},
+        )
 
     def _on_mode_change(self, robot: str, old: Mode, new: Mode) -> None:
         if new == "lost":

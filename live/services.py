@@ -162,6 +162,7 @@ class SiteServices:
         self.map.remove_listener(self._on_map_changed)
         self.map_versions.close()
         self.keys.close()  # pending last-use writes
+        self.events.close()  # events still queued
         self.engine.dispose()
 
     def _on_map_changed(self, landmarks: list[LandmarkPublic]) -> None:

@@ -16,6 +16,9 @@ import yaml
 from pydantic import Field, field_validator, model_validator
 from pydantic_settings import BaseSettings, PydanticBaseSettingsSource, SettingsConfigDict
 
+from fleet.broker import BrokerAddress, parse_broker_url
+from fleet.topics import check_name
+
 Source = Literal["sim", "camera", "remote"]
 
 
@@ -91,6 +94,23 @@ class Settings(BaseSettings):
             given: the simulated radio's landmarks sleep at `SIM_SLEEP_PERIOD_S` (modules
             set up as docs/rf_gateway.md recommends), an XBee radio's are taken as awake
             (the modules' own `SM` decides; set this to match them).
+        max_body_bytes: a request body's limit where the route sets none larger (413 past
+            it; the map, floor plan and lens photos have their own, `server.edge`).
+        header_timeout_s: a request's headers must be complete this long after its first
+            byte, seconds (else the connection is closed).
+        max_connections_per_address, max_connections: open connections per client address
+            and in all (the latter also kept under the open-file limit; `server.connections`).
+        trusted_proxies: addresses (or networks) of reverse proxies whose `X-Forwarded-For`
+            and `X-Forwarded-Proto` are believed; empty (the default): none, the client
+            address is the socket's.
+        device_dirs: folders (beside the data folder) whose video files a robot's `device`
+            may name.
+        allow_network_devices: let a robot's `device` be a URL (IP camera) and its
+            `wheel_port` a network pyserial URL (`socket://`); off: only local devices.
+        recording_max_mb, recording_max_s: a live recording stops (with an event) when it
+            passes this size (MB) or duration (s).
+        recording_min_free_mb: a recording does not start (507), and stops, when the disk
+            has less free space than this (MB).
     """
 
     model_config = SettingsConfigDict(env_prefix="IRLOC_", extra="ignore")
@@ -118,9 +138,25 @@ class Settings(BaseSettings):
     led_policy: Literal["auto", "scheduled", "all_lit"] = "auto"
     radio_sleep_period_s: float | None = Field(default=None, ge=0.0, le=28.0)
     mqtt_url: str | None = None
+    mqtt_password_file: Path | None = None
+    mqtt_ca_file: Path | None = None
+    mqtt_cert_file: Path | None = None
+    mqtt_key_file: Path | None = None
+    mqtt_agents: list[str] = Field(default_factory=list)
+    mqtt_max_agents: int = Field(default=200, ge=1)
     mqtt_site: str = Field(default="default", pattern=r"^[A-Za-z0-9_.-]{1,64}$")
     vda_manufacturer: str = Field(default="irloc", pattern=r"^[A-Za-z0-9_.-]{1,64}$")
     sim_robots: bool = True
+    max_body_bytes: int = Field(default=1024 * 1024, ge=1024)
+    header_timeout_s: float = Field(default=10.0, gt=0.0, le=300.0)
+    max_connections_per_address: int = Field(default=512, ge=4)
+    max_connections: int = Field(default=4096, ge=16)
+    trusted_proxies: list[str] = Field(default_factory=list)
+    device_dirs: list[Path] = Field(default_factory=list)
+    allow_network_devices: bool = False
+    recording_max_mb: int = Field(default=4096, ge=1)
+    recording_max_s: float = Field(default=3600.0, gt=0.0)
+    recording_min_free_mb: int = Field(default=256, ge=0)
     recordings_keep_days: float | None = Field(default=30.0, gt=0)
     recordings_max_gb: float | None = Field(default=20.0, gt=0)
     history_keep_days: float = Field(default=30.0, gt=0)
@@ -149,14 +185,40 @@ class Settings(BaseSettings):
             self.led_policy = "scheduled" if sleeping else "all_lit"
         return self
 
-    @field_validator("mqtt_url")
+    @field_validator("trusted_proxies")
     @classmethod
-    def _check_mqtt(cls, value: str | None) -> str | None:
-        if value:
-            from fleet.broker import parse_broker_url
+    def _check_proxies(cls, value: list[str]) -> list[str]:
+        import ipaddress
 
-            parse_broker_url(value)
-        return value or None
+        for item in value:
+            try:
+                ipaddress.ip_network(item, strict=False)
+            except ValueError:
+                raise ValueError(
+                    f"trusted_proxies: {item!r} is not an IP address or network"
+                ) from None
+        return value
+
+    @model_validator(mode="after")
+    def _check_mqtt(self) -> Settings:
+        if self.mqtt_url:
+            self.broker()
+        for name in self.mqtt_agents:
+            check_name("mqtt_agents", name.replace("*", "x").replace("?", "x"))
+        return self
+
+    def broker(self) -> BrokerAddress:
+        """The broker's address and login (`mqtt_url` and the files); ValueError names what
+        is wrong."""
+        if not self.mqtt_url:
+            raise ValueError("mqtt_url: no broker configured")
+        return parse_broker_url(
+            self.mqtt_url,
+            password_file=self.mqtt_password_file,
+            ca_file=self.mqtt_ca_file,
+            cert_file=self.mqtt_cert_file,
+            key_file=self.mqtt_key_file,
+        )
 
     @classmethod
     def settings_customise_sources(

@@ -137,13 +137,23 @@ def _timestamp(path: Path, number: int, text: str, previous: int) -> int:
     return t_ns
 
 
-def _finite(path: Path, number: int, text: str, name: str) -> float:
+MAX_WHEEL_SPEED_M_S = 20.0
+"""Wheel speeds beyond this are not a robot's (the server's serial lines use the same bound)."""
+MAX_ABS_XY_M = 10_000.0
+"""Positions beyond this are not on a site (the map's own bound)."""
+MAX_ABS_THETA_RAD = 1_000.0
+
+
+def _finite(path: Path, number: int, text: str, name: str, limit: float = math.inf) -> float:
+    """A finite number of at most `limit` in magnitude; RecordingError naming it otherwise."""
     try:
         v = float(text)
     except ValueError:
         raise RecordingError(path, number, f"{name} must be a number, got {text!r}") from None
     if not math.isfinite(v):
         raise RecordingError(path, number, f"{name} must be finite, got {text!r}")
+    if abs(v) > limit:
+        raise RecordingError(path, number, f"{name} {text} is beyond +-{limit:g} (SI units)")
     return v
 
 
@@ -204,7 +214,13 @@ def read_odometry(path: Path) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.flo
         t_text, vl, vr = _fields(path, number, fields, 3, "timestamp, v_left, v_right")
         previous = _timestamp(path, number, t_text, previous)
         times.append(previous)
-        speeds.append((_finite(path, number, vl, "v_left"), _finite(path, number, vr, "v_right")))
+        lim = MAX_WHEEL_SPEED_M_S
+        speeds.append(
+            (
+                _finite(path, number, vl, "v_left", lim),
+                _finite(path, number, vr, "v_right", lim),
+            )
+        )
     return np.array(times, dtype=np.int64), np.array(speeds, dtype=np.float64).reshape(-1, 2)
 
 
@@ -308,9 +324,9 @@ def read_groundtruth_file(
         times.append(previous)
         poses.append(
             (
-                _finite(path, number, x, "x"),
-                _finite(path, number, y, "y"),
-                _finite(path, number, th, "theta"),
+                _finite(path, number, x, "x", MAX_ABS_XY_M),
+                _finite(path, number, y, "y", MAX_ABS_XY_M),
+                _finite(path, number, th, "theta", MAX_ABS_THETA_RAD),
             )
         )
     return np.array(times, dtype=np.int64), np.array(poses, dtype=np.float64).reshape(-1, 3)

@@ -216,6 +216,13 @@ def main(argv: list[str] | None = None) -> int:
         tmp.unlink(missing_ok=True)
         print(f"{PROG}: {exc.filename or args.out}: {exc.strerror or exc}", file=sys.stderr)
         return 1
+    if written and skipped == written:
+        print(
+            f"{PROG}: every frame of {args.recording} ({skipped}) is missing or unreadable: "
+            f"nothing was localized ({args.out} has dead reckoning only)",
+            file=sys.stderr,
+        )
+        return 1
     if not args.quiet:
         took = time.perf_counter() - start
         note = f", {skipped} unreadable frames skipped" if skipped else ""

@@ -4,6 +4,9 @@ One thread steps the site at `step_hz` on the site clock (frames are rendered wi
 lit at the call, so a short period keeps a frame's picture true to its timestamp); another
 feeds the samples to the sink, skipping frames older than `max_frame_lag_s` when their turn
 comes (odometry never is), so a slow localizer falls behind by frames, not by time.
+An error feeding one sample is counted and logged (once per `ERROR_LOG_EVERY_S`), and the
+feeding goes on; a thread that ends all the same is started again by `revive` (the live
+site's supervisor calls it).
 """
 
 from __future__ import annotations
@@ -11,6 +14,7 @@ from __future__ import annotations
 import logging
 import queue
 import threading
+import time
 from collections.abc import Callable, Sequence
 
 from localizer.events import FrameObserved
@@ -19,6 +23,7 @@ from sim.live import LiveSite, SensorSample
 from sim.robot import FloorArrival
 
 log = logging.getLogger(__name__)
+ERROR_LOG_EVERY_S = 10.0
 
 
 class SimSource:
@@ -50,6 +55,10 @@ class SimSource:
         self.on_floor: Callable[[str, FloorArrival], None] | None = None
         """Called (on the feeding thread, in time order with the samples) when a robot
         leaves the lift on a floor."""
+        self.errors = 0
+        self.restarts = 0
+        self._sink: SensorSink | None = None
+        self._error_logged_at = -ERROR_LOG_EVERY_S
         self._stop = threading.Event()
         self._samples: queue.SimpleQueue[list[SensorSample] | None] = queue.SimpleQueue()
         self._threads: list[threading.Thread] = []
@@ -59,12 +68,38 @@ class SimSource:
         return list(self.site.robot_names)
 
     def start(self, sink: SensorSink) -> None:
+        self._sink = sink
         self._threads = [
             threading.Thread(target=self._run_clock, name="site-clock", daemon=True),
             threading.Thread(target=self._feed, args=(sink,), name="site-localizers", daemon=True),
         ]
         for t in self._threads:
             t.start()
+
+    def dead_threads(self) -> list[str]:
+        """Names of this source's threads that ended while it runs (none, normally)."""
+        if self._stop.is_set():
+            return []
+        return [t.name for t in self._threads if not t.is_alive()]
+
+    def revive(self) -> list[str]:
+        """Start again the threads that ended (`dead_threads`); their names."""
+        dead = self.dead_threads()
+        if not dead or self._sink is None:
+            return []
+        sink = self._sink
+        targets: dict[str, Callable[[], None]] = {
+            "site-clock": self._run_clock,
+            "site-localizers": lambda: self._feed(sink),
+        }
+        alive = [t for t in self._threads if t.is_alive()]
+        for name in dead:
+            thread = threading.Thread(target=targets[name], name=name, daemon=True)
+            thread.start()
+            alive.append(thread)
+        self._threads = alive
+        self.restarts += len(dead)
+        return dead
 
     def stop(self) -> None:
         self._stop.set()
@@ -100,4 +135,15 @@ class SimSource:
                     if lag_s > self.max_frame_lag_s:
                         self.frames_skipped += 1
                         continue
-                sink(sample.robot, event)
+                try:
+                    sink(sample.robot, event)
+                except Exception:  # one robot's failure must not stop the others
+                    self._failed(sample.robot)
+
+    def _failed(self, robot: str) -> None:
+        self.errors += 1
+        now = time.monotonic()
+        if now - self._error_logged_at >= ERROR_LOG_EVERY_S:
+            self._error_logged_at = now
+            log.exception("robot %s: an event could not be fed (%d such errors so far)",
+                          robot, self.errors, extra={"robot": robot})  # fmt: skip

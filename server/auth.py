@@ -6,9 +6,11 @@ relocalizes and records; admin also edits the map, keys and configuration.
 
 Keys are checked by `authenticate_async` on the event loop: cached answers at once, a
 database lookup on a worker thread (`store.keys.KeyStore.role_of_async`), bad keys
-counted per client address (`server.throttle`: past the budget, 429 / close 1008 before any
-lookup). A WebSocket that is refused is accepted and then closed with code 1008 and the reason
-(`refuse_websocket`), so a client learns why.
+counted per client address (`server.throttle`: past the budget, a key is only looked up in
+the index of valid keys, read at most once a second whatever the flood, and a bad one is
+answered 429 / close 1008: a valid key is never refused, even behind a NAT shared with
+the sender of bad keys). A WebSocket that is refused is accepted and then closed with code
+1008 and the reason (`refuse_websocket`), so a client learns why.
 """
 
 from __future__ import annotations
@@ -104,8 +106,12 @@ async def authenticate_async(conn: HTTPConnection) -> Principal | None:
     address = address_of(conn)
     if known is False:
         wait_s = throttle.retry_after_s(address)
-        if wait_s > 0:
-            raise TooManyBadKeysError(wait_s)
+        if wait_s > 0:  # never refuse a valid key: it is found in the index of valid keys
+            found = await keys.role_from_index(token)
+            if found is None:
+                throttle.failed(address)
+                raise TooManyBadKeysError(wait_s)
+            return Principal(found[0], found[1])
         known = await keys.role_of_async(token)
     if known is None or known is False:
         throttle.failed(address)

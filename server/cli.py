@@ -15,10 +15,12 @@ from typing import TYPE_CHECKING
 from pydantic import ValidationError
 
 from live.settings import Settings
-from server.logs import configure_logging
+from server.logs import configure_logging, redact
 from server.loopback import is_loopback
 
 if TYPE_CHECKING:
+    import uvicorn
+
     from server.seams import ViewerApp
 
 
@@ -45,7 +47,17 @@ def _parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--seed", type=int, help="virtual site seed")
     p.add_argument("--no-viewer", action="store_true", help="do not start the viewer")
-    p.add_argument("--mqtt", help="the site's MQTT broker, mqtt://HOST[:PORT]: robot agents")
+    p.add_argument(
+        "--mqtt", help="the site's MQTT broker, mqtt[s]://[USER@]HOST[:PORT]: robot agents"
+    )
+    p.add_argument(
+        "--mqtt-password-file",
+        type=Path,
+        help="the broker password of USER (first line; else $IRLOC_MQTT_PASSWORD)",
+    )
+    p.add_argument("--mqtt-ca", type=Path, help="mqtts: the CA file that signed the broker")
+    p.add_argument("--mqtt-cert", type=Path, help="mqtts: the server's client certificate")
+    p.add_argument("--mqtt-key", type=Path, help="mqtts: its private key")
     p.add_argument(
         "--no-sim-robots", action="store_true", help="the virtual site's robots are not run here"
     )
@@ -105,6 +117,10 @@ def main(
             "seed": args.seed,
             "log_format": args.log_format,
             "mqtt_url": args.mqtt,
+            "mqtt_password_file": args.mqtt_password_file,
+            "mqtt_ca_file": args.mqtt_ca,
+            "mqtt_cert_file": args.mqtt_cert,
+            "mqtt_key_file": args.mqtt_key,
         }.items()
         if v is not None
     }
@@ -114,8 +130,15 @@ def main(
         overrides["sim_robots"] = False
     try:
         settings = Settings(**overrides)
-    except (ValidationError, ValueError) as exc:
-        print(f"irloc serve: {exc}", file=sys.stderr)
+    except ValidationError as exc:  # its text repeats the input: a password, maybe
+        said = "; ".join(
+            ".".join(str(p) for p in e["loc"]) + (": " if e["loc"] else "") + e["msg"]
+            for e in exc.errors()
+        )
+        print(f"irloc serve: {redact(said)}", file=sys.stderr)
+        return 2
+    except ValueError as exc:
+        print(f"irloc serve: {redact(str(exc))}", file=sys.stderr)
         return 2
     if settings.map_file is not None and not settings.map_file.is_file():
         print(f"irloc serve: --map {settings.map_file}: no such file", file=sys.stderr)
@@ -125,15 +148,24 @@ def main(
         print(f"irloc serve: {problem}", file=sys.stderr)
         return 2
     configure_logging(args.log_level, settings.log_format)
-    import uvicorn
+
+    from sqlalchemy.exc import SQLAlchemyError
 
     from live.services import prepare_database
     from server.main import create_app
-    from store.db import make_engine
+    from store.db import DatabaseFileError, make_engine
 
-    engine = make_engine(settings.db_url)
-    first_key = prepare_database(engine)
-    engine.dispose()
+    try:
+        engine = make_engine(settings.db_url)
+        first_key = prepare_database(engine)
+        engine.dispose()
+    except DatabaseFileError as exc:
+        print(f"irloc serve: {exc}", file=sys.stderr)
+        return 2
+    except SQLAlchemyError as exc:
+        first = str(getattr(exc, "orig", None) or exc).splitlines()[0]
+        print(f"irloc serve: database {redact(settings.db_url)}: {first}", file=sys.stderr)
+        return 2
     viewer = make_viewer(settings) if make_viewer is not None else None
     from server.console import leds_line, startup_lines
 
@@ -150,20 +182,48 @@ def main(
     if settings.site_enabled:
         print(leds_line(settings.led_policy, settings.radio_sleep_period_s))
     if settings.mqtt_url:
-        print(f"irloc: fleet     {settings.mqtt_url} (site {settings.mqtt_site!r})")
+        broker = settings.broker()
+        print(f"irloc: fleet     {broker} (site {settings.mqtt_site!r})")
+        if broker.username is None and not settings.mqtt_agents:
+            print(
+                "irloc: the broker is open (no login) and no agent is admitted by name: "
+                "agents' LED requests are not served (set mqtt_agents, or log in: "
+                "docs/fleet.md)"
+            )
     if first_key is not None:
         print(lines[-1])  # the key, last: easy to spot
     sys.stdout.flush()
-    config = uvicorn.Config(
-        create_app(settings, viewer),
-        host=settings.host,
-        port=settings.port,
-        workers=1,
-        log_level=args.log_level,
-        log_config=None,  # uvicorn's loggers go through configure_logging's handler
-        lifespan="on",
-    )
+    config = uvicorn_config(settings, create_app(settings, viewer), args.log_level)
     from server.shutdown import serve
 
     serve(config)
     return 0
+
+
+def uvicorn_config(settings: Settings, app: object, log_level: str = "info") -> uvicorn.Config:
+    """uvicorn's configuration of `irloc serve`: the guarded HTTP protocol (header timeout,
+    connection caps: `server.connections`), forwarded-for headers only from
+    `trusted_proxies` (uvicorn believes loopback's by default), the open-file limit raised."""
+    import uvicorn
+
+    from server.connections import EdgeLimits, GuardedHttpProtocol, raise_open_file_limit
+
+    raise_open_file_limit()
+    config = uvicorn.Config(
+        app,  # type: ignore[arg-type]
+        host=settings.host,
+        port=settings.port,
+        workers=1,
+        log_level=log_level,
+        log_config=None,  # uvicorn's loggers go through configure_logging's handler
+        lifespan="on",
+        http=GuardedHttpProtocol,
+        proxy_headers=bool(settings.trusted_proxies),
+        forwarded_allow_ips=list(settings.trusted_proxies) or None,
+    )
+    config.edge_limits = EdgeLimits(  # type: ignore[attr-defined]  # read by guard_of
+        header_timeout_s=settings.header_timeout_s,
+        max_per_address=settings.max_connections_per_address,
+        max_connections=settings.max_connections,
+    )
+    return config

@@ -2,7 +2,8 @@
 
 `install_body_errors(app)`: a request body FastAPI could not parse is answered 400 with
 what was wrong (`body: JSON nested too deeply`, `body: not UTF-8 text`) instead of "There was
-an error parsing the body"; a 405 lists in `Allow` every method the path supports (Starlette
+an error parsing the body" (413 for a body that passed its limit while it was read); a 405
+lists in `Allow` every method the path supports (Starlette
 names only those of the first route of that path); every other HTTP error keeps FastAPI's
 own answer. `refuse_unknown_query`: a dependency of every API route (422 for a query
 parameter the route does not take).
@@ -23,6 +24,8 @@ from starlette.exceptions import HTTPException
 from starlette.requests import HTTPConnection
 from starlette.routing import Match
 from starlette.types import Scope
+
+from server.edge import BodyTooLargeError
 
 
 def body_problem(exc: BaseException | None) -> str | None:
@@ -45,6 +48,19 @@ def allowed_methods(app: FastAPI, scope: Scope) -> list[str]:
         if any(route.matches(probe)[0] == Match.FULL for route in app.router.routes):
             allowed.append(method)
     return allowed
+
+
+def methods_of_other_routes(app: FastAPI, scope: Scope, prefix: str = "/api/v1") -> list[str]:
+    """The methods of routes with a fixed path (no parameter) whose path is that of `scope`
+    (with or without the API `prefix`): `PATCH /landmarks/audit` matched `PATCH
+    /landmarks/{landmark_id}` and failed its validation, but the path is `GET
+    /landmarks/audit`'s."""
+    path = scope["path"]
+    allowed: set[str] = set()
+    for route in api_routes(app.router.routes):
+        if "{" not in route.path and path in (route.path, prefix + route.path):
+            allowed |= route.methods or set()
+    return [m for m in METHODS if m in allowed]
 
 
 def api_routes(routes: Iterable[Any]) -> Iterator[APIRoute]:
@@ -93,6 +109,10 @@ def refuse_unknown_query(conn: HTTPConnection) -> None:
 def install_body_errors(app: FastAPI) -> None:
     async def handle(request: Request, exc: Exception) -> Response:
         assert isinstance(exc, HTTPException)  # registered for HTTPException only
+        if exc.status_code == 400 and isinstance(exc.__cause__, BodyTooLargeError):
+            return JSONResponse(
+                {"detail": str(exc.__cause__)}, status_code=413, headers={"Connection": "close"}
+            )
         problem = body_problem(exc.__cause__) if exc.status_code == 400 else None
         if problem is not None:
             return JSONResponse({"detail": problem}, status_code=400)

@@ -35,6 +35,7 @@ _SECRETS = (
     (re.compile(r"(?i)\b(token|key|irloc_ticket)=[^&\s\"'#]+"), rf"\1={REDACTED}"),
     (re.compile(r"(?i)\bBearer\s+[^\s\"',;]+"), f"Bearer {REDACTED}"),
     (re.compile(r"\birloc_[A-Za-z0-9_-]{16,}"), f"irloc_{REDACTED}"),
+    (re.compile(r"(?i)\b([a-z][a-z0-9+.-]*://[^:/@\s]+):[^@/\s]+@"), rf"\1:{REDACTED}@"),
 )
 
 
@@ -85,6 +86,15 @@ class JsonFormatter(logging.Formatter):
         return json.dumps(out, default=str, ensure_ascii=False)
 
 
+class QuietRefusals(logging.Filter):
+    """Leaves 401 and 429 answers out of uvicorn's access log: a flood of bad keys would
+    write a line each (`server.throttle` logs them as one line per burst)."""
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        args = record.args
+        return not (isinstance(args, tuple) and len(args) >= 5 and args[4] in (401, 429))
+
+
 def configure_logging(
     level: str = "info", fmt: LogFormat = "text", stream: IO[str] | None = None
 ) -> logging.Handler:
@@ -102,6 +112,9 @@ def configure_logging(
     root.setLevel(level.upper())
     for name, quiet_level in QUIET.items():
         logging.getLogger(name).setLevel(quiet_level)
+    access = logging.getLogger("uvicorn.access")
+    if not any(isinstance(f, QuietRefusals) for f in access.filters):
+        access.addFilter(QuietRefusals())
     for name in ("uvicorn", "uvicorn.error", "uvicorn.access"):
         lg = logging.getLogger(name)
         lg.handlers.clear()

@@ -29,9 +29,14 @@ from rf_gateway.errors import (
     UnknownLandmarkError,
 )
 from server.auth import Viewer, authenticate
+from server.edge import EdgeGuard
 from server.fanout import PoseFanout
-from server.health import Health, site_health
-from server.http_errors import install_body_errors, refuse_unknown_query
+from server.health import Health, check_health
+from server.http_errors import (
+    install_body_errors,
+    methods_of_other_routes,
+    refuse_unknown_query,
+)
 from server.landing import landing_router
 from server.metrics import make_registry, render
 from server.openapi import install_openapi
@@ -54,6 +59,7 @@ from server.routes import (
     zones,
 )
 from server.seams import ViewerApp
+from server.storage_errors import install_storage_errors
 from store.errors import ConflictError, NotFoundError, UnavailableError
 
 log = logging.getLogger(__name__)
@@ -101,11 +107,20 @@ def _install_error_handlers(app: FastAPI) -> None:
 
     async def bad_request(request: Request, exc: Exception) -> JSONResponse:
         errors = exc.errors() if isinstance(exc, RequestValidationError) else []
+        if any(e["loc"][:1] == ("path",) for e in errors):
+            others = methods_of_other_routes(request.app, request.scope)
+            if others and request.method not in others:  # the path is another route's
+                return JSONResponse(
+                    {"detail": f"method {request.method} not allowed: use {', '.join(others)}"},
+                    status_code=405,
+                    headers={"Allow": ", ".join(others)},
+                )
         parts = [f"{'.'.join(str(p) for p in e['loc'])}: {e['msg']}" for e in errors[:5]]
         listed = [{"loc": list(e["loc"]), "msg": e["msg"], "type": e["type"]} for e in errors]
         return JSONResponse({"detail": "; ".join(parts), "errors": listed}, status_code=422)
 
     app.add_exception_handler(RequestValidationError, bad_request)
+    install_storage_errors(app)
 
 
 def create_app(settings: Settings | None = None, viewer: ViewerApp | None = None) -> FastAPI:
@@ -151,6 +166,7 @@ def create_app(settings: Settings | None = None, viewer: ViewerApp | None = None
     )
     _install_error_handlers(app)
     install_body_errors(app)
+    app.add_middleware(EdgeGuard, default_body_bytes=settings.max_body_bytes)
     api = APIRouter(prefix=API_PREFIX, dependencies=[Depends(refuse_unknown_query)])
     for module in (
         landmarks, map, history, floorplan, robots, calibration, remote, admin, streams,
@@ -166,12 +182,20 @@ def create_app(settings: Settings | None = None, viewer: ViewerApp | None = None
         summary="Prometheus metrics",
     )
     app.include_router(api)
-    app.add_api_route("/healthz", _healthz, methods=["GET"], tags=["operations"])
+    app.add_api_route(
+        "/healthz",
+        _healthz,
+        methods=["GET"],
+        tags=["operations"],
+        response_model=Health,
+        responses={503: {"model": Health, "description": "degraded: `problems` names why"}},
+    )
     app.add_api_route(
         API_PREFIX + "/healthz",
         _healthz,
         methods=["GET"],
         tags=["operations"],
+        response_model=Health,
         include_in_schema=False,
     )
     if viewer is not None:
@@ -181,9 +205,11 @@ def create_app(settings: Settings | None = None, viewer: ViewerApp | None = None
     return app
 
 
-async def _healthz(request: Request) -> Health:
-    """Liveness (no key needed)."""
-    return site_health(request.app.state.services)
+async def _healthz(request: Request) -> JSONResponse:
+    """Health (no key needed): 200 when all is well, 503 naming the problems."""
+    health = await check_health(request.app.state.services)
+    code = 200 if not health.problems else 503
+    return JSONResponse(health.model_dump(), status_code=code)
 
 
 async def _metrics(request: Request, _: Viewer) -> Response:

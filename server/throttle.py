@@ -9,11 +9,17 @@ a shared address does not lock out the others for longer than a refill.
 
 from __future__ import annotations
 
+import logging
 import threading
 import time
 from collections import OrderedDict
 from collections.abc import Callable
 from dataclasses import dataclass
+
+log = logging.getLogger(__name__)
+LOG_EVERY_S = 10.0
+"""Bad keys are logged as one line per burst: at most one line in this time, with counts
+(the access log leaves out 401 and 429 answers, `server.logs.QuietRefusals`)."""
 
 
 @dataclass(frozen=True)
@@ -40,6 +46,10 @@ class BadKeyThrottle:
         self.throttled = 0
         self._buckets: OrderedDict[str, tuple[float, float]] = OrderedDict()  # tokens, at
         self._lock = threading.Lock()
+        self.bad = 0
+        self._unlogged = 0
+        self._throttled_logged = 0
+        self._logged_at: float | None = None
 
     def _tokens(self, address: str, now: float) -> float:
         tokens, at = self._buckets.get(address, (float(self.config.burst), now))
@@ -63,3 +73,17 @@ class BadKeyThrottle:
             self._buckets.move_to_end(address)
             while len(self._buckets) > self.config.max_addresses:
                 self._buckets.popitem(last=False)
+            self.bad += 1
+            self._unlogged += 1
+            due = self._logged_at is None or now - self._logged_at >= LOG_EVERY_S
+            if due:
+                count, self._unlogged, self._logged_at = self._unlogged, 0, now
+                throttled, self._throttled_logged = (
+                    self.throttled - self._throttled_logged,
+                    self.throttled,
+                )
+        if due:
+            log.warning(
+                "bad API keys: %d since the last such line (%d throttled), the latest from %s",
+                count, throttled, address,
+            )  # fmt: skip

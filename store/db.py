@@ -8,6 +8,8 @@ portable SQL, tested on both (tests/server/test_postgres.py).
 
 from __future__ import annotations
 
+import os
+import sqlite3
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -29,7 +31,7 @@ def make_engine(url: str) -> Engine:
         return create_engine(url, pool_pre_ping=True)
     path = url.split("///", 1)[-1]
     if path and path != ":memory:":
-        Path(path).parent.mkdir(parents=True, exist_ok=True)
+        prepare_sqlite_file(Path(path))
     engine = create_engine(url, connect_args={"check_same_thread": False, "timeout": 30})
 
     @event.listens_for(engine, "connect")
@@ -41,6 +43,57 @@ def make_engine(url: str) -> Engine:
         cur.close()
 
     return engine
+
+
+class DatabaseFileError(ValueError):
+    """The SQLite file cannot be the site's database (empty, unreadable, not SQLite)."""
+
+
+SQLITE_MAGIC = b"SQLite format 3\x00"
+
+
+def prepare_sqlite_file(path: Path) -> None:
+    """Make sure `path` can be the site's database: a new file is created readable by this
+    user only (0600, its folder 0700); an existing one must be a readable, writable SQLite
+    file (an empty one is refused: it would silently start a new site, with a new admin
+    key, over what was there) and is made 0600 if others could read it.
+
+    Raises:
+        DatabaseFileError: naming the file and what is wrong with it.
+    """
+    if not path.exists():
+        if not path.parent.exists():
+            path.parent.mkdir(parents=True, mode=0o700)
+        old = os.umask(0o077)
+        try:  # created 0600 (its -wal and -shm take the same mode), the header written
+            con = sqlite3.connect(path)
+            con.execute("PRAGMA journal_mode=WAL")
+            con.close()
+        finally:
+            os.umask(old)
+        return
+    try:
+        with path.open("rb") as f:
+            head = f.read(len(SQLITE_MAGIC))
+    except OSError as exc:
+        raise DatabaseFileError(
+            f"database {path}: cannot be read ({exc.strerror}); check its owner and mode"
+        ) from None
+    if not head:
+        raise DatabaseFileError(
+            f"database {path}: the file is empty (0 bytes), not a database; irloc will not "
+            "start a new site over it. Restore your backup there, or move it away to "
+            "start a new site"
+        )
+    if head != SQLITE_MAGIC:
+        raise DatabaseFileError(
+            f"database {path}: not an SQLite database (it starts with {head[:8]!r}); restore "
+            "your backup there, or move it away to start a new site"
+        )
+    if not os.access(path, os.W_OK):
+        raise DatabaseFileError(f"database {path}: not writable by this user")
+    if path.stat().st_mode & 0o077:
+        os.chmod(path, 0o600)
 
 
 def alembic_config(engine: Engine) -> Config:

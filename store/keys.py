@@ -44,6 +44,8 @@ TOUCH_INTERVAL_S = 60.0
 CACHE_TTL_S = 0.5
 NEGATIVE_TTL_S = 300.0
 NEGATIVE_MAX = 100_000
+INDEX_TTL_S = 1.0
+"""The index of valid keys (`role_from_index`) is read at most this often, seconds."""
 Found = tuple[int, Role]
 
 
@@ -61,6 +63,8 @@ class KeyStore:
 
     Attributes:
         lookups: database lookups made; lookup_threads: names of the threads they ran on.
+        index_reads: readings of the index of valid keys (`role_from_index`).
+        index_ttl_s: the index is read at most this often, seconds.
     """
 
     def __init__(
@@ -84,6 +88,11 @@ class KeyStore:
         self._negative: OrderedDict[str, float] = OrderedDict()
         self._inflight: dict[str, asyncio.Future[Found | None]] = {}
         self._revoked: set[int] = set()
+        self.index_ttl_s = INDEX_TTL_S
+        self.index_reads = 0
+        self._valid: dict[str, Found] = {}
+        self._index_at: float | None = None
+        self._index_inflight: asyncio.Future[None] | None = None
         self._lock = threading.Lock()
         self._touched: dict[int, float] = {}
         self._writer = concurrent.futures.ThreadPoolExecutor(1, thread_name_prefix="key-touch")
@@ -154,10 +163,19 @@ class KeyStore:
         with self._lock:
             self.lookups += 1
             self.lookup_threads.add(threading.current_thread().name)
-        with Session(self.engine) as s:
-            row = s.exec(select(ApiKey).where(ApiKey.hash == digest)).first()
-            valid = row is not None and not row.revoked and row.id is not None
-            out: Found | None = (row.id, row.role) if valid else None  # type: ignore[union-attr,assignment]
+        try:
+            with Session(self.engine) as s:
+                row = s.exec(select(ApiKey).where(ApiKey.hash == digest)).first()
+                valid = row is not None and not row.revoked and row.id is not None
+                out: Found | None = (row.id, row.role) if valid else None  # type: ignore[union-attr,assignment]
+        except Exception:
+            # the database is down or locked: a key known valid before stays valid (unless
+            # revoked here) so robots and streams carry on; any other key waits for it
+            with self._lock:
+                stale = self._cache.get(digest)
+            if stale is not None and stale[0][0] not in self._revoked:
+                return stale[0]
+            raise
         now = self.clock()
         with self._lock:
             if out is None:
@@ -169,6 +187,45 @@ class KeyStore:
             else:
                 self._cache[digest] = (out, now + self.cache_ttl_s)
         return out
+
+    async def role_from_index(self, token: str) -> Found | None:
+        """(key id, role) of a valid key from the index of every valid key, for callers
+        whose address is throttled: the index is read (one query for all keys) at most once
+        per `INDEX_TTL_S` whoever asks, and a key is looked up in a reading made after it
+        was asked for. A flood of bad keys thus costs the database one query a second and
+        each bad key a wait of up to that second, while a valid key, even one made a moment
+        ago, is let in."""
+        digest = hash_key(token)
+        asked = self.clock()
+        found = self._valid.get(digest)
+        while found is None and (self._index_at is None or self._index_at < asked):
+            pending = self._index_inflight
+            if pending is None:
+                due = -1.0 if self._index_at is None else self._index_at + self.index_ttl_s
+                pending = asyncio.ensure_future(self._read_index_at(due))
+                self._index_inflight = pending
+                pending.add_done_callback(lambda _: setattr(self, "_index_inflight", None))
+            await asyncio.shield(pending)
+            found = self._valid.get(digest)
+        if found is not None:
+            with self._lock:
+                self._cache[digest] = (found, self.clock() + self.cache_ttl_s)
+            self._touch(found[0])
+        return found
+
+    async def _read_index_at(self, due: float) -> None:
+        wait_s = due - self.clock()
+        if wait_s > 0:
+            await asyncio.sleep(wait_s)
+        await asyncio.get_running_loop().run_in_executor(self._readers, self._index)
+
+    def _index(self) -> None:
+        with self._lock:
+            self.index_reads += 1
+        with Session(self.engine) as s:
+            rows = s.exec(select(ApiKey).where(ApiKey.revoked == False)).all()  # noqa: E712
+        self._valid = {r.hash: (r.id, r.role) for r in rows if r.id is not None}  # type: ignore[misc]
+        self._index_at = self.clock()
 
     def is_revoked_here(self, key_id: int) -> bool:
         """Whether this store revoked `key_id` (no database: for streams that poll)."""

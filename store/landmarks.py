@@ -189,36 +189,50 @@ class MapRepository:
 
     def update(self, landmark_id: int, data: LandmarkUpdate, *, actor: str) -> LandmarkPublic:
         """Change the fields set in `data` (`radio: null` clears the address)."""
-        changes = data.model_dump(exclude_unset=True)
-        for key in ("x", "y", "z", "locked"):
-            if key in changes and changes[key] is None:
-                raise ValueError(f"{key} cannot be null")
+        return self.update_many([(landmark_id, data)], actor=actor)[0]
+
+    def update_many(
+        self, edits: builtins.list[tuple[int, LandmarkUpdate]], *, actor: str
+    ) -> builtins.list[LandmarkPublic]:
+        """`update` of several landmarks in one transaction: all are written or none (a
+        crash midway leaves the map as it was); each stays its own audited, undoable edit."""
+        for _, data in edits:
+            changes = data.model_dump(exclude_unset=True)
+            for key in ("x", "y", "z", "locked"):
+                if key in changes and changes[key] is None:
+                    raise ValueError(f"{key} cannot be null")
+        rows = []
         with self._lock, Session(self.engine) as s:
-            row = s.get(Landmark, landmark_id)
-            if row is None:
-                raise NotFoundError(f"landmark {landmark_id} does not exist")
-            before = landmark_record(row)
-            if "radio" in changes:
-                self._check_radio_free(s, changes["radio"], landmark_id)
-            if "floor" in changes:
-                check_floors(s, [changes["floor"]], what=f"landmark {landmark_id}")
-            for key, value in changes.items():
-                setattr(row, key, value if key != "note" or value is not None else "")
-            row.updated_at = utcnow()
-            s.add(row)
-            s.add(
-                AuditRecord(
-                    actor=actor,
-                    action="update",
-                    landmark_id=landmark_id,
-                    before=before,
-                    after=landmark_record(row),
+            for landmark_id, data in edits:
+                changes = data.model_dump(exclude_unset=True)
+                row = s.get(Landmark, landmark_id)
+                if row is None:
+                    raise NotFoundError(f"landmark {landmark_id} does not exist")
+                before = landmark_record(row)
+                if "radio" in changes:
+                    self._check_radio_free(s, changes["radio"], landmark_id)
+                if "floor" in changes:
+                    check_floors(s, [changes["floor"]], what=f"landmark {landmark_id}")
+                for key, value in changes.items():
+                    setattr(row, key, value if key != "note" or value is not None else "")
+                row.updated_at = utcnow()
+                s.add(row)
+                s.add(
+                    AuditRecord(
+                        actor=actor,
+                        action="update",
+                        landmark_id=landmark_id,
+                        before=before,
+                        after=landmark_record(row),
+                    )
                 )
-            )
+                rows.append(row)
             drop_redo(s, actor)
             s.commit()
-            s.refresh(row)
-            out = _public(row)
+            out = []
+            for row in rows:
+                s.refresh(row)
+                out.append(_public(row))
         self._notify()
         return out
 

@@ -49,11 +49,14 @@ class EventLog:
         robot: str | None = None,
         landmark_id: int | None = None,
         data: dict[str, Any] | None = None,
+        t: datetime | None = None,
     ) -> EventRecord:
         with Session(self.engine) as s:
             rec = EventRecord(
                 kind=kind, message=message, robot=robot, landmark_id=landmark_id, data=data or {}
             )
+            if t is not None:
+                rec.t = t
             s.add(rec)
             s.commit()
             s.refresh(rec)

@@ -34,6 +34,7 @@ from fastapi.responses import (
 from starlette.requests import HTTPConnection
 from websockets.asyncio.client import ClientConnection
 
+from server.edge import same_origin
 from server.seams import Authenticate
 from store.errors import ConflictError, NotFoundError
 from web.roles import TICKET_PARAM, Session
@@ -181,6 +182,9 @@ def viewer_router(
     @router.websocket("/viewer/")
     async def viewer_socket(ws: WebSocket) -> None:
         viewer = get_viewer()
+        if not same_origin(ws):
+            await ws.close(code=1008, reason="the viewer is only served to its own pages")
+            return
         session = session_of(ws, authenticate)
         if viewer is None or session is None:
             await ws.close(code=1008, reason="a valid API key is required")

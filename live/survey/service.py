@@ -401,8 +401,9 @@ class LiveSurvey:
         self, landmark_ids: list[int] | None, *, actor: str, include_flagged: bool = False
     ) -> SurveyStatus:
         """Write the proposals of `landmark_ids` (None: every one not flagged) into the map,
-        each as its own audited, undoable edit: the final result, or while driving the
-        latest live estimate. Nothing is written when any ID is refused.
+        each as its own audited, undoable edit, all in one transaction (a crash midway
+        writes none): the final result, or while driving the latest live estimate. Nothing
+        is written when any ID is refused.
 
         Raises:
             ConflictError: no estimate yet, or solving.
@@ -424,12 +425,13 @@ class LiveSurvey:
         else:
             chosen = list(landmark_ids)
         _check_choice(chosen, free, include_flagged, {lm.id for lm in self.map.list() if lm.locked})
+        edits = []
         for lid in chosen:
             x, y, z = (float(v) for v in free[lid].position)
-            self.map.update(lid, LandmarkUpdate(x=x, y=y, z=z), actor=f"{actor} (survey)")
-            with self._lock:
-                if lid not in self._accepted:
-                    self._accepted.append(lid)
+            edits.append((lid, LandmarkUpdate(x=x, y=y, z=z)))
+        self.map.update_many(edits, actor=f"{actor} (survey)")  # all or none
+        with self._lock:
+            self._accepted += [lid for lid in chosen if lid not in self._accepted]
         return self.status()
 
 

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from fastapi import APIRouter, HTTPException, Query, Response, status
-from pydantic import BaseModel, Field
+from pydantic import BaseModel, Field, StrictBool
 
 from localizer.events import LedsChanged
 from server.auth import Admin, Operator, Viewer
@@ -14,7 +14,7 @@ router = APIRouter(prefix="/landmarks", tags=["landmarks"])
 
 
 class LedCommand(BaseModel):
-    on: bool
+    on: StrictBool  # `{"on": 0}` or `{"on": "yes"}` is refused, not taken as a boolean
 
 
 class LedState(BaseModel):

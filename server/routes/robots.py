@@ -13,6 +13,7 @@ from localizer.camera import camera_from_sensor
 from localizer.events import Mode, OdometryMeasured
 from server.auth import Admin, Operator, Viewer
 from server.deps import RobotName, ServicesDep
+from server.robot_devices import check_devices
 from store.errors import NotFoundError, UnavailableError
 from store.models import RobotCreate, RobotPublic
 
@@ -263,6 +264,7 @@ def put_config(name: RobotName, body: RobotPublic, services: ServicesDep, _: Adm
     in the virtual site."""
     data = RobotCreate.model_validate({**body.model_dump(), "name": name})
     camera_from_sensor(data.camera, source="camera")  # 422 naming the field before saving
+    check_devices(data, services.settings)  # nothing it may not open, a camera that opens
     record = services.robot_store.upsert(data)
     services.robots.apply(record)
     return record

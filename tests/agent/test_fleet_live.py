@@ -76,7 +76,8 @@ def fleet(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Fleet]:
             "a2": _agent(broker, "a2", "r2", truth["a2"], "--light", "--clock-skew", str(SKEW_S)),
         }
         try:
-            for api in start_api(tmp, mqtt_url=broker.url, sim_robots=False):
+            admitted = list(AGENTS)  # an open broker: the agents are admitted by name
+            for api in start_api(tmp, mqtt_url=broker.url, sim_robots=False, mqtt_agents=admitted):
                 yield Fleet(broker, api, watch, agents, truth)
         finally:
             for p in agents.values():

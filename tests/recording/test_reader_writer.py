@@ -14,6 +14,7 @@ from recording.reader import (
     RecordingError,
     iter_timeline,
     read_groundtruth,
+    read_groundtruth_file,
     read_recording,
 )
 from recording.writer import RecordingWriter
@@ -116,6 +117,7 @@ def test_extra_columns_files_and_optional_files_are_ignored(tmp_path: Path) -> N
         ("cam0/data.csv", "#h\n5\n", 2, "expected 2 fields"),
         ("odom0/data.csv", "#h\n1,0.1,0.2\n2,0.1,fast\n", 3, "v_right must be a number"),
         ("odom0/data.csv", "#h\n1,0.1,nan\n", 2, "v_right must be finite"),
+        ("odom0/data.csv", "#h\n1,1e30,0.1\n", 2, "v_left 1e30 is beyond"),
         ("leds.csv", "#h\n1,all\n2,11 99\n", 3, "landmark 99 is not in the map"),
         ("leds.csv", "#h\n1,some\n", 2, "expected 'all', 'none' or landmark IDs"),
         ("map.json", '{"landmarks": [\n{"id": 1, "x": 0,\n}]}', 3, "invalid JSON"),
@@ -189,3 +191,11 @@ def test_a_landmark_being_switched_is_written_lit_so_dark_means_surely_dark(
         w.add_leds(LedsChanged(40, all_lit=True))
     text = (tmp_path / "leds.csv").read_text().splitlines()
     assert text[1:] == ["10,all", f"20,{' '.join(map(str, sorted(ids[1:])))}", "30,all", "40,all"]
+
+
+def test_an_absurd_ground_truth_is_refused_naming_the_line(tmp_path: Path) -> None:
+    gt = tmp_path / "gt.csv"
+    gt.write_text("timestamp_ns,x,y,theta\n1,0.5,0.2,0.1\n2,1e308,0.2,0.1\n")
+    with pytest.raises(RecordingError, match=r"x 1e308 is beyond") as info:
+        read_groundtruth_file(gt)
+    assert info.value.line == 3

@@ -115,6 +115,19 @@ def test_unreadable_frames_are_skipped_counted_and_still_get_a_row(
     assert rows[30]["x"] != "" and rows[30]["mode"] == "dead_reckoning"
 
 
+def test_a_recording_whose_every_frame_is_unreadable_is_a_failure(
+    recording: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    import shutil
+
+    rec = tmp_path / "rec"
+    shutil.copytree(recording, rec)
+    for png in (rec / "cam0" / "data").iterdir():
+        png.write_bytes(b"not a png")
+    assert main([str(rec), "--out", str(tmp_path / "poses.csv"), "--quiet"]) == 1
+    assert "every frame" in capsys.readouterr().err
+
+
 @pytest.mark.parametrize(
     ("file", "text", "where"),
     [

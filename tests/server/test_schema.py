@@ -59,8 +59,8 @@ SEMANTIC = {
 }
 """Operations with a rule their schema does not state (two distinct placement points, each
 given as `x,y` in a query string; a VDA 5050 action's parameters: `initPosition` needs
-numbers `x`, `y`, `theta` and a `mapId`; a time range's `until` after its `since`; a zone's polygon enclosing an area on a floor that
-exists)."""
+numbers `x`, `y`, `theta` and a `mapId`; a time range's `until` after its `since`; a
+zone's polygon enclosing an area on a floor that exists)."""
 SIBLINGS = {"/api/v1/landmarks/audit"}
 """Paths that a templated sibling (`/landmarks/{landmark_id}`) also matches: another method
 there reaches the sibling and is refused by its ID check (422), not 405."""

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -91,6 +92,18 @@ def test_recording_is_readable_by_replay(site: Api) -> None:
     rec = read_recording(Path(r.json()["path"]))
     assert len(rec.frames) >= 10
     assert len(rec.landmark_map) == len(site.services.map.list())
+
+
+def test_a_recording_does_not_start_on_a_nearly_full_disk(site: Api) -> None:
+    runner = site.services.robots.get("r3")
+    kept = runner.recording_limits
+    runner.recording_limits = dataclasses.replace(kept, min_free_bytes=1 << 62)
+    try:
+        r = site.client.post("/api/v1/robots/r3/recording/start", headers=site.h("operator"))
+    finally:
+        runner.recording_limits = kept
+    assert r.status_code == 507 and "MB free" in r.json()["detail"]
+    assert runner.recorder is None
 
 
 def test_every_robot_localizes_near_the_truth_and_never_far_from_it(site: Api) -> None:
