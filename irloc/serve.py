@@ -15,6 +15,7 @@ ROS 2 (`irloc.ros2_site`).
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import subprocess
 import sys
@@ -95,6 +96,11 @@ def main(argv: list[str] | None = None) -> int:
     if "--no-sim-robots" not in rest:
         rest.append("--no-sim-robots")
     cmd = ros2_agents_command(ros2.mqtt, ros2.scenario, ros2.seed, ros2.ros2_camera_rate)
+    if "IRLOC_MQTT_AGENTS" not in os.environ:  # the site admits the agents it starts itself
+        from sim.scenario import load_scenario
+
+        names = [r.name for r in load_scenario(ros2.scenario or "demo").robots]
+        os.environ["IRLOC_MQTT_AGENTS"] = json.dumps(names)
     print(f"irloc: ros2      robots on ROS_DOMAIN_ID={os.environ.get('ROS_DOMAIN_ID', '0')}")
     linux = sys.platform.startswith("linux")
     agents = subprocess.Popen(cmd, preexec_fn=_die_with_parent if linux else None)

@@ -76,6 +76,8 @@ def _preflight(settings: Settings) -> str | None:
     a new admin key were printed; the scenario with a 50-line traceback.)"""
     if settings.port != 0:
         with socket.socket(socket.AF_INET6 if ":" in settings.host else socket.AF_INET) as s:
+            # as uvicorn binds: a port whose last server just died (TIME_WAIT) is free
+            s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
             try:
                 s.bind((settings.host, settings.port))
             except OSError as exc:

@@ -63,7 +63,7 @@ def run(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Run]:
     env["ROS_DOMAIN_ID"] = str(100 + os.getpid() % 100)
     out = tmp / "seen.json"
     with Mosquitto() as broker:
-        for api in start_api(tmp, mqtt_url=broker.url, sim_robots=False):
+        for api in start_api(tmp, mqtt_url=broker.url, sim_robots=False, mqtt_agents=["r1"]):
             agent = subprocess.Popen(
                 [sys.executable, "-m", "irloc", "agent", "--mqtt", broker.url, "--ros2", "--sim",
                  "--name", "r1", "--scenario", str(scenario), "--start-known",
