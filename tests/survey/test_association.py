@@ -22,7 +22,7 @@ GATE, MARGIN = 18.42, 13.8
 
 def _assign(
     points: list[tuple[float, float]], rough: list[tuple[float, float]], cov_m: float = 0.01
-):
+) -> tuple[dict[int, int], dict[int, set[int]]]:
     pc = np.array([cov_m**2 * np.eye(2)] * len(points))
     ec = np.array([SIG**2 * np.eye(2)] * len(rough))
     return assign(
