@@ -182,6 +182,11 @@ class MapRepository:
             before = landmark_record(row)
             if "radio" in changes:
                 self._check_radio_free(s, changes["radio"], landmark_id)
+            moved = any(
+                key in changes and changes[key] != getattr(row, key) for key in ("x", "y", "z")
+            )
+            if moved and "sigma_m" not in changes:  # a hand edit: the old uncertainty is void
+                changes.update(sigma_m=None, covariance=None, evidence=None)
             for key, value in changes.items():
                 setattr(row, key, value if key != "note" or value is not None else "")
             row.updated_at = utcnow()

@@ -53,6 +53,7 @@ class LandmarkState:
         model_days: days its cells last at that duty from the measured voltage (the energy
             model, `live.leds.status`), None when never read.
         low: flagged: its LED dims within a week at that duty, or is dim already.
+        sigma_m: the map's 1-sigma uncertainty of its position, metres (None: not known).
     """
 
     id: int
@@ -71,6 +72,7 @@ class LandmarkState:
     duty: float | None = None
     model_days: float | None = None
     low: bool = False
+    sigma_m: float | None = None
 
 
 @dataclass(frozen=True, eq=False)

@@ -389,8 +389,18 @@ class LiveSurvey:
             chosen = list(landmark_ids)
         _check_choice(chosen, free, include_flagged, {lm.id for lm in self.map.list() if lm.locked})
         for lid in chosen:
-            x, y, z = (float(v) for v in free[lid].position)
-            self.map.update(lid, LandmarkUpdate(x=x, y=y, z=z), actor=f"{actor} (survey)")
+            e = free[lid]
+            x, y, z = (float(v) for v in e.position)
+            evidence = {"source": "survey", "views": e.views, "observations": e.observations,
+                        "rms_px": round(e.rms_px, 3)}  # fmt: skip
+            self.map.update(
+                lid,
+                LandmarkUpdate(
+                    x=x, y=y, z=z, sigma_m=e.sigma_m, covariance=e.covariance.tolist(),
+                    evidence=evidence,
+                ),
+                actor=f"{actor} (survey)",
+            )  # fmt: skip
             with self._lock:
                 if lid not in self._accepted:
                     self._accepted.append(lid)

@@ -79,7 +79,7 @@ def test_upgrade_from_first_schema_keeps_data(db_url: str) -> None:
         # 0004: an edit undone before redo existed is an edit that can no longer be redone
         row = conn.execute(text("SELECT action, undo_state, target_id FROM audit_log")).one()
         assert tuple(row) == ("update", "dropped", None)
-        assert conn.execute(text("SELECT version_num FROM alembic_version")).scalar() == "0004"
+        assert conn.execute(text("SELECT version_num FROM alembic_version")).scalar() == "0006"
     engine.dispose()
 
 
