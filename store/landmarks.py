@@ -19,6 +19,7 @@ import csv
 import io
 import json
 import logging
+import math
 import threading
 from collections.abc import Callable, Iterable
 from typing import Any
@@ -124,6 +125,9 @@ class MapRepository:
         out = LandmarkMap(
             np.array([lm.id for lm in lms], dtype=np.int64),
             np.array([(lm.x, lm.y, lm.z) for lm in lms], dtype=np.float64).reshape(-1, 3),
+            None
+            if all(lm.sigma_m is None for lm in lms)
+            else np.array([math.nan if lm.sigma_m is None else lm.sigma_m for lm in lms]),
         )
         if self._revision == revision:
             self._map = (revision, out)

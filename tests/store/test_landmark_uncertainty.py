@@ -80,3 +80,13 @@ def test_map_upkeep_takes_the_stored_sigma_as_the_landmarks_prior() -> None:
     assert prior[1] == pytest.approx(up.config.floor_sigma_m)  # no tighter than the floor
     assert prior[2] == pytest.approx(0.05)  # taped: weighs little
     assert prior[3] == pytest.approx(up.config.map_sigma_m)  # none stored
+
+
+def test_the_localizers_map_carries_the_stored_sigmas(db_url: str) -> None:
+    repo = _repo(db_url)
+    repo.create(LandmarkCreate(id=1, x=0.0, y=0.0, z=2.5), actor="a")
+    assert repo.landmark_map().sigmas is None  # none stated: the localizer's default
+    repo.create(LandmarkCreate(id=2, x=1.0, y=0.0, z=2.5, sigma_m=0.0008), actor="a")
+    m = repo.landmark_map()
+    assert m.sigma_at(m.index_of(1)) is None
+    assert m.sigma_at(m.index_of(2)) == pytest.approx(0.0008)
