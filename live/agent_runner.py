@@ -12,12 +12,14 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
+import numpy as np
+
 from fleet.clock import ClockEstimate
 from fleet.payloads import AgentStatus, PoseMessage
 from live.poses import PoseUpdate
 from live.robots import RobotRunner
 from localizer.camera import camera_from_sensor
-from localizer.events import Event, Mode
+from localizer.events import Event, Mode, SpotsObserved
 from localizer.landmark_map import LandmarkMap
 from localizer.robot import RobotGeometry
 
@@ -101,7 +103,13 @@ class AgentRunner(RobotRunner):
             cov,
             tuple(msg.lm),
             msg.wall_ns,
+            tuple(msg.ex or ()),
         )
+        if msg.spots is not None:  # a confident frame's spots: map upkeep takes them
+            px = np.array(msg.spots, dtype=np.float64).reshape(-1, 2)
+            n = len(px)
+            with self._lock:
+                self.recent.append(SpotsObserved(upd.t_ns, px, np.ones(n), np.ones(n)))
         with self._lock:
             if msg.x is not None:
                 self.latest = upd

@@ -6,7 +6,8 @@ does, `live.commissioning_service`) and, on a worker thread, hands the estimates
 count (`MapUpkeep.wants`: landmark mode, settled, confident, moved on since the robot's last
 counted frame) to the estimator with their frame's spots (detected here from the runner's
 recent frames, `RobotRunner.frame_at`, or as a remote robot sent them). Robots localized on
-board (`irloc agent`) send poses without frames and are not used.
+board (`irloc agent`) send the spots of a confident frame with its pose now and then
+(`AgentConfig.spots_period_s`); the agent's runner keeps them for `frame_at`.
 
 Accepting a proposal is an ordinary map edit through the map's data layer (`MapRepository`:
 audited as "<actor> (map upkeep)", undoable); rejecting one drops that landmark's evidence
