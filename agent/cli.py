@@ -5,12 +5,16 @@ JSON and VDA 5050).
     irloc agent --mqtt mqtt://HOST:PORT --name NAME --sim [--light]
     irloc agent --mqtt mqtt://HOST:PORT --name NAME --camera DEV --wheels PORT \
         --sensor cam0/sensor.yaml --wheel-base M
+    irloc agent --mqtt mqtt://HOST:PORT --name NAME --ros2 --wheel-base M \
+        [--sensor cam0/sensor.yaml] [--ros2-namespace NS] [--ros2-param KEY=VALUE ...]
 
 `--sim`: one robot of the site's scenario simulated on the agent (rendered frames; `--light`:
 spot-level simulation, no rendering, for many agents on one machine). `--count N` runs N
 robots in this process (NAME-000 ...), cycling through the scenario's robots. `--camera` and
 `--wheels`: the robot's own camera (OpenCV device, video file or image sequence) and wheel
-speeds (`$IRODO` lines on a serial port), with its calibrated `sensor.yaml`.
+speeds (`$IRODO` lines on a serial port), with its calibrated `sensor.yaml`. `--ros2`: the
+robot's ROS 2 topics instead (docs/ros2.md); with `--sim` each robot of the scenario (`--name
+all`: every one) also gets a simulated ROS 2 driver in this process.
 """
 
 from __future__ import annotations
@@ -22,7 +26,9 @@ import dataclasses
 import logging
 import signal
 import sys
+from collections.abc import Sequence
 from pathlib import Path
+from typing import Protocol
 
 from agent.core import AgentConfig, AgentCore
 from agent.hardware import HardwareSource
@@ -35,6 +41,13 @@ from localizer.robot import RobotGeometry
 from sim.scenario import Scenario
 
 log = logging.getLogger(__name__)
+
+
+class Startable(Protocol):
+    """What runs beside the network loop (a device reader, a ROS 2 robot's publishers)."""
+
+    def start(self) -> None: ...
+    def stop(self) -> None: ...
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -62,7 +75,13 @@ def _parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--pose-rate", type=float, default=10.0, help="pose messages/s (0: all)")
     p.add_argument("--visualization-rate", type=float, default=1.0, help="VDA 5050 msgs/s")
-    p.add_argument("--hold", type=float, default=0.03, help="reorder hold for LED states, s")
+    p.add_argument("--hold", type=float, help="reorder hold for LED states, s (0.03; --ros2: 0.1)")
+    p.add_argument("--ros2", action="store_true", help="inputs and outputs on ROS 2 (DDS)")
+    p.add_argument("--ros2-namespace", help="the robot's ROS 2 namespace (default none)")
+    p.add_argument(
+        "--ros2-param", action="append", metavar="KEY=VALUE",
+        help="a ROS 2 setting (topic, frame, QoS; docs/ros2.md), repeatable",
+    )  # fmt: skip
     p.add_argument(
         "--clock-skew", type=float, default=0.0, help="add this to the wall clock, s (tests)"
     )
@@ -118,7 +137,7 @@ def hardware_core(args: argparse.Namespace) -> AgentCore:
         name=check_name("--name", args.name),
         manufacturer=check_name("--manufacturer", args.manufacturer),
         source="camera",
-        reorder_hold_s=args.hold,
+        reorder_hold_s=0.03 if args.hold is None else args.hold,
         pose_rate_hz=args.pose_rate,
         visualization_rate_hz=args.visualization_rate,
     )
@@ -146,7 +165,7 @@ def build_cores(args: argparse.Namespace) -> list[AgentCore]:
             name=name,
             manufacturer=check_name("--manufacturer", args.manufacturer),
             source="sim-light" if args.light else "sim",
-            reorder_hold_s=args.hold,
+            reorder_hold_s=0.03 if args.hold is None else args.hold,
             pose_rate_hz=args.pose_rate,
             visualization_rate_hz=args.visualization_rate,
             start_known=args.start_known,
@@ -160,10 +179,11 @@ def build_cores(args: argparse.Namespace) -> list[AgentCore]:
     return cores
 
 
-async def _run(runtime: AgentRuntime) -> None:
-    sources = [
+async def _run(runtime: AgentRuntime, extra: Sequence[Startable] = ()) -> None:
+    sources: list[Startable] = [
         link.core.source for link in runtime.links if isinstance(link.core.source, HardwareSource)
     ]
+    sources += extra
     for s in sources:
         s.start()
     try:
@@ -190,8 +210,19 @@ def main(argv: list[str] | None = None) -> int:
     try:
         broker = parse_broker_url(args.mqtt)
         check_name("--site", args.site)
-        cores = build_cores(args)
-    except ValueError as exc:
+        ros2_robots = []
+        if args.ros2:
+            from agent.ros2_agent import build_ros2
+
+            scenario = None
+            if args.sim:
+                from sim.scenario import load_scenario
+
+                scenario = load_scenario(args.scenario)
+                scenario = with_rates(scenario, args.camera_rate, args.odometry_rate)
+            ros2_robots = build_ros2(args, scenario)
+        cores = [r.core for r in ros2_robots] if args.ros2 else build_cores(args)
+    except (ValueError, TimeoutError) as exc:
         print(f"irloc agent: {exc}", file=sys.stderr)
         return 2
     names = ", ".join(c.config.name for c in cores[:3]) + (" ..." if len(cores) > 3 else "")
@@ -199,7 +230,7 @@ def main(argv: list[str] | None = None) -> int:
     # the sensor thread localizes while the network loop publishes: hand the interpreter over
     # more often than every 5 ms, so that a pose leaves soon after it is computed
     sys.setswitchinterval(0.001)
-    asyncio.run(_run(AgentRuntime(broker, args.site, cores)))
+    asyncio.run(_run(AgentRuntime(broker, args.site, cores), ros2_robots))
     return 0
 
 

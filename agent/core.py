@@ -58,6 +58,14 @@ NS = 1_000_000_000
 OutKind = Literal["pose", "led_request", "visualization"]
 
 
+class CoreObserver(Protocol):
+    """Told of every map the localizer takes and every pose (or its absence) it computes,
+    on the sensor thread, unthrottled (the ROS 2 outputs, `agent.ros2_agent`)."""
+
+    def on_map(self, landmark_map: LandmarkMap) -> None: ...
+    def on_pose(self, output: PoseEstimate | NoPose) -> None: ...
+
+
 class SensorSource(Protocol):
     """What the agent's sensors give: the robot's camera and wheels, simulated or real."""
 
@@ -147,6 +155,7 @@ class AgentCore:
         self._last_frame: FrameObserved | SpotsObserved | None = None
         self._last_mode_sent: Mode | None = None
         self._last_led: tuple[int, int] | None = None
+        self.observers: list[CoreObserver] = []
 
     # -- from the network (any thread) -------------------------------------------------------
     def on_map(self, msg: MapMessage) -> None:
@@ -213,6 +222,8 @@ class AgentCore:
         else:
             self.localizer.set_map(lmap)
         self.map_id = msg.map_id
+        for observer in self.observers:
+            observer.on_map(lmap)
         log.info("%s: map %s (%d landmarks)", self.config.name, msg.map_id, len(msg.landmarks))
 
     def _feed(self, event: Event, now_mono: int) -> list[Outgoing]:
@@ -234,6 +245,8 @@ class AgentCore:
             if isinstance(o, LedRequest):
                 out.append(Outgoing("led_request", LedRequestMessage.from_request(o).encode()))
             else:
+                for observer in self.observers:
+                    observer.on_pose(o)
                 out += self._pose_out(o, now_mono)
         return out
 

@@ -473,12 +473,14 @@ class Localizer:
         if self.calibration is None or fused is None or self._filter is None:
             return
         rows, px, fix = fused
-        if not self.calibration.wants(t_ns, len(rows)):
-            return
         P = self.map.positions[rows]
         pose = (fix.x, fix.y, fix.theta)
-        update = self.calibration.observe(t_ns, px, P, pose, self._odometry.pose_at(t_ns),
-                                          fix.floor)  # fmt: skip
+        completed = self.calibration.wants(t_ns, len(rows)) and self.calibration.observe(
+            t_ns, px, P, pose, self._odometry.pose_at(t_ns), fix.floor
+        )
+        if not completed:  # a completed window's work goes on a step a frame, not all at once
+            self.calibration.step()
+        update = self.calibration.take_update()
         if update is None:
             return
         sigma = [self._tracker.noise.sigma_px(u, v) for u, v in px]

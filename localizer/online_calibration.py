@@ -31,6 +31,7 @@ Pure: arrays and dataclasses in, a camera out; time arrives as an argument.
 
 from __future__ import annotations
 
+from collections.abc import Generator
 from dataclasses import dataclass
 
 import numpy as np
@@ -46,6 +47,7 @@ from localizer.self_calibration import (
     SelfCalibration,
     SelfCalibrationConfig,
     corrected_camera,
+    run_steps,
 )
 
 FloatArray = npt.NDArray[np.float64]
@@ -79,8 +81,21 @@ def reprojection_chi2(
     pixel variance), each frame solved again with `camera` from its pose, on its floor
     (`floors` (M, 3) of (roll, pitch, dz); None: level); inf when one frame does not
     solve."""
+    return run_steps(reprojection_chi2_steps(camera, frames, pixel_sigma_px, floors))
+
+
+def reprojection_chi2_steps(
+    camera: CameraModel,
+    frames: list[tuple[FloatArray, FloatArray, Pose, Pose]],
+    pixel_sigma_px: float,
+    floors: FloatArray | None = None,
+) -> Generator[None, None, float]:
+    """`reprojection_chi2` two frames at a time (a generator yielding after every second
+    frame's fit; the sum is its return value)."""
     total = 0.0
     for k, (px, P, pose, _) in enumerate(frames):
+        if k and k % 2 == 0:
+            yield
         on = None
         if floors is not None:
             r, p, dz = (float(v) for v in floors[k])
@@ -119,6 +134,8 @@ class OnlineCalibration:
         self.applied = np.zeros(len(NAMES))
         self._candidate: FloatArray | None = None
         self._t_kept: int | None = None
+        self._job: Generator[None, None, CalibrationUpdate | None] | None = None
+        self._ready: CalibrationUpdate | None = None
         self.windows = 0
         self.rejected = 0
         self.dropped = 0
@@ -143,24 +160,69 @@ class OnlineCalibration:
         pose: Pose,
         odometry: Pose,
         floor: npt.ArrayLike | None = None,
-    ) -> CalibrationUpdate | None:
+    ) -> bool:
         """One fused fix: its spots (N, 2), their landmarks (N, 3), the fixed pose, the raw
         odometry pose at the frame and the floor it stood on ((roll, pitch, dz); None:
-        level). Returns a calibration to use from now on, or None."""
-        cfg = self.config
+        level). Returns whether it completed a window: then the window's validation and
+        adjustment begin, carried on by `step` over the frames that follow (a window still
+        in work when the next one completes is finished at once); `take_update` hands over
+        the calibration to use once they are done."""
         px = np.asarray(pixels, dtype=np.float64).reshape(-1, 2)
         if not self.wants(t_ns, len(px)):
-            return None
+            return False
         self._t_kept = t_ns
         self._window.add(px, p_world, pose, odometry, floor)
-        if len(self._window) < cfg.window_frames:
-            return None
-        frames = self._window.frames
-        update = self._validate(frames, self._window.floors)
-        est = self._window.solve(self._mean, self._cov)
+        if len(self._window) < self.config.window_frames:
+            return False
+        self._finish()
+        frames, floors = self._window.frames, self._window.floors
+        self._job = self._close_window(
+            frames, floors, self._window.solve_steps(self._mean, self._cov)
+        )
         self._window.clear()
+        return True
+
+    def step(self) -> None:
+        """Carry a completed window's validation and adjustment on by one step (two frames'
+        fits, or a part of a Gauss-Newton iteration); nothing when none is in work."""
+        if self._job is None:
+            return
+        try:
+            next(self._job)
+        except StopIteration as done:
+            self._job = None
+            self._ready = done.value or self._ready
+
+    def take_update(self) -> CalibrationUpdate | None:
+        """The calibration to use from now on, once, when a window's work ended in one."""
+        update, self._ready = self._ready, None
+        return update
+
+    @property
+    def working(self) -> bool:
+        """A completed window's validation and adjustment are still in work."""
+        return self._job is not None
+
+    def _finish(self) -> None:
+        """Run the window in work to its end."""
+        if self._job is not None:
+            job, self._job = self._job, None
+            self._ready = run_steps(job) or self._ready
+
+    def _close_window(
+        self,
+        frames: list[tuple[FloatArray, FloatArray, Pose, Pose]],
+        floors: FloatArray,
+        solving: Generator[None, None, CalibrationEstimate | None],
+    ) -> Generator[None, None, CalibrationUpdate | None]:
+        """A completed window: the candidate validated on its frames (which it was not
+        estimated from), then the window adjusted (the recursive estimate and the next
+        candidate); returns the calibration to use, or None."""
+        update = yield from self._validate(frames, floors)
+        yield
+        est = yield from solving
         self.windows += 1
-        if est is not None and est.odometry_chi2 > cfg.max_odometry_chi2:
+        if est is not None and est.odometry_chi2 > self.config.max_odometry_chi2:
             self.dropped += 1  # fixes and odometry disagree (a kidnap, a slip): not used
         elif est is not None and np.all(np.isfinite(est.covariance)):
             self.estimate, self._mean, self._cov = est, est.correction, est.covariance
@@ -170,7 +232,9 @@ class OnlineCalibration:
     def break_track(self) -> None:
         """The track of fixes is broken (lost, a kidnap, a reset): odometry no longer links
         the frames collected so far to the next ones, so they are dropped (the estimate and
-        the calibration in use stay), and so is a candidate not yet validated."""
+        the calibration in use stay; a completed window still in work is finished first),
+        and so is a candidate not yet validated."""
+        self._finish()
         self._window.clear()
         self._candidate = None
         self._t_kept = None
@@ -190,15 +254,17 @@ class OnlineCalibration:
 
     def _validate(
         self, frames: list[tuple[FloatArray, FloatArray, Pose, Pose]], floors: FloatArray
-    ) -> CalibrationUpdate | None:
-        """Apply the candidate when it explains these (new) frames better (module docstring)."""
+    ) -> Generator[None, None, CalibrationUpdate | None]:
+        """Apply the candidate when it explains these (new) frames better (module docstring);
+        step-wise, a frame's fit a step."""
         c, self._candidate = self._candidate, None
         if c is None:
             return None
         sigma = self.config.pixel_sigma_px
-        now = reprojection_chi2(self.camera_in_use, frames, sigma, floors)
+        now = yield from reprojection_chi2_steps(self.camera_in_use, frames, sigma, floors)
+        yield
         cam = corrected_camera(self.camera, c)
-        new = reprojection_chi2(cam, frames, sigma, floors)
+        new = yield from reprojection_chi2_steps(cam, frames, sigma, floors)
         ratio = new / now if now > 0 else float("inf")
         if not ratio <= 1.0 - self.config.min_improvement:
             self.rejected += 1

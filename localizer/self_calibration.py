@@ -40,7 +40,9 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections import deque
+from collections.abc import Generator
 from dataclasses import dataclass
+from typing import TypeVar
 
 import cv2
 import numpy as np
@@ -52,6 +54,7 @@ from localizer.geometry import wrap_angle
 FloatArray = npt.NDArray[np.float64]
 Pose = tuple[float, float, float]
 Frame = tuple[FloatArray, FloatArray, Pose, Pose]
+T = TypeVar("T")
 NAMES = ("cu_px", "cv_px", "k1_rel", "k2_rel", "focal_rel", "yaw_rad")
 LENS = slice(0, 5)  # the lens block of c
 YAW = 5
@@ -280,6 +283,16 @@ def project_with_jacobians(
     return np.asarray(px, dtype=np.float64).reshape(n, 2), d_c, d_pose
 
 
+def run_steps(steps: Generator[None, None, T]) -> T:
+    """Run a step-wise computation (a generator yielding between its steps) to its end and
+    return its result."""
+    while True:
+        try:
+            next(steps)
+        except StopIteration as done:
+            return done.value  # type: ignore[no-any-return]
+
+
 class SelfCalibration:
     """Collects fixes and estimates the corrections (see the module docstring).
 
@@ -344,7 +357,25 @@ class SelfCalibration:
                 recursive estimate over disjoint windows).
             prior_covariance: its covariance, shape (6, 6) (default diag(prior_sigma^2)).
         """
-        frames = list(self._frames)
+        return run_steps(self.solve_steps(prior_mean, prior_covariance))
+
+    def solve_steps(
+        self, prior_mean: npt.ArrayLike | None = None, prior_covariance: npt.ArrayLike | None = None
+    ) -> Generator[None, None, CalibrationEstimate | None]:
+        """`solve` a part of a Gauss-Newton iteration at a time: each `next()` does the
+        spots' or the odometry's part of one (the online self-calibration spreads a window's
+        adjustment over the frames that follow it, so that no frame pays for all of it); the
+        estimate is the generator's return value. It adjusts the frames collected now (a
+        later `clear` or `add` does not change them)."""
+        return self._solve_steps(list(self._frames), self.floors, prior_mean, prior_covariance)
+
+    def _solve_steps(
+        self,
+        frames: list[Frame],
+        floors: FloatArray,
+        prior_mean: npt.ArrayLike | None,
+        prior_covariance: npt.ArrayLike | None,
+    ) -> Generator[None, None, CalibrationEstimate | None]:
         M = len(frames)
         if M < 2:
             return None
@@ -375,11 +406,17 @@ class SelfCalibration:
         W8[7, 7] = 1.0 / cfg.odometry_turn_scale_sigma**2
         c = mu8.copy()
         poses = np.array([f[2] for f in frames], dtype=np.float64)
-        floors = self.floors
         n_u = n_c + 3 * M
         H = np.zeros((n_u, n_u))
         d_c = np.zeros((0, 2, 6))
-        rows = [np.flatnonzero(frame == i) for i in range(M)]
+        starts = np.searchsorted(frame, np.arange(M))  # each frame's first spot (sorted)
+        ar, pair = np.arange(M), np.arange(M - 1)
+        Hpp = H[n_c:, n_c:].reshape(M, 3, M, 3)  # views: the pose blocks, and their
+        Hcp = H[:6, n_c:].reshape(6, M, 3)  # couplings with c and with (kappa, beta)
+        Hpc = H[n_c:, :6].reshape(M, 3, 6)
+        Hkp = H[6:8, n_c:].reshape(2, M, 3)
+        Hpk = H[n_c:, 6:8].reshape(M, 3, 2)
+        yield
         for _ in range(cfg.iterations):
             pred, d_c, d_pose = project_with_jacobians(self.camera, c[:6], poses, P, frame,
                                                        floors)  # fmt: skip
@@ -391,34 +428,45 @@ class SelfCalibration:
             g = np.zeros(n_u)
             H[:n_c, :n_c] = W8
             g[:n_c] = W8 @ (c - mu8)
-            H[:6, :6] += np.einsum("n,nij,nik->jk", w, d_c, d_c)
-            g[:6] += np.einsum("n,nij,ni->j", w, d_c, r)
-            cross = np.einsum("n,nij,nik->njk", w, d_c, d_pose)  # (N, 6, 3)
-            own = np.einsum("n,nij,nik->njk", w, d_pose, d_pose)  # (N, 3, 3)
-            gp = np.einsum("n,nij,ni->nj", w, d_pose, r)  # (N, 3)
-            for i, sel in enumerate(rows):
-                a = n_c + 3 * i
-                H[:6, a : a + 3] = cross[sel].sum(axis=0)
-                H[a : a + 3, :6] = H[:6, a : a + 3].T
-                H[a : a + 3, a : a + 3] = own[sel].sum(axis=0)
-                g[a : a + 3] = gp[sel].sum(axis=0)
-            kappa, beta = c[6], c[7]
-            for i in range(M - 1):  # odometry: the relative motion between consecutive frames
-                rel, Ja, Jb = _relative_jacobians(poses[i], poses[i + 1])
-                # what biased odometry reads for that motion: turn (1 + beta) + kappa d, the
-                # chord turned left by half the extra turn
-                extra = kappa * d[i] + beta * rel[2]
-                ro = np.array([rel[0], rel[1] + 0.5 * rel[0] * extra, rel[2] + extra]) - odo[i]
-                ro[2] = float(wrap_angle(ro[2]))
-                Jk = np.array([[0.0, 0.0], [0.5 * rel[0] * d[i], 0.5 * rel[0] * rel[2]],
-                               [d[i], rel[2]]])  # fmt: skip
-                Wd = np.diag(w_odo[i])
-                a, b = n_c + 3 * i, n_c + 3 + 3 * i
-                blocks = ((a, Ja), (b, Jb), (6, Jk))
-                for p, Jp in blocks:
-                    g[p : p + Jp.shape[1]] += Jp.T @ Wd @ ro
-                    for q, Jq in blocks:
-                        H[p : p + Jp.shape[1], q : q + Jq.shape[1]] += Jp.T @ Wd @ Jq
+            wd_c = d_c * w[:, None, None]  # W J, the spots' weights (N, 2, 6)
+            wd_pose = d_pose * w[:, None, None]
+            H[:6, :6] += np.tensordot(wd_c, d_c, axes=([0, 1], [0, 1]))
+            g[:6] += np.tensordot(wd_c, r, axes=([0, 1], [0, 1]))
+            # each frame's spots: its pose block and its coupling with c (sums per frame)
+            cross = np.add.reduceat(wd_c.transpose(0, 2, 1) @ d_pose, starts)  # (M, 6, 3)
+            Hcp[:] = cross.transpose(1, 0, 2)
+            Hpc[:] = cross.transpose(0, 2, 1)
+            Hpp[ar, :, ar, :] = np.add.reduceat(wd_pose.transpose(0, 2, 1) @ d_pose, starts)
+            g[n_c:] = np.add.reduceat(np.sum(wd_pose * r[:, :, None], axis=1), starts).ravel()
+            yield  # (the spots' part and the odometry's part of an iteration: a step each)
+            # odometry: the relative motion between consecutive frames, as biased odometry
+            # reads it: turn (1 + beta) + kappa d, the chord turned left by half the extra
+            rel, Ja, Jb = _relative_jacobians_many(poses[:-1], poses[1:])
+            extra = c[6] * d + c[7] * rel[:, 2]
+            ro = np.column_stack([rel[:, 0], rel[:, 1] + 0.5 * rel[:, 0] * extra,
+                                  rel[:, 2] + extra]) - odo  # fmt: skip
+            ro[:, 2] = wrap_angle(ro[:, 2])
+            Jk = np.zeros((M - 1, 3, 2))  # d ro / d (kappa, beta)
+            Jk[:, 1, 0], Jk[:, 1, 1] = 0.5 * rel[:, 0] * d, 0.5 * rel[:, 0] * rel[:, 2]
+            Jk[:, 2, 0], Jk[:, 2, 1] = d, rel[:, 2]
+            WJa, WJb, WJk = (w_odo[:, :, None] * J for J in (Ja, Jb, Jk))  # Wd J
+            Wro = w_odo * ro
+            JaT, JbT = Ja.transpose(0, 2, 1), Jb.transpose(0, 2, 1)
+            Hpp[pair, :, pair, :] += JaT @ WJa
+            Hpp[pair + 1, :, pair + 1, :] += JbT @ WJb
+            ab = JaT @ WJb
+            Hpp[pair, :, pair + 1, :] += ab
+            Hpp[pair + 1, :, pair, :] += ab.transpose(0, 2, 1)
+            ak, bk = JaT @ WJk, JbT @ WJk  # (M-1, 3, 2)
+            Hpk[pair] += ak
+            Hpk[pair + 1] += bk
+            Hkp[:, pair, :] += ak.transpose(2, 0, 1)
+            Hkp[:, pair + 1, :] += bk.transpose(2, 0, 1)
+            H[6:8, 6:8] += np.tensordot(Jk, WJk, axes=([0, 1], [0, 1]))
+            gp = g[n_c:].reshape(M, 3)
+            gp[pair] += np.sum(Ja * Wro[:, :, None], axis=1)
+            gp[pair + 1] += np.sum(Jb * Wro[:, :, None], axis=1)
+            g[6:8] += np.tensordot(Jk, Wro, axes=([0, 1], [0, 1]))
             try:
                 step = -np.linalg.solve(H, g)
             except np.linalg.LinAlgError:
@@ -427,6 +475,7 @@ class SelfCalibration:
                 return None
             c = c + step[:n_c]
             poses = poses + step[n_c:].reshape(M, 3)
+            yield
             if np.max(np.abs(step[:6]) / prior) < 1e-4:
                 break
         try:
@@ -441,14 +490,12 @@ class SelfCalibration:
         # alike, so a poorly known one must not ride along with well-known radial terms
         lens_ok = ratio < frac and bool(np.all(sig[:2] < frac * prior[:2]))
         yaw_ok = bool(sig[YAW] < frac * prior[YAW])
-        odo_chi2 = 0.0
-        for i in range(M - 1):
-            rel, _, _ = _relative_jacobians(poses[i], poses[i + 1])
-            extra = c[6] * d[i] + c[7] * rel[2]
-            ro = np.array([rel[0], rel[1] + 0.5 * rel[0] * extra, rel[2] + extra]) - odo[i]
-            ro[2] = float(wrap_angle(ro[2]))
-            odo_chi2 += float(ro @ (w_odo[i] * ro))
-        odo_chi2 /= max(3 * (M - 1), 1)
+        rel, _, _ = _relative_jacobians_many(poses[:-1], poses[1:])
+        extra = c[6] * d + c[7] * rel[:, 2]
+        ro = np.column_stack([rel[:, 0], rel[:, 1] + 0.5 * rel[:, 0] * extra,
+                              rel[:, 2] + extra]) - odo  # fmt: skip
+        ro[:, 2] = wrap_angle(ro[:, 2])
+        odo_chi2 = float(np.sum(w_odo * ro * ro)) / max(3 * (M - 1), 1)
         self.estimate = CalibrationEstimate(
             c[:6].copy(), cov, lens_ok, yaw_ok, ratio, M, odometry_chi2=odo_chi2
         )
@@ -463,13 +510,20 @@ class SelfCalibration:
         return corrected_camera(camera, c)
 
 
-def _relative_jacobians(a: FloatArray, b: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """`_relative(a, b)` and its Jacobians in a and b, shapes (3,), (3, 3), (3, 3)."""
-    c, s = math.cos(a[2]), math.sin(a[2])
-    dx, dy = b[0] - a[0], b[1] - a[1]
-    rel = np.array([c * dx + s * dy, -s * dx + c * dy, float(wrap_angle(b[2] - a[2]))])
-    Ja = np.array([[-c, -s, -s * dx + c * dy], [s, -c, -c * dx - s * dy], [0.0, 0.0, -1.0]])
-    Jb = np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])
+def _relative_jacobians_many(
+    a: FloatArray, b: FloatArray
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """`_relative(a, b)` for poses a, b of shape (K, 3) and its Jacobians in a and in b:
+    shapes (K, 3), (K, 3, 3), (K, 3, 3)."""
+    c, s = np.cos(a[:, 2]), np.sin(a[:, 2])
+    dx, dy = b[:, 0] - a[:, 0], b[:, 1] - a[:, 1]
+    rel = np.column_stack([c * dx + s * dy, -s * dx + c * dy, wrap_angle(b[:, 2] - a[:, 2])])
+    Ja = np.zeros((len(a), 3, 3))
+    Ja[:, 0, 0], Ja[:, 0, 1], Ja[:, 0, 2] = -c, -s, -s * dx + c * dy
+    Ja[:, 1, 0], Ja[:, 1, 1], Ja[:, 1, 2] = s, -c, -c * dx - s * dy
+    Ja[:, 2, 2] = -1.0
+    Jb = np.zeros((len(a), 3, 3))
+    Jb[:, 0, 0], Jb[:, 0, 1], Jb[:, 1, 0], Jb[:, 1, 1], Jb[:, 2, 2] = c, s, -s, c, 1.0
     return rel, Ja, Jb
 
 

@@ -42,13 +42,56 @@ def _stream(true: CameraModel, n: int, seed: int = 0):
         yield round(k * 0.1e9), px, GRID[ok], fix, pose
 
 
-def _feed(cal: OnlineCalibration, true: CameraModel, n: int) -> list:
+def _feed(cal: OnlineCalibration, true: CameraModel, n: int, *, at_once: bool = False) -> list:
+    """Each fix a frame, as the localizer drives it: a frame that completes no window carries
+    the work of the last completed one on by a step (`at_once`: every window is finished on
+    the frame that completes it)."""
     updates = []
     for t, px, P, fix, odo in _stream(true, n):
-        u = cal.observe(t, px, P, fix, odo)
+        if not cal.observe(t, px, P, fix, odo):
+            cal.step()
+        elif at_once:
+            while cal.working:
+                cal.step()
+        u = cal.take_update()
         if u is not None:
             updates.append(u)
-    return updates
+    while cal.working:
+        cal.step()
+    u = cal.take_update()
+    return updates if u is None else [*updates, u]
+
+
+def test_a_windows_work_is_spread_over_the_frames_that_follow_it() -> None:
+    # no frame pays for a whole window: its validation (a fit per frame and camera) and its
+    # adjustment (a Gauss-Newton iteration a step) go on over many frames
+    nominal = strong_radtan_camera()
+    true = corrected_camera(nominal, [0.5, -0.45, 0.04, 0.04, 0.002, 0.0])
+    cal = OnlineCalibration(nominal, SelfCalibrationConfig())
+    stream = list(_stream(true, 20))
+    for t, px, P, fix, odo in stream[:10]:
+        cal.observe(t, px, P, fix, odo)
+    assert cal.working and cal.windows == 0
+    steps = 0
+    while cal.working:
+        cal.step()
+        steps += 1
+    assert cal.windows == 1 and steps >= 3  # one GN iteration a step at least
+
+
+def test_spreading_the_work_changes_no_result() -> None:
+    nominal = strong_radtan_camera()
+    true = corrected_camera(nominal, [0.5, -0.45, 0.04, 0.04, 0.002, 0.0])
+    spread = OnlineCalibration(nominal, SelfCalibrationConfig())
+    at_once = OnlineCalibration(nominal, SelfCalibrationConfig())
+    a, b = _feed(spread, true, 40), _feed(at_once, true, 40, at_once=True)
+    assert len(a) == len(b) >= 1
+    for u, v in zip(a, b, strict=True):
+        np.testing.assert_array_equal(u.correction, v.correction)
+    np.testing.assert_array_equal(spread.applied, at_once.applied)
+    # (the window count may differ by one: a turned-down candidate slows the keeping of
+    # fixes, and spread out it is turned down a few frames later)
+    assert abs(spread.windows - at_once.windows) <= 1
 
 
 def test_a_wrong_calibration_is_corrected_once_the_fixes_show_it() -> None:
