@@ -145,13 +145,22 @@ def _cache_key(run: Run, duration_s: float) -> str:
     return h.hexdigest()[:16]
 
 
-def _replay_run(run: Run, sc: Scenario, work: Path, duration_s: float, fresh: bool) -> Score:
+def recording_for(
+    run: Run, sc: Scenario, work: Path, duration_s: float, fresh: bool = False
+) -> tuple[Path, list[tuple[int, int]]]:
+    """The run's simulated recording in the work folder (simulated unless cached) and its
+    kidnaps, (picked up, put down) times in ns."""
     rec = work / f"{run.name}-{_cache_key(run, duration_s)}"
     meta = rec / "robustness.json"
     if fresh or not meta.is_file():
         summary = simulate_recording(sc, rec, seed=run.seed, duration_s=duration_s, robot=run.robot)
         meta.write_text(json.dumps({"kidnaps": summary.kidnaps}))
     kidnaps = [(int(a), int(b)) for a, b in json.loads(meta.read_text())["kidnaps"]]
+    return rec, kidnaps
+
+
+def _replay_run(run: Run, sc: Scenario, work: Path, duration_s: float, fresh: bool) -> Score:
+    rec, kidnaps = recording_for(run, sc, work, duration_s, fresh)
     poses = rec.parent / f"{rec.name}.poses.csv"
     with poses.open("w", encoding="utf-8", newline="\n") as f:
         replay(rec, f, threads=1)
@@ -174,7 +183,7 @@ def _replay_run(run: Run, sc: Scenario, work: Path, duration_s: float, fresh: bo
 
 def _row(line: str) -> FrameResult:
     """One row of poses.csv (see `recording.replay_cli`)."""
-    t, x, y, th, mode, _, _, _, ids = line.split(",")
+    t, x, y, th, mode, _, _, _, ids = line.split(",")[:9]
     pose = (float(x), float(y), float(th)) if x else None
     return FrameResult(int(t), pose, mode, tuple(int(i) for i in ids.split()))
 

@@ -11,6 +11,7 @@ from localizer.handoff import HandoffConfig
 from localizer.identification_config import IdentificationConfig
 from localizer.noise_model import PixelNoiseConfig
 from localizer.pose_filter import FilterConfig
+from localizer.pose_quality import QualityConfig
 from localizer.relocalization import RelocalizationConfig
 from localizer.self_calibration import SelfCalibrationConfig
 from localizer.spots import DetectionConfig
@@ -117,3 +118,4 @@ class LocalizerConfig:
     self_calibration: SelfCalibrationConfig = field(default_factory=SelfCalibrationConfig)
     floor: FloorPlaneConfig = field(default_factory=FloorPlaneConfig)
     fix_run: FixRunConfig = field(default_factory=FixRunConfig)
+    quality: QualityConfig = field(default_factory=QualityConfig)
