@@ -21,7 +21,7 @@ the last `--idle-measure-s`) the same (the idle window starts with each robot's 
 to 2 cm, as at the end of a shift, not from a cold start). What is extrapolated: the day =
 8 h of shift + 16 h idle at those duty cycles (the patrols repeat their loops, so a window
 of a few loops stands for the shift), and the battery life of a fresh pair of AA cells at
-that day's duty (`sim.energy.predict_life_days`: the discharge curve integrated, the LED
+that day's duty (`lighting.energy.predict_life_days`: the discharge curve integrated, the LED
 current falling with the voltage, the radio's mean current in its mode, each command's
 charge). The demo's store-room landmark on tiny cells is left out of the battery figures.
 
@@ -64,14 +64,14 @@ from bench.virtual_site import (  # noqa: E402
     run_virtual,
     steady_frames,
 )
-from server.settings import Settings  # noqa: E402
-from sim.energy import (  # noqa: E402
+from lighting.energy import (  # noqa: E402
     DutyCycle,
     LandmarkEnergy,
     RadioSleep,
     combine_duty,
     predict_life_days,
 )
+from live.settings import Settings  # noqa: E402
 from sim.scenario import load_scenario  # noqa: E402
 
 SHIFT_H, IDLE_H = 8.0, 16.0

@@ -21,8 +21,8 @@ import tempfile
 import time
 from pathlib import Path
 
-from server.commissioning_service import Commissioning
-from server.models import LandmarkUpdate
+from live.commissioning_service import Commissioning
+from store.models import LandmarkUpdate
 from tests.web.conftest import landmark_always_in_view, running_site
 
 

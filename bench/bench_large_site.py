@@ -30,8 +30,8 @@ with warnings.catch_warnings():
     warnings.simplefilter("ignore")
     from fastapi.testclient import TestClient
 
+from live.settings import Settings
 from server.main import create_app
-from server.settings import Settings
 
 TARGETS = {"import_s": 3.0, "restart_s": 5.0, "healthz_ms": 10.0}
 

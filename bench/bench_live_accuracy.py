@@ -20,9 +20,9 @@ from pathlib import Path
 
 import numpy as np
 
-from server.poses import PoseUpdate
-from server.services import SiteServices
-from server.settings import Settings
+from live.poses import PoseUpdate
+from live.services import SiteServices
+from live.settings import Settings
 
 
 async def run(duration_s: float, seed: int = 0) -> None:

@@ -16,13 +16,13 @@ from pathlib import Path
 
 import numpy as np
 
+from lighting.battery import Battery
 from rf_gateway import Gateway, GatewayConfig
-from rf_gateway.battery import BatteryConfig
+from rf_gateway.battery import BatteryMonitorConfig
 from rf_gateway.emulator import EmulatedRemote, FaultConfig, XBeeEmulator
 from rf_gateway.sim_transport import SimTransport
 from rf_gateway.transport import Transport
 from rf_gateway.xbee_transport import XBeeTransport, XBeeTransportConfig
-from sim.battery import Battery
 from sim.radio import SimRadio
 from sim.world import SimLandmark, World
 
@@ -87,7 +87,7 @@ async def bench_light_only(gw: Gateway, sweeps: int) -> tuple[list[float], float
 
 
 GW_CONFIG = GatewayConfig(
-    battery=BatteryConfig(interval_s=None), max_tries=5, light_all_on_start=False
+    battery=BatteryMonitorConfig(interval_s=None), max_tries=5, light_all_on_start=False
 )
 
 

@@ -64,12 +64,12 @@ class _StandInLocalizer:
 def serve(port: int, data_dir: str, key_file: str, flush_s: str) -> None:
     import uvicorn
 
+    from live.robots import RobotRunner
+    from live.settings import Settings
     from localizer.camera import camera_from_sensor  # noqa: F401  (import cost up front)
     from localizer.events import OdometryMeasured
     from localizer.robot import RobotGeometry
     from server.main import create_app
-    from server.settings import Settings
-    from server.site.robot import RobotRunner
 
     settings = Settings(
         data_dir=Path(data_dir),

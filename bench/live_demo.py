@@ -8,7 +8,7 @@ the share of each mode and the age of its latest pose.
 `GET /robots` every 0.5 s gives the modes (first fix: the first poll in landmark mode,
 identification at the start included in the shares), `GET /robots/{name}/pose` the pose's
 `age_s`, `GET /events` the `robot_lost` events. Runs started side by side share the
-machine's load; only those compare (docs/sim.md, "The third pass").
+machine's load; only those compare (docs/design/2026-12-02-led-schedule-default.md).
 """
 
 from __future__ import annotations

@@ -19,6 +19,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from bench.robustness_score import FrameResult
+from live.leds.coordinator import LedCoordinator
 from localizer.config import LocalizerConfig
 from localizer.events import (
     Event,
@@ -30,11 +31,10 @@ from localizer.events import (
 )
 from localizer.landmark_map import LandmarkMap
 from localizer.localizer import Localizer
-from rf_gateway.battery import BatteryConfig
+from rf_gateway.battery import BatteryMonitorConfig
 from rf_gateway.config import GatewayConfig
 from rf_gateway.gateway import Gateway
 from rf_gateway.sim_transport import SimTransport
-from server.site.leds import LedCoordinator
 from sim.live import LiveSite
 from sim.scenario import Scenario
 
@@ -121,9 +121,11 @@ async def _run(
     records = site.landmark_records()
     addresses = {int(str(r["id"])): str(r["radio"]) for r in records}
     gateway = Gateway(
-        SimTransport(site.radio), addresses, GatewayConfig(battery=BatteryConfig(interval_s=None)),
+        SimTransport(site.radio),
+        addresses,
+        GatewayConfig(battery=BatteryMonitorConfig(interval_s=None)),
         clock_ns=clock.ns,
-    )  # fmt: skip
+    )
     await gateway.start()
     inbox = _Inbox()
     coordinator = LedCoordinator(gateway, lambda: [inbox])  # type: ignore[list-item]

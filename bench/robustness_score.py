@@ -1,5 +1,5 @@
 """Scoring of one robustness-matrix run against the simulator's truth (see
-`bench/robustness.py` and the matrix section of `docs/localizer.md`).
+`bench/robustness.py` and `docs/robustness.md`).
 
 Only the localizer's outputs are scored (poses, modes, the landmark IDs each frame used), so
 the scorer works whatever the localizer does inside:

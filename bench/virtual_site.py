@@ -20,22 +20,22 @@ from typing import Any, TypeVar
 
 import numpy as np
 
-from localizer.landmark_map import LandmarkMap
-from localizer.localizer import Localizer
-from rf_gateway.gateway import Gateway
-from rf_gateway.sim_transport import SimTransport
-from server.led_schedule.runtime import LedScheduler
-from server.led_schedule.site import (
+from lighting.energy import LandmarkEnergy
+from live.leds.coordinator import LedCoordinator
+from live.leds.runtime import LedScheduler
+from live.leds.wiring import (
     gateway_config,
     localizer_config,
     make_scheduler,
     radio_sleep,
 )
-from server.poses import PoseUpdate
-from server.settings import Settings
-from server.site.leds import LedCoordinator
-from server.site.robot import RobotRunner, make_localizer
-from sim.energy import LandmarkEnergy
+from live.poses import PoseUpdate
+from live.robots import RobotRunner, make_localizer
+from live.settings import Settings
+from localizer.landmark_map import LandmarkMap
+from localizer.localizer import Localizer
+from rf_gateway.gateway import Gateway
+from rf_gateway.sim_transport import SimTransport
 from sim.live import LiveSite
 from sim.routes import Route, Wait
 from sim.scenario import Scenario, load_scenario
@@ -93,7 +93,7 @@ class SiteRun:
         lit_samples: number of lit landmarks at each 0.25 s sample.
         commands: radio commands the gateway sent.
         seconds: virtual time measured (from `measure_from_s`).
-        energy: per landmark, what it did and drew over the run (`sim.energy`).
+        energy: per landmark, what it did and drew over the run (`lighting.energy`).
         landmark_ids: the site's landmarks.
         scheduler: the scheduler, if any (its books).
     """

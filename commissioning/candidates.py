@@ -13,7 +13,7 @@ from commissioning.doubt import Doubt
 from commissioning.types import Candidate
 
 MAX_LANDMARK_ID = 2**31 - 1
-"""The largest landmark ID (`server.models.MAX_LANDMARK_ID` checks it is the same)."""
+"""The largest landmark ID (`store.models.MAX_LANDMARK_ID` checks it is the same)."""
 
 _TRAILING_DIGITS = re.compile(r"(\d+)\s*$")
 

@@ -1,5 +1,5 @@
 """The robot's serial lines (the wire format, pure): NMEA-style framing and the wheel-speed
-line, shared by the server (`server/site/serial_wheels.py`, `serial_sink.py`) and the
+line, shared by the server (`sensors/serial_wheels.py`, `serial_sink.py`) and the
 on-robot agent (`agent/hardware.py`).
 
 A line is `$<body>*<CS>\r\n`: ASCII, the body's fields separated by commas, `CS` the XOR of

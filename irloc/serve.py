@@ -6,9 +6,9 @@
 
 from __future__ import annotations
 
+from live.settings import Settings
 from server.cli import main as serve_main
 from server.seams import ViewerApp
-from server.settings import Settings
 
 
 def make_viewer(settings: Settings) -> ViewerApp | None:

@@ -57,7 +57,7 @@ class FusionConfig:
             not be matched as the old pose), m/s. 0 (the default): off. On an independent
             recording (`bench/foreign` `stray_light`) a bad pairing among stray lights,
             absorbed by the tilted fit, left 0.7 s of unexplained frames while parked, and
-            1 m/s turned them into a loss for good (docs/localizer.md, "Kidnapped robot").
+            1 m/s turned them into a loss for good (docs/design/2026-12-02-kidnap-detection.md).
         min_matched_fraction: a tracking fix must keep at least this share of the
             landmarks of the last fused one that are still surely lit (a kidnapped robot,
             carried off, still sees a few spots fall into some windows by chance; such a fix
@@ -77,7 +77,7 @@ class FusionConfig:
         correlated_fix_error: a tracking fix's survey and calibration error is the same on
             every frame of the same landmarks: fuse it by the consider update of
             `fix_bias` (False: as white noise, every frame independent). See
-            docs/localizer.md, "A fix's systematic error" (the fourth pass turned it on).
+            docs/localizer-models.md, "A fix's systematic error".
     """
 
     pixel_sigma_px: float = 1.0

@@ -106,8 +106,8 @@ class FloorPlaneConfig:
             independent generator's flat hall 1.6 -> 4.6 cm p95, the simulated 50-landmark
             floor's robots about 1.5x), on sloped or uneven floors it pays (the robustness
             matrix's disturbed_real 5.9 -> 3.2 cm, ramp_real 9.8 -> 3.5): turn it on where
-            the floor is known not to be level (docs/localizer.md, "The floor under the
-            robot").
+            the floor is known not to be level (docs/localizer-models.md, "The floor under
+            the robot").
         prior_sigma_m: standard deviation of the floor's height before any fix, metres.
         prior_slope: standard deviation of each slope component before any fix,
             dimensionless (0.005: about 0.3 deg, what a floor's flatness tolerance allows

@@ -47,7 +47,7 @@ class TrackingConfig:
             per frame that the robot did not; well-fitting fixes of 40 landmarks failed the
             innovation gate after four frames, the dead reckoning went 0.6-0.8 m off and the
             robot was lost on every lap (0: off). Wider (0.5, 1.0) is the loose gate: a glint
-            taken for a landmark on the matrix (docs/localizer.md, "Seven more buildings").
+            taken for a landmark (docs/design/2026-12-02-foreign-recordings.md).
         edge_check_px: a matched spot this close to the image border is checked after the
             fix: its landmark must project inside the image, near it, at the fixed pose.
         border_px: and at least this far inside the image, pixels.

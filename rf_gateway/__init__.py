@@ -1,6 +1,6 @@
 """rf_gateway: switch and read the landmarks over the virtual site's radio or an XBee network."""
 
-from rf_gateway.battery import BatteryConfig, BatteryReading
+from rf_gateway.battery import BatteryMonitorConfig, BatteryReading
 from rf_gateway.config import GatewayConfig
 from rf_gateway.errors import (
     LandmarkUnreachableError,
@@ -32,7 +32,7 @@ from rf_gateway.transport import (
 from rf_gateway.xbee_transport import XBeeTransport, XBeeTransportConfig
 
 __all__ = [
-    "BatteryConfig",
+    "BatteryMonitorConfig",
     "BatteryReading",
     "DiscoveredRadio",
     "Gateway",

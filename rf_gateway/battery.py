@@ -12,22 +12,25 @@ from __future__ import annotations
 import asyncio
 from collections import deque
 from collections.abc import Awaitable, Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
+
+from lighting.battery import BatteryConfig
 
 NS_PER_DAY = 86_400 * 10**9
 
 
 @dataclass(frozen=True)
-class BatteryConfig:
-    """Battery monitoring settings.
+class BatteryMonitorConfig:
+    """Battery monitoring settings (the cells themselves: `lighting.battery.BatteryConfig`).
 
     Attributes:
         interval_s: time between scheduled reads of every landmark; None: no schedule.
         low_mv: a reading at or below this raises a LowBattery event, millivolts.
         low_hysteresis_mv: a low landmark must read this much above `low_mv` to clear.
-        cutoff_mv: the supply at which the landmark stops working (XBee 3: 2100 mV).
+        cells: the landmark's cells and loads; their brown-out voltage is the cut-off
+            (`cutoff_mv`) the days-left estimate extrapolates to.
         history_len: readings kept per landmark.
         fit_window_days: only readings this recent enter the trend fit.
         min_fit_span_days: no estimate before the history spans this long.
@@ -40,11 +43,16 @@ class BatteryConfig:
     interval_s: float | None = 3600.0
     low_mv: int = 2400
     low_hysteresis_mv: int = 50
-    cutoff_mv: int = 2100
+    cells: BatteryConfig = field(default_factory=BatteryConfig)
     history_len: int = 2000
     fit_window_days: float = 30.0
     min_fit_span_days: float = 0.5
     first_read_s: float = 0.0
+
+    @property
+    def cutoff_mv(self) -> int:
+        """The supply at which the landmark stops working, millivolts (XBee 3: 2100)."""
+        return round(self.cells.brownout_v * 1000.0)
 
 
 @dataclass(frozen=True)
@@ -103,7 +111,7 @@ def days_left(
 class BatteryHistory:
     """Readings per landmark, bounded, and the estimate from them."""
 
-    def __init__(self, config: BatteryConfig) -> None:
+    def __init__(self, config: BatteryMonitorConfig) -> None:
         self.config = config
         self._readings: dict[int, deque[tuple[int, int]]] = {}
         self._low: set[int] = set()

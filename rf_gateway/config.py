@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from rf_gateway.battery import BatteryConfig
+from rf_gateway.battery import BatteryMonitorConfig
 
 
 @dataclass(frozen=True)
@@ -51,7 +51,7 @@ class GatewayConfig:
     blink_count: int = 3
     blink_period_s: float = 0.4
     subscriber_queue: int = 256
-    battery: BatteryConfig = field(default_factory=BatteryConfig)
+    battery: BatteryMonitorConfig = field(default_factory=BatteryMonitorConfig)
     sleep: SleepConfig | None = None
     start_awake_s: float | None = None
 

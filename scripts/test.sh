@@ -24,7 +24,7 @@ fi
 echo "checking the layering (import-linter contracts in pyproject.toml)..."
 PYTHONPATH="$PWD" .venv/bin/lint-imports
 echo "type-checking every package (mypy strict)..."
-.venv/bin/mypy pubsub localizer sim recording rf_gateway calibration commissioning server web irloc fleet agent survey export
+.venv/bin/mypy pubsub localizer lighting sim recording rf_gateway calibration commissioning fleet sensors store survey agent export live server web irloc
 set +e
 # Two workers (pytest-xdist), a test file each at a time: most of the suite waits on live
 # servers, browsers and sockets, so two share the CI's two cores well (about half the serial

@@ -5,7 +5,7 @@ Roles are ordered viewer < operator < admin: viewer reads; operator also switche
 relocalizes and records; admin also edits the map, keys and configuration.
 
 Keys are checked by `authenticate_async` on the event loop: cached answers at once, a
-database lookup on a worker thread (`server.crud.keys.KeyStore.role_of_async`), bad keys
+database lookup on a worker thread (`store.keys.KeyStore.role_of_async`), bad keys
 counted per client address (`server.throttle`: past the budget, 429 / close 1008 before any
 lookup). A WebSocket that is refused is accepted and then closed with code 1008 and the reason
 (`refuse_websocket`), so a client learns why.
@@ -22,8 +22,8 @@ from fastapi import Depends, HTTPException, WebSocket, status
 from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
 from starlette.requests import HTTPConnection
 
-from server.models import Role
 from server.throttle import BadKeyThrottle
+from store.models import Role
 
 ROLE_RANK: dict[str, int] = {"viewer": 0, "operator": 1, "admin": 2}
 _bearer = HTTPBearer(auto_error=False, description="an API key from `irloc keys create`")

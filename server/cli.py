@@ -6,7 +6,6 @@ With no arguments: the `demo` virtual site, the API on http://127.0.0.1:8000 and
 from __future__ import annotations
 
 import argparse
-import ipaddress
 import sys
 from collections.abc import Callable
 from pathlib import Path
@@ -14,8 +13,9 @@ from typing import TYPE_CHECKING
 
 from pydantic import ValidationError
 
+from live.settings import Settings
 from server.logs import configure_logging
-from server.settings import Settings
+from server.loopback import is_loopback
 
 if TYPE_CHECKING:
     from server.seams import ViewerApp
@@ -45,15 +45,6 @@ def _parser() -> argparse.ArgumentParser:
         help="text (default) or json: one JSON object a line (setting log_format)",
     )
     return p
-
-
-def is_loopback(host: str) -> bool:
-    if host == "localhost":
-        return True
-    try:
-        return ipaddress.ip_address(host).is_loopback
-    except ValueError:
-        return False
 
 
 def main(
@@ -93,9 +84,9 @@ def main(
     configure_logging(args.log_level, settings.log_format)
     import uvicorn
 
-    from server.db import make_engine
+    from live.services import prepare_database
     from server.main import create_app
-    from server.services import prepare_database
+    from store.db import make_engine
 
     engine = make_engine(settings.db_url)
     first_key = prepare_database(engine)

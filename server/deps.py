@@ -8,8 +8,8 @@ from fastapi import Depends, Path
 from pydantic import BeforeValidator
 from starlette.requests import HTTPConnection
 
-from server.models import DECIMAL_ID, MAX_LANDMARK_ID
-from server.services import SiteServices
+from live.services import SiteServices
+from store.models import DECIMAL_ID, MAX_LANDMARK_ID
 
 
 def get_services(conn: HTTPConnection) -> SiteServices:

@@ -16,8 +16,8 @@ import logging
 from collections import deque
 from collections.abc import Iterable
 
+from live.poses import PoseUpdate
 from pubsub.bus import Bus, Subscription
-from server.poses import PoseUpdate
 
 log = logging.getLogger(__name__)
 DEFAULT_FLUSH_S = 0.005

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pydantic import BaseModel
 
-from server.services import SiteServices
+from live.services import SiteServices
 
 
 class Health(BaseModel):

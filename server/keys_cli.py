@@ -6,11 +6,11 @@ import argparse
 import sys
 from pathlib import Path
 
-from server.crud.keys import KeyStore
-from server.db import make_engine, migrate
-from server.errors import NotFoundError
-from server.models import ROLES
-from server.settings import Settings
+from live.settings import Settings
+from store.db import make_engine, migrate
+from store.errors import NotFoundError
+from store.keys import KeyStore
+from store.models import ROLES
 
 
 def _parser() -> argparse.ArgumentParser:

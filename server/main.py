@@ -19,6 +19,9 @@ from fastapi.responses import JSONResponse, Response
 from fastapi_offline import FastAPIOffline
 from pydantic import ValidationError
 
+from live.mqtt_bridge import start_mqtt_bridge
+from live.services import SiteServices
+from live.settings import Settings
 from rf_gateway.errors import (
     LandmarkUnreachableError,
     RfGatewayError,
@@ -26,13 +29,11 @@ from rf_gateway.errors import (
     UnknownLandmarkError,
 )
 from server.auth import Viewer, authenticate
-from server.errors import ConflictError, NotFoundError, UnavailableError
 from server.fanout import PoseFanout
 from server.health import Health, site_health
 from server.http_errors import install_body_errors, refuse_unknown_query
 from server.landing import landing_router
 from server.metrics import make_registry, render
-from server.mqtt_bridge import start_mqtt_bridge
 from server.openapi import install_openapi
 from server.routes import (
     admin,
@@ -50,8 +51,7 @@ from server.routes import (
     survey,
 )
 from server.seams import ViewerApp
-from server.services import SiteServices
-from server.settings import Settings
+from store.errors import ConflictError, NotFoundError, UnavailableError
 
 log = logging.getLogger(__name__)
 API_PREFIX = "/api/v1"

@@ -9,11 +9,11 @@ from prometheus_client import CollectorRegistry, generate_latest
 from prometheus_client.core import CounterMetricFamily, GaugeMetricFamily, Metric
 from prometheus_client.registry import Collector
 
-from server.led_schedule.status import energy_metrics
+from live.leds.status import energy_metrics
 
 if TYPE_CHECKING:
+    from live.services import SiteServices
     from server.fanout import PoseFanout
-    from server.services import SiteServices
 
 
 class SiteCollector(Collector):

@@ -24,7 +24,7 @@ from pydantic import BaseModel, Field
 from pydantic.json_schema import models_json_schema
 
 from server.http_errors import api_routes
-from server.models import LandmarkCreate, MapDocument
+from store.models import LandmarkCreate, MapDocument
 
 OPERATION_IDS: dict[str, str] = {
     "audit_log": "list_landmark_audit",

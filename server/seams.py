@@ -15,7 +15,7 @@ from starlette.requests import HTTPConnection
 from server.auth import Principal
 
 if TYPE_CHECKING:
-    from server.services import SiteServices
+    from live.services import SiteServices
 
 Authenticate = Callable[[HTTPConnection], Principal | None]
 """`server.auth.authenticate`: a request or WebSocket -> its key's principal, or None."""

@@ -9,9 +9,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from lighting.battery import Battery, BatteryConfig
 from localizer.camera import CameraModel, T_body_camera_upward
 from localizer.robot import RobotGeometry
-from sim.battery import Battery, BatteryConfig
 from sim.cameras import CalibrationError, miscalibrated_camera, perturbed_camera, wide_angle_camera
 from sim.render import ExtendedSource, disc_outline
 from sim.robot import OdometryModel, SimRobot

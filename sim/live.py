@@ -14,11 +14,11 @@ from typing import Literal
 import numpy as np
 import numpy.typing as npt
 
+from lighting.energy import RadioSleep
 from localizer.camera import CameraModel
 from localizer.events import FrameObserved, OdometryMeasured, SpotsObserved
 from localizer.robot import RobotGeometry
 from sim.build import RobotRig, build_robot, build_world, seed_generators
-from sim.energy import RadioSleep
 from sim.radio import SimRadio
 from sim.render import RenderConfig, render_frame
 from sim.robot import FramePose

@@ -25,7 +25,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from sim.energy import RadioSleep
+from lighting.energy import RadioSleep
 from sim.world import SimLandmark, World
 
 _GOLDEN = (math.sqrt(5.0) - 1.0) / 2.0

@@ -15,8 +15,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import numpy.typing as npt
 
-from sim.battery import Battery
-from sim.energy import EnergyLedger
+from lighting.battery import Battery
+from lighting.energy import EnergyLedger
 from sim.render import ExtendedSource
 
 FloatArray = npt.NDArray[np.float64]
@@ -129,7 +129,7 @@ class World:
         extended: lamps and sunlight patches.
         people: occluders.
         t_ns: the time the world has been advanced to.
-        energy: what each landmark's LED and radio draw (`sim.energy`); None: the
+        energy: what each landmark's LED and radio draw (`lighting.energy`); None: the
             battery's own constant `idle_current_ma` for the radio.
     """
 

@@ -1,6 +1,6 @@
 """Where to drive next during a survey: waypoints over what is still uncertain or unseen.
 
-Pure (numpy in, numpy out). The live survey (`server.survey_service`) calls it after each
+Pure (numpy in, numpy out). The live survey (`live.survey.service`) calls it after each
 estimate with the landmarks' current positions and uncertainties, the site's extent, where the
 robot has been and where it is; the viewer draws the result as a polyline.
 

@@ -1,6 +1,6 @@
 """What one localized frame says about the landmarks it saw, with its own pose eliminated.
 
-Keeping the map true (`survey.upkeep`, docs/survey.md) learns landmark positions from the
+Keeping the map true (`survey.upkeep`, docs/map-upkeep.md) learns landmark positions from the
 frames of robots at work. A robot's pose is fixed from the very landmarks being checked, so a
 landmark's residual against that pose is biased toward zero (the pose leaned toward it). Here
 the pose is an unknown of the frame, as in the survey's bundle adjustment: the frame's spots

@@ -13,9 +13,13 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = [
     "localizer",
+    "lighting",
     "sim",
     "recording",
     "rf_gateway",
+    "sensors",
+    "store",
+    "live",
     "server",
     "web",
     "calibration",

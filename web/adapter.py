@@ -20,15 +20,18 @@ import numpy as np
 
 from commissioning.doubt import Doubt
 from commissioning.wizard import WizardStatus
+from live.facades import BatteryStatus
+from live.leds.status import site_energy
+from live.services import SiteServices
+from live.survey.service import SurveyStatus
+from live.upkeep_service import MapUpkeepService
 from localizer.camera import CameraModel, sensor_from_camera
 from localizer.spots import DetectionConfig, detect_spots
 from rf_gateway.errors import LandmarkUnreachableError, RfGatewayError
-from server.errors import UnavailableError
-from server.facades import BatteryStatus
-from server.led_schedule.status import site_energy
-from server.models import LandmarkCreate, LandmarkPublic, LandmarkUpdate
-from server.services import SiteServices
-from server.survey_service import SurveyStatus
+from store.errors import UnavailableError
+from store.floorplan import FloorPlanStore
+from store.landmarks import MapRepository
+from store.models import LandmarkCreate, LandmarkPublic, LandmarkUpdate
 from web.panels.monitor import local_time_text
 from web.services import (
     CameraView,
@@ -40,7 +43,7 @@ from web.services import (
 
 
 class SiteAdapter:
-    """Implements `web.services.ViewerSite` over `server.services.SiteServices`.
+    """Implements `web.services.ViewerSite` over `live.services.SiteServices`.
 
     Args:
         services: the running site's `SiteServices`.
@@ -154,6 +157,15 @@ class SiteAdapter:
         with self._lock:
             self._view = view
         return view
+
+    def map_history(self) -> MapRepository:
+        return self.services.map
+
+    def map_proposals(self) -> MapUpkeepService:
+        return self.services.upkeep
+
+    def floorplan(self) -> FloorPlanStore:
+        return self.services.floorplan
 
     def ceiling_height(self) -> float:
         zs = [lm.z for lm in self._map()]

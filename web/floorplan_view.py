@@ -1,7 +1,7 @@
 """The floor plan in the viewer: the image on the floor (`/floorplan`, shared by every
 browser) and the admin's controls to upload and place it by two points.
 
-Both go through `server.floorplan.FloorPlanStore`, as `PUT /map/floorplan` does; the layer
+Both go through `store.floorplan.FloorPlanStore`, as `PUT /map/floorplan` does; the layer
 redraws when the store's `version` changes (an upload through the API shows within a
 landmark refresh, 0.5 s).
 """
@@ -16,19 +16,13 @@ import cv2
 import numpy as np
 import viser
 
-from server.floorplan import FloorPlanInfo, FloorPlanStore, Placement, image_size
+from store.floorplan import FloorPlanInfo, FloorPlanStore, Placement, image_size
 from web.footprint import Bounds
 
 FLOORPLAN_Z_M = -0.01
 """The image lies just below the floor grid (its lines stay visible on it), metres."""
 MAX_TEXTURE_PX = 2048
 """Larger plans are scaled down for the browser (the stored file is kept as uploaded)."""
-
-
-def floorplan_store_of(services: object) -> FloorPlanStore | None:
-    """The floor plan store behind the viewer's services (None for a site without one)."""
-    store = getattr(services, "floorplan", None)
-    return store if isinstance(store, FloorPlanStore) else None
 
 
 def floorplan_pixels(content: bytes, *, max_px: int = MAX_TEXTURE_PX) -> np.ndarray:

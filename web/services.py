@@ -17,9 +17,12 @@ import numpy.typing as npt
 
 from commissioning.types import Candidate
 from commissioning.wizard import WizardStatus
+from live.survey.service import SurveyStatus
+from live.upkeep_service import MapUpkeepService
 from localizer.camera import CameraModel
 from localizer.events import PoseEstimate
-from server.survey_service import SurveyStatus
+from store.floorplan import FloorPlanStore
+from store.landmarks import MapRepository
 
 __all__ = [
     "CameraView",
@@ -48,7 +51,7 @@ class LandmarkState:
             or every LED lit without a schedule).
         duty: share of the time it was lit since the site started.
         model_days: days its cells last at that duty from the measured voltage (the energy
-            model, `server.led_schedule.status`), None when never read.
+            model, `live.leds.status`), None when never read.
         low: flagged: its LED dims within a week at that duty, or is dim already.
     """
 
@@ -144,6 +147,18 @@ class ViewerSite(Protocol):
         """The robot's latest frame with its detections; None when it has none."""
         ...
 
+    def map_history(self) -> MapRepository | None:
+        """The stored map with its undo/redo history (None: no database behind the site)."""
+        ...
+
+    def map_proposals(self) -> MapUpkeepService | None:
+        """The map upkeep's proposals from the robots' views (None: no upkeep runs)."""
+        ...
+
+    def floorplan(self) -> FloorPlanStore | None:
+        """The floor plan image and its placement (None: the site keeps none)."""
+        ...
+
     def ceiling_height(self) -> float:
         """The nominal ceiling (LED) height, metres."""
         ...
@@ -218,7 +233,7 @@ class ViewerSite(Protocol):
 
     def wizard_cancel(self, *, actor: str) -> None: ...
 
-    # -- the site's live survey (`server.survey_service.LiveSurvey`, run by the server) ------
+    # -- the site's live survey (`live.survey.service.LiveSurvey`, run by the server) ------
     def survey_status(self) -> SurveyStatus:
         """Where the survey is: its live estimate, route, or final proposals."""
         ...

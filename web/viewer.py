@@ -22,16 +22,16 @@ import numpy as np
 import viser
 from fastapi import APIRouter
 
-from server.cli import is_loopback
+from server.loopback import is_loopback
 from server.seams import Authenticate
 from web.adapter import SiteAdapter
-from web.floorplan_view import FloorPlanLayer, FloorPlanPanel, floorplan_store_of
+from web.floorplan_view import FloorPlanLayer, FloorPlanPanel
 from web.panels.calibration import CalibrationPanel
 from web.panels.commission import CommissionPanel
 from web.panels.coverage import CoveragePanel
-from web.panels.history import HistoryPanel, map_repository_of
+from web.panels.history import HistoryPanel
 from web.panels.monitor import MonitorPanel, UncertaintyHistory
-from web.panels.proposals import ProposalsPanel, map_upkeep_of
+from web.panels.proposals import ProposalsPanel
 from web.panels.survey import SurveyPanel
 from web.panels.view import ViewPanel
 from web.panels.wizard import WizardPanel
@@ -48,7 +48,7 @@ from web.viser_compat import (
 )
 
 if TYPE_CHECKING:
-    from server.services import SiteServices
+    from live.services import SiteServices
 
 log = logging.getLogger(__name__)
 __all__ = ["TICKET_PARAM", "SiteViewer", "ViewerConfig"]
@@ -101,14 +101,14 @@ class _ClientPanels:
             with tabs.add_tab("Commission"):
                 self.wizard = WizardPanel(gui, site, session, notify)
                 self.commission = CommissionPanel(client, site, session, notify)
-                repo = map_repository_of(viewer.services)
+                repo = site.map_history()
                 if repo is not None:
                     self.history = HistoryPanel(gui, repo, session, notify)
-                upkeep = map_upkeep_of(viewer.services)
+                upkeep = site.map_proposals()
                 if upkeep is not None:
                     self.proposals = ProposalsPanel(gui, upkeep, session, notify)
                 self.calibration = CalibrationPanel(gui, site, session, notify)
-                store = floorplan_store_of(viewer.services)
+                store = site.floorplan()
                 if store is not None:
                     self.floorplan = FloorPlanPanel(gui, store, bounds, notify)
             with tabs.add_tab("Survey"):
@@ -204,7 +204,7 @@ class SiteViewer:
         hi = pos.max(axis=0) + m if len(pos) else np.array([5.0, 5.0])
         self.scene.set_site((lo[0], hi[0], lo[1], hi[1]), self.site.ceiling_height())
         self.scene.update_landmarks(lms, self.site.lit())
-        store = floorplan_store_of(self.services)
+        store = self.site.floorplan()
         self.floorplan = None if store is None else FloorPlanLayer(self.server.scene, store)
         self.server.on_client_connect(self._on_connect)
         self.server.on_client_disconnect(self._on_disconnect)

@@ -7,7 +7,7 @@ from pydantic import BaseModel, Field
 
 from server.auth import Admin, Operator, Viewer
 from server.deps import ServicesDep
-from server.models import ApiKeyPublic, Role
+from store.models import ApiKeyPublic, Role
 
 router = APIRouter(tags=["admin"])
 

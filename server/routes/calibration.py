@@ -14,8 +14,8 @@ from calibration.uploads import calibrate_from_uploads, mounting_kept
 from localizer.camera import camera_from_sensor
 from server.auth import Operator
 from server.deps import RobotName, ServicesDep
-from server.errors import UnavailableError
 from server.stream_guard import stopping
+from store.errors import UnavailableError
 
 router = APIRouter(prefix="/robots", tags=["calibration"])
 

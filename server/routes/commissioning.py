@@ -2,7 +2,7 @@
 
 Reads need a viewer key; starting discovery an operator key; driving the wizard (it saves
 landmark positions into the map) an admin key, as map edits do. The wizard runs on the
-server (`server.commissioning_service.Commissioning`): these routes and the viewer's panel
+server (`live.commissioning_service.Commissioning`): these routes and the viewer's panel
 drive the same one. docs/commissioning.md, docs/api.md.
 """
 
@@ -18,8 +18,8 @@ from commissioning.types import Candidate
 from commissioning.wizard import WizardStatus
 from server.auth import Admin, Operator, Viewer
 from server.deps import ServicesDep
-from server.errors import ConflictError
-from server.models import MAX_LANDMARK_ID
+from store.errors import ConflictError
+from store.models import MAX_LANDMARK_ID
 
 router = APIRouter(prefix="/commissioning", tags=["commissioning"])
 RADIO_PATTERN = r"^[0-9A-Fa-f]{16}$"

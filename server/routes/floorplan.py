@@ -10,8 +10,8 @@ from pydantic import BaseModel, Field
 
 from server.auth import Admin, Viewer
 from server.deps import ServicesDep
-from server.errors import NotFoundError
-from server.floorplan import FloorPlanInfo, FloorPlanStore, Placement
+from store.errors import NotFoundError
+from store.floorplan import FloorPlanInfo, FloorPlanStore, Placement
 
 router = APIRouter(prefix="/map/floorplan", tags=["map"])
 XY = tuple[float, float]

@@ -1,6 +1,6 @@
 """`/map/history`, `/map/undo`, `/map/redo`: each key undoes and redoes its own map edits.
 
-The viewer's Undo and Redo buttons are these same actions (`server.crud.history`).
+The viewer's Undo and Redo buttons are these same actions (`store.history`).
 """
 
 from __future__ import annotations
@@ -13,8 +13,8 @@ from fastapi import APIRouter, Query
 from pydantic import BaseModel, Field
 
 from server.auth import Admin
-from server.crud.history import MapStep
 from server.deps import ServicesDep
+from store.history import MapStep
 
 router = APIRouter(prefix="/map", tags=["map"])
 Confirm = Query(

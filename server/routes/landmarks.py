@@ -8,7 +8,7 @@ from pydantic import BaseModel, Field
 from localizer.events import LedsChanged
 from server.auth import Admin, Operator, Viewer
 from server.deps import LandmarkId, ServicesDep
-from server.models import LandmarkCreate, LandmarkPublic, LandmarkUpdate
+from store.models import LandmarkCreate, LandmarkPublic, LandmarkUpdate
 
 router = APIRouter(prefix="/landmarks", tags=["landmarks"])
 

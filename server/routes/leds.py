@@ -6,10 +6,10 @@ from __future__ import annotations
 from fastapi import APIRouter
 from pydantic import BaseModel, Field
 
+from live.leds.runtime import LedScheduler
 from server.auth import Operator, Viewer
 from server.deps import ServicesDep
-from server.errors import ConflictError, NotFoundError
-from server.led_schedule.runtime import LedScheduler
+from store.errors import ConflictError, NotFoundError
 
 router = APIRouter(prefix="/leds", tags=["leds"])
 

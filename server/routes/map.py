@@ -10,9 +10,9 @@ from fastapi.responses import PlainTextResponse
 from pydantic import BaseModel
 
 from server.auth import Admin, Viewer
-from server.crud.landmarks import decode_text, parse_map_csv, parse_map_text
 from server.deps import ServicesDep
-from server.models import LandmarkCreate, MapDocument
+from store.landmarks import decode_text, parse_map_csv, parse_map_text
+from store.models import LandmarkCreate, MapDocument
 
 router = APIRouter(prefix="/map", tags=["map"])
 

@@ -2,8 +2,8 @@
 
 Reading needs a viewer key; accepting (it writes landmark positions into the map) and
 rejecting an admin key, as map edits do. The estimator runs on the server
-(`server.upkeep_service.MapUpkeepService`); these routes and the viewer's panel are two
-clients of it. docs/survey.md ("Keeping the map true"), docs/api.md.
+(`live.upkeep_service.MapUpkeepService`); these routes and the viewer's panel are two
+clients of it. docs/map-upkeep.md, docs/api.md.
 """
 
 from __future__ import annotations
@@ -13,10 +13,10 @@ from typing import Annotated, Literal
 from fastapi import APIRouter
 from pydantic import BaseModel, Field
 
+from live.upkeep_service import UpkeepStatus
 from server.auth import Admin, Viewer
 from server.deps import ServicesDep
-from server.models import MAX_LANDMARK_ID
-from server.upkeep_service import UpkeepStatus
+from store.models import MAX_LANDMARK_ID
 
 router = APIRouter(prefix="/commissioning/map-proposals", tags=["commissioning"])
 LandmarkId = Annotated[int, Field(ge=0, le=MAX_LANDMARK_ID)]

@@ -26,13 +26,15 @@ import numpy as np
 from fastapi import APIRouter, WebSocket, WebSocketDisconnect
 
 from calibration.uploads import decode_image
+from live.robots import RobotRunner
+from live.services import SiteServices
 from localizer.events import FrameObserved, OdometryMeasured, SpotsObserved
+from sensors.camera import to_gray
+from sensors.remote import RemoteSource
+from sensors.serial_wheels import MAX_WHEEL_SPEED
+from sensors.sources import SensorEvent
 from server.auth import refuse_websocket, websocket_principal
-from server.errors import NotFoundError
-from server.services import SiteServices
-from server.site.robot import RobotRunner
-from server.site.serial_wheels import MAX_WHEEL_SPEED
-from server.site.sources import RemoteSource, SensorEvent, to_gray
+from store.errors import NotFoundError
 
 router = APIRouter(tags=["robots"])
 MAX_SPOTS = 1000

@@ -5,13 +5,13 @@ from __future__ import annotations
 from fastapi import APIRouter, Response, status
 from pydantic import BaseModel, Field
 
+from live.agent_runner import AgentRunner, agent_fields
+from live.poses import PosePublic, pose_json
 from localizer.camera import camera_from_sensor
 from localizer.events import Mode, OdometryMeasured
-from server.agent_runner import AgentRunner, agent_fields
 from server.auth import Admin, Operator, Viewer
 from server.deps import RobotName, ServicesDep
-from server.models import RobotCreate, RobotPublic
-from server.poses import PosePublic, pose_json
+from store.models import RobotCreate, RobotPublic
 
 router = APIRouter(prefix="/robots", tags=["robots"])
 

@@ -2,7 +2,7 @@
 
 Reading the status needs a viewer key; starting, stopping and accepting (accepting writes
 landmark positions into the map) an admin key, as map edits do. The survey runs on the
-server (`server.survey_service.LiveSurvey`); docs/survey.md, docs/api.md.
+server (`live.survey.service.LiveSurvey`); docs/survey.md, docs/api.md.
 """
 
 from __future__ import annotations
@@ -12,10 +12,10 @@ from typing import Annotated
 from fastapi import APIRouter
 from pydantic import BaseModel, ConfigDict, Field
 
+from live.survey.service import SurveyStatus
 from server.auth import Admin, Viewer
 from server.deps import ServicesDep
-from server.models import MAX_LANDMARK_ID
-from server.survey_service import SurveyStatus
+from store.models import MAX_LANDMARK_ID
 
 router = APIRouter(prefix="/commissioning/survey", tags=["commissioning"])
 

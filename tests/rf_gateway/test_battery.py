@@ -3,7 +3,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from rf_gateway.battery import NS_PER_DAY, BatteryConfig, BatteryHistory, days_left
+from rf_gateway.battery import NS_PER_DAY, BatteryHistory, BatteryMonitorConfig, days_left
 
 
 def test_days_left_extrapolates_a_linear_discharge_to_the_cutoff() -> None:
@@ -32,7 +32,7 @@ def test_days_left_is_zero_below_cutoff_and_checks_shapes() -> None:
 
 
 def test_history_is_bounded_and_windowed() -> None:
-    history = BatteryHistory(BatteryConfig(history_len=5, fit_window_days=3.0))
+    history = BatteryHistory(BatteryMonitorConfig(history_len=5, fit_window_days=3.0))
     for day in range(10):
         mv = 3000 - 100 * day if day < 7 else 2400 - 10 * (day - 6)
         reading = history.add(4, day * NS_PER_DAY, mv)

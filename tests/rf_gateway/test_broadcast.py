@@ -10,12 +10,12 @@ import numpy as np
 import pytest
 
 from bench.virtual_site import run_virtual
-from rf_gateway.battery import BatteryConfig
+from lighting.battery import Battery
+from lighting.energy import RadioSleep
+from rf_gateway.battery import BatteryMonitorConfig
 from rf_gateway.config import GatewayConfig, SleepConfig
 from rf_gateway.gateway import Gateway
 from rf_gateway.sim_transport import SimTransport
-from sim.battery import Battery
-from sim.energy import RadioSleep
 from sim.radio import SimRadio
 from sim.world import SimLandmark, World
 
@@ -36,7 +36,9 @@ def _site(*, loss: float, dead: int | None = None) -> tuple[World, SimRadio, dic
 
 def _gateway(radio: SimRadio, addresses: dict[int, str], start_awake_s: float | None) -> Gateway:
     config = GatewayConfig(
-        sleep=SleepConfig(SP), start_awake_s=start_awake_s, battery=BatteryConfig(interval_s=None)
+        sleep=SleepConfig(SP),
+        start_awake_s=start_awake_s,
+        battery=BatteryMonitorConfig(interval_s=None),
     )
     return Gateway(SimTransport(radio), addresses, config, clock_ns=lambda: 0)
 

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from localizer.events import LedsChanged
-from rf_gateway.battery import NS_PER_DAY, BatteryConfig
+from rf_gateway.battery import NS_PER_DAY, BatteryMonitorConfig
 from rf_gateway.config import GatewayConfig
 from rf_gateway.errors import LandmarkUnreachableError, TransportUnavailable, UnknownLandmarkError
 from rf_gateway.events import (
@@ -24,7 +24,7 @@ from tests.rf_gateway.scripted import ScriptedTransport
 
 ADDR = {i: f"0013A2004100{i:04X}" for i in (1, 2, 3, 4)}
 FAST = GatewayConfig(
-    retry_backoff_s=0.001, light_all_on_start=False, battery=BatteryConfig(interval_s=None)
+    retry_backoff_s=0.001, light_all_on_start=False, battery=BatteryMonitorConfig(interval_s=None)
 )
 
 

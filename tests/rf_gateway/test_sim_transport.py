@@ -7,8 +7,9 @@ import asyncio
 import numpy as np
 import pytest
 
+from lighting.battery import Battery
 from localizer.events import LedsChanged
-from rf_gateway.battery import BatteryConfig
+from rf_gateway.battery import BatteryMonitorConfig
 from rf_gateway.config import GatewayConfig
 from rf_gateway.errors import LandmarkUnreachableError, RadioTimeout, TransportUnavailable
 from rf_gateway.factory import make_transport
@@ -16,7 +17,6 @@ from rf_gateway.gateway import Gateway
 from rf_gateway.sim_transport import SimTransport
 from rf_gateway.transport import DiscoveredRadio
 from rf_gateway.xbee_transport import XBeeTransport
-from sim.battery import Battery
 from sim.radio import SimRadio
 from sim.world import SimLandmark, World
 
@@ -72,7 +72,7 @@ def test_sim_transport_switches_reads_and_discovers() -> None:
 def test_gateway_over_lossy_sim_radio_applies_every_state() -> None:
     world, radio = site(loss=0.2, seed=5)
     config = GatewayConfig(
-        max_tries=8, retry_backoff_s=0.001, battery=BatteryConfig(interval_s=None)
+        max_tries=8, retry_backoff_s=0.001, battery=BatteryMonitorConfig(interval_s=None)
     )
 
     async def main() -> list[LedsChanged]:

@@ -15,7 +15,7 @@ import serial
 
 from localizer.events import LedsChanged
 from rf_gateway import frames as fr
-from rf_gateway.battery import BatteryConfig
+from rf_gateway.battery import BatteryMonitorConfig
 from rf_gateway.config import GatewayConfig
 from rf_gateway.emulator import EmulatedRemote, FaultConfig, XBeeEmulator
 from rf_gateway.errors import RadioTimeout, RemoteCommandError, TransportUnavailable
@@ -31,7 +31,7 @@ GW_CONFIG = GatewayConfig(
     max_tries=8,
     retry_backoff_s=0.01,
     light_all_on_start=False,
-    battery=BatteryConfig(interval_s=None),
+    battery=BatteryMonitorConfig(interval_s=None),
 )
 
 

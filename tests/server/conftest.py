@@ -18,9 +18,9 @@ with warnings.catch_warnings():
 
 from fastapi import FastAPI
 
+from live.services import SiteServices
+from live.settings import Settings
 from server.main import create_app
-from server.services import SiteServices
-from server.settings import Settings
 
 
 @dataclass

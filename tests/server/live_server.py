@@ -14,7 +14,7 @@ from typing import Any
 import httpx
 import uvicorn
 
-from server.services import SiteServices
+from live.services import SiteServices
 from tests.server.conftest import Api, make_test_app, role_keys
 
 

@@ -7,8 +7,8 @@ from pathlib import Path
 import pytest
 
 from server import keys_cli
-from server.crud.keys import KeyStore
-from server.db import make_engine, migrate
+from store.db import make_engine, migrate
+from store.keys import KeyStore
 from tests.server.conftest import LM, Api
 
 # (method, path, body, lowest role allowed)

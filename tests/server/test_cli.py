@@ -7,8 +7,9 @@ from pathlib import Path
 import pytest
 
 from server import cli, keys_cli
-from server.crud import KeyStore
-from server.db import make_engine
+from server.loopback import is_loopback
+from store import KeyStore
+from store.db import make_engine
 
 
 def test_keys_create_list_revoke(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -52,6 +53,6 @@ def test_serve_refuses_bad_options(
 
 
 def test_loopback_check() -> None:
-    assert cli.is_loopback("127.0.0.1") and cli.is_loopback("::1")
-    assert cli.is_loopback("localhost")
-    assert not cli.is_loopback("0.0.0.0") and not cli.is_loopback("192.168.1.5")
+    assert is_loopback("127.0.0.1") and is_loopback("::1")
+    assert is_loopback("localhost")
+    assert not is_loopback("0.0.0.0") and not is_loopback("192.168.1.5")

@@ -7,9 +7,9 @@ import json
 
 import numpy as np
 
+from live.poses import PoseUpdate
 from pubsub.bus import Bus
 from server.fanout import FanoutClient, PoseFanout, encode_batch
-from server.poses import PoseUpdate
 
 
 def _pose(robot: str, i: int) -> PoseUpdate:

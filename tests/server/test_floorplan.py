@@ -8,7 +8,7 @@ import cv2
 import numpy as np
 import pytest
 
-from server.floorplan import Placement
+from store.floorplan import Placement
 from tests.server.conftest import Api
 
 

@@ -120,12 +120,12 @@ def test_nothing_leaves_the_site_without_landmarks_unconfirmed(api: Api) -> None
 
 
 def _lm(i: int) -> Any:
-    from server.models import LandmarkCreate
+    from store.models import LandmarkCreate
 
     return LandmarkCreate(id=i, x=float(i), y=0.0, z=2.5)
 
 
 def _upd(**fields: float) -> Any:
-    from server.models import LandmarkUpdate
+    from store.models import LandmarkUpdate
 
     return LandmarkUpdate(**fields)

@@ -9,8 +9,8 @@ from collections.abc import Iterator
 
 import pytest
 
+from live.settings import Settings
 from server.logs import configure_logging
-from server.settings import Settings
 from tests.server.conftest import Api
 
 
@@ -29,7 +29,7 @@ def restore_root() -> Iterator[None]:
 def test_json_lines_carry_level_logger_message_and_extras(restore_root: None) -> None:
     out = io.StringIO()
     configure_logging("info", "json", stream=out)
-    log = logging.getLogger("server.site.test")
+    log = logging.getLogger("live.test")
     log.debug("not shown")
     log.warning("landmark %d unreachable", 17, extra={"robot": "r1", "landmark": 17})
     try:
@@ -43,7 +43,7 @@ def test_json_lines_carry_level_logger_message_and_extras(restore_root: None) ->
     first, second, third = (json.loads(line) for line in lines)
     assert {k: first[k] for k in ("level", "logger", "message", "robot", "landmark")} == {
         "level": "WARNING",
-        "logger": "server.site.test",
+        "logger": "live.test",
         "message": "landmark 17 unreachable",
         "robot": "r1",
         "landmark": 17,
@@ -76,7 +76,7 @@ def test_site_events_are_logged_with_structured_fields(api: Api, restore_root: N
     api.services.events.emit("robot_lost", "robot r1 is lost", robot="r1")
     api.services.events.emit("landmark_reachable", "landmark 7 answers again", landmark_id=7)
     got = [json.loads(line) for line in out.getvalue().splitlines()]
-    events = [g for g in got if g["logger"] == "server.events"]
+    events = [g for g in got if g["logger"] == "live.events"]
     assert [(e["level"], e["event"], e.get("robot"), e.get("landmark")) for e in events] == [
         ("WARNING", "robot_lost", "r1", None),
         ("INFO", "landmark_reachable", None, 7),

@@ -9,7 +9,7 @@ from collections.abc import Iterator
 import numpy as np
 import pytest
 
-from server.models import LandmarkUpdate
+from store.models import LandmarkUpdate
 from tests.server.conftest import Api, start_api
 from tests.web.conftest import landmark_always_in_view
 

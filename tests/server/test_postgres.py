@@ -14,7 +14,7 @@ from collections.abc import Iterator
 import pytest
 from sqlalchemy import inspect, text
 
-from server.db import make_engine, migrate
+from store.db import make_engine, migrate
 from tests.server.pg_cluster import PgCluster, why_unavailable
 
 _why = why_unavailable()
@@ -28,7 +28,7 @@ from tests.server.test_auth import (  # noqa: E402
 )
 from tests.server.test_landmarks import *  # noqa: E402, F403
 from tests.server.test_map import *  # noqa: E402, F403
-from tests.server.test_migrations import test_upgrade_from_first_schema_keeps_data  # noqa: E402
+from tests.store.test_migrations import test_upgrade_from_first_schema_keeps_data  # noqa: E402
 
 __all__ = [
     "test_admin_api_and_cli_show_last_use",

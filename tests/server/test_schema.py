@@ -30,8 +30,8 @@ from schemathesis.specs.openapi.checks import (
     unsupported_method,
 )
 
+from live.settings import Settings
 from server.main import create_app
-from server.settings import Settings
 from tests.server.live_server import LiveApi, live_api
 
 pytestmark = pytest.mark.slow

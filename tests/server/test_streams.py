@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from starlette.websockets import WebSocketDisconnect
 
-from server.poses import PoseUpdate
+from live.poses import PoseUpdate
 from tests.server.conftest import LM, Api
 
 

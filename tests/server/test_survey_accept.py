@@ -8,10 +8,10 @@ import threading
 import numpy as np
 import pytest
 
+from live.survey.blinks import blink_choice, needed_by_others
+from live.survey.live import LiveDrive
 from localizer.events import FrameObserved, LedsChanged, OdometryMeasured, SpotsObserved
 from localizer.robot import RobotGeometry
-from server.survey_blinks import blink_choice, needed_by_others
-from server.survey_live import LiveDrive
 from sim.cameras import wide_angle_camera
 from survey.result import LandmarkEstimate, SurveyResult
 from tests.server.conftest import Api

@@ -3,7 +3,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sim.battery import Battery
+from lighting.battery import Battery
 from sim.world import Glint, Person, SimLandmark, World
 
 
@@ -51,7 +51,7 @@ def test_batteries_drain_with_time_only_when_advanced() -> None:
     before = world.landmarks[1].battery.drawn_mah
     world.advance(3600 * 1_000_000_000)
     drawn = world.landmarks[1].battery.drawn_mah - before
-    # ~54 mA LED + 17 mA for an XBee 3 receiving all the time (sim.energy), for an hour
+    # ~54 mA LED + 17 mA for an XBee 3 receiving all the time (lighting.energy), for an hour
     assert drawn == pytest.approx(54.3 + 17.0, rel=0.02)
     assert world.landmark_records()[1]["radio"] == "0013A20041000002"
 

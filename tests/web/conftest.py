@@ -37,8 +37,8 @@ def running_site(data: Path, *, seed: int = 5) -> Iterator[tuple[Any, int]]:
     import uvicorn
 
     from irloc.serve import make_viewer
+    from live.settings import Settings
     from server.main import create_app
-    from server.settings import Settings
 
     settings = Settings(data_dir=data, port=0, viewer_port=0, scenario="demo", seed=seed)
     app = create_app(settings, make_viewer(settings))  # as `irloc serve` wires it

@@ -26,10 +26,10 @@ from commissioning.wizard import (
     WizardEvent,
     WizardStatus,
 )
+from live.survey.service import SurveyStatus
 from localizer.camera import CameraModel, predict_pixels
 from localizer.events import PoseEstimate
 from localizer.geometry import T_world_body_from_pose
-from server.survey_service import SurveyStatus
 from sim.cameras import wide_angle_camera
 from web.services import CameraView, Candidate, EventLine, LandmarkState, RobotState
 
@@ -101,6 +101,15 @@ class MemSite:
         px, ok = predict_pixels(self.camera, T_world_body_from_pose(x, y, th), p)
         img = np.zeros((self.camera.height, self.camera.width), np.uint8)
         return CameraView(time.monotonic_ns(), img, px[ok])
+
+    def map_history(self) -> None:
+        return None
+
+    def map_proposals(self) -> None:
+        return None
+
+    def floorplan(self) -> None:
+        return None
 
     def ceiling_height(self) -> float:
         return 2.5

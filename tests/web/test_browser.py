@@ -174,7 +174,7 @@ def test_wizard_keeps_the_fleet_tracking_and_a_far_measurement_needs_accept_far(
     stays disabled until "Accept far" is ticked; the saved position is the true one (the
     simulator's truth only checks it)."""
     from localizer.events import LedRequest
-    from server.models import LandmarkUpdate
+    from store.models import LandmarkUpdate
     from tests.web.conftest import landmark_always_in_view, wait_localized
 
     services = live_site.services
@@ -442,7 +442,7 @@ def test_live_survey_from_the_panel_shows_estimates_and_accepts_one_landmark(
     changed through the API, the survey is cancelled."""
     import httpx
 
-    from server.models import LandmarkUpdate
+    from store.models import LandmarkUpdate
     from tests.web.conftest import patrol_route
 
     services = live_site.services

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 import viser
 
-from server.floorplan import FloorPlanStore, Placement
+from store.floorplan import FloorPlanStore, Placement
 from web.floorplan_view import FloorPlanLayer, FloorPlanPanel, floorplan_pixels
 
 

@@ -8,9 +8,9 @@ from pathlib import Path
 import pytest
 import viser
 
-from server.crud.landmarks import MapRepository
-from server.db import make_engine, migrate
-from server.models import LandmarkCreate, LandmarkUpdate
+from store.db import make_engine, migrate
+from store.landmarks import MapRepository
+from store.models import LandmarkCreate, LandmarkUpdate
 from web.panels.history import HistoryPanel, parse_map_file
 from web.roles import Session
 

@@ -10,12 +10,12 @@ import numpy as np
 import pytest
 import viser
 
+from live.facades import Robots
+from live.upkeep_service import MapUpkeepService
 from pubsub.bus import Bus
-from server.crud import MapRepository, RobotStore
-from server.db import make_engine, migrate
-from server.facades import Robots
-from server.models import LandmarkCreate
-from server.upkeep_service import MapUpkeepService
+from store import MapRepository, RobotStore
+from store.db import make_engine, migrate
+from store.models import LandmarkCreate
 from tests.survey.test_upkeep import ceiling, drive
 from web.panels.proposals import NONE, ProposalsPanel
 from web.roles import Session

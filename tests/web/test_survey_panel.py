@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 import viser
 
-from server.survey_service import Proposal, SurveyStatus
+from live.survey.service import Proposal, SurveyStatus
 from tests.web.memsite import grid_site
 from web.panels.survey import SurveyPanel, ellipse_ring, progress_text, survey_segments
 from web.roles import Session

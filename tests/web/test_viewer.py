@@ -8,7 +8,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from server.cli import is_loopback
+from server.loopback import is_loopback
 from tests.web.memsite import MemSite, grid_site
 from web.viewer import SiteViewer, ViewerConfig
 

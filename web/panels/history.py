@@ -4,7 +4,7 @@ The buttons say what they would do ("Undo move of landmark 17"); a step that cha
 whole map (an import or clear, or undoing one) or leaves the site without landmarks opens a
 dialog that names it and needs an explicit click. They are the API's actions
 (`POST /map/undo`, `/map/redo`, `PUT /map`, `DELETE /map`) on the same data layer
-(`server.crud.history`), with the browser's user as the author.
+(`store.history`), with the browser's user as the author.
 """
 
 from __future__ import annotations
@@ -15,20 +15,14 @@ from typing import TYPE_CHECKING, Literal
 
 import viser
 
-from server.crud.history import MapStep
-from server.crud.landmarks import MapRepository, parse_map_csv, parse_map_json
-from server.errors import ConflictError
-from server.models import LandmarkCreate
+from store.errors import ConflictError
+from store.history import MapStep
+from store.landmarks import MapRepository, parse_map_csv, parse_map_json
+from store.models import LandmarkCreate
 from web.roles import Session
 
 if TYPE_CHECKING:  # viser 1.1 does not export the modal's handle type
     from viser._gui_handles import GuiModalHandle
-
-
-def map_repository_of(services: object) -> MapRepository | None:
-    """The map data layer behind the viewer's services (None for a site without one)."""
-    repo = getattr(services, "map", None)
-    return repo if isinstance(repo, MapRepository) else None
 
 
 def parse_map_file(name: str, content: bytes) -> list[LandmarkCreate]:

@@ -11,16 +11,10 @@ from collections.abc import Callable
 
 import viser
 
-from server.upkeep_service import MapUpkeepService, UpkeepStatus
+from live.upkeep_service import MapUpkeepService, UpkeepStatus
 from web.roles import Session
 
 NONE = "(no proposal)"
-
-
-def map_upkeep_of(services: object) -> MapUpkeepService | None:
-    """The map upkeep behind the viewer's services (None for a site without one)."""
-    upkeep = getattr(services, "upkeep", None)
-    return upkeep if isinstance(upkeep, MapUpkeepService) else None
 
 
 def proposal_lines(st: UpkeepStatus) -> list[str]:

@@ -16,7 +16,7 @@ import numpy as np
 import numpy.typing as npt
 import viser
 
-from server.survey_service import Proposal, SurveyStatus
+from live.survey.service import Proposal, SurveyStatus
 from web.colors import RGB, ROUTE_COLOR, SURVEY_STATE_COLORS
 from web.roles import Session
 from web.scene import polyline_segments

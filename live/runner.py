@@ -1,0 +1,365 @@
+"""The live site: builds the virtual site (if any), the radio gateway, the LED coordinator,
+one `RobotRunner` per robot and the `FrameSource`s that feed them.
+
+Threads: each source has its own (the virtual site's clock and feeder, a server camera, a
+serial wheel port); a remote robot's events are fed on worker threads from its WebSocket.
+All deliver through one sink, `Robots.deliver`. The gateway, the LED coordinator and the
+battery poll run on the server's event loop. It is handed the facades it works on
+(live/facades.py) and writes nothing back into `SiteServices`.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import dataclasses
+import logging
+from collections.abc import Callable, Iterable
+from typing import Protocol
+
+from live.events import EventHub
+from live.leds import LedScheduler
+from live.leds.coordinator import LedCoordinator
+from live.leds.wiring import (
+    attach_scheduler,
+    gateway_config,
+    localizer_config,
+    radio_sleep,
+    xbee_config,
+)
+from live.poses import PoseUpdate
+from live.robots import RobotRunner, make_localizer
+from live.serial_sink import SerialSink
+from live.settings import Settings
+from localizer.camera import camera_from_sensor, sensor_from_camera
+from localizer.events import Event, LedRequest, Mode
+from localizer.robot import RobotGeometry
+from pubsub.bus import Bus, Subscription
+from rf_gateway.errors import RfGatewayError
+from rf_gateway.events import (
+    LandmarkReachable,
+    LandmarkUnreachable,
+    LowBattery,
+    TransportStateChanged,
+)
+from rf_gateway.gateway import Gateway
+from sensors.camera import CameraSource
+from sensors.remote import RemoteSource
+from sensors.serial_wheels import SerialWheelSource
+from sensors.sim_source import SimSource
+from sensors.sources import FrameSource
+from sim.live import LiveSite
+from store import MapRepository, RobotStore
+from store.landmarks import parse_map_json
+from store.models import LandmarkPublic, RobotCreate, RobotPublic
+
+log = logging.getLogger(__name__)
+SITE_STEP_HZ = 100.0
+MAX_FRAME_LAG_S = 0.25
+SHUTDOWN_LEDS_TIMEOUT_S = 5.0
+
+
+class RobotHost(Protocol):
+    """What the live site needs of the robot registry (`live.facades.Robots`)."""
+
+    poses: Bus[PoseUpdate]
+
+    def add(self, runner: RobotRunner) -> None: ...
+    def remove(self, name: str) -> RobotRunner | None: ...
+    def runners(self) -> list[RobotRunner]: ...
+    def deliver(self, robot: str, event: Event) -> None: ...
+    def subscribe_poses(
+        self, robots: set[str] | None = None, maxsize: int | None = None
+    ) -> Subscription[PoseUpdate]: ...
+    def attach(
+        self, start: Callable[[RobotPublic], object] | None, sim_names: Iterable[str] | None
+    ) -> None: ...
+
+
+class LedHost(Protocol):
+    """What the live site needs of the LED facade (`live.facades.LedsAndRadio`)."""
+
+    def attach(
+        self,
+        gateway: Gateway | None,
+        coordinator: LedCoordinator | None,
+        scheduler: LedScheduler | None = None,
+    ) -> None: ...
+
+
+class LiveSiteRunner:
+    """Start and stop everything live.
+
+    Args:
+        settings: the server's settings.
+        map, robot_store: the data layer.
+        robots: the live robots (the runner adds and removes them; `Robots.deliver` is the
+            sink of every source).
+        leds: the LED facade (the runner attaches its gateway, LED coordinator and schedule).
+        events: the site's event hub.
+        clock_ns: the site clock.
+    """
+
+    def __init__(
+        self,
+        settings: Settings,
+        *,
+        map: MapRepository,
+        robot_store: RobotStore,
+        robots: RobotHost,
+        leds: LedHost,
+        events: EventHub,
+        clock_ns: Callable[[], int],
+    ) -> None:
+        self.settings = settings
+        self.map, self.robot_store, self.robots = map, robot_store, robots
+        self.led_facade, self.events, self.clock_ns = leds, events, clock_ns
+        self.sim: LiveSite | None = None
+        self.sim_source: SimSource | None = None
+        self.gateway: Gateway | None = None
+        self.leds: LedCoordinator | None = None
+        self.scheduler: LedScheduler | None = None
+        self.cameras: dict[str, CameraSource] = {}
+        self.wheels: dict[str, SerialWheelSource] = {}
+        self.remotes: dict[str, RemoteSource] = {}
+        self.serial: SerialSink | None = None
+        self._tasks: list[asyncio.Task[None]] = []
+        self._loop: asyncio.AbstractEventLoop | None = None
+
+    @property
+    def sources(self) -> list[FrameSource]:
+        """Every running source."""
+        out: list[FrameSource] = [] if self.sim_source is None else [self.sim_source]
+        return [*out, *self.cameras.values(), *self.wheels.values(), *self.remotes.values()]
+
+    @property
+    def frames_skipped(self) -> int:
+        """Virtual-site frames skipped for being late."""
+        return 0 if self.sim_source is None else self.sim_source.frames_skipped
+
+    # -- start -----------------------------------------------------------------------------
+    async def start(self) -> None:
+        self._loop = asyncio.get_running_loop()
+        if self.settings.radio == "sim":
+            self.sim = self._build_sim()
+            self._adopt_sim(self.sim)
+        await self._start_gateway()
+        self.robots.attach(self.start_robot, None if self.sim is None else self.sim.robot_names)
+        for robot in self.robot_store.list():
+            if robot.source == "sim" and robot.name not in self._sim_names():
+                continue
+            self.start_robot(robot)
+        if self.settings.serial_sink:
+            robots = {self.settings.serial_robot} if self.settings.serial_robot else None
+            sub = self.robots.subscribe_poses(robots)
+            self.serial = SerialSink.open(sub, self.settings.serial_sink, self.settings.serial_baud)
+            self.serial.start()
+        if self.sim is not None:
+            self.sim_source = SimSource(
+                self.sim, self.clock_ns, step_hz=SITE_STEP_HZ, max_frame_lag_s=MAX_FRAME_LAG_S
+            )
+            self.sim_source.start(self.robots.deliver)
+
+    def start_robot(self, robot: RobotPublic) -> RobotRunner:
+        """Run (or restart with a new configuration) one robot's localizer and sources."""
+        self.stop_robot(robot.name)
+        geometry = RobotGeometry(robot.wheel_base, robot.max_speed)
+        camera = camera_from_sensor(robot.camera, source=f"robot {robot.name} camera")
+        runner = RobotRunner(
+            robot.name,
+            camera,
+            geometry,
+            make_localizer(
+                camera, self.map.landmark_map(), geometry, localizer_config(self.settings)
+            ),
+            publish=self.robots.poses.publish,
+            request_leds=self._request_leds,
+            source=robot.source,
+        )
+        runner.on_mode_change = self._on_mode_change
+        self.robots.add(runner)
+        if robot.source == "camera" and robot.device:
+            cam = CameraSource(robot.name, robot.device, self.clock_ns)
+            cam.start(self.robots.deliver)
+            self.cameras[robot.name] = cam
+        if robot.source == "camera" and robot.wheel_port:
+            wheels = SerialWheelSource(
+                robot.name, robot.wheel_port, robot.wheel_baud, self.clock_ns
+            )
+            wheels.start(self.robots.deliver)
+            self.wheels[robot.name] = wheels
+        if robot.source == "remote":
+            remote = RemoteSource(robot.name)
+            remote.start(self.robots.deliver)
+            self.remotes[robot.name] = remote
+        return runner
+
+    def remote(self, name: str) -> RemoteSource | None:
+        """The source of a running remote robot (its WebSocket pushes into it)."""
+        return self.remotes.get(name)
+
+    def stop_robot(self, name: str) -> None:
+        """Stop a robot's own sources (if any) and remove it from the registry."""
+        for sources in (self.cameras, self.wheels, self.remotes):
+            src = sources.pop(name, None)
+            if src is not None:
+                src.stop()
+        runner = self.robots.remove(name)
+        if runner is not None:
+            runner.stop_recording()
+
+    def _build_sim(self) -> LiveSite:
+        from sim.scenario import load_scenario
+
+        scenario = load_scenario(self.settings.scenario)
+        if not self.settings.sim_robots:  # the same world; its robots run as agents
+            scenario = dataclasses.replace(scenario, robots=())
+        return LiveSite(
+            scenario,
+            seed=self.settings.seed,
+            clock_ns=self.clock_ns,
+            radio_sleep=radio_sleep(self.settings),
+        )
+
+    def _sim_names(self) -> list[str]:
+        return list(self.sim.robot_names) if self.sim is not None else []
+
+    def _adopt_sim(self, sim: LiveSite) -> None:
+        """First start on a virtual site: take its surveyed map and its robots."""
+        if not self.map.list():
+            items = parse_map_json({"landmarks": sim.landmark_records()}, source="virtual site")
+            self.map.replace_all(items, actor="virtual site")
+        known = {r.name for r in self.robot_store.list()}
+        for name in sim.robot_names:
+            if name in known:
+                continue
+            geo = sim.robot_geometry(name)
+            self.robot_store.upsert(
+                RobotCreate(
+                    name=name,
+                    source="sim",
+                    wheel_base=geo.wheel_base,
+                    max_speed=geo.max_speed,
+                    camera=sensor_from_camera(sim.camera(name)),
+                )
+            )
+
+    async def _start_gateway(self) -> None:
+        from rf_gateway.factory import make_transport
+
+        try:
+            transport = make_transport(
+                self.settings.radio,
+                sim_radio=None if self.sim is None else self.sim.radio,
+                xbee_config=xbee_config(self.settings),
+            )
+        except ValueError as exc:
+            log.error("no radio: %s", exc)
+            return
+        # the gateway's own schedule reads every landmark's supply; the LED facade stores it
+        config = gateway_config(self.settings)
+        self.gateway = Gateway(transport, self.map.addresses(), config, clock_ns=self.clock_ns)
+        await self.gateway.start()
+        self.leds = LedCoordinator(self.gateway, self.robots.runners, self._on_led_error)
+        self.leds.start()
+        if self.settings.led_policy == "scheduled":
+            self.scheduler = attach_scheduler(
+                self.map, self.robots.runners, self.leds, self.clock_ns, self.settings,
+                routes=self._routes,
+            )  # fmt: skip
+        self.led_facade.attach(self.gateway, self.leds, self.scheduler)
+        loop = asyncio.get_running_loop()
+        self._tasks = [loop.create_task(self._gateway_events())]
+
+    def _routes(self, robot: str) -> tuple[tuple[float, float], ...]:
+        """Where a robot drives next, as far as the site knows (the virtual site's routes;
+        robots of a real fleet: none yet)."""
+        sim = self.sim
+        if sim is None or robot not in sim.robot_names:
+            return ()
+        return sim.planned_route(robot)
+
+    # -- running ---------------------------------------------------------------------------
+    def _request_leds(self, robot: str, req: LedRequest) -> None:
+        if self.leds is not None:
+            self.leds.request(robot, req)
+
+    def _on_led_error(self, robot: str, message: str) -> None:
+        self.events.emit("led_request_failed", f"robot {robot}: {message}", robot=robot)
+
+    def _on_mode_change(self, robot: str, old: Mode, new: Mode) -> None:
+        if new == "lost":
+            self.events.emit("robot_lost", f"robot {robot} is lost", robot=robot)
+        elif new == "landmark" and old in ("lost", "identifying"):
+            self.events.emit("robot_localized", f"robot {robot} localized", robot=robot)
+
+    async def _gateway_events(self) -> None:
+        assert self.gateway is not None
+        emit = self.events.emit
+        async for ev in self.gateway.subscribe_events():
+            if isinstance(ev, LowBattery):
+                emit(
+                    "low_battery",
+                    f"landmark {ev.landmark_id} battery low: {ev.supply_mv} mV",
+                    landmark_id=ev.landmark_id,
+                    data={"supply_mv": ev.supply_mv, "days_left": ev.days_left},
+                )
+            elif isinstance(ev, LandmarkUnreachable):
+                emit(
+                    "landmark_unreachable",
+                    f"landmark {ev.landmark_id} does not answer (radio {ev.address})",
+                    landmark_id=ev.landmark_id,
+                )
+            elif isinstance(ev, LandmarkReachable):
+                emit(
+                    "landmark_reachable",
+                    f"landmark {ev.landmark_id} answers again",
+                    landmark_id=ev.landmark_id,
+                )
+            elif isinstance(ev, TransportStateChanged):
+                emit("radio_state", f"radio link {ev.state}", data={"state": ev.state})
+
+    def on_map_changed(self, landmarks: list[LandmarkPublic]) -> None:
+        """Give the new map to every localizer and the new addresses to the gateway."""
+        lmap = self.map.landmark_map()  # built once per change (20,000: ms)
+        for runner in self.robots.runners():
+            runner.set_map(lmap)
+        if self.gateway is not None and self._loop is not None:
+            addresses = {lm.id: lm.radio for lm in landmarks if lm.radio}
+            self._loop.call_soon_threadsafe(self._update_addresses, addresses)
+
+    def _update_addresses(self, addresses: dict[int, str]) -> None:
+        if self.gateway is not None:
+            try:
+                self.gateway.update_landmarks(addresses)
+            except ValueError as exc:
+                log.error("gateway refused the new map: %s", exc)
+
+    # -- stop ------------------------------------------------------------------------------
+    async def stop(self) -> None:
+        """Stop the clock and cameras, leave every LED on, close the radio, end recordings."""
+        self.robots.attach(None, None)
+        for source in self.sources:
+            await asyncio.to_thread(source.stop)
+        for runner in self.robots.runners():
+            runner.stop_recording()
+        if self.serial is not None:
+            await asyncio.to_thread(self.serial.stop)
+        for task in self._tasks:
+            task.cancel()
+        for task in self._tasks:
+            with contextlib.suppress(asyncio.CancelledError, Exception):
+                await task
+        self.led_facade.attach(None, None)
+        if self.scheduler is not None:
+            await self.scheduler.stop()
+        if self.leds is not None:
+            await self.leds.stop()
+        if self.gateway is not None:
+            try:
+                await asyncio.wait_for(
+                    self.gateway.set_leds(self.gateway.landmarks.keys()), SHUTDOWN_LEDS_TIMEOUT_S
+                )
+            except (RfGatewayError, TimeoutError) as exc:
+                log.warning("could not leave every LED on at shutdown: %s", exc)
+            await self.gateway.close()

@@ -1,0 +1,1 @@
+"""The live survey: blinks, the drive's observations and the solver worker."""
