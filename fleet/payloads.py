@@ -14,7 +14,8 @@ import numpy as np
 import numpy.typing as npt
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
-from localizer.events import LedRequest, LedsChanged, Mode, PoseEstimate
+from localizer.events import LedRequest, LedsChanged, Mode, NoPose, PoseEstimate
+from localizer.pose_quality import ReasonCode
 
 M = TypeVar("M", bound=BaseModel)
 MAX_T_NS = 2**63 - 1
@@ -122,6 +123,8 @@ class PoseMessage(_Msg):
         cov: the covariance of (x, y, theta), upper triangle row by row
             (xx, xy, xt, yy, yt, tt), SI units.
         lm: the landmarks used for this pose.
+        quality: 0-1 (docs/quality.md); deviation_m: the 95 % radius, metres.
+        reason, reason_text: why this is no landmark fix (absent when it is one).
     """
 
     seq: int = Field(ge=0)
@@ -133,6 +136,15 @@ class PoseMessage(_Msg):
     theta: float | None = Field(default=None, allow_inf_nan=False)
     cov: tuple[float, float, float, float, float, float] | None = None
     lm: list[int] = []
+    quality: float | None = Field(default=None, ge=0.0, le=1.0)
+    deviation_m: float | None = Field(default=None, ge=0.0, allow_inf_nan=False)
+    reason: ReasonCode | None = None
+    reason_text: str | None = Field(default=None, max_length=300)
+
+    @classmethod
+    def from_no_pose(cls, seq: int, out: NoPose, t_ns: int, wall_ns: int) -> PoseMessage:
+        return cls(seq=seq, t_ns=t_ns, wall_ns=wall_ns, mode=out.mode, quality=out.quality,
+                   reason=out.reason, reason_text=out.reason_text or None)  # fmt: skip
 
     @classmethod
     def from_estimate(cls, seq: int, est: PoseEstimate, t_ns: int, wall_ns: int) -> PoseMessage:
@@ -147,6 +159,10 @@ class PoseMessage(_Msg):
             theta=round(float(est.theta), 6),
             cov=tuple(_sig(float(c[i, j])) for i, j in _UPPER),  # type: ignore[arg-type]
             lm=list(est.landmark_ids),
+            quality=None if est.quality is None else round(est.quality, 3),
+            deviation_m=None if est.deviation_m is None else _sig(est.deviation_m),
+            reason=est.reason,
+            reason_text=est.reason_text or None,
         )
 
     def covariance(self) -> npt.NDArray[np.float64] | None:

@@ -101,7 +101,12 @@ class AgentRunner(RobotRunner):
             cov,
             tuple(msg.lm),
             msg.wall_ns,
+            quality=msg.quality,
+            deviation_m=msg.deviation_m,
+            reason=msg.reason,
+            reason_text=msg.reason_text or "",
         )
+        self.reasons.note(upd)
         with self._lock:
             if msg.x is not None:
                 self.latest = upd

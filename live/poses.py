@@ -10,9 +10,10 @@ from typing import Any
 
 import numpy as np
 import numpy.typing as npt
-from pydantic import BaseModel
+from pydantic import BaseModel, Field
 
-from localizer.events import Mode, PoseEstimate
+from localizer.events import Mode, NoPose, PoseEstimate
+from localizer.pose_quality import ReasonCode
 
 
 @dataclass(frozen=True, eq=False)
@@ -30,6 +31,10 @@ class PoseUpdate:
             (`PoseEstimate.expected_ids`; read by doubt detection, not sent by the API).
         computed_wall_ns: wall clock (`time.time_ns`) when the pose was computed, for ages
             and latency measurements.
+        quality: 0-1 (docs/quality.md); None: not known (a pose from an older agent).
+        deviation_m: the radius holding the true position with 95 % probability, metres.
+        reason: why this is no landmark fix (a `pose_quality.ReasonCode`), None when it is.
+        reason_text: the same for people.
     """
 
     robot: str
@@ -42,6 +47,10 @@ class PoseUpdate:
     landmark_ids: tuple[int, ...] = ()
     computed_wall_ns: int = field(default_factory=time.time_ns)
     expected_ids: tuple[int, ...] = ()
+    quality: float | None = None
+    deviation_m: float | None = None
+    reason: ReasonCode | None = None
+    reason_text: str = ""
 
     @classmethod
     def from_estimate(cls, robot: str, est: PoseEstimate) -> PoseUpdate:
@@ -55,7 +64,16 @@ class PoseUpdate:
             np.asarray(est.covariance, dtype=np.float64),
             tuple(est.landmark_ids),
             expected_ids=tuple(est.expected_ids),
+            quality=est.quality,
+            deviation_m=est.deviation_m,
+            reason=est.reason,
+            reason_text=est.reason_text,
         )
+
+    @classmethod
+    def from_no_pose(cls, robot: str, out: NoPose) -> PoseUpdate:
+        return cls(robot, out.t_ns, out.mode, quality=out.quality, reason=out.reason,
+                   reason_text=out.reason_text)  # fmt: skip
 
     def estimate(self) -> PoseEstimate | None:
         """This update as the localizer's estimate; None when it carries no pose."""
@@ -64,7 +82,8 @@ class PoseUpdate:
         cov = np.zeros((3, 3)) if self.covariance is None else self.covariance
         return PoseEstimate(
             self.t_ns, self.x, self.y, self.theta, cov, self.mode, self.landmark_ids,
-            self.expected_ids,
+            self.expected_ids, quality=self.quality, deviation_m=self.deviation_m,
+            reason=self.reason, reason_text=self.reason_text,
         )  # fmt: skip
 
     def to_dict(self) -> dict[str, Any]:
@@ -79,6 +98,10 @@ class PoseUpdate:
             "covariance": cov,
             "landmark_ids": list(self.landmark_ids),
             "computed_wall_ns": self.computed_wall_ns,
+            "quality": self.quality,
+            "deviation_m": self.deviation_m,
+            "reason": self.reason,
+            "reason_text": self.reason_text,
         }
 
     @cached_property
@@ -101,6 +124,10 @@ def pose_json(robot: str, mode: Mode, upd: PoseUpdate | None) -> str:
                 "covariance": None,
                 "landmark_ids": [],
                 "age_s": None,
+                "quality": 0.0,
+                "deviation_m": None,
+                "reason": None,
+                "reason_text": "",
             }
         )
     d = upd.to_dict()
@@ -122,3 +149,13 @@ class PosePublic(BaseModel):
     covariance: list[list[float]] | None = None
     landmark_ids: list[int] = []
     age_s: float | None = None
+    quality: float | None = Field(
+        default=None, description="0-1 from deviation_m (docs/quality.md); null: not known"
+    )
+    deviation_m: float | None = Field(
+        default=None, description="radius holding the true position with 95 % probability, m"
+    )
+    reason: ReasonCode | None = Field(
+        default=None, description="why this is no landmark fix (docs/quality.md); null: it is"
+    )
+    reason_text: str = ""

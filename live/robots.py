@@ -11,6 +11,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from live.pose_reasons import ReasonTally
 from live.poses import PoseUpdate
 from localizer.camera import CameraModel
 from localizer.config import LocalizerConfig
@@ -89,6 +90,7 @@ class RobotRunner:
         self._request_leds = request_leds
         self._lock = threading.RLock()
         self.latest: PoseUpdate | None = None
+        self.reasons = ReasonTally()  # why there is no fix now, and poses per reason
         self.last_fix_t_ns: int | None = None
         self.last_frame: FrameObserved | None = None
         self.recent: deque[FrameObserved | SpotsObserved] = deque(maxlen=recent_frames)
@@ -154,12 +156,15 @@ class RobotRunner:
         if isinstance(out, PoseEstimate):
             upd = PoseUpdate.from_estimate(self.name, out)
             self.latest = upd
+            self.reasons.note(upd)
             self.poses += 1
             if out.mode == "landmark":
                 self.last_fix_t_ns = out.t_ns
             self._publish(upd)
         elif isinstance(out, NoPose):
-            self._publish(PoseUpdate(self.name, out.t_ns, out.mode))
+            none = PoseUpdate.from_no_pose(self.name, out)
+            self.reasons.note(none)
+            self._publish(none)
         elif isinstance(out, LedRequest):
             self._request_leds(self.name, out)
 

@@ -15,6 +15,7 @@ import contextlib
 import dataclasses
 import logging
 from collections.abc import Callable, Iterable
+from functools import partial
 from typing import Protocol
 
 from live.events import EventHub
@@ -27,6 +28,7 @@ from live.leds.wiring import (
     radio_sleep,
     xbee_config,
 )
+from live.pose_reasons import ReasonTally, mode_change_event
 from live.poses import PoseUpdate
 from live.robots import RobotRunner, make_localizer
 from live.serial_sink import SerialSink
@@ -176,7 +178,7 @@ class LiveSiteRunner:
             request_leds=self._request_leds,
             source=robot.source,
         )
-        runner.on_mode_change = self._on_mode_change
+        runner.on_mode_change = partial(self._on_mode_change, runner.reasons)
         self.robots.add(runner)
         if robot.source == "camera" and robot.device:
             cam = CameraSource(robot.name, robot.device, self.clock_ns)
@@ -287,11 +289,11 @@ class LiveSiteRunner:
     def _on_led_error(self, robot: str, message: str) -> None:
         self.events.emit("led_request_failed", f"robot {robot}: {message}", robot=robot)
 
-    def _on_mode_change(self, robot: str, old: Mode, new: Mode) -> None:
-        if new == "lost":
-            self.events.emit("robot_lost", f"robot {robot} is lost", robot=robot)
-        elif new == "landmark" and old in ("lost", "identifying"):
-            self.events.emit("robot_localized", f"robot {robot} localized", robot=robot)
+    def _on_mode_change(self, reasons: ReasonTally, robot: str, old: Mode, new: Mode) -> None:
+        event = mode_change_event(robot, old, new, reasons)
+        if event is not None:
+            kind, message, data = event
+            self.events.emit(kind, message, robot=robot, data=data or None)
 
     async def _gateway_events(self) -> None:
         assert self.gateway is not None

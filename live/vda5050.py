@@ -59,4 +59,6 @@ class VisualizationEncoder:
             mode=update.mode,
             pose=pose,
             covariance=update.covariance,
+            quality=update.quality,
+            deviation_m=update.deviation_m,
         )

@@ -673,7 +673,7 @@ class Localizer:
         sx, sy, sth = self._filter.pose
         offset = (x - sx, y - sy, float(wrap_angle(theta - sth)))
         qc = self.config.quality
-        cov = published_covariance(self._filter.covariance, self._mode, offset, qc.inflation)
+        cov = published_covariance(self._filter.covariance, self._mode, offset, qc)
         deviation = deviation_radius_m(cov)
         facts = self._frame_facts(t_ns, (x, y, theta), used)
         code = reason_for(facts)

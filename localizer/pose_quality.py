@@ -43,11 +43,18 @@ _K95 = np.array([
 `circle_probability` = 0.95; tests/localizer/test_pose_quality.py checks them)."""
 
 
+def _per_mode(value: float) -> dict[str, float]:
+    return dict.fromkeys(("landmark", "dead_reckoning", "identifying", "lost"), value)
+
+
 @dataclass(frozen=True)
-class InflationConfig:
-    """How the filter's covariance is made honest, per mode (SI units).
+class QualityConfig:
+    """The 0-1 quality's scale, and how the filter's covariance is made honest per mode
+    (SI units; docs/quality.md).
 
     Attributes:
+        good_m: a 95 % radius at or under this is quality 1, metres.
+        useless_m: at or over this, quality 0, metres; logarithmic in between.
         position_scale: per mode, the factor on the filter's position standard deviations.
         heading_scale: per mode, the factor on its heading standard deviation.
         position_floor_m: per mode, a standard deviation added in quadrature to each
@@ -58,49 +65,13 @@ class InflationConfig:
             known error: P + o o^T.
     """
 
-    position_scale: dict[str, float] = field(
-        default_factory=lambda: {
-            "landmark": 1.0, "dead_reckoning": 1.0, "identifying": 1.0, "lost": 1.0
-        }
-    )  # fmt: skip
-    heading_scale: dict[str, float] = field(
-        default_factory=lambda: {
-            "landmark": 1.0, "dead_reckoning": 1.0, "identifying": 1.0, "lost": 1.0
-        }
-    )  # fmt: skip
-    position_floor_m: dict[str, float] = field(
-        default_factory=lambda: {
-            "landmark": 0.0, "dead_reckoning": 0.0, "identifying": 0.0, "lost": 0.0
-        }
-    )  # fmt: skip
-    heading_floor_rad: dict[str, float] = field(
-        default_factory=lambda: {
-            "landmark": 0.0, "dead_reckoning": 0.0, "identifying": 0.0, "lost": 0.0
-        }
-    )  # fmt: skip
-    output_offset: bool = True
-
-    def __post_init__(self) -> None:
-        for name in ("position_scale", "heading_scale", "position_floor_m", "heading_floor_rad"):
-            for mode, v in getattr(self, name).items():
-                low_ok = v > 0 if name.endswith("scale") else v >= 0
-                if not (math.isfinite(v) and low_ok):
-                    raise ValueError(f"InflationConfig: {name}[{mode!r}] out of range: {v!r}")
-
-
-@dataclass(frozen=True)
-class QualityConfig:
-    """The 0-1 quality's scale and the honest covariance.
-
-    Attributes:
-        good_m: a 95 % radius at or under this is quality 1, metres.
-        useless_m: at or over this, quality 0, metres; logarithmic in between.
-        inflation: how the filter's covariance is made honest.
-    """
-
     good_m: float = 0.02
     useless_m: float = 1.0
-    inflation: InflationConfig = field(default_factory=InflationConfig)
+    position_scale: dict[str, float] = field(default_factory=lambda: _per_mode(1.0))
+    heading_scale: dict[str, float] = field(default_factory=lambda: _per_mode(1.0))
+    position_floor_m: dict[str, float] = field(default_factory=lambda: _per_mode(0.0))
+    heading_floor_rad: dict[str, float] = field(default_factory=lambda: _per_mode(0.0))
+    output_offset: bool = True
 
     def __post_init__(self) -> None:
         if not (0 < self.good_m < self.useless_m and math.isfinite(self.useless_m)):
@@ -108,13 +79,18 @@ class QualityConfig:
                 f"QualityConfig: need 0 < good_m < useless_m, got {self.good_m!r}, "
                 f"{self.useless_m!r}"
             )
+        for name in ("position_scale", "heading_scale", "position_floor_m", "heading_floor_rad"):
+            for mode, v in getattr(self, name).items():
+                low_ok = v > 0 if name.endswith("scale") else v >= 0
+                if not (math.isfinite(v) and low_ok):
+                    raise ValueError(f"QualityConfig: {name}[{mode!r}] out of range: {v!r}")
 
 
 def published_covariance(
     covariance: FloatArray,
     mode: str,
     output_offset: tuple[float, float, float],
-    config: InflationConfig,
+    config: QualityConfig,
 ) -> FloatArray:
     """The covariance published with a pose, from the filter's.
 

@@ -10,7 +10,6 @@ import pytest
 from scipy.optimize import brentq
 
 from localizer.pose_quality import (
-    InflationConfig,
     QualityConfig,
     circle_probability,
     deviation_radius_m,
@@ -68,7 +67,7 @@ def test_quality_is_logarithmic_between_good_and_useless() -> None:
 
 def test_published_covariance_scales_floors_and_adds_the_output_offset() -> None:
     P = np.diag([1e-4, 4e-4, 1e-6])
-    cfg = InflationConfig(
+    cfg = QualityConfig(
         position_scale={"landmark": 2.0},
         heading_scale={"landmark": 3.0},
         position_floor_m={"landmark": 0.01},
@@ -81,6 +80,6 @@ def test_published_covariance_scales_floors_and_adds_the_output_offset() -> None
     # another mode keeps the filter's covariance (plus the offset)
     np.testing.assert_allclose(published_covariance(P, "dead_reckoning", (0, 0, 0), cfg), P)
     with pytest.raises(ValueError, match="position_scale"):
-        InflationConfig(position_scale={"landmark": 0.0})
+        QualityConfig(position_scale={"landmark": 0.0})
     with pytest.raises(ValueError, match=r"\(3, 3\)"):
         published_covariance(np.eye(2), "landmark", (0, 0, 0), cfg)

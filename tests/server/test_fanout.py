@@ -86,4 +86,8 @@ def test_encode_batch_is_a_json_array_of_the_pose_texts() -> None:
         "covariance": None,
         "landmark_ids": [],
         "computed_wall_ns": poses[1].computed_wall_ns,
+        "quality": None,
+        "deviation_m": None,
+        "reason": None,
+        "reason_text": "",
     }

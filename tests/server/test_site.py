@@ -121,6 +121,8 @@ def test_every_robot_localizes_near_the_truth_and_never_far_from_it(site: Api) -
     assert upd is not None and pose["t_ns"] >= upd.t_ns
     assert pose["mode"] in ("landmark", "dead_reckoning", "lost", "identifying")
     assert pose["age_s"] >= 0 and len(pose["covariance"]) == 3
+    assert 0.0 <= pose["quality"] <= 1.0 and pose["deviation_m"] > 0
+    assert (pose["reason"] is None) == (pose["mode"] == "landmark")
 
 
 def test_relocalize_sends_the_robot_back_to_identifying(site: Api) -> None:
