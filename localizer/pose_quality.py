@@ -43,8 +43,10 @@ _K95 = np.array([
 `circle_probability` = 0.95; tests/localizer/test_pose_quality.py checks them)."""
 
 
-def _per_mode(value: float) -> dict[str, float]:
-    return dict.fromkeys(("landmark", "dead_reckoning", "identifying", "lost"), value)
+def _per_mode(landmark: float, dead_reckoning: float, lost: float) -> dict[str, float]:
+    """A per-mode value; identifying (a prior without a fix yet) as dead reckoning."""
+    return {"landmark": landmark, "dead_reckoning": dead_reckoning,
+            "identifying": dead_reckoning, "lost": lost}  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -65,12 +67,14 @@ class QualityConfig:
             known error: P + o o^T.
     """
 
-    good_m: float = 0.02
+    good_m: float = 0.03
     useless_m: float = 1.0
-    position_scale: dict[str, float] = field(default_factory=lambda: _per_mode(1.0))
-    heading_scale: dict[str, float] = field(default_factory=lambda: _per_mode(1.0))
-    position_floor_m: dict[str, float] = field(default_factory=lambda: _per_mode(0.0))
-    heading_floor_rad: dict[str, float] = field(default_factory=lambda: _per_mode(0.0))
+    position_scale: dict[str, float] = field(default_factory=lambda: _per_mode(2.0, 2.0, 2.0))
+    heading_scale: dict[str, float] = field(default_factory=lambda: _per_mode(1.5, 1.0, 1.0))
+    position_floor_m: dict[str, float] = field(default_factory=lambda: _per_mode(0.01, 0.02, 1.0))
+    heading_floor_rad: dict[str, float] = field(
+        default_factory=lambda: _per_mode(0.001, 0.001, 0.0)
+    )
     output_offset: bool = True
 
     def __post_init__(self) -> None:
@@ -158,7 +162,7 @@ def quality_from_deviation(deviation_m: float | None, config: QualityConfig) -> 
     """The 0-1 quality of a pose whose 95 % radius is `deviation_m` (None: no pose, 0).
 
     q = 1 - log(d / good_m) / log(useless_m / good_m), clipped to [0, 1]: with the
-    defaults 2 cm -> 1, 5 cm -> 0.77, 10 cm -> 0.59, 25 cm -> 0.35, 1 m -> 0.
+    defaults 3 cm -> 1, 5 cm -> 0.85, 10 cm -> 0.66, 25 cm -> 0.40, 1 m -> 0.
     """
     if deviation_m is None or not math.isfinite(deviation_m):
         return 0.0

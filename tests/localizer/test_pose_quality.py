@@ -52,10 +52,11 @@ def test_heading_bound() -> None:
 
 
 def test_quality_is_logarithmic_between_good_and_useless() -> None:
-    c = QualityConfig()
+    c = QualityConfig(good_m=0.02)
     assert quality_from_deviation(0.01, c) == 1.0
     assert quality_from_deviation(0.02, c) == 1.0
     assert quality_from_deviation(0.10, c) == pytest.approx(1 - math.log(5) / math.log(50))
+    assert quality_from_deviation(0.05, QualityConfig()) == pytest.approx(0.8543, abs=1e-4)
     assert quality_from_deviation(1.0, c) == 0.0
     assert quality_from_deviation(3.0, c) == 0.0
     assert quality_from_deviation(None, c) == 0.0
@@ -77,8 +78,13 @@ def test_published_covariance_scales_floors_and_adds_the_output_offset() -> None
     np.testing.assert_allclose(
         out, np.diag([4e-4 + 1e-4 + 9e-6, 16e-4 + 1e-4, 9e-6 + 1e-6]), rtol=1e-12
     )
-    # another mode keeps the filter's covariance (plus the offset)
-    np.testing.assert_allclose(published_covariance(P, "dead_reckoning", (0, 0, 0), cfg), P)
+    # a mode left out keeps the filter's covariance (plus the offset)
+    only = QualityConfig(position_scale={}, heading_scale={}, position_floor_m={},
+                         heading_floor_rad={})  # fmt: skip
+    np.testing.assert_allclose(published_covariance(P, "dead_reckoning", (0, 0, 0), only), P)
+    # the defaults: scale 2 and a 2 cm floor in dead reckoning
+    d = published_covariance(P, "dead_reckoning", (0, 0, 0), QualityConfig())
+    np.testing.assert_allclose(np.diag(d)[:2], [4e-4 + 4e-4, 16e-4 + 4e-4])
     with pytest.raises(ValueError, match="position_scale"):
         QualityConfig(position_scale={"landmark": 0.0})
     with pytest.raises(ValueError, match=r"\(3, 3\)"):

@@ -150,8 +150,9 @@ def test_landmark_fix_has_no_reason_and_a_high_quality() -> None:
         est = s.step()  # type: ignore[assignment]
     assert isinstance(est, PoseEstimate) and est.mode == "landmark"
     assert est.reason is None and est.reason_text == ""
-    assert est.deviation_m is not None and 0 < est.deviation_m < 0.02
-    assert est.quality == 1.0
+    # the published floor (1 cm a side on a fix) bounds it from below
+    assert est.deviation_m is not None and 0.0245 < est.deviation_m < 0.035
+    assert est.quality is not None and est.quality > 0.95
 
 
 def test_identifying() -> None:
