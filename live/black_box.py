@@ -245,7 +245,7 @@ class BlackBox:
             write_black_box(part, self.camera, self.geometry, records, events, poses, leds_before)
             (part / META_FILE).write_text(json.dumps(meta, indent=1), encoding="utf-8")
             part.rename(folder)
-        except (OSError, ValueError):
+        except Exception:  # the thread's boundary: whatever failed, log it, leave no half folder
             log.exception("robot %s: black box not saved", self.robot, extra={"robot": self.robot})
             shutil.rmtree(part, ignore_errors=True)
             return
@@ -284,9 +284,10 @@ def write_black_box(
             rec.add_pose(p)
     start = next((p for p in poses if isinstance(p, PoseEstimate)), None)
     if start is not None:
-        prior = {"x": start.x, "y": start.y, "theta": start.theta, "timestamp_ns": start.t_ns}
+        prior = {"x": float(start.x), "y": float(start.y), "theta": float(start.theta),
+                 "timestamp_ns": int(start.t_ns)}  # fmt: skip
         if start.deviation_m is not None and start.deviation_m > 0:
-            prior["radius_m"] = start.deviation_m
+            prior["radius_m"] = float(start.deviation_m)
         (root / START_POSE_FILE).write_text(yaml.safe_dump(prior), encoding="utf-8")
 
 

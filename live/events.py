@@ -25,6 +25,7 @@ EVENT_KINDS = (
     "robot_connected",
     "robot_disconnected",
     "clock_offset",
+    "black_box_saved",
 )
 WARNING_EVENTS = frozenset(
     {

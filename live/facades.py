@@ -21,6 +21,7 @@ from typing import Any
 
 import numpy as np
 
+from live.black_box import BlackBoxRecording, list_black_boxes, read_black_box
 from live.leds.coordinator import LedCoordinator
 from live.leds.runtime import LedScheduler
 from live.poses import PoseUpdate
@@ -32,7 +33,7 @@ from rf_gateway.errors import RadioTimeout
 from rf_gateway.gateway import Gateway
 from rf_gateway.transport import DiscoveredRadio, normalize_address
 from store import EventLog, MapRepository, RobotStore
-from store.errors import NotFoundError, UnavailableError
+from store.errors import ConflictError, NotFoundError, UnavailableError
 from store.models import RobotCreate, RobotPublic
 
 FULL_SUPPLY_MV = 3200
@@ -296,6 +297,14 @@ class LedsAndRadio:
         return BatteryStatus(landmark_id, mv, pct, left, hist)
 
 
+def map_records(map: MapRepository) -> list[dict[str, Any]]:
+    """The map's landmarks as a recording's `map.json` records."""
+    return [
+        lm.model_dump(mode="json", exclude={"created_at", "updated_at", "note"})
+        for lm in map.list()
+    ]
+
+
 class Recordings:
     """Record robots to `<recordings_dir>/<name>-<UTC time>/` (EuRoC-style, docs/recording.md)."""
 
@@ -307,12 +316,26 @@ class Recordings:
         runner = self.robots.get(name)
         stamp = datetime.now(UTC).strftime("%Y%m%dT%H%M%S")
         root = self.root / f"{name}-{stamp}"
-        records = [
-            lm.model_dump(mode="json", exclude={"created_at", "updated_at", "note"})
-            for lm in self.map.list()
-        ]
-        runner.start_recording(root, records)
+        runner.start_recording(root, map_records(self.map))
         return root
+
+    def save_black_box(self, name: str) -> BlackBoxRecording:
+        """Save a robot's black box now (an operator's request) and return it.
+
+        Raises:
+            NotFoundError: no such robot running; ConflictError: it keeps no black box.
+        """
+        box = self.robots.get(name).black_box
+        if box is None:
+            raise ConflictError(f"robot {name!r} keeps no black box (black_box_seconds is 0)")
+        saved = read_black_box(box.save_now("operator"))
+        if saved is None:
+            raise ConflictError(f"robot {name!r}: the black box could not be saved (see the log)")
+        return saved
+
+    def black_boxes(self, name: str) -> list[BlackBoxRecording]:
+        """A robot's saved black boxes, oldest first."""
+        return list_black_boxes(self.root, name)
 
     def stop(self, name: str) -> Path | None:
         """Stop a robot's recording; its folder, or None when it was not recording."""

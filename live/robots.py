@@ -11,6 +11,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from live.black_box import BlackBox
 from live.pose_reasons import ReasonTally
 from live.poses import PoseUpdate
 from localizer.camera import CameraModel
@@ -91,6 +92,7 @@ class RobotRunner:
         self._lock = threading.RLock()
         self.latest: PoseUpdate | None = None
         self.reasons = ReasonTally()  # why there is no fix now, and poses per reason
+        self.black_box: BlackBox | None = None  # the last seconds, saved when it goes wrong
         self.last_fix_t_ns: int | None = None
         self.last_frame: FrameObserved | None = None
         self.recent: deque[FrameObserved | SpotsObserved] = deque(maxlen=recent_frames)
@@ -129,6 +131,8 @@ class RobotRunner:
             if isinstance(event, FrameObserved | SpotsObserved):
                 self.recent.append(event)
             self._record(event)
+            if self.black_box is not None:
+                self.black_box.add_event(event)
             for tap in self._taps:
                 tap(event)
             try:
@@ -157,6 +161,8 @@ class RobotRunner:
             upd = PoseUpdate.from_estimate(self.name, out)
             self.latest = upd
             self.reasons.note(upd)
+            if self.black_box is not None:
+                self.black_box.add_pose(out)
             self.poses += 1
             if out.mode == "landmark":
                 self.last_fix_t_ns = out.t_ns
@@ -164,6 +170,8 @@ class RobotRunner:
         elif isinstance(out, NoPose):
             none = PoseUpdate.from_no_pose(self.name, out)
             self.reasons.note(none)
+            if self.black_box is not None:
+                self.black_box.add_pose(out)
             self._publish(none)
         elif isinstance(out, LedRequest):
             self._request_leds(self.name, out)

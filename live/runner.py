@@ -18,7 +18,9 @@ from collections.abc import Callable, Iterable
 from functools import partial
 from typing import Protocol
 
+from live.black_box import BlackBox, BlackBoxConfig, BlackBoxRecording
 from live.events import EventHub
+from live.facades import map_records
 from live.leds import LedScheduler
 from live.leds.coordinator import LedCoordinator
 from live.leds.wiring import (
@@ -33,7 +35,7 @@ from live.poses import PoseUpdate
 from live.robots import RobotRunner, make_localizer
 from live.serial_sink import SerialSink
 from live.settings import Settings
-from localizer.camera import camera_from_sensor, sensor_from_camera
+from localizer.camera import CameraModel, camera_from_sensor, sensor_from_camera
 from localizer.events import Event, LedRequest, Mode
 from localizer.robot import RobotGeometry
 from pubsub.bus import Bus, Subscription
@@ -179,6 +181,7 @@ class LiveSiteRunner:
             source=robot.source,
         )
         runner.on_mode_change = partial(self._on_mode_change, runner.reasons)
+        runner.black_box = self._black_box(robot.name, camera, geometry)
         self.robots.add(runner)
         if robot.source == "camera" and robot.device:
             cam = CameraSource(robot.name, robot.device, self.clock_ns)
@@ -209,6 +212,34 @@ class LiveSiteRunner:
         runner = self.robots.remove(name)
         if runner is not None:
             runner.stop_recording()
+            if runner.black_box is not None:
+                runner.black_box.close()
+
+    def _black_box(
+        self, name: str, camera: CameraModel, geometry: RobotGeometry
+    ) -> BlackBox | None:
+        """A robot's black box (`live.black_box`; None when `black_box_seconds` is 0)."""
+        s = self.settings
+        if s.black_box_seconds <= 0:
+            return None
+        config = BlackBoxConfig(
+            seconds=s.black_box_seconds,
+            quality_below=s.black_box_quality_below,
+            max_bytes=int(s.black_box_max_mb * 1e6),
+        )
+        box = BlackBox(name, camera, geometry, partial(map_records, self.map),
+                       s.recordings_dir, config)  # fmt: skip
+        box.on_saved = self._on_black_box
+        return box
+
+    def _on_black_box(self, saved: BlackBoxRecording) -> None:
+        reason = f" ({saved.reason})" if saved.reason else ""
+        self.events.emit(
+            "black_box_saved",
+            f"robot {saved.robot}: black box saved on {saved.trigger}{reason}",
+            robot=saved.robot,
+            data={"trigger": saved.trigger, "reason": saved.reason, "path": str(saved.path)},
+        )
 
     def _build_sim(self) -> LiveSite:
         from sim.scenario import load_scenario

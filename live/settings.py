@@ -91,6 +91,12 @@ class Settings(BaseSettings):
             given: the simulated radio's landmarks sleep at `SIM_SLEEP_PERIOD_S` (modules
             set up as docs/rf_gateway.md recommends), an XBee radio's are taken as awake
             (the modules' own `SM` decides; set this to match them).
+        black_box_seconds: each robot keeps this many seconds of frames, odometry, LED
+            states and poses in memory, saved as a recording on a loss, a suspected kidnap,
+            a quality drop or an operator's request (docs/quality.md); 0: no black box.
+        black_box_quality_below: a pose's quality falling below this saves the black box.
+        black_box_max_mb: the black boxes on disk are kept under this many megabytes
+            (the oldest removed first); other recordings are never removed.
     """
 
     model_config = SettingsConfigDict(env_prefix="IRLOC_", extra="ignore")
@@ -121,6 +127,9 @@ class Settings(BaseSettings):
     mqtt_site: str = Field(default="default", pattern=r"^[A-Za-z0-9_.-]{1,64}$")
     vda_manufacturer: str = Field(default="irloc", pattern=r"^[A-Za-z0-9_.-]{1,64}$")
     sim_robots: bool = True
+    black_box_seconds: float = Field(default=20.0, ge=0.0, le=300.0)
+    black_box_quality_below: float = Field(default=0.2, ge=0.0, le=1.0)
+    black_box_max_mb: float = Field(default=2000.0, ge=0.0)
 
     @field_validator("radio")
     @classmethod

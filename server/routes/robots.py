@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+from typing import Literal
+
 from fastapi import APIRouter, Response, status
 from pydantic import BaseModel, Field
 
 from live.agent_runner import AgentRunner, agent_fields
+from live.black_box import BlackBoxRecording
 from live.poses import PosePublic, pose_json
 from localizer.camera import camera_from_sensor
 from localizer.events import Mode, OdometryMeasured
@@ -43,6 +46,24 @@ class RecordingStatus(BaseModel):
     robot: str
     recording: bool
     path: str | None = None
+
+
+class BlackBoxPublic(BaseModel):
+    """A saved black box: an ordinary recording (`irloc replay PATH`) of the seconds around
+    a failure (docs/quality.md)."""
+
+    robot: str
+    trigger: Literal["lost", "kidnap", "quality", "operator"]
+    reason: str | None = Field(description="the pose's reason code when it was triggered")
+    t_ns: int = Field(description="site time of the trigger (and its aftermath), ns")
+    saved_at: str
+    bytes: int
+    path: str
+
+    @classmethod
+    def of(cls, b: BlackBoxRecording) -> BlackBoxPublic:
+        return cls(robot=b.robot, trigger=b.trigger, reason=b.reason, t_ns=b.t_ns,
+                   saved_at=b.saved_at, bytes=b.bytes, path=str(b.path))  # fmt: skip
 
 
 def _status(services: ServicesDep, name: str) -> RobotStatus:
@@ -136,3 +157,17 @@ def start_recording(name: RobotName, services: ServicesDep, _: Operator) -> Reco
 def stop_recording(name: RobotName, services: ServicesDep, _: Operator) -> RecordingStatus:
     path = services.recordings.stop(name)
     return RecordingStatus(robot=name, recording=False, path=None if path is None else str(path))
+
+
+@router.post("/{name}/black-box", status_code=status.HTTP_201_CREATED)
+def save_black_box(name: RobotName, services: ServicesDep, _: Operator) -> BlackBoxPublic:
+    """Save the robot's black box now (its last seconds of frames, odometry, LED states and
+    poses) as a recording, with trigger `operator`."""
+    return BlackBoxPublic.of(services.recordings.save_black_box(name))
+
+
+@router.get("/{name}/black-boxes")
+def list_black_boxes(name: RobotName, services: ServicesDep, _: Viewer) -> list[BlackBoxPublic]:
+    """The robot's saved black boxes, oldest first, each with its trigger."""
+    services.robots.get(name)  # 404 for an unknown robot
+    return [BlackBoxPublic.of(b) for b in services.recordings.black_boxes(name)]

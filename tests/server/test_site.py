@@ -93,6 +93,21 @@ def test_recording_is_readable_by_replay(site: Api) -> None:
     assert len(rec.landmark_map) == len(site.services.map.list())
 
 
+def test_an_operator_saves_a_black_box_listed_with_its_trigger(site: Api) -> None:
+    c, h = site.client, site.h("operator")
+    assert _wait(lambda: site.services.robots.get("r2").frames > 20, 30)
+    r = c.post("/api/v1/robots/r2/black-box", headers=h)
+    assert r.status_code == 201, r.text
+    saved = r.json()
+    assert (saved["robot"], saved["trigger"]) == ("r2", "operator") and saved["bytes"] > 0
+    rec = read_recording(Path(saved["path"]))  # an ordinary recording: irloc replay reads it
+    assert len(rec.frames) >= 10 and len(rec.landmark_map) == len(site.services.map.list())
+    listed = c.get("/api/v1/robots/r2/black-boxes", headers=site.h("viewer")).json()
+    assert saved in listed
+    assert c.get("/api/v1/robots/r9/black-boxes", headers=site.h("viewer")).status_code == 404
+    assert c.post("/api/v1/robots/r2/black-box", headers=site.h("viewer")).status_code == 403
+
+
 def test_every_robot_localizes_near_the_truth_and_never_far_from_it(site: Api) -> None:
     """End to end: virtual cameras -> localizers sharing the LEDs -> pose bus -> API. Every
     robot gets a fix within a few centimetres of the truth at its frame's time, and no pose
