@@ -123,7 +123,9 @@ class BlackBox:
         self._leds_before: LedsChanged | None = None  # in force at the window's start
         self._pending: tuple[Trigger, str | None, int] | None = None  # trigger, reason, due
         self._last_save_ns: int | None = None
-        self._quality_ok = True  # the last pose's quality was at or above the threshold
+        # the last pose's quality was at or above the threshold (False until it first is: a
+        # start-up's identification is no drop)
+        self._quality_ok = False
         self._threads: list[threading.Thread] = []
         self.saved: list[Path] = []  # this run's saves, oldest first
         self.on_saved: Callable[[BlackBoxRecording], None] | None = None
