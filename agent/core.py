@@ -22,6 +22,9 @@ import threading
 from dataclasses import dataclass
 from typing import Literal, Protocol, TextIO
 
+import numpy as np
+import numpy.typing as npt
+
 from agent.timebase import TimeBase
 from fleet.payloads import (
     AgentSource,
@@ -47,6 +50,7 @@ from localizer.events import (
 from localizer.landmark_map import LandmarkMap
 from localizer.localizer import Localizer
 from localizer.robot import RobotGeometry
+from localizer.spots import DetectionConfig, detect_spots
 
 log = logging.getLogger(__name__)
 NS = 1_000_000_000
@@ -92,6 +96,10 @@ class AgentConfig:
         start_known: the robot knows where it starts (a dock): the localizer is given the
             source's `start_pose` as a prior, and the map confirms it without LED probes
             when the landmarks in view agree.
+        spots_period_s: a pose message carries its frame's spots (for the server's map
+            upkeep) at most this often, seconds (0: never), and only for a confident frame:
+            landmark mode, two or more landmarks, 1-sigma position within
+            `spots_max_sigma_m` metres.
     """
 
     name: str
@@ -101,6 +109,8 @@ class AgentConfig:
     pose_rate_hz: float = 10.0
     visualization_rate_hz: float = 1.0
     start_known: bool = False
+    spots_period_s: float = 1.0
+    spots_max_sigma_m: float = 0.05
 
 
 @dataclass(frozen=True)
@@ -143,6 +153,8 @@ class AgentCore:
         self._headers = HeaderIds()
         self._last_pose_mono = -(10**18)
         self._last_vis_mono = -(10**18)
+        self._last_spots_mono = -(10**18)
+        self._last_frame: FrameObserved | SpotsObserved | None = None
         self._last_mode_sent: Mode | None = None
         self._last_led: tuple[int, int] | None = None
         self.observers: list[CoreObserver] = []
@@ -221,6 +233,7 @@ class AgentCore:
         self._fed_t_ns = max(self._fed_t_ns, event.t_ns)
         if isinstance(event, FrameObserved | SpotsObserved):
             self.frames += 1
+            self._last_frame = event
         if self.localizer is None:
             return []  # no map yet: nothing to localize on
         try:
@@ -256,9 +269,9 @@ class AgentCore:
         out: list[Outgoing] = []
         if isinstance(o, PoseEstimate):
             self.poses += 1
-            msg = PoseMessage.from_estimate(seq, o, t_site, wall).model_copy(
-                update={"floor": self.map_floor, "map_version": self.map_version}
-            )
+            msg = PoseMessage.from_estimate(
+                seq, o, t_site, wall, self._spots_for(o, now_mono)
+            ).model_copy(update={"floor": self.map_floor, "map_version": self.map_version})
             self._log_truth(o, t_site)
         else:
             msg = PoseMessage(
@@ -270,6 +283,27 @@ class AgentCore:
             self._last_vis_mono = now_mono
             out.append(Outgoing("visualization", self.visualization(msg)))
         return out
+
+    def _spots_for(self, o: PoseEstimate, now_mono: int) -> npt.NDArray[np.float64] | None:
+        """The spots of the estimate's frame when they go with it (`spots_period_s`)."""
+        cfg = self.config
+        frame = self._last_frame
+        if (
+            cfg.spots_period_s <= 0
+            or frame is None
+            or frame.t_ns != o.t_ns
+            or o.mode != "landmark"
+            or len(o.landmark_ids) < 2
+            or (now_mono - self._last_spots_mono) < cfg.spots_period_s * NS
+        ):
+            return None
+        cov = np.asarray(o.covariance, dtype=np.float64)
+        if float(np.sqrt(max(np.linalg.eigvalsh(cov[:2, :2])[-1], 0.0))) > cfg.spots_max_sigma_m:
+            return None
+        self._last_spots_mono = now_mono
+        if isinstance(frame, SpotsObserved):
+            return np.asarray(frame.pixels, dtype=np.float64).reshape(-1, 2)
+        return detect_spots(frame.image, DetectionConfig()).pixels
 
     def _log_truth(self, o: PoseEstimate, t_site: int) -> None:
         """`t_ns,mode,x,y,theta,true_x,true_y,true_theta` for a simulated robot (tests)."""

@@ -25,6 +25,18 @@ median of five samples from localized frames, the LED's height assumed to be the
 independent trials.
 
     .venv/bin/python bench/bench_survey.py [--minutes 2,5,10,15] [--seeds 7,8,9]
+
+`--lit` surveys without blinks instead (`sim.lit_site`): 24 landmarks on 7.2 m x 4.8 m,
+neighbours down to 70 cm, ceiling 2.5 m +-5 cm, every LED lit after the two anchors (in view
+at the start, ~2.5 m apart) lit one at a time; every other landmark taped (x, y off by
+sigma 12 cm, at most 30 cm; height the nominal ceiling's); a lawnmower drive at 0.5 m/s.
+`--close-pairs N` adds N landmarks 30 cm from a neighbour (closer than the tape can tell
+apart): they must be reported, never named wrongly. `--held-out` is a site never tuned on
+(6 m x 6 m, 30 landmarks, the wide radial-tangential lens, 0.4 m/s, lanes 1 m apart).
+
+    .venv/bin/python bench/bench_survey.py --lit --seeds 29,30,31,32 --minutes 3
+    .venv/bin/python bench/bench_survey.py --lit --close-pairs 4 --seeds 29,30,31,32 --minutes 3
+    .venv/bin/python bench/bench_survey.py --lit --held-out --seeds 101,102,103 --minutes 3
 """
 
 from __future__ import annotations
@@ -264,6 +276,63 @@ def survey_seed(
     return rows
 
 
+def lit_seed(
+    seed: int, minutes: list[float], close_pairs: int, held_out: bool
+) -> list[dict[str, float]]:
+    """One site surveyed with every LED lit after the anchors' sweep (`--lit`)."""
+    from sim.lit_site import anchor_pair, anchor_sweep_then_lit, lit_site_scenario, taped_map
+
+    shape: dict[str, object] = (
+        {"size_m": (6.0, 6.0), "n_landmarks": 30, "min_spacing_m": 0.75, "lens": "wide_radtan",
+         "speed_mps": 0.4, "lane_spacing_m": 1.0}
+        if held_out else {}
+    )  # fmt: skip
+    scenario = lit_site_scenario(seed=seed, close_pairs=close_pairs, **shape)  # type: ignore[arg-type]
+    anchors = anchor_pair(scenario)
+    end_s = max(minutes) * 60.0
+    drive = simulate_survey_spots(
+        scenario, end_s, lambda t: anchor_sweep_then_lit(anchors), seed=seed
+    )
+    landmarks = taped_map(drive.map_records, anchors, np.random.default_rng(seed))
+    truth = drive.landmarks_true
+    pts = np.array([truth[i][:2] for i in sorted(truth)])
+    gaps = np.linalg.norm(pts[:, None] - pts[None], axis=2) + 1e9 * np.eye(len(pts))
+    print(
+        f"\nseed {seed}: {len(truth)} landmarks (nearest neighbours {100 * gaps.min():.0f}"
+        f"-{100 * gaps.min(axis=1).max():.0f} cm), anchors {anchors}, every LED lit after "
+        f"their sweep\n\n| drive min | located | unnamed (reason) | wrong | x-y p95 mm "
+        "| x-y max mm | z p95 mm | z max mm | x-y in 2 sigma | z in 2 sigma | solve s |"
+    )
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
+    rows = []
+    for m in minutes:
+        sd = truncated(drive, m * 60.0, landmarks)
+        t1 = time.perf_counter()
+        result = solve_survey(survey_problem(sd, anchors), BundleConfig())
+        t2 = time.perf_counter()
+        wrong = [
+            lid for lid, e in result.landmarks.items()
+            if math.hypot(*(e.position - truth[lid])[:2]) > 0.1
+        ]  # fmt: skip
+        reasons: dict[str, int] = {}
+        for why in result.unnamed.values():
+            key = why.split(" (")[0].split(":")[0]
+            reasons[key] = reasons.get(key, 0) + 1
+        s = score(result, truth)
+        n = s["n"]
+        print(
+            f"| {m:.0f} | {n:.0f}/{len(truth) - 2} "
+            f"| {len(result.unnamed)} ({'; '.join(f'{v} {k}' for k, v in reasons.items())}) "
+            f"| {len(wrong)} | {1000 * s['xy_p95']:.1f} | {1000 * s['xy_max']:.1f} "
+            f"| {1000 * s['z_p95']:.1f} | {1000 * s['z_max']:.1f} "
+            f"| {100 * s['inside_xy'] / n:.0f} % | {100 * s['inside_z'] / n:.0f} % "
+            f"| {t2 - t1:.0f} |",
+            flush=True,
+        )
+        rows.append({"minutes": m, "wrong": float(len(wrong)), **s})
+    return rows
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--minutes", default="2,5,10,15", help="drive times, minutes")
@@ -276,14 +345,22 @@ def main(argv: list[str] | None = None) -> int:
         "--exact-anchors", action="store_true",
         help="anchors surveyed without error (tests the sigmas landmark by landmark)",
     )  # fmt: skip
+    p.add_argument("--lit", action="store_true", help="no blinks: every LED lit (see above)")
+    p.add_argument("--close-pairs", type=int, default=0, help="--lit: landmarks 30 cm apart")
+    p.add_argument("--held-out", action="store_true", help="--lit: the site never tuned on")
     args = p.parse_args(argv)
     minutes = sorted(float(m) for m in args.minutes.split(","))
     seeds = [int(x) for x in args.seeds.split(",")]
-    rows = [
-        r
-        for seed in seeds
-        for r in survey_seed(seed, minutes, not args.round_robin, args.exact_anchors)
-    ]
+    if args.lit:
+        rows = [
+            r for seed in seeds for r in lit_seed(seed, minutes, args.close_pairs, args.held_out)
+        ]
+    else:
+        rows = [
+            r
+            for seed in seeds
+            for r in survey_seed(seed, minutes, not args.round_robin, args.exact_anchors)
+        ]
     print(f"\npooled over {len(seeds)} seed(s): landmarks within 2 sigma (expected ~95 %)")
     for m in minutes:
         sel = [r for r in rows if r["minutes"] == m]
@@ -293,6 +370,12 @@ def main(argv: list[str] | None = None) -> int:
             z = sum(r["inside_z"] for r in sel)
             print(f"  {m:.0f} min: x-y {xy:.0f}/{n:.0f} ({100 * xy / n:.0f} %), "
                   f"z {z:.0f}/{n:.0f} ({100 * z / n:.0f} %)")  # fmt: skip
+            if args.lit:
+                e = np.array([r["xy_p95"] for r in sel]) * 1000
+                print(f"  {m:.0f} min: named wrongly {sum(r['wrong'] for r in sel):.0f}; "
+                      f"x-y p95 per site {', '.join(f'{v:.1f}' for v in e)} mm, max "
+                      f"{1000 * max(r['xy_max'] for r in sel):.1f} mm, z max "
+                      f"{1000 * max(r['z_max'] for r in sel):.1f} mm")  # fmt: skip
     return 0
 
 

@@ -8,11 +8,12 @@ Decoding bad input raises `PayloadError` naming the topic and the field.
 
 from __future__ import annotations
 
+import math
 from typing import Literal, TypeVar
 
 import numpy as np
 import numpy.typing as npt
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
 from localizer.events import LedRequest, LedsChanged, Mode, PoseEstimate
 
@@ -106,6 +107,8 @@ class LedRequestMessage(_Msg):
 _UPPER = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))
 COV_DIGITS = 4
 """Significant digits kept of each covariance entry."""
+MAX_SPOTS = 64
+"""Spots of one frame sent at most."""
 
 
 def _sig(v: float, digits: int = COV_DIGITS) -> float:
@@ -126,6 +129,9 @@ class PoseMessage(_Msg):
         lm: the landmarks used for this pose.
         floor, map_version: the floor and map version the agent localized on (absent from
             agents that do not say).
+        ex: the lit landmarks the localizer expected in view (sent with `spots`).
+        spots: the frame's spot centres (col, row) in pixels, for map upkeep: sent with a
+            confident frame now and then (`AgentConfig.spots_period_s`), else absent.
     """
 
     seq: int = Field(ge=0)
@@ -139,9 +145,26 @@ class PoseMessage(_Msg):
     lm: list[int] = []
     floor: str | None = Field(default=None, min_length=1, max_length=32)
     map_version: int | None = Field(default=None, ge=0)
+    ex: list[int] | None = None
+    spots: list[tuple[float, float]] | None = Field(default=None, max_length=MAX_SPOTS)
+
+    @field_validator("spots")
+    @classmethod
+    def _finite_spots(cls, v: list[tuple[float, float]] | None) -> list[tuple[float, float]] | None:
+        if v is not None and not all(math.isfinite(a) and math.isfinite(b) for a, b in v):
+            raise ValueError("spots: every pixel must be a finite number")
+        return v
 
     @classmethod
-    def from_estimate(cls, seq: int, est: PoseEstimate, t_ns: int, wall_ns: int) -> PoseMessage:
+    def from_estimate(
+        cls,
+        seq: int,
+        est: PoseEstimate,
+        t_ns: int,
+        wall_ns: int,
+        spots: npt.NDArray[np.float64] | None = None,
+    ) -> PoseMessage:
+        """The message of an estimate, with the frame's `spots` (N, 2) when given."""
         c = np.asarray(est.covariance, dtype=np.float64)
         return cls(
             seq=seq,
@@ -153,6 +176,10 @@ class PoseMessage(_Msg):
             theta=round(float(est.theta), 6),
             cov=tuple(_sig(float(c[i, j])) for i, j in _UPPER),  # type: ignore[arg-type]
             lm=list(est.landmark_ids),
+            ex=list(est.expected_ids) if spots is not None else None,
+            spots=None
+            if spots is None
+            else [(round(float(u), 2), round(float(v), 2)) for u, v in spots[:MAX_SPOTS]],
         )
 
     def covariance(self) -> npt.NDArray[np.float64] | None:

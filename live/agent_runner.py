@@ -12,12 +12,14 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
+import numpy as np
+
 from fleet.clock import ClockEstimate
 from fleet.payloads import AgentStatus, PoseMessage
 from live.poses import PoseUpdate
 from live.robots import RobotRunner
 from localizer.camera import camera_from_sensor
-from localizer.events import Event, Mode
+from localizer.events import Event, Mode, SpotsObserved
 from localizer.landmark_map import LandmarkMap
 from localizer.robot import RobotGeometry
 
@@ -101,9 +103,15 @@ class AgentRunner(RobotRunner):
             cov,
             tuple(msg.lm),
             msg.wall_ns,
+            expected_ids=tuple(msg.ex or ()),
             floor=msg.floor if msg.floor is not None else self.floor,
             map_version=msg.map_version if msg.map_version is not None else self.map_version,
         )
+        if msg.spots is not None:  # a confident frame's spots: map upkeep takes them
+            px = np.array(msg.spots, dtype=np.float64).reshape(-1, 2)
+            n = len(px)
+            with self._lock:
+                self.recent.append(SpotsObserved(upd.t_ns, px, np.ones(n), np.ones(n)))
         with self._lock:
             if msg.x is not None:
                 self.latest = upd

@@ -6,7 +6,8 @@ does, `live.commissioning_service`) and, on a worker thread, hands the estimates
 count (`MapUpkeep.wants`: landmark mode, settled, confident, moved on since the robot's last
 counted frame) to the estimator with their frame's spots (detected here from the runner's
 recent frames, `RobotRunner.frame_at`, or as a remote robot sent them). Robots localized on
-board (`irloc agent`) send poses without frames and are not used.
+board (`irloc agent`) send the spots of a confident frame with its pose now and then
+(`AgentConfig.spots_period_s`); the agent's runner keeps them for `frame_at`.
 
 Accepting a proposal is an ordinary map edit through the map's data layer (`MapRepository`:
 audited as "<actor> (map upkeep)", undoable); rejecting one drops that landmark's evidence
@@ -114,7 +115,10 @@ class MapUpkeepService:
     # -- inputs ---------------------------------------------------------------------------------
     def _on_map(self, landmarks: list[LandmarkPublic]) -> None:
         with self._lock:
-            self._upkeep.set_map({lm.id: (lm.x, lm.y, lm.z) for lm in landmarks})
+            self._upkeep.set_map(
+                {lm.id: (lm.x, lm.y, lm.z) for lm in landmarks},
+                {lm.id: lm.sigma_m for lm in landmarks if lm.sigma_m is not None},
+            )
 
     def take(self, batch: Sequence[PoseUpdate]) -> int:
         """Pose updates from the bus: those that count, with their frames' spots, to the
@@ -184,8 +188,12 @@ class MapUpkeepService:
         for v in chosen:
             p = v.proposal
             x, y, z = p.proposed
+            evidence = {"source": "map upkeep", "kind": p.kind, "views": p.views,
+                        "chi2": round(p.statistic, 2)}  # fmt: skip
             self.map.update(
-                p.landmark_id, LandmarkUpdate(x=x, y=y, z=z), actor=actor + ACTOR_SUFFIX
+                p.landmark_id,
+                LandmarkUpdate(x=x, y=y, z=z, sigma_m=p.sigma_m, evidence=evidence),
+                actor=actor + ACTOR_SUFFIX,
             )
             with self._lock:  # the map's listener did this already, unless not started
                 self._on_map(self.map.list())

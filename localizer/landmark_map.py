@@ -22,10 +22,14 @@ class LandmarkMap:
     Attributes:
         ids: landmark IDs, shape (N,), unique integers.
         positions: LED positions in the world frame, metres, shape (N, 3).
+        sigmas: each position's 1-sigma uncertainty as the map states it (a survey's
+            `sigma_m`), metres, shape (N,); NaN where not stated, None when none is (the
+            localizer then takes `PixelNoiseConfig.survey_sigma_m` for every landmark).
     """
 
     ids: npt.NDArray[np.int64]
     positions: npt.NDArray[np.float64]
+    sigmas: npt.NDArray[np.float64] | None = None
     _index: dict[int, int] = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
@@ -41,6 +45,14 @@ class LandmarkMap:
             if lid in index:
                 raise DuplicateLandmarkError(f"landmark map: duplicate landmark id {lid}")
             index[lid] = i
+        if self.sigmas is not None:
+            sig = np.asarray(self.sigmas, dtype=np.float64).reshape(-1)
+            if len(sig) != len(ids):
+                raise ValueError(f"landmark map: {len(ids)} ids but {len(sig)} sigmas")
+            if np.any(sig[np.isfinite(sig)] < 0) or np.any(np.isinf(sig)):
+                raise ValueError("landmark map: a sigma is negative or infinite")
+            sig.setflags(write=False)
+            object.__setattr__(self, "sigmas", sig)
         ids.setflags(write=False)
         pos.setflags(write=False)
         object.__setattr__(self, "ids", ids)
@@ -59,6 +71,13 @@ class LandmarkMap:
             return self._index[int(landmark_id)]
         except KeyError:
             raise KeyError(f"unknown landmark id {landmark_id}") from None
+
+    def sigma_at(self, row: int) -> float | None:
+        """The stated 1-sigma uncertainty of the landmark in `row`, metres (None: not stated)."""
+        if self.sigmas is None:
+            return None
+        v = float(self.sigmas[row])
+        return v if math.isfinite(v) else None
 
     def position(self, landmark_id: int) -> npt.NDArray[np.float64]:
         """World position of one landmark, shape (3,)."""

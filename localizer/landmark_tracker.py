@@ -367,8 +367,8 @@ class LandmarkTracker:
         pairs = [(int(rows[r]), s) for r, s in found.pairs]
         fc = self.config.fusion
         px = spots.pixels[[s for _, s in pairs]].tolist()
-        sig = [self.noise.sigma_px(u, v) for u, v in px]
         rows_used = [r for r, _ in pairs]
+        sig = self._spot_sigmas(rows_used, px)
         fix = self._solve(rows_used, px, sig, found.pose, robust=True)
         if fix is None or fix.n_landmarks < 2:
             return None
@@ -435,7 +435,7 @@ class LandmarkTracker:
         fc = self.config.fusion
         rows = [r for r, _ in pairs]
         px = [spot_px[s] for _, s in pairs]
-        sig = [self.noise.sigma_px(u, v) for u, v in px]
+        sig = self._spot_sigmas(rows, px)
         fix = self._solve(rows, px, sig, pose, robust=len(rows) >= 3)
         if fix is None:
             return ()
@@ -583,6 +583,14 @@ class LandmarkTracker:
             ):
                 out.add(i)
         return out
+
+    def _spot_sigmas(self, rows: list[int], px: list[list[float]]) -> list[float]:
+        """Each matched spot's pixel sigma, with its landmark's own survey sigma where the
+        map states one (`LandmarkMap.sigmas`)."""
+        return [
+            self.noise.sigma_px(u, v, self.map.sigma_at(r))
+            for r, (u, v) in zip(rows, px, strict=True)
+        ]
 
     def _solve(
         self,

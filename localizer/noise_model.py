@@ -153,6 +153,7 @@ class PixelNoiseModel:
         self._step = float(radii[1] - radii[0]) if len(radii) > 1 else 1.0
         self._table = [math.sqrt(base2 + c * c) for c in cal.tolist()]
         self._survey_px = config.survey_sigma_m * scale_px_per_m
+        self._scale = scale_px_per_m
         self._cu, self._cv = camera.cu, camera.cv
         self.consider = CalibrationConsider.for_camera(
             camera,
@@ -178,15 +179,23 @@ class PixelNoiseModel:
         (N, 2, P) (`CalibrationConsider.scaled_jacobian`, this model's factor applied)."""
         return self.consider.scaled_jacobian(pixels, self.factor)
 
-    def sigma_px(self, u: float, v: float) -> float:
-        """The standard deviation of a spot at pixel (u, v), per axis, pixels."""
+    def sigma_px(self, u: float, v: float, survey_m: float | None = None) -> float:
+        """The standard deviation of a spot at pixel (u, v), per axis, pixels; with
+        `survey_m`, of a landmark whose map position is known to that (metres, 1 sigma)
+        instead of `survey_sigma_m`: a landmark surveyed to 1 mm weighs more than a taped one.
+        """
         f = math.hypot(u - self._cu, v - self._cv) / self._step
         i = int(f)
         table = self._table
         if i >= len(table) - 1:
-            return self.factor * table[-1]
-        a = f - i
-        return self.factor * ((1.0 - a) * table[i] + a * table[i + 1])
+            s = table[-1]
+        else:
+            a = f - i
+            s = (1.0 - a) * table[i] + a * table[i + 1]
+        if survey_m is not None:
+            own = survey_m * self._scale
+            s = math.sqrt(max(s * s - self._survey_px**2, 0.0) + own * own)
+        return self.factor * s
 
     def pair_sigma_px(self, sigma_px: float) -> float:
         """The sigma a fix of two landmarks is tested by, for a spot of this model's

@@ -73,11 +73,17 @@ def _actors(owner: str) -> list[str]:
     return plain + [a + suffix for a in plain for suffix in SOURCES]
 
 
+_NO_UNCERTAINTY: dict[str, Any] = {"sigma_m": None, "covariance": None, "evidence": None}
+
+
 def _content(rec: dict[str, Any] | None) -> dict[str, Any] | None:
     if rec is None:
         return None
-    # records written before floors existed name none: their landmarks are on floor "0"
-    return {"floor": DEFAULT_FLOOR} | {k: v for k, v in rec.items() if k not in _STAMPS}
+    # records written before floors existed name none: their landmarks are on floor "0";
+    # before uncertainties were kept, none was known
+    return {"floor": DEFAULT_FLOOR, **_NO_UNCERTAINTY} | {
+        k: v for k, v in rec.items() if k not in _STAMPS
+    }
 
 
 def _map_of(rec: dict[str, Any] | None) -> dict[int, dict[str, Any] | None]:

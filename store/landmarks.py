@@ -19,6 +19,7 @@ import csv
 import io
 import json
 import logging
+import math
 import threading
 from collections.abc import Callable, Iterable
 from typing import Any
@@ -138,6 +139,9 @@ class MapRepository:
         out = LandmarkMap(
             np.array([lm.id for lm in lms], dtype=np.int64),
             np.array([(lm.x, lm.y, lm.z) for lm in lms], dtype=np.float64).reshape(-1, 3),
+            None
+            if all(lm.sigma_m is None for lm in lms)
+            else np.array([math.nan if lm.sigma_m is None else lm.sigma_m for lm in lms]),
         )
         if self._revision == revision:
             if floor is None:
@@ -213,6 +217,11 @@ class MapRepository:
                     self._check_radio_free(s, changes["radio"], landmark_id)
                 if "floor" in changes:
                     check_floors(s, [changes["floor"]], what=f"landmark {landmark_id}")
+                moved = any(
+                    key in changes and changes[key] != getattr(row, key) for key in ("x", "y", "z")
+                )
+                if moved and "sigma_m" not in changes:  # a hand edit: the old uncertainty is void
+                    changes.update(sigma_m=None, covariance=None, evidence=None)
                 for key, value in changes.items():
                     setattr(row, key, value if key != "note" or value is not None else "")
                 row.updated_at = utcnow()

@@ -92,6 +92,43 @@ class LandmarkBase(SQLModel):
     floor: str = Field(
         default=DEFAULT_FLOOR, max_length=32, description="the floor it hangs on (floor ID)"
     )
+    sigma_m: float | None = Field(
+        default=None,
+        ge=0,
+        le=10,
+        description="1-sigma uncertainty of the position, metres: the largest semi-axis of "
+        "its 1-sigma ellipsoid (null: not known, e.g. taped)",
+    )
+    covariance: list[list[float]] | None = Field(
+        default=None,
+        sa_column=Column(JSON, nullable=True),
+        description="covariance of (x, y, z), 3 x 3, square metres (null: not known)",
+    )
+    evidence: dict[str, Any] | None = Field(
+        default=None,
+        sa_column=Column(JSON, nullable=True),
+        description="where the position and its uncertainty come from: source (survey, map "
+        "upkeep, ...), views, rms_px, ...",
+    )
+
+    @field_validator("covariance")
+    @classmethod
+    def _covariance(cls, v: list[list[float]] | None) -> list[list[float]] | None:
+        return check_covariance(v)
+
+
+def check_covariance(v: list[list[float]] | None) -> list[list[float]] | None:
+    """A 3 x 3 symmetric covariance of finite numbers with a non-negative diagonal."""
+    if v is None:
+        return v
+    if len(v) != 3 or any(len(row) != 3 for row in v):
+        raise ValueError(f"covariance: expected 3 x 3, got {v!r}")
+    flat = [float(a) for row in v for a in row]
+    if not all(math.isfinite(a) for a in flat) or min(v[i][i] for i in range(3)) < 0:
+        raise ValueError(f"covariance: finite with a non-negative diagonal, got {v!r}")
+    if any(abs(v[i][j] - v[j][i]) > 1e-9 * (1 + abs(v[i][j])) for i in range(3) for j in range(3)):
+        raise ValueError(f"covariance: not symmetric: {v!r}")
+    return v
 
 
 class Landmark(LandmarkBase, table=True):
@@ -119,13 +156,14 @@ def strict_bool(name: str, v: object) -> object:
 
 class LandmarkCreate(LandmarkBase):
     id: int = Field(ge=0, le=MAX_LANDMARK_ID, description="landmark ID (a JSON integer)")
+    covariance: SkipJsonSchema[list[list[float]] | None] = None  # as in LandmarkUpdate
 
     @field_validator("locked", mode="before")
     @classmethod
     def _strict_locked(cls, v: object) -> object:
         return strict_bool("locked", v)
 
-    @field_validator("x", "y", "z", mode="before")
+    @field_validator("x", "y", "z", "sigma_m", mode="before")
     @classmethod
     def _strict_xyz(cls, v: object, info: Any) -> object:
         return strict_number(info.field_name, v)
@@ -168,6 +206,21 @@ class LandmarkUpdate(SQLModel):
     floor: str | SkipJsonSchema[None] = Field(
         default=None, max_length=32, description="move it to this floor (floor ID)"
     )
+    sigma_m: float | None = Field(default=None, ge=0, le=10, description="metres; null: unknown")
+    # written by the survey and map upkeep, not part of the API's input schema (a 3 x 3
+    # covariance's constraints are beyond JSON Schema): sent by a client it is still checked
+    covariance: SkipJsonSchema[list[list[float]] | None] = None
+    evidence: dict[str, Any] | None = Field(default=None, description="source, views, ...")
+
+    @field_validator("covariance")
+    @classmethod
+    def _covariance(cls, v: list[list[float]] | None) -> list[list[float]] | None:
+        return check_covariance(v)
+
+    @field_validator("sigma_m", mode="before")
+    @classmethod
+    def _strict_sigma(cls, v: object) -> object:
+        return strict_number("sigma_m", v)
 
     @field_validator("x", "y", "z", "locked", "note", "floor", mode="before")
     @classmethod

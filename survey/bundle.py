@@ -33,6 +33,7 @@ from threadpoolctl import threadpool_limits
 
 from localizer.camera import CameraModel, pixels_from_points_camera
 from localizer.geometry import transform_points
+from survey.association import name_by_association, unnamed_reasons
 from survey.estimates import survey_result
 from survey.initial import initial_guess
 from survey.layout import Fit, Layout, sparsity
@@ -133,25 +134,32 @@ def _solve(
     labels = np.where((obs.name_votes >= cfg.min_votes) | anchor_named, obs.landmark_id, -1)
     rejected: set[int] = set()
     fit: Fit | None = None
+    doubt: dict[int, set[int]] = {}
     for i, t_end in enumerate(ends):
         last = i == len(ends) - 1
         budget = cfg.max_iterations if last else cfg.window_iterations
-        for _ in range(3):
-            rows = np.flatnonzero((labels >= 0) & (t_obs <= t_end))
-            fit = _adjust(problem, cfg, anchors, rows, labels, zc, fit, budget)
+        window = t_obs <= t_end
+        for _ in range(max(cfg.naming_rounds if cfg.associate else 3, 1)):
+            rows = np.flatnonzero((labels >= 0) & window)
+            fit = _adjust(problem, cfg, anchors, rows, labels, zc, fit, budget, window)
             if float(np.median(fit.err)) > 2.0 * cfg.pixel_sigma_px:
                 break  # not settled yet: judge no track against it
             bad = outlier_tracks(fit, cfg.outlier_track_px) - rejected
             rejected |= bad
             if bad:
                 labels[np.isin(obs.track, np.fromiter(bad, dtype=np.int64))] = -1
-            named = name_by_geometry(problem, cfg, fit, labels, t_obs <= t_end, rejected, zc)
+            named = name_by_geometry(problem, cfg, fit, labels, window, rejected, zc)
+            if cfg.associate:
+                more, doubt = name_by_association(problem, cfg, fit, labels, window, rejected, zc)
+                named += more
             if not bad and not named:
                 break
         if progress is not None:
             progress(i + 1, len(ends))
     assert fit is not None
-    return survey_result(problem, cfg, anchors, fit, labels, rejected)
+    result = survey_result(problem, cfg, anchors, fit, labels, rejected)
+    why = unnamed_reasons(problem, cfg, fit, labels, set(result.landmarks), doubt)
+    return dataclasses.replace(result, unnamed=why)
 
 
 def _adjust(
@@ -163,14 +171,21 @@ def _adjust(
     zc: float,
     previous: Fit | None,
     budget: int,
+    window: npt.NDArray[np.bool_] | None = None,
 ) -> Fit:
-    """One bundle adjustment over the observations `rows` (and the drive they span)."""
+    """One bundle adjustment over the observations `rows` (and the drive they span).
+
+    Keyframes are taken among the frames of `rows`, and with `window` (a mask over all
+    observations) among every frame with a spot in it, named or not: the poses where only
+    unnamed spots are seen then follow the wheels, and their covariance gates the naming.
+    """
     cam = problem.camera
     obs = problem.observations
     rough = {
         int(k): np.asarray(v, dtype=np.float64) for k, v in problem.given.items() if v is not None
     }
-    keys = select_keyframes(problem.frame_t_ns, obs.frame[rows], cfg.keyframe_period_s)
+    key_frames = obs.frame[rows] if window is None else obs.frame[window]
+    keys = select_keyframes(problem.frame_t_ns, key_frames, cfg.keyframe_period_s)
     key_of_frame = {int(f): k for k, f in enumerate(keys.tolist())}
     rows = rows[np.array([int(f) in key_of_frame for f in obs.frame[rows].tolist()], dtype=bool)]
     o_key = np.array([key_of_frame[int(f)] for f in obs.frame[rows].tolist()], dtype=np.int64)

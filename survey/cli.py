@@ -1,10 +1,12 @@
 """`irloc survey REC --anchor ID --anchor ID --out MAP.json`: locate every landmark of a
 survey drive (`docs/survey.md`).
 
-REC is a recording (`docs/recording.md`) of a robot driving under the ceiling while the
-landmarks blink one at a time (`survey.blinks`; `irloc serve`'s live survey does this); its
-map.json holds the anchors' surveyed positions and every other landmark with a rough position
-or none. The output map has the same landmarks with refined x, y, z and `sigma_m`. Errors
+REC is a recording (`docs/recording.md`) of a robot driving under the ceiling: while the
+landmarks blink one at a time (`survey.blinks`; `irloc serve`'s live survey does this), or
+with every LED lit after the anchors were named (the paper's one-at-a-time start): then each
+landmark is named by where its spots sit against its rough position (`survey.association`).
+Its map.json holds the anchors' surveyed positions and every other landmark with a rough
+position or none. The output map has the same landmarks with refined x, y, z and `sigma_m`. Errors
 name what is wrong and write nothing.
 """
 
@@ -39,6 +41,13 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
         "a total station); it is part of every landmark's sigma_m",
     )  # fmt: skip
     p.add_argument(
+        "--rough-sigma-cm", type=float, default=100 * BundleConfig.rough_sigma_m,
+        metavar="CM",
+        help="how far map.json's rough positions may be off, 1 sigma per axis, cm (default "
+        "%(default)s: up to ~30 cm); landmarks no blink names are named by where their spots "
+        "sit where this tells them from their neighbours",
+    )  # fmt: skip
+    p.add_argument(
         "--allow-unseen", action="store_true",
         help="write the map even if some landmarks could not be surveyed (they keep what "
         "map.json gave them)",
@@ -47,6 +56,8 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
     args = p.parse_args(argv)
     if not args.anchor_sigma_mm > 0:
         p.error(f"--anchor-sigma-mm must be > 0, got {args.anchor_sigma_mm}")
+    if not args.rough_sigma_cm > 0:
+        p.error(f"--rough-sigma-cm must be > 0, got {args.rough_sigma_cm}")
     return args
 
 
@@ -80,6 +91,11 @@ def table(result: SurveyResult) -> str:
     return "\n".join(lines)
 
 
+def unnamed_lines(result: SurveyResult, ids: list[int]) -> str:
+    """One line per landmark not surveyed, with the reason."""
+    return "\n".join(f"  {lid}: {result.unnamed.get(lid, 'never identified')}" for lid in ids)
+
+
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(sys.argv[1:] if argv is None else argv)
     show = not args.quiet and sys.stderr.isatty()
@@ -101,7 +117,10 @@ def main(argv: list[str] | None = None) -> int:
             windows.n = i
             windows.refresh()
 
-        config = BundleConfig(anchor_sigma_m=args.anchor_sigma_mm / 1000.0)
+        config = BundleConfig(
+            anchor_sigma_m=args.anchor_sigma_mm / 1000.0,
+            rough_sigma_m=args.rough_sigma_cm / 100.0,
+        )
         result = solve_survey(problem, config, progress=solved)
         windows.close()
     except ValueError as exc:
@@ -110,15 +129,18 @@ def main(argv: list[str] | None = None) -> int:
     never = sorted(set(lm.id for lm in drive.landmarks) - set(result.landmarks))
     if never and not args.allow_unseen:
         print(
-            f"{PROG}: landmark(s) {', '.join(map(str, never))} not surveyed (never identified, "
-            "or seen from too few places); drive under them (or pass --allow-unseen to keep "
-            "their map.json positions); nothing written",
+            f"{PROG}: landmark(s) {', '.join(map(str, never))} not surveyed:\n"
+            + unnamed_lines(result, never)
+            + "\ndrive under them, blink them, or pass --allow-unseen to keep their map.json "
+            "positions; nothing written",
             file=sys.stderr,
         )
         return 1
     write_map_atomic(args.out, surveyed_map(drive.landmarks, result))
     if not args.quiet:
         print(table(result))
+        if never:
+            print(f"not surveyed (kept as map.json gave them):\n{unnamed_lines(result, never)}")
         flagged = result.flagged()
         print(
             f"{len(result.landmarks)} landmarks surveyed, {len(flagged)} flagged, "

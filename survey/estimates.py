@@ -31,19 +31,9 @@ def variance_factor(r: FloatArray, huber_k: float, redundancy: int) -> float:
     return float(np.sum(psi**2)) / max(redundancy, 1) / max(inside, 1e-3) ** 2
 
 
-def marginal_covariances(fit: Fit, huber_k: float) -> tuple[FloatArray, float]:
-    """Covariance of every unknown but the poses (the landmarks, anchors included, then the
-    wheels and the camera correction, all estimated, none held), and the spots' a-posteriori
-    standard deviation of unit weight.
-
-    The covariance is the inverse of the information matrix J^T W J (W: the Huber loss's
-    weights at the solution) with the poses eliminated by the Schur complement, each group
-    of observations (the spots, the wheels' intervals) weighted by its own variance factor
-    estimated from its residuals (`variance_factor`: a variance component estimate, with
-    the spots' redundancy taken as their rows minus all unknowns), the priors as stated
-    (their sigmas are what staff and the calibration say, not residuals). So no noise level
-    is assumed: `pixel_sigma_px` and the wheels' sigmas only shape the loss.
-    """
+def weighted_information(fit: Fit, huber_k: float) -> tuple[BandedSchur, float]:
+    """The information matrix J^T W J at the solution, factored (`BandedSchur`), and the
+    spots' a-posteriori standard deviation of unit weight (`marginal_covariances`)."""
     lay = fit.lay
     r, J = fit.fun, sp.csr_matrix(fit.jac)
     n = J.shape[1]
@@ -60,8 +50,24 @@ def marginal_covariances(fit: Fit, huber_k: float) -> tuple[FloatArray, float]:
     H = (J.T @ sp.diags(w) @ J).tocsc()
     d = H.diagonal()
     H = H + sp.diags(1e-12 * np.where(d > 0, d, 1.0))
-    cov = BandedSchur(H, lay.lm0).reduced_covariance()
-    return cov, math.sqrt(f_pix)
+    return BandedSchur(H, lay.lm0), math.sqrt(f_pix)
+
+
+def marginal_covariances(fit: Fit, huber_k: float) -> tuple[FloatArray, float]:
+    """Covariance of every unknown but the poses (the landmarks, anchors included, then the
+    wheels and the camera correction, all estimated, none held), and the spots' a-posteriori
+    standard deviation of unit weight.
+
+    The covariance is the inverse of the information matrix J^T W J (W: the Huber loss's
+    weights at the solution) with the poses eliminated by the Schur complement, each group
+    of observations (the spots, the wheels' intervals) weighted by its own variance factor
+    estimated from its residuals (`variance_factor`: a variance component estimate, with
+    the spots' redundancy taken as their rows minus all unknowns), the priors as stated
+    (their sigmas are what staff and the calibration say, not residuals). So no noise level
+    is assumed: `pixel_sigma_px` and the wheels' sigmas only shape the loss.
+    """
+    info, s0 = weighted_information(fit, huber_k)
+    return info.reduced_covariance(), s0
 
 
 def independent_views(positions: FloatArray, spacing_m: float) -> int:

@@ -71,3 +71,23 @@ class BandedSchur:
         eye = np.eye(len(self.schur))
         cov: FloatArray = cho_solve(self._S, eye)
         return 0.5 * (cov + cov.T)
+
+    def banded_covariance_blocks(self, blocks: npt.ArrayLike, size: int = 3) -> FloatArray:
+        """Diagonal blocks of H^-1 within the banded unknowns: for each block index b, the
+        marginal covariance of unknowns [size b, size (b + 1)) (a keyframe pose), the rest
+        eliminated: H_pp^-1 + Y S^-1 Y^T restricted to it (Y = H_pp^-1 H_pr), shape
+        (B, size, size)."""
+        idx = np.asarray(blocks, dtype=np.int64).reshape(-1)
+        if len(idx) == 0:
+            return np.zeros((0, size, size))
+        cols = (size * idx[:, None] + np.arange(size)[None, :]).reshape(-1)
+        E = np.zeros((self.n_banded, len(cols)))
+        E[cols, np.arange(len(cols))] = 1.0
+        Z = self._solve_banded(E)[cols]  # rows and columns of H_pp^-1 at `cols`
+        Yc = self._Y[cols]
+        full = Z + Yc @ cho_solve(self._S, Yc.T)
+        out = np.empty((len(idx), size, size))
+        for b in range(len(idx)):
+            blk = full[size * b : size * b + size, size * b : size * b + size]
+            out[b] = 0.5 * (blk + blk.T)
+        return out

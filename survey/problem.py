@@ -29,7 +29,8 @@ class BundleConfig:
             interval: sqrt(floor^2 + a^2 * distance).
         odom_heading_sigma_rad_per_sqrt_m, odom_heading_sigma_rad_per_sqrt_rad,
         odom_heading_floor_rad: heading noise: sqrt(floor^2 + b^2 * distance + c^2 * turned).
-        rough_sigma_m: standard deviation of a rough position from map.json, per axis.
+        rough_sigma_m: standard deviation of a rough position from map.json, per axis (a
+            tape or a floor plan off by up to ~30 cm: 15 cm).
         anchor_sigma_m: standard deviation of an anchor's surveyed position, per axis (a
             total station: about a millimetre).
         wheel_scale_sigma: prior standard deviation of each wheel calibration factor.
@@ -49,6 +50,15 @@ class BundleConfig:
         name_radius_m: a track whose spots meet the ceiling this close to a landmark's
             estimate may take its name.
         name_exclusion_m: ... if no other landmark is this close (unnamed tracks).
+        associate: name tracks no blink named by map-consistent association
+            (`survey.association`): where a landmark's rough position is good enough.
+        ceiling_sigma_m: how far a landmark's height may be from the anchors' (1 sigma), for
+            placing unnamed spots on the ceiling, metres.
+        association_gate_chi2: a spot cluster farther than this (Mahalanobis^2, 2 dof) from
+            a landmark cannot be it (18.4: the 1e-4 tail).
+        association_margin_chi2: a cluster is named only if every other explanation costs
+            this much more (13.8: odds of 1000 to one).
+        naming_rounds: solves per window at most while tracks are being named.
         independent_view_m: views of a landmark closer than this (robot travel) count as one
             (`min_views`).
         flag_rms_px: a landmark whose residual RMS exceeds this is flagged (moved during the
@@ -67,7 +77,7 @@ class BundleConfig:
     odom_heading_sigma_rad_per_sqrt_m: float = 0.005
     odom_heading_sigma_rad_per_sqrt_rad: float = 0.02
     odom_heading_floor_rad: float = 0.001
-    rough_sigma_m: float = 0.3
+    rough_sigma_m: float = 0.15
     anchor_sigma_m: float = 0.001
     wheel_scale_sigma: float = 0.01
     self_calibrate: bool = True
@@ -84,6 +94,11 @@ class BundleConfig:
     min_votes: int = 1
     name_radius_m: float = 0.05
     name_exclusion_m: float = 0.25
+    associate: bool = True
+    ceiling_sigma_m: float = 0.05
+    association_gate_chi2: float = 18.42
+    association_margin_chi2: float = 13.8
+    naming_rounds: int = 8
     independent_view_m: float = 0.25
     flag_rms_px: float = 2.0
     flag_moved_m: float = 0.5

@@ -81,6 +81,8 @@ class SurveyResult:
             as the residuals show it, in units of `BundleConfig.pixel_sigma_px`): the factor
             their information was scaled by for the covariances.
         iterations: solver function evaluations; converged: the solver's own verdict.
+        unnamed: why each landmark in `unseen` was not placed, in words (too close to a
+            neighbour for its rough position, never in view, ...).
     """
 
     landmarks: dict[int, LandmarkEstimate]
@@ -94,6 +96,7 @@ class SurveyResult:
     iterations: int
     converged: bool
     notes: tuple[str, ...] = field(default=())
+    unnamed: dict[int, str] = field(default_factory=dict)
 
     def flagged(self) -> list[LandmarkEstimate]:
         """Landmarks with a flag, worst first."""

@@ -46,7 +46,8 @@ class UpkeepConfig:
 
     Attributes:
         map_sigma_m: the map's stated 1-sigma uncertainty per axis, metres (a survey's);
-            the prior of every landmark until a proposal for it is accepted.
+            the prior of every landmark the map stores no sigma for until a proposal for it
+            is accepted.
         floor_sigma_m: systematic error the views cannot average away (the cameras'
             calibration, the other landmarks' survey), per axis, metres: added to every
             test and to every proposed sigma.
@@ -143,10 +144,14 @@ class MapUpkeep:
         self.frames = 0
 
     # -- the map --------------------------------------------------------------------------------
-    def set_map(self, positions: Mapping[int, npt.ArrayLike]) -> None:
-        """The map's landmark positions (id -> (3,)), metres. A landmark moved in the map
-        keeps its evidence, re-centred on its new position, and its prior is `map_sigma_m`
-        again (`accepted` then sets its own); new ones start with none."""
+    def set_map(
+        self, positions: Mapping[int, npt.ArrayLike], sigmas: Mapping[int, float] | None = None
+    ) -> None:
+        """The map's landmark positions (id -> (3,)), metres, and the 1-sigma uncertainty the
+        map stores for some (id -> metres; a landmark surveyed to 1 mm weighs more than a
+        taped one). A landmark moved in the map keeps its evidence, re-centred on its new
+        position, and its prior is its stored sigma, else `map_sigma_m` (`accepted` then
+        sets its own); new ones start with none."""
         new = {int(k): np.asarray(v, dtype=np.float64).reshape(3) for k, v in positions.items()}
         ids = sorted(new)
         n, r = len(ids), INTRINSICS * len(self._robots)
@@ -167,6 +172,9 @@ class MapUpkeep:
             same = [(i, j) for i, j in keep if np.array_equal(new[ids[i]], self._where[j])]
             sigma[[i for i, _ in same]] = self._sigma[[j for _, j in same]]
             views[[i for i, _ in keep]] = self._views[[j for _, j in keep]]
+        for i, lid in enumerate(ids):
+            if sigmas and lid in sigmas and sigmas[lid] > 0:
+                sigma[i] = max(float(sigmas[lid]), self.config.floor_sigma_m)
         self._ids, self._slot = ids, {lid: i for i, lid in enumerate(ids)}
         self._where = np.array([new[i] for i in ids]).reshape(n, 3)
         self._info, self._vec, self._sigma, self._views = info, vec, sigma, views

@@ -119,7 +119,7 @@ class SiteAdapter:
                     days_left=None if b is None else b.days_left,
                     reachable=lm.id not in unreachable, doubted=lm.id in doubted,
                     lit=e.lit, lit_reason=e.reason, duty=e.duty, model_days=e.days_left,
-                    low=e.low,
+                    low=e.low, sigma_m=lm.sigma_m,
                 )
             )  # fmt: skip
         return out
@@ -225,7 +225,7 @@ class SiteAdapter:
     ) -> LandmarkState:
         data = LandmarkCreate(id=landmark_id, x=x, y=y, z=z, radio=radio)
         lm = self.services.map.create(data, actor=actor)
-        return LandmarkState(lm.id, lm.x, lm.y, lm.z, lm.locked, lm.radio)
+        return LandmarkState(lm.id, lm.x, lm.y, lm.z, lm.locked, lm.radio, sigma_m=lm.sigma_m)
 
     def update_landmark(
         self,
@@ -242,7 +242,7 @@ class SiteAdapter:
         }
         update = LandmarkUpdate.model_validate(fields)  # unset fields are kept
         lm = self.services.map.update(landmark_id, update, actor=actor)
-        return LandmarkState(lm.id, lm.x, lm.y, lm.z, lm.locked, lm.radio)
+        return LandmarkState(lm.id, lm.x, lm.y, lm.z, lm.locked, lm.radio, sigma_m=lm.sigma_m)
 
     def delete_landmark(self, landmark_id: int, *, actor: str) -> None:
         self.services.map.delete(landmark_id, actor=actor)

@@ -189,8 +189,11 @@ def robot_label(name: str) -> str:
 
 
 def landmark_label(lm: LandmarkState) -> str:
-    """The text next to a landmark: its ID, and "unreachable", "doubted", "(surveyed)"."""
+    """The text next to a landmark: its ID, its position's 1-sigma uncertainty when the map
+    knows it ("+-1.2 mm"), and "unreachable", "doubted", "(surveyed)"."""
     text = str(lm.id)
+    if lm.sigma_m is not None:
+        text += f" \u00b1{1000 * lm.sigma_m:.1f} mm"
     if not lm.reachable:
         text += " unreachable"
     elif lm.doubted:

@@ -54,6 +54,7 @@ class LandmarkState:
         model_days: days its cells last at that duty from the measured voltage (the energy
             model, `live.leds.status`), None when never read.
         low: flagged: its LED dims within a week at that duty, or is dim already.
+        sigma_m: the map's 1-sigma uncertainty of its position, metres (None: not known).
     """
 
     id: int
@@ -72,6 +73,7 @@ class LandmarkState:
     duty: float | None = None
     model_days: float | None = None
     low: bool = False
+    sigma_m: float | None = None
 
 
 @dataclass(frozen=True, eq=False)

@@ -427,8 +427,27 @@ class LiveSurvey:
         _check_choice(chosen, free, include_flagged, {lm.id for lm in self.map.list() if lm.locked})
         edits = []
         for lid in chosen:
-            x, y, z = (float(v) for v in free[lid].position)
-            edits.append((lid, LandmarkUpdate(x=x, y=y, z=z)))
+            e = free[lid]
+            x, y, z = (float(v) for v in e.position)
+            evidence = {
+                "source": "survey",
+                "views": e.views,
+                "observations": e.observations,
+                "rms_px": round(e.rms_px, 3),
+            }
+            edits.append(
+                (
+                    lid,
+                    LandmarkUpdate(
+                        x=x,
+                        y=y,
+                        z=z,
+                        sigma_m=e.sigma_m,
+                        covariance=e.covariance.tolist(),
+                        evidence=evidence,
+                    ),
+                )
+            )
         self.map.update_many(edits, actor=f"{actor} (survey)")  # all or none
         with self._lock:
             self._accepted += [lid for lid in chosen if lid not in self._accepted]

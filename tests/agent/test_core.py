@@ -3,6 +3,7 @@ the site's LED coordinator is played by a few lines that confirm each request.""
 
 from __future__ import annotations
 
+import itertools
 import json
 
 import numpy as np
@@ -114,3 +115,15 @@ def test_duplicate_and_late_led_states_and_a_relocalize_command() -> None:
     assert core.mode == "identifying"
     status = core.status(-3, 1)
     assert AgentStatus.model_validate_json(status.encode()).camera["sensor_type"] == "camera"
+
+
+def test_confident_poses_carry_their_spots_once_a_second() -> None:
+    _, _, out = run(light=True, seconds=4.0)
+    poses = [PoseMessage.model_validate_json(o.payload) for o in out if o.kind == "pose"]
+    with_spots = [p for p in poses if p.spots is not None]
+    assert 1 <= len(with_spots) <= 4  # 1 s apart, from the first confident fix on
+    for p in with_spots:
+        assert p.mode == "landmark" and len(p.lm) >= 2 and len(p.spots or []) >= 2
+        assert p.ex is not None  # the landmarks expected in view go with them (pairing)
+    ts = [p.t_ns for p in with_spots]
+    assert all(b - a >= 0.99e9 for a, b in itertools.pairwise(ts))

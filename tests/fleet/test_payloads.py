@@ -79,3 +79,17 @@ def test_bad_payloads_name_the_topic_and_field() -> None:
         )
     with pytest.raises(PayloadError, match="message"):
         decode(PoseMessage, "p", b"not json")
+
+
+def test_a_confident_frame_carries_its_spots_for_map_upkeep() -> None:
+    cov = np.diag([1e-4, 1e-4, 1e-5])
+    est = PoseEstimate(5, 1.0, 2.0, 0.1, cov, "landmark", (101, 102), (101, 102, 103))
+    spots = np.array([[100.123456, 200.5], [320.0, 240.25]])
+    wire = PoseMessage.from_estimate(7, est, 1, 2, spots).encode()
+    back = decode(PoseMessage, "t", wire)
+    assert back.spots == [(100.12, 200.5), (320.0, 240.25)]
+    assert back.ex == [101, 102, 103]
+    plain = decode(PoseMessage, "t", PoseMessage.from_estimate(7, est, 1, 2).encode())
+    assert plain.spots is None and plain.ex is None  # not sent with every pose
+    with pytest.raises(PayloadError, match="spots"):
+        decode(PoseMessage, "agents/r1/pose", wire.replace(b"320.0", b"1e999"))

@@ -75,3 +75,14 @@ def test_empty_map() -> None:
     assert len(m) == 0
     assert m.positions.shape == (0, 3)
     assert m.to_records() == []
+
+
+def test_a_map_may_state_each_landmarks_sigma() -> None:
+    m = LandmarkMap(np.array([1, 2]), np.zeros((2, 3)), np.array([0.001, np.nan]))
+    assert m.sigma_at(0) == 0.001
+    assert m.sigma_at(1) is None  # not stated
+    assert LandmarkMap(np.array([1]), np.zeros((1, 3))).sigma_at(0) is None
+    with pytest.raises(ValueError, match="2 ids but 1 sigmas"):
+        LandmarkMap(np.array([1, 2]), np.zeros((2, 3)), np.array([0.001]))
+    with pytest.raises(ValueError, match="negative or infinite"):
+        LandmarkMap(np.array([1]), np.zeros((1, 3)), np.array([-0.001]))

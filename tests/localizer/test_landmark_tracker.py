@@ -196,3 +196,30 @@ def test_a_pair_surveyed_a_centimetre_apart_is_fused_whatever_the_factor_learnt(
     # a pair 6 cm off (a spot that is not the landmark's) is still refused
     assert _pair_step(0.06, factor=0.2) == ()
     assert _pair_step(0.06, factor=1.0) == ()
+
+
+def _taped_step(sigmas: np.ndarray | None) -> float:
+    """Four landmarks over a robot, the map exact but for one taped 1.5 cm off; the spots
+    where the truth puts them: the fused position's error, metres."""
+    truth = np.array([[-0.8, -0.6, 2.5], [0.9, -0.5, 2.5], [0.7, 0.7, 2.5], [-0.6, 0.8, 2.5]])
+    mapped = truth.copy()
+    mapped[3, :2] += [0.012, -0.009]
+    lmap = LandmarkMap(np.array([1, 2, 3, 4]), mapped, sigmas)
+    pose = (0.05, 0.02, 0.3)
+    true_px, ok = predict_pixels(CAM, T_world_body_from_pose(*pose), truth)
+    assert ok.all()
+    tracker = LandmarkTracker(CAM, ROBOT, LocalizerConfig(), lmap)
+    filt = PoseFilter(*pose, np.diag([0.05**2, 0.05**2, 0.02**2]), wheel_base=ROBOT.wheel_base)
+    r = tracker.step(filt, _spots(true_px), dt_frame_s=1 / 30, fresh_odometry=True,
+                     candidates=None)  # fmt: skip
+    assert 4 in r.used or sigmas is None
+    return float(np.hypot(filt.pose[0] - pose[0], filt.pose[1] - pose[1]))
+
+
+def test_a_landmark_the_map_says_is_taped_weighs_less_than_surveyed_ones() -> None:
+    # the same map without stated sigmas: every landmark at the default survey sigma, the
+    # taped one pulls the fix; with the survey's 1 mm and the tape's 2 cm stated, it hardly does
+    plain = _taped_step(None)
+    stated = _taped_step(np.array([0.001, 0.001, 0.001, 0.02]))
+    assert stated < 0.5 * plain, (stated, plain)
+    assert stated < 0.002
