@@ -30,6 +30,7 @@ PACKAGES = [
     "survey",
     "commissioning",
     "pubsub",
+    "ros2",
 ]
 PYTHON_DIRS = [*PACKAGES, "bench", "tests"]
 
