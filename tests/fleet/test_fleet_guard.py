@@ -150,7 +150,11 @@ def test_on_an_open_broker_without_a_list_led_requests_are_not_served(
         c.pub(T.led_request("a1"), json.dumps({"lit": [], "all_lit": True, "dark": [101]}).encode())
         wait_until(lambda: bridge.led_requests_refused >= 1, 5, "the request refused")
         assert coordinator.requests == before
-        assert any("not served" in m for k, _, m in kinds(api) if k == "fleet_intrusion")
+        wait_until(  # (events are stored by the site's event writer, on its own thread)
+            lambda: any("not served" in m for k, _, m in kinds(api) if k == "fleet_intrusion"),
+            5,
+            "a fleet_intrusion event saying the request was not served",
+        )
     finally:
         bridge.admitted = kept
         c.close()
