@@ -19,6 +19,7 @@ import itertools
 import json
 import logging
 import threading
+from collections import deque
 from dataclasses import dataclass
 from typing import Literal, Protocol, TextIO
 
@@ -40,9 +41,11 @@ from localizer.camera import CameraModel, sensor_from_camera
 from localizer.events import (
     Event,
     FrameObserved,
+    ImuMeasured,
     LedRequest,
     Mode,
     NoPose,
+    OdometryMeasured,
     PoseEstimate,
     RelocalizeRequested,
     SpotsObserved,
@@ -54,6 +57,8 @@ from localizer.spots import DetectionConfig, detect_spots
 
 log = logging.getLogger(__name__)
 NS = 1_000_000_000
+PREMAP_MOTION_EVENTS = 60_000
+"""Motion samples kept until the first map arrives (ten minutes of 100 Hz wheels)."""
 
 OutKind = Literal["pose", "led_request", "visualization"]
 
@@ -158,6 +163,12 @@ class AgentCore:
         self._last_mode_sent: Mode | None = None
         self._last_led: tuple[int, int] | None = None
         self.observers: list[CoreObserver] = []
+        # the motion before the first map: a dock prior is valid at the first sample, so the
+        # robot's motion until the map arrives is replayed into the new localizer
+        self._first_t_ns: int | None = None
+        self._premap_motion: deque[OdometryMeasured | ImuMeasured]
+        self._premap_motion = deque(maxlen=PREMAP_MOTION_EVENTS)
+        self._premap_overflow = False
 
     # -- from the network (any thread) -------------------------------------------------------
     def on_map(self, msg: MapMessage) -> None:
@@ -218,9 +229,7 @@ class AgentCore:
         lmap = LandmarkMap.from_records(msg.records(), source=f"map {msg.map_id}")
         if self.localizer is None:
             self.localizer = Localizer(self.source.camera, lmap, self.source.geometry)
-            start = self.source.start_pose
-            if self.config.start_known and start is not None:
-                self.localizer.set_initial_pose(*start, self._fed_t_ns)
+            self._start_prior(self.localizer)
         else:
             self.localizer.set_map(lmap)
         self.map_id = msg.map_id
@@ -229,13 +238,39 @@ class AgentCore:
         self.map_floor, self.map_version = msg.floor, msg.version
         log.info("%s: map %s (%d landmarks)", self.config.name, msg.map_id, len(msg.landmarks))
 
+    def _start_prior(self, localizer: Localizer) -> None:
+        """The dock prior (`start_known`), stamped at the first sample it holds for, and
+        the wheel and IMU motion since, so a map that arrives late (a slow broker, a loaded
+        machine) does not pin the start pose on a robot that already drove off."""
+        start = self.source.start_pose
+        motion = list(self._premap_motion)
+        self._premap_motion.clear()
+        if not self.config.start_known or start is None:
+            return
+        if self._premap_overflow:
+            log.warning(
+                "%s: the map came after more than %d motion samples: the dock prior is "
+                "stale and not used (the robot identifies landmarks instead)",
+                self.config.name, PREMAP_MOTION_EVENTS,
+            )  # fmt: skip
+            return
+        localizer.set_initial_pose(*start, self._first_t_ns or self._fed_t_ns)
+        for event in motion:
+            localizer.handle(event)  # motion only: no pose or LED request worth sending
+
     def _feed(self, event: Event, now_mono: int) -> list[Outgoing]:
         self._fed_t_ns = max(self._fed_t_ns, event.t_ns)
+        if self._first_t_ns is None:
+            self._first_t_ns = event.t_ns
         if isinstance(event, FrameObserved | SpotsObserved):
             self.frames += 1
             self._last_frame = event
-        if self.localizer is None:
-            return []  # no map yet: nothing to localize on
+        if self.localizer is None:  # no map yet: nothing to localize on, motion kept
+            if isinstance(event, OdometryMeasured | ImuMeasured):
+                full = len(self._premap_motion) == self._premap_motion.maxlen
+                self._premap_overflow |= full
+                self._premap_motion.append(event)
+            return []
         try:
             outputs = self.localizer.handle(event)
         except Exception:

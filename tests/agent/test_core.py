@@ -127,3 +127,35 @@ def test_confident_poses_carry_their_spots_once_a_second() -> None:
         assert p.ex is not None  # the landmarks expected in view go with them (pairing)
     ts = [p.t_ns for p in with_spots]
     assert all(b - a >= 0.99e9 for a, b in itertools.pairwise(ts))
+
+
+def test_a_dock_prior_holds_for_the_first_sample_when_the_map_comes_late() -> None:
+    """`start_known`: the dock pose is where the robot was at its first sample; a map that
+    arrives 1.5 s later (the robot already driving) starts the localizer there and replays
+    the wheels since, instead of pinning the dock pose on a robot that has moved."""
+    scenario = load_scenario("demo")
+    source = SimRobotSource(scenario, "r1", light=True)
+    cfg = AgentConfig("a1", source="sim-light", start_known=True)
+    core = AgentCore(cfg, source, TimeBase())
+    records = source.world.landmark_records()
+    site = FakeSite(core, [int(r["id"]) for r in records])  # type: ignore[call-overload]
+    now = core.time.mono_ns()
+    core.on_leds(site.state(now, set(site.ids)))
+    start = now
+    out: list[Outgoing] = []
+    for _ in range(250):
+        now += 10 * MS
+        if now - start == 1500 * MS:
+            core.on_map(MapMessage(map_id="demo-1", landmarks=records))  # type: ignore[arg-type]
+        outs = core.tick(now)
+        site.handle(now, outs)
+        out += outs
+    poses = [PoseMessage.model_validate_json(o.payload) for o in out if o.kind == "pose"]
+    assert poses, "no pose after the map arrived"
+    truths = sorted(source.truth.items())
+    moved = np.hypot(*(np.subtract(truths[-1][1][:2], truths[0][1][:2])))
+    assert moved > 0.2, moved  # the robot drove off its dock before the map came
+    first = poses[0]
+    t = core.time.mono_from_site(first.t_ns)
+    truth = min(truths, key=lambda kv: abs(kv[0] - t))[1]
+    assert np.hypot(first.x - truth[0], first.y - truth[1]) < 0.05  # type: ignore[operator]

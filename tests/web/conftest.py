@@ -42,7 +42,12 @@ def running_site(data: Path, *, seed: int = 5) -> Iterator[tuple[Any, int]]:
 
     settings = Settings(data_dir=data, port=0, viewer_port=0, scenario="demo", seed=seed)
     app = create_app(settings, make_viewer(settings))  # as `irloc serve` wires it
-    config = uvicorn.Config(app, host="127.0.0.1", port=0, log_level="warning", lifespan="on")
+    # log_config=None: uvicorn's loggers go to the root logger, so an exception in a route
+    # shows in the failing test's captured log (uvicorn's own handler would write to the
+    # stderr capture of the module's first test, closed by then)
+    config = uvicorn.Config(
+        app, host="127.0.0.1", port=0, log_level="warning", lifespan="on", log_config=None
+    )
     server = uvicorn.Server(config)
     thread = threading.Thread(target=server.run, name="uvicorn-test", daemon=True)
     thread.start()
