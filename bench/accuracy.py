@@ -30,7 +30,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import numpy.typing as npt
 
 ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
@@ -42,6 +41,7 @@ import localizer.localizer as localizer_module  # noqa: E402
 from irloc.simulate_cli import main as simulate_main  # noqa: E402
 from localizer.camera import CameraModel, predict_pixels  # noqa: E402
 from localizer.pose import PoseFix  # noqa: E402
+from localizer.types import FloatArray  # noqa: E402
 from recording.reader import read_groundtruth  # noqa: E402
 from recording.replay_cli import main as replay_main  # noqa: E402
 from recording.scoring import error_stats, read_poses  # noqa: E402
@@ -54,8 +54,6 @@ MISID_TOLERANCE_PX = 12.0
 """A claimed spot farther than this from its landmark's true pixel is not that landmark (the
 nearest other source, a glint 25 cm from a landmark, is ~36 px away; correct claims are
 within ~1 px, or a few px for a first fix's sightings carried by odometry)."""
-
-FloatArray = npt.NDArray[np.float64]
 
 
 @dataclasses.dataclass(frozen=True)

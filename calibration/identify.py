@@ -31,8 +31,8 @@ from calibration.camera_pose import camera_pose_from_landmarks
 from localizer.camera import CameraModel, pixels_from_points_camera
 from localizer.geometry import invert_transform, transform_points
 from localizer.landmark_map import LandmarkMap
+from localizer.types import FloatArray
 
-FloatArray = npt.NDArray[np.float64]
 Detection = tuple[int, list[int], FloatArray]
 
 

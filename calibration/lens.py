@@ -18,8 +18,8 @@ from calibration.board import BoardCorners, BoardSpec, as_gray, find_board, sugg
 from calibration.coverage import Coverage, corner_coverage
 from calibration.lens_fit import fit_lens
 from localizer.camera import CameraModel, T_body_camera_upward, sensor_from_camera
+from localizer.types import FloatArray, ImageU8
 
-FloatArray = npt.NDArray[np.float64]
 LensModel = Literal["pinhole", "fisheye"]
 LENS_MODELS: tuple[LensModel, ...] = ("pinhole", "fisheye")
 
@@ -290,7 +290,7 @@ def calibrate_lens(
 
 
 def _common_resolution(
-    grays: Sequence[npt.NDArray[np.uint8]],
+    grays: Sequence[ImageU8],
     names: Sequence[str],
     expected: tuple[int, int] | None,
 ) -> tuple[int, int]:
@@ -313,9 +313,7 @@ def _common_resolution(
     return next(iter(groups))
 
 
-def _no_board_message(
-    grays: Sequence[npt.NDArray[np.uint8]], names: Sequence[str], spec: BoardSpec
-) -> str:
+def _no_board_message(grays: Sequence[ImageU8], names: Sequence[str], spec: BoardSpec) -> str:
     cols, rows = spec.pattern
     msg = f"no {spec.kind} with {cols}x{rows} inner corners found in any of the {len(grays)} images"
     if spec.kind == "chessboard":
@@ -339,7 +337,7 @@ def _rejected(labels: Sequence[str], reasons: Sequence[str | None]) -> str:
 
 
 def _input_warnings(
-    grays: Sequence[npt.NDArray[np.uint8]],
+    grays: Sequence[ImageU8],
     labels: Sequence[str],
     reasons: Sequence[str | None],
     spec: BoardSpec,

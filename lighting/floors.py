@@ -13,7 +13,8 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-from lighting.policy import FloatArray, LedPlan, RobotState, ScheduleConfig, plan_leds
+from lighting.policy import LedPlan, RobotState, ScheduleConfig, plan_leds
+from localizer.types import FloatArray
 
 
 def plan_leds_per_floor(

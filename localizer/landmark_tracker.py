@@ -19,7 +19,6 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-import numpy.typing as npt
 from scipy.spatial import cKDTree
 
 from localizer.camera import CameraModel
@@ -52,10 +51,9 @@ from localizer.tracking import (
     scale_px_per_m,
     unambiguous_pairs,
 )
+from localizer.types import FloatArray, IntArray, Pose
 
-FloatArray = npt.NDArray[np.float64]
 Frame = FrameObserved | SpotsObserved
-Pose3 = tuple[float, float, float]
 
 
 class TrackResult(NamedTuple):
@@ -150,7 +148,7 @@ class LandmarkTracker:
         self.noise = PixelNoiseModel(self.camera, self.config.noise, self.scale_px_per_m)
         if old is not None:
             self.noise.factor = old.factor  # what the residuals taught so far
-        self._consider_cache: dict[tuple[int, ...], tuple[Pose3, FloatArray]] = {}
+        self._consider_cache: dict[tuple[int, ...], tuple[Pose, FloatArray]] = {}
 
     def full_spots(self, e: Frame) -> Spots:
         """The spots of the whole frame (remembering its background for the windows)."""
@@ -166,7 +164,7 @@ class LandmarkTracker:
         *,
         dt_frame_s: float,
         fresh_odometry: bool,
-        candidates: npt.NDArray[np.int64] | None,
+        candidates: IntArray | None,
         spots: Spots | None = None,
         reacquire: bool = False,
         since_sample_s: float = 0.0,
@@ -233,7 +231,7 @@ class LandmarkTracker:
         e: Frame,
         dt_frame_s: float,
         fresh_odometry: bool,
-        candidates: npt.NDArray[np.int64] | None,
+        candidates: IntArray | None,
         spots: Spots | None,
         reacquire: bool,
     ) -> TrackResult:
@@ -327,7 +325,7 @@ class LandmarkTracker:
         self,
         filt: PoseFilter,
         spots: Spots,
-        candidates: npt.NDArray[np.int64] | None,
+        candidates: IntArray | None,
         *,
         prior: tuple[tuple[float, float, float], FloatArray] | None = None,
         hypotheses: HypothesisSet | None = None,
@@ -406,7 +404,7 @@ class LandmarkTracker:
         return passing[0] if len(passing) == 1 else []
 
     def _still_lit(
-        self, landmark_ids: frozenset[int], candidates: npt.NDArray[np.int64] | None
+        self, landmark_ids: frozenset[int], candidates: IntArray | None
     ) -> frozenset[int]:
         """The landmarks among `landmark_ids` that are surely lit (`candidates`: map rows of
         those; None: every landmark)."""

@@ -37,8 +37,7 @@ from localizer.odometry import odometry_increments, odometry_partials
 from localizer.pose import PoseFix
 from localizer.propagation import DeferredPropagation
 from localizer.small_linalg import inverse_3x3_sym
-
-FloatArray = npt.NDArray[np.float64]
+from localizer.types import FloatArray
 
 
 @dataclass(frozen=True)

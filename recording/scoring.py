@@ -26,9 +26,7 @@ import numpy.typing as npt
 
 from localizer.events import NoPose, PoseEstimate
 from localizer.geometry import wrap_angle
-
-FloatArray = npt.NDArray[np.float64]
-IntArray = npt.NDArray[np.int64]
+from localizer.types import BoolArray, FloatArray, IntArray
 
 PAPER = {"mean_cm": 4.1, "std_cm": 2.9, "max_cm": 17.1, "heading_deg": 0.26,
          "jitter_cm": 0.5, "jitter_deg": 0.3}  # fmt: skip
@@ -59,7 +57,7 @@ class PoseTrack:
     covariance_diag: FloatArray
 
     @property
-    def has_pose(self) -> npt.NDArray[np.bool_]:
+    def has_pose(self) -> BoolArray:
         return np.isfinite(self.pose[:, 0])
 
 

@@ -11,13 +11,12 @@ from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
-import numpy.typing as npt
 
 from localizer.camera import CameraModel, T_body_camera_upward
+from localizer.types import FloatArray
 
 Lens = Literal["pinhole", "fisheye", "wide_radtan"]
 LENSES: tuple[Lens, ...] = ("pinhole", "fisheye", "wide_radtan")
-FloatArray = npt.NDArray[np.float64]
 
 
 def wide_angle_camera(

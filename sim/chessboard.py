@@ -15,9 +15,9 @@ from typing import Protocol
 
 import cv2
 import numpy as np
-import numpy.typing as npt
 
 from localizer.camera import CameraModel, rays_from_pixels
+from localizer.types import FloatArray, ImageU8
 
 
 class BoardSpec(Protocol):
@@ -30,12 +30,8 @@ class BoardSpec(Protocol):
     def square_m(self) -> float: ...
     @property
     def kind(self) -> str: ...
-    def object_points(self) -> npt.NDArray[np.float64]: ...
+    def object_points(self) -> FloatArray: ...
     def charuco_board(self) -> cv2.aruco.CharucoBoard: ...
-
-
-FloatArray = npt.NDArray[np.float64]
-ImageU8 = npt.NDArray[np.uint8]
 
 
 def board_texture(board: BoardSpec, *, px_per_square: int = 32) -> tuple[ImageU8, float]:

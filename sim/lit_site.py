@@ -12,12 +12,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import numpy.typing as npt
 
 from localizer.events import LedsChanged
 from sim.scenario import Scenario, scenario_from_dict
-
-FloatArray = npt.NDArray[np.float64]
 
 
 def _place(

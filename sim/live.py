@@ -12,12 +12,12 @@ from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
-import numpy.typing as npt
 
 from lighting.energy import RadioSleep
 from localizer.camera import CameraModel
 from localizer.events import FrameObserved, OdometryMeasured, SpotsObserved
 from localizer.robot import RobotGeometry
+from localizer.types import FloatArray, ImageU8
 from sim.build import RobotRig, build_robot, build_world, seed_generators
 from sim.radio import SimRadio
 from sim.render import RenderConfig, render_frame
@@ -30,10 +30,10 @@ from sim.world import IN_LIFT, World
 def render_view(
     world: World,
     camera: CameraModel,
-    T_world_body: npt.NDArray[np.float64],
+    T_world_body: FloatArray,
     rng: np.random.Generator,
     config: RenderConfig,
-) -> npt.NDArray[np.uint8]:
+) -> ImageU8:
     """The frame a (true) camera sees from a body pose (4, 4) in the world as it is now."""
     p_cam = (T_world_body @ camera.T_body_camera)[:3, 3]
     sources, intensities = world.point_sources(p_cam)
@@ -158,11 +158,11 @@ class LiveSite:
     def render(
         self,
         name: str,
-        T_world_body: npt.NDArray[np.float64],
+        T_world_body: FloatArray,
         *,
         t_ns: int | None = None,
         floor: str | None = None,
-    ) -> npt.NDArray[np.uint8]:
+    ) -> ImageU8:
         """The frame robot `name`'s true camera sees from a body pose, with the world now
         (with the LEDs as they were at site time `t_ns` when given), on `floor` (None: the
         robot's floor now; `sim.world.IN_LIFT`: in the lift cabin)."""

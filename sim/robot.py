@@ -18,14 +18,12 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-import numpy.typing as npt
 
 from localizer.events import OdometryMeasured
 from localizer.geometry import rotation_z, wrap_angle
 from localizer.odometry import integrate_arc
+from localizer.types import FloatArray
 from sim.routes import DriveLimits, Lift, Route, RouteFollower
-
-FloatArray = npt.NDArray[np.float64]
 
 
 @dataclass(frozen=True)

@@ -10,10 +10,10 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
-import numpy.typing as npt
 
 from localizer.camera import CameraModel, predict_pixels
 from localizer.events import LedsChanged, OdometryMeasured
+from localizer.types import FloatArray, IntArray
 from sim.build import build_robot, build_world, seed_generators
 from sim.cameras import perturbed_camera
 from sim.robot import FloorArrival
@@ -102,14 +102,14 @@ class SpotDrive:
     camera: CameraModel
     camera_true: CameraModel
     wheel_base_m: float
-    frame_t_ns: npt.NDArray[np.int64]
-    frame_spots: list[npt.NDArray[np.float64]]
-    odom_t_ns: npt.NDArray[np.int64]
-    odom_v: npt.NDArray[np.float64]
+    frame_t_ns: IntArray
+    frame_spots: list[FloatArray]
+    odom_t_ns: IntArray
+    odom_v: FloatArray
     leds: list[LedsChanged]
-    truth_t_ns: npt.NDArray[np.int64]
-    truth: npt.NDArray[np.float64]
-    landmarks_true: dict[int, npt.NDArray[np.float64]]
+    truth_t_ns: IntArray
+    truth: FloatArray
+    landmarks_true: dict[int, FloatArray]
     map_records: list[dict[str, object]]
 
 
@@ -152,7 +152,7 @@ def simulate_survey_spots(
     leds = program if program and program[0].t_ns <= 0 else [LedsChanged(0, all_lit=True), *program]
     times = [c.t_ns for c in leds]
     frame_t: list[int] = []
-    spots: list[npt.NDArray[np.float64]] = []
+    spots: list[FloatArray] = []
     odom_t: list[int] = []
     odom_v: list[tuple[float, float]] = []
     truth: list[tuple[float, float, float]] = []
