@@ -9,7 +9,7 @@ import logging
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from datetime import datetime
-from typing import Any, Literal, get_args
+from typing import Any, Literal, Protocol, get_args
 
 from live.event_writer import EventWriter, PendingEvent
 from pubsub.bus import Bus
@@ -57,6 +57,20 @@ WARNING_EVENTS = frozenset(
 )
 """Kinds logged as warnings (the others as info)."""
 log = logging.getLogger(__name__)
+
+
+class EmitEvent(Protocol):
+    """Something that emits a site event: `EventHub.emit`, or what hands it on (off a loop,
+    say); typed so that mypy checks every kind emitted through it."""
+
+    def __call__(
+        self,
+        kind: EventKind,
+        message: str,
+        *,
+        robot: str | None = None,
+        data: dict[str, Any] | None = None,
+    ) -> None: ...
 
 
 @dataclass(frozen=True)
