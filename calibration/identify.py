@@ -105,8 +105,9 @@ def identify_spots(
             taken = {s for s, _ in pairs}
             named.update(_named_by_elimination(lit_ids, spots, named, taken))
             if len(named) == 2:
-                named.update(_named_by_hypothesis(camera, landmark_map, lit_ids, spots, named,
-                                                  taken, cfg))  # fmt: skip
+                named.update(
+                    _named_by_hypothesis(camera, landmark_map, lit_ids, spots, named, taken, cfg)
+                )
         if len(named) >= 3:
             ids = list(named)
             pose = camera_pose_from_landmarks(

@@ -240,8 +240,12 @@ def calibrate_lens(
         for i in outliers:
             reasons[i] = f"outlier: error {errors[i]:.2f} px > {limit:.2f} px"
         usable = [i for i in usable if i not in outliers]
-        refit = fit_lens([corners[i] for i in usable], resolution, model,  # type: ignore[misc]
-                         min_views=cfg.min_views)  # fmt: skip
+        refit = fit_lens(
+            [corners[i] for i in usable],  # type: ignore[misc]
+            resolution,
+            model,
+            min_views=cfg.min_views,
+        )
         for k, why in refit.dropped:
             reasons[usable[k]] = why
         usable = [usable[k] for k in refit.kept]
@@ -354,10 +358,13 @@ def _input_warnings(
     if spec.kind == "chessboard" and 2 * len(missing) > len(grays):
         cols, rows = spec.pattern
         hint = next(
-            ((labels[i], h) for i in missing[:3]
-             if (h := suggest_pattern(grays[i], spec.pattern)) is not None),
+            (
+                (labels[i], h)
+                for i in missing[:3]
+                if (h := suggest_pattern(grays[i], spec.pattern)) is not None
+            ),
             None,
-        )  # fmt: skip
+        )
         text = (
             f"the {cols}x{rows} pattern was found on only {len(grays) - len(missing)} of "
             f"{len(grays)} photos"

@@ -128,8 +128,9 @@ def fit_lens(
     dropped: list[tuple[int, str]] = []
     while True:
         try:
-            return _finish(_fit([views[i] for i in kept], resolution, model, guess),
-                           kept, dropped, guess)  # fmt: skip
+            return _finish(
+                _fit([views[i] for i in kept], resolution, model, guess), kept, dropped, guess
+            )
         except _FitError as failure:
             error = failure.message
         if len(kept) <= min_views:

@@ -112,9 +112,17 @@ class Cancel:
 
 
 WizardEvent = (
-    Start | PoseSeen | FrameSeen | LedsSeen | RadioSwitched | Tick | Confirm | Skip
-    | SwitchAnyway | Cancel
-)  # fmt: skip
+    Start
+    | PoseSeen
+    | FrameSeen
+    | LedsSeen
+    | RadioSwitched
+    | Tick
+    | Confirm
+    | Skip
+    | SwitchAnyway
+    | Cancel
+)
 
 
 # -- outputs --------------------------------------------------------------------------------------

@@ -357,9 +357,19 @@ def read_recording(root: Path | str) -> Recording:
     start_pose = read_start_pose(base / layout.START_POSE_FILE)
     imu_t_ns, imu = read_imu(base / layout.IMU_FILE, base / layout.IMU_SENSOR_FILE)
     return Recording(
-        base, landmark_map, records, robot, camera, frames, odom_t_ns, odom_v, leds,
-        start_pose, imu_t_ns, imu,
-    )  # fmt: skip
+        root=base,
+        landmark_map=landmark_map,
+        landmark_records=records,
+        robot=robot,
+        camera=camera,
+        frames=frames,
+        odom_t_ns=odom_t_ns,
+        odom_v=odom_v,
+        leds=leds,
+        start_pose=start_pose,
+        imu_t_ns=imu_t_ns,
+        imu=imu,
+    )
 
 
 def iter_timeline(recording: Recording) -> Iterator[Item]:

@@ -139,9 +139,11 @@ class RecordingWriter:
 
     def _write_png(self, path: Path, image: ImageU8) -> None:
         params = [
-            cv2.IMWRITE_PNG_COMPRESSION, self.png_compression,
-            cv2.IMWRITE_PNG_STRATEGY, cv2.IMWRITE_PNG_STRATEGY_HUFFMAN_ONLY,
-        ]  # fmt: skip
+            cv2.IMWRITE_PNG_COMPRESSION,
+            self.png_compression,
+            cv2.IMWRITE_PNG_STRATEGY,
+            cv2.IMWRITE_PNG_STRATEGY_HUFFMAN_ONLY,
+        ]
         if not cv2.imwrite(str(path), image, params):
             raise OSError(f"{path}: could not write the PNG")
 
@@ -223,8 +225,14 @@ class RecordingWriter:
                 self._pending.popleft().result()
         finally:
             self._pool.shutdown(wait=True)
-        for f in (self._frames, self._odometry, self._leds, self._groundtruth, self._live_poses,
-                  self._imu):  # fmt: skip
+        for f in (
+            self._frames,
+            self._odometry,
+            self._leds,
+            self._groundtruth,
+            self._live_poses,
+            self._imu,
+        ):
             f.close()
 
     def __enter__(self) -> RecordingWriter:

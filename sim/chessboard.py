@@ -178,9 +178,13 @@ class BoardRenderer:
         lo, hi = contrast
         tex = (lo + (hi - lo) * (self.texture.astype(np.float32) / 255.0)).astype(np.float32)
         sampled = cv2.remap(
-            tex, map_u, map_v, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
+            tex,
+            map_u,
+            map_v,
+            cv2.INTER_LINEAR,
+            borderMode=cv2.BORDER_CONSTANT,
             borderValue=background,
-        )  # fmt: skip
+        )
         ss = self.supersample
         h, w = self.camera.height, self.camera.width
         img = sampled.reshape(h, ss, w, ss).mean(axis=(1, 3))

@@ -38,9 +38,14 @@ def render_view(
     p_cam = (T_world_body @ camera.T_body_camera)[:3, 3]
     sources, intensities = world.point_sources(p_cam)
     return render_frame(
-        camera, T_world_body, sources, intensities, rng=rng, config=config,
+        camera,
+        T_world_body,
+        sources,
+        intensities,
+        rng=rng,
+        config=config,
         extended=world.extended,
-    )  # fmt: skip
+    )
 
 
 @dataclass(frozen=True, eq=False)
@@ -79,9 +84,13 @@ class LiveSite:
         gens = seed_generators(sc.seed if seed is None else seed, 3 + len(sc.robots))
         self.world: World = build_world(sc, gens[0])
         self.radio = SimRadio(
-            self.world, rng=gens[1], latency_s=sc.radio_latency_s, loss=sc.radio_loss,
-            timeout_s=max(0.3, 2.0 * sc.radio_latency_s[1]), sleep=radio_sleep,
-        )  # fmt: skip
+            self.world,
+            rng=gens[1],
+            latency_s=sc.radio_latency_s,
+            loss=sc.radio_loss,
+            timeout_s=max(0.3, 2.0 * sc.radio_latency_s[1]),
+            sleep=radio_sleep,
+        )
         self.observe = observe
         self._render_rng = gens[2]
         self._rigs: dict[str, RobotRig] = {
@@ -171,9 +180,14 @@ class LiveSite:
         on = self.true_floor(name) if floor is None else floor
         sources, intensities = self.world.point_sources(p_cam, t_ns=t_ns, floor=on)
         return render_frame(
-            cam, T_world_body, sources, intensities, rng=self._render_rng,
-            config=self.scenario.render, extended=self.world.extended,
-        )  # fmt: skip
+            cam,
+            T_world_body,
+            sources,
+            intensities,
+            rng=self._render_rng,
+            config=self.scenario.render,
+            extended=self.world.extended,
+        )
 
     def step(self, t_ns: int) -> list[SensorSample]:
         """Advance robots, batteries and people to `t_ns`; the samples due, in time order.
@@ -215,9 +229,15 @@ class LiveSite:
                 if self.observe == "spots":
                     cam = self.rig(name).camera_true
                     spots = observe_spots(
-                        self.world, cam, item.T_world_body, t_out, self._render_rng,
-                        self.scenario.render, led_t_ns=t_local, floor=on,
-                    )  # fmt: skip
+                        self.world,
+                        cam,
+                        item.T_world_body,
+                        t_out,
+                        self._render_rng,
+                        self.scenario.render,
+                        led_t_ns=t_local,
+                        floor=on,
+                    )
                     out.append(SensorSample(name, spots))
                     continue
                 image = self.render(name, item.T_world_body, t_ns=t_local, floor=on)

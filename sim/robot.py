@@ -288,8 +288,9 @@ class SimRobot:
             return
         if self._lift is not None:
             self.floor, self.in_lift = self._lift.floor, False
-            out.append(FloorArrival(tick_ns, self.floor, (self.x, self.y, self.theta),
-                                    self._lift.announce))  # fmt: skip
+            out.append(
+                FloorArrival(tick_ns, self.floor, (self.x, self.y, self.theta), self._lift.announce)
+            )
             self._lift = None
 
     def _add_frame(self, out: list[OdometryMeasured | FramePose | FloorArrival], t_ns: int) -> None:

@@ -171,9 +171,12 @@ def simulate_survey_spots(
     rig = build_robot(scenario.robots[0], scenario, gens[3], index=0)
     nominal = rig.camera_nominal
     true = perturbed_camera(
-        nominal, gens[1], focal_rel_sigma=focal_rel_sigma, principal_sigma_px=principal_sigma_px,
+        nominal,
+        gens[1],
+        focal_rel_sigma=focal_rel_sigma,
+        principal_sigma_px=principal_sigma_px,
         distortion_sigma=0.0,
-    )  # fmt: skip
+    )
     d = np.asarray(true.distortion).copy()
     d *= 1.0 + gens[1].normal(0.0, distortion_rel_sigma, len(d))
     true = dataclasses.replace(true, distortion=d)
@@ -207,9 +210,16 @@ def simulate_survey_spots(
             spots.append(px[keep] + rng.normal(0.0, centroid_sigma_px, (int(keep.sum()), 2)))
             truth.append(item.pose)
     return SpotDrive(
-        nominal, true, rig.geometry.wheel_base, np.array(frame_t, dtype=np.int64), spots,
-        np.array(odom_t, dtype=np.int64), np.array(odom_v).reshape(-1, 2), leds,
-        np.array(frame_t, dtype=np.int64), np.array(truth).reshape(-1, 3),
-        {int(i): p for i, p in zip(ids.tolist(), p_true, strict=True)},
-        world.landmark_records(),
-    )  # fmt: skip
+        camera=nominal,
+        camera_true=true,
+        wheel_base_m=rig.geometry.wheel_base,
+        frame_t_ns=np.array(frame_t, dtype=np.int64),
+        frame_spots=spots,
+        odom_t_ns=np.array(odom_t, dtype=np.int64),
+        odom_v=np.array(odom_v).reshape(-1, 2),
+        leds=leds,
+        truth_t_ns=np.array(frame_t, dtype=np.int64),
+        truth=np.array(truth).reshape(-1, 3),
+        landmarks_true={int(i): p for i, p in zip(ids.tolist(), p_true, strict=True)},
+        map_records=world.landmark_records(),
+    )
