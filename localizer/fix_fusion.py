@@ -1,4 +1,4 @@
-"""A fix from matched landmarks, checked and fused (Sec. IV-A.3, IV-B).
+"""A fix from the tracked landmarks, checked and fused (Sec. IV-A; the fusion of Sec. IV-B).
 
 Given (map row, spot pixel) pairs, `solve_pose` finds the body's pose on the floor carried
 from fix to fix (`floor_plane`: its tilt and height re-estimated with 3+ landmarks where the
