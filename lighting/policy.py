@@ -42,12 +42,10 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
-import numpy.typing as npt
 
 from localizer.camera import CameraModel, predict_pixels
 from localizer.events import Mode
-
-FloatArray = npt.NDArray[np.float64]
+from localizer.types import BoolArray, FloatArray, IntArray
 
 
 @dataclass(frozen=True)
@@ -189,7 +187,7 @@ def in_view(
     positions: FloatArray,
     margin_m: float,
     ceiling_m: float,
-) -> tuple[npt.NDArray[np.bool_], FloatArray]:
+) -> tuple[BoolArray, FloatArray]:
     """Which landmarks a camera sees from a planar pose with `margin_m` to spare, and their
     distance from the image centre in pixels.
 
@@ -282,7 +280,7 @@ def _neighbourhood(
 
 
 def _choose(
-    candidates: npt.NDArray[np.int64],
+    candidates: IntArray,
     centre_px: FloatArray,
     chosen: set[int],
     need: int,
@@ -320,7 +318,7 @@ def _choose(
 
 def _cover(
     camera: CameraModel,
-    views: list[tuple[float, npt.NDArray[np.int64], FloatArray]],
+    views: list[tuple[float, IntArray, FloatArray]],
     chosen: set[int],
     ids: Sequence[int],
     xy: FloatArray,

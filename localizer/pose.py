@@ -40,8 +40,7 @@ from localizer.pose_planar import (
     solve_planar,
     solve_tilted,
 )
-
-FloatArray = npt.NDArray[np.float64]
+from localizer.types import FloatArray
 
 _JACOBIAN_STEP_PX = 0.5  # forward-difference step for d(normalised)/d(pixel)
 

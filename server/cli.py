@@ -172,9 +172,12 @@ def main(
     from server.console import leds_line, startup_lines
 
     lines = startup_lines(
-        host=settings.host, port=settings.port, data_dir=settings.data_dir,
-        viewer_enabled=viewer is not None, first_key=first_key,
-    )  # fmt: skip
+        host=settings.host,
+        port=settings.port,
+        data_dir=settings.data_dir,
+        viewer_enabled=viewer is not None,
+        first_key=first_key,
+    )
     print("\n".join(lines[:-1] if first_key is not None else lines))
     if not is_loopback(settings.host):
         print(

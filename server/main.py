@@ -169,9 +169,23 @@ def create_app(settings: Settings | None = None, viewer: ViewerApp | None = None
     app.add_middleware(EdgeGuard, default_body_bytes=settings.max_body_bytes)
     api = APIRouter(prefix=API_PREFIX, dependencies=[Depends(refuse_unknown_query)])
     for module in (
-        landmarks, map, history, floorplan, robots, calibration, remote, admin, streams,
-        commissioning, survey, leds, map_proposals, recordings, zones, floors,
-    ):  # fmt: skip
+        landmarks,
+        map,
+        history,
+        floorplan,
+        robots,
+        calibration,
+        remote,
+        admin,
+        streams,
+        commissioning,
+        survey,
+        leds,
+        map_proposals,
+        recordings,
+        zones,
+        floors,
+    ):
         api.include_router(module.router)
     api.add_api_route(
         "/metrics",
