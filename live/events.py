@@ -38,6 +38,8 @@ EventKind = Literal[
     "recording_stopped",
     "site_thread_restarted",
     "fleet_intrusion",
+    "alert_raised",
+    "alert_resolved",
 ]
 """What an event is about (the API's enumerated type)."""
 EVENT_KINDS: tuple[str, ...] = get_args(EventKind)
@@ -53,6 +55,7 @@ WARNING_EVENTS = frozenset(
         "recording_stopped",
         "site_thread_restarted",
         "fleet_intrusion",
+        "alert_raised",
     }
 )
 """Kinds logged as warnings (the others as info)."""

@@ -42,6 +42,7 @@ from server.metrics import make_registry, render
 from server.openapi import install_openapi
 from server.routes import (
     admin,
+    alerts,
     calibration,
     commissioning,
     floorplan,
@@ -170,7 +171,7 @@ def create_app(settings: Settings | None = None, viewer: ViewerApp | None = None
     api = APIRouter(prefix=API_PREFIX, dependencies=[Depends(refuse_unknown_query)])
     for module in (
         landmarks, map, history, floorplan, robots, calibration, remote, admin, streams,
-        commissioning, survey, leds, map_proposals, recordings, zones, floors,
+        commissioning, survey, leds, map_proposals, recordings, zones, floors, alerts,
     ):  # fmt: skip
         api.include_router(module.router)
     api.add_api_route(
