@@ -1,5 +1,5 @@
 """The reliability counters on `/metrics`: what the site refused, dropped, restarted or could
-not store, read at scrape time from the parts that count them (docs/server.md, "Metrics").
+not store, read at scrape time from the parts that count them (docs/api.md, "Operations").
 
 - HTTP edge (`server.edge.EdgeGuard`): refusals by status, bodies too large, bodies
   without a key; connections (`server.connections.ConnectionGuard`, under `irloc serve`):
