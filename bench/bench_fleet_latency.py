@@ -26,7 +26,6 @@ import argparse
 import asyncio
 import logging
 import os
-import signal
 import subprocess
 import sys
 import tempfile
@@ -39,6 +38,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from bench.bench_fleet import stop_agents  # noqa: E402
 from live.mqtt_bridge import start_mqtt_bridge  # noqa: E402
 from live.poses import PoseUpdate  # noqa: E402
 from live.services import SiteServices  # noqa: E402
@@ -76,16 +76,6 @@ def spawn(url: str, prefix: str, n: int, per_process: int) -> list[subprocess.Po
     return procs
 
 
-def stop(procs: list[subprocess.Popen[bytes]]) -> None:
-    for p in procs:
-        p.send_signal(signal.SIGTERM)
-    for p in procs:
-        try:
-            p.wait(15)
-        except subprocess.TimeoutExpired:
-            p.kill()
-
-
 async def run_round(
     n: int, args: argparse.Namespace, url: str, services: SiteServices, receipts: Receipts
 ) -> dict[str, Any]:
@@ -105,7 +95,7 @@ async def run_round(
         await asyncio.sleep(args.seconds)
         t1, c1 = time.monotonic(), time.process_time()
     finally:
-        await asyncio.to_thread(stop, procs)
+        await asyncio.to_thread(stop_agents, procs)
     ms = np.array([s[2] for s in receipts.samples if t0 <= s[0] <= t1 and s[1].startswith(prefix)])
     dt = t1 - t0
 
