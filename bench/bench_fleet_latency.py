@@ -17,13 +17,15 @@ received against those expected (10/s per agent), and the site's CPU (this proce
 + system) in % of one core.
 
 Usage: PYTHONPATH=$PWD .venv/bin/python bench/bench_fleet_latency.py [--counts 10 100]
-[--seconds 10] [--per-process 25]
+[--seconds 10] [--per-process 25] [--profile FILE] (the site's event loop over each window,
+into FILE.<count>; read with `python -m pstats`)
 """
 
 from __future__ import annotations
 
 import argparse
 import asyncio
+import cProfile
 import logging
 import os
 import subprocess
@@ -91,9 +93,15 @@ async def run_round(
                 break
             await asyncio.sleep(0.5)
         await asyncio.sleep(1.0)
+        profile = cProfile.Profile() if args.profile else None
+        if profile is not None:
+            profile.enable()  # the site's event loop: this thread
         t0, c0 = time.monotonic(), time.process_time()
         await asyncio.sleep(args.seconds)
         t1, c1 = time.monotonic(), time.process_time()
+        if profile is not None:
+            profile.disable()
+            profile.dump_stats(f"{args.profile}.{n}")
     finally:
         await asyncio.to_thread(stop_agents, procs)
     ms = np.array([s[2] for s in receipts.samples if t0 <= s[0] <= t1 and s[1].startswith(prefix)])
@@ -155,6 +163,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--seconds", type=float, default=10.0)
     p.add_argument("--per-process", type=int, default=25)
     p.add_argument("--warmup-s", type=float, default=60.0)
+    p.add_argument("--profile", help="cProfile the site's event loop into PROFILE.<count>")
     args = p.parse_args(argv)
     logging.basicConfig(level=logging.ERROR)  # the site's events (agents leaving) stay quiet
     load = Path("/proc/loadavg").read_text().split()[:3]
