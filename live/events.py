@@ -38,6 +38,8 @@ EventKind = Literal[
     "recording_stopped",
     "site_thread_restarted",
     "fleet_intrusion",
+    "alert_raised",
+    "alert_resolved",
 ]
 """What an event is about (the API's enumerated type). A new kind is added here: every
 emitter is typed with it (`EventHub.emit`, `EmitEvent`), so mypy refuses a kind not listed."""
@@ -54,6 +56,7 @@ WARNING_EVENTS = frozenset(
         "recording_stopped",
         "site_thread_restarted",
         "fleet_intrusion",
+        "alert_raised",
     }
 )
 """Kinds logged as warnings (the others as info)."""

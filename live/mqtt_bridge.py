@@ -54,6 +54,7 @@ from fleet.topics import (
     vda_serial_of,
 )
 from live.agent_runner import AgentRunner
+from live.alerts import Notification
 from live.events import EventKind
 from live.fleet_guard import FleetGuard
 from localizer.events import LedsChanged, Mode
@@ -115,15 +116,18 @@ class MqttBridge:
             landmarks=services.map.list(),
             emit=self._emit,
         )
+        self._alerts: dict[str, bytes] = {}  # topic -> retained payload of each active alert
 
     # -- lifecycle --------------------------------------------------------------------------------
     def start(self) -> None:
         self.services.map.add_listener(self._on_map)
         self._gateway_listening = self.services.leds.add_listener(self._on_leds)
+        self.services.alerts.add_listener(self._on_alert)
         self._task = self._loop.create_task(self._run())
 
     async def stop(self) -> None:
         self.services.map.remove_listener(self._on_map)
+        self.services.alerts.remove_listener(self._on_alert)
         if self._gateway_listening:
             self.services.leds.remove_listener(self._on_leds)
         client = self.client
@@ -188,6 +192,26 @@ class MqttBridge:
         self._led_last = msg
         self._send(self.topics.leds, msg, QOS_STATE, True)
 
+    def _on_alert(self, note: Notification) -> None:
+        """An alert raised: retained on its topic; resolved: the resolved message, then the
+        retained one cleared (docs/alerts.md)."""
+        c = note.alert.condition
+        topic = self.topics.alert(c.kind, c.subject)
+        payload = note.json(self.topics.site)
+        if note.state == "raised":
+            self._alerts[topic] = payload
+            self._send(topic, payload, QOS_STATE, True)
+        else:
+            self._alerts.pop(topic, None)
+            self._send(topic, payload, QOS_STATE, False)
+            self._send(topic, b"", QOS_STATE, True)
+
+    def _on_alert_seen(self, topic: str, payload: bytes, retained: bool) -> None:
+        """A retained alert the broker kept from before (this server's last run): cleared
+        when it is not active now."""
+        if retained and payload and topic not in self._alerts:
+            self._send(topic, b"", QOS_STATE, True)
+
     def _send_command(self, robot: str, near: tuple[float, float, float] | None) -> None:
         msg = CommandMessage(command="relocalize", near=near)
         self._send(self.topics.command(robot), msg.encode(), QOS_STATE)
@@ -237,12 +261,15 @@ class MqttBridge:
                 (t.agents_wildcard, QOS_STATE),
                 (t.clock_request, QOS_CLOCK),
                 (t.map, QOS_STATE),
+                (t.alerts_wildcard, QOS_STATE),
                 (vda_connection_wildcard(self.manufacturer), QOS_STATE),
             ]
         )
         await client.publish(t.map, self._map_now(), qos=QOS_STATE, retain=True)
         if self._led_last is not None:
             await client.publish(t.leds, self._led_last, qos=QOS_STATE, retain=True)
+        for topic, payload in list(self._alerts.items()):  # a broker restarted empty
+            await client.publish(topic, payload, qos=QOS_STATE, retain=True)
         await client.publish(t.server, ServerState(state="ONLINE").encode(), qos=1, retain=True)
         self.connects += 1
         self.client = client
@@ -274,6 +301,9 @@ class MqttBridge:
             return
         if topic == t.map:
             self._on_map_seen(payload)
+            return
+        if t.is_alert(topic):
+            self._on_alert_seen(topic, payload, retained)
             return
         serial = vda_serial_of(topic)
         if serial is not None and topic.endswith("/connection"):

@@ -211,7 +211,12 @@ def uvicorn_config(settings: Settings, app: object, log_level: str = "info") -> 
     `trusted_proxies` (uvicorn believes loopback's by default), the open-file limit raised."""
     import uvicorn
 
-    from server.connections import EdgeLimits, GuardedHttpProtocol, raise_open_file_limit
+    from server.connections import (
+        EdgeLimits,
+        GuardedHttpProtocol,
+        guard_of,
+        raise_open_file_limit,
+    )
 
     raise_open_file_limit()
     config = uvicorn.Config(
@@ -231,4 +236,7 @@ def uvicorn_config(settings: Settings, app: object, log_level: str = "info") -> 
         max_per_address=settings.max_connections_per_address,
         max_connections=settings.max_connections,
     )
+    state = getattr(app, "state", None)
+    if state is not None:  # /metrics reads its counters
+        state.connection_guard = guard_of(config)
     return config
