@@ -31,6 +31,7 @@ from fleet.payloads import (
     AgentSource,
     AgentStatus,
     CommandMessage,
+    FloorMessage,
     LedRequestMessage,
     LedStateMessage,
     MapMessage,
@@ -105,6 +106,10 @@ class AgentConfig:
             upkeep) at most this often, seconds (0: never), and only for a confident frame:
             landmark mode, two or more landmarks, 1-sigma position within
             `spots_max_sigma_m` metres.
+        floor: the floor it starts on, when it knows (a simulated robot's; `--floor`):
+            it takes that floor's map until the site tells it its floor
+            (`agents/<name>/floor`), and says so in its status; None: the site's default
+            floor's map until told.
     """
 
     name: str
@@ -116,6 +121,7 @@ class AgentConfig:
     start_known: bool = False
     spots_period_s: float = 1.0
     spots_max_sigma_m: float = 0.05
+    floor: str | None = None
 
 
 @dataclass(frozen=True)
@@ -149,7 +155,7 @@ class AgentCore:
         self.errors = 0
         self.late_leds = 0
         self.led_states = 0
-        self._inbox: list[MapMessage | LedStateMessage | CommandMessage] = []
+        self._inbox: list[MapMessage | LedStateMessage | CommandMessage | FloorMessage] = []
         self._inbox_lock = threading.Lock()
         self._heap: list[tuple[int, int, Event]] = []
         self._count = itertools.count()
@@ -169,6 +175,12 @@ class AgentCore:
         self._premap_motion: deque[OdometryMeasured | ImuMeasured]
         self._premap_motion = deque(maxlen=PREMAP_MOTION_EVENTS)
         self._premap_overflow = False
+        # floors: every floor's map as received, the floor to localize on, and whether to
+        # identify again (near a pose) once that floor's map is taken (a floor change)
+        self.floor_wanted: str | None = config.floor
+        self._floor_maps: dict[str, MapMessage] = {}
+        self._assignment_n: int | None = None
+        self._reidentify: tuple[bool, tuple[float, float, float] | None] = (False, None)
 
     # -- from the network (any thread) -------------------------------------------------------
     def on_map(self, msg: MapMessage) -> None:
@@ -180,7 +192,11 @@ class AgentCore:
     def on_command(self, msg: CommandMessage) -> None:
         self._post(msg)
 
-    def _post(self, msg: MapMessage | LedStateMessage | CommandMessage) -> None:
+    def on_floor(self, msg: FloorMessage) -> None:
+        """The floor the site has this robot on (`agents/<name>/floor`)."""
+        self._post(msg)
+
+    def _post(self, msg: MapMessage | LedStateMessage | CommandMessage | FloorMessage) -> None:
         with self._inbox_lock:
             self._inbox.append(msg)
 
@@ -205,9 +221,16 @@ class AgentCore:
     def _push(self, event: Event) -> None:
         heapq.heappush(self._heap, (event.t_ns, next(self._count), event))
 
-    def _take(self, msg: MapMessage | LedStateMessage | CommandMessage, horizon: int) -> None:
+    def _take(
+        self, msg: MapMessage | LedStateMessage | CommandMessage | FloorMessage, horizon: int
+    ) -> None:
         if isinstance(msg, MapMessage):
-            self._set_map(msg)
+            self._floor_maps[msg.floor] = msg
+            # until told (or configured) its floor it keeps the floor of its first map
+            if msg.floor == (self.floor_wanted or self.map_floor or msg.floor):
+                self._set_map(msg)
+        elif isinstance(msg, FloorMessage):
+            self._assign(msg)
         elif isinstance(msg, LedStateMessage):
             key = (msg.seq, msg.t_ns)
             if key == self._last_led:
@@ -223,20 +246,43 @@ class AgentCore:
         else:
             self._push(RelocalizeRequested(max(horizon, self._fed_t_ns), msg.near))
 
+    def _assign(self, msg: FloorMessage) -> None:
+        """The site has the robot on `msg.floor`: take that floor's map (at once when it
+        came already); a floor other than the one it localizes on, or a pose to start
+        from (`near`), makes it forget its pose and identify again."""
+        if msg.n == self._assignment_n:
+            return  # the retained copy of an assignment already taken (a reconnect)
+        self._assignment_n = msg.n
+        moved = msg.floor != (self.map_floor or self.floor_wanted)
+        self.floor_wanted = msg.floor
+        if moved or msg.near is not None:
+            self._reidentify = (True, msg.near)
+        log.info("%s: on floor %s (near %s)", self.config.name, msg.floor, msg.near)
+        held = self._floor_maps.get(msg.floor)
+        if held is not None:
+            self._set_map(held)
+
     def _set_map(self, msg: MapMessage) -> None:
-        if msg.map_id == self.map_id:
+        again, near = self._reidentify
+        if msg.map_id == self.map_id and not again:
             return
         lmap = LandmarkMap.from_records(msg.records(), source=f"map {msg.map_id}")
         if self.localizer is None:
             self.localizer = Localizer(self.source.camera, lmap, self.source.geometry)
             self._start_prior(self.localizer)
+            again = near is not None  # a fresh localizer identifies anyway
         else:
             self.localizer.set_map(lmap)
+        if again:  # changed floors: nothing of the old floor's pose is kept (before any
+            # frame still queued meets the new map)
+            self._push(RelocalizeRequested(self._fed_t_ns, near))
+        self._reidentify = (False, None)
         self.map_id = msg.map_id
         for observer in self.observers:
             observer.on_map(lmap)
         self.map_floor, self.map_version = msg.floor, msg.version
-        log.info("%s: map %s (%d landmarks)", self.config.name, msg.map_id, len(msg.landmarks))
+        log.info("%s: map %s of floor %s, version %d (%d landmarks)", self.config.name,
+                 msg.map_id, msg.floor, msg.version, len(msg.landmarks))  # fmt: skip
 
     def _start_prior(self, localizer: Localizer) -> None:
         """The dock prior (`start_known`), stamped at the first sample it holds for, and
@@ -302,7 +348,11 @@ class AgentCore:
         wall = self.time.site_now_ns()
         seq = next(self._seq)
         out: list[Outgoing] = []
-        if isinstance(o, PoseEstimate):
+        if self.floor_wanted is not None and self.map_floor != self.floor_wanted:
+            # told another floor, its map not here yet: no pose on the old floor's map
+            msg = PoseMessage(seq=seq, t_ns=t_site, wall_ns=wall, mode="identifying",
+                              floor=self.floor_wanted)  # fmt: skip
+        elif isinstance(o, PoseEstimate):
             self.poses += 1
             msg = PoseMessage.from_estimate(
                 seq, o, t_site, wall, self._spots_for(o, now_mono)
@@ -382,4 +432,5 @@ class AgentCore:
             errors=self.errors,
             map_id=self.map_id,
             map_version=self.map_version if self.map_id is not None else None,
+            floor=self.map_floor or self.floor_wanted,
         )
