@@ -10,6 +10,8 @@ its new floor, and how many wrong poses went out meanwhile.
 - A wrong pose is one that names another floor than the robot is on (the truth; in the
   cabin a robot is on no floor and nothing is counted): with a position, in any mode
   (landmark fixes and dead reckoning alike).
+- A pose withheld (floor unknown) is *right* when the robot is not on the floor the site
+  has it on, *needless* when it is (a pose that would have been true was not served).
 
 The site carries its scenario's realistic errors (each robot's calibration residual, wheel
 radius and base errors, survey error). Figures are per ride; the totals at the end.
@@ -47,6 +49,7 @@ class Ride:
     wrong_landmark: int = 0
     wrong_other: int = 0
     withheld: int = 0
+    needless: int = 0
     errors_cm: list[float] = field(default_factory=list)
 
     def after(self, t_ns: int) -> float:
@@ -71,6 +74,8 @@ async def run(duration_s: float, seed: int) -> list[Ride]:
     rides: list[Ride] = []
     current: dict[str, Ride] = {}
     wrong_outside = 0  # wrong poses not after a ride (none expected)
+    needless = {n: 0 for n in sim.robot_names}  # withheld on the floor the site has it on
+    served = {n: 0 for n in sim.robot_names}  # poses with a position
     t_end = services.clock_ns() + int(duration_s * 1e9)
     while services.clock_ns() < t_end:
         await asyncio.sleep(0.05)
@@ -84,13 +89,17 @@ async def run(duration_s: float, seed: int) -> list[Ride]:
                 rides.append(ride)
             ride_now = current.get(u.robot)
             if u.floor_unknown:
+                if u.floor == truth:
+                    needless[u.robot] += 1
                 if ride_now is not None:
                     ride_now.withheld += 1
-                    if ride_now.unknown_s is None:
+                    ride_now.needless += u.floor == truth
+                    if ride_now.unknown_s is None and u.floor != truth:
                         ride_now.unknown_s = ride_now.after(u.t_ns)
                 continue
             if u.x is None or u.y is None:
                 continue
+            served[u.robot] += 1
             if u.floor != truth:
                 if ride_now is None:
                     wrong_outside += 1
@@ -117,6 +126,8 @@ async def run(duration_s: float, seed: int) -> list[Ride]:
     await services.stop()
     if wrong_outside:
         print(f"  {wrong_outside} wrong poses outside any ride")
+    for name in sim.robot_names:
+        print(f"  {name}: {served[name]} poses served, {needless[name]} withheld needlessly")
     return rides
 
 
@@ -124,7 +135,7 @@ def report(rides: list[Ride], seed: int, duration_s: float) -> None:
     print(f"two_floors, seed {seed}, {duration_s:.0f} s of site time, {len(rides)} rides")
     print(
         "  robot  to  unknown_s  proposed_s  fixed_s  wrong(landmark)  wrong(other)  "
-        "withheld  err_med_cm"
+        "withheld (needless)  err_med_cm"
     )
     for r in rides:
         med = f"{statistics.median(r.errors_cm):.1f}" if r.errors_cm else "-"
@@ -132,7 +143,7 @@ def report(rides: list[Ride], seed: int, duration_s: float) -> None:
         print(
             f"  {r.robot:5}  {r.to:>2}  {_fmt(r.unknown_s):>9}  {_fmt(r.proposed_s):>10}"
             f"  {_fmt(r.fixed_s):>7}  {r.wrong_landmark:>15}  {r.wrong_other:>12}"
-            f"  {r.withheld:>8}  {med:>10}{right}"
+            f"  {r.withheld:>8} ({r.needless:>4})  {med:>10}{right}"
         )
     for robot in sorted({r.robot for r in rides}):
         mine = [r for r in rides if r.robot == robot]

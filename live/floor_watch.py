@@ -47,8 +47,9 @@ class FloorWatchConfig:
     """When to try other floors and when to propose one.
 
     Attributes:
-        suspect_after_s: seconds (site clock) without a fix on its own floor (since its
-            last fix, or since it started) before its view is tried on the other floors.
+        suspect_after_s: seconds (site clock) without a fix on its own floor since its
+            last fix before its view is tried on the other floors (a robot that never had
+            one is not tried: it identifies on the floor it starts on).
         fixes_to_propose: consecutive landmark fixes on another floor's map that make a
             proposal.
         trial_s: a trial that proposes nothing within this is dropped (wall seconds).
@@ -156,7 +157,6 @@ class FloorWatch:
         self._trials: dict[str, list[_Trial]] = {}
         self._proposals: dict[str, FloorProposal] = {}
         self._quiet_until: dict[str, float] = {}
-        self._first_seen_ns: dict[str, int] = {}
         self._own_fix_since: dict[str, float] = {}
         self._lock = threading.Lock()
         self._stop = threading.Event()
@@ -277,10 +277,10 @@ class FloorWatch:
                     self._own_fix_since.pop(name, None)
                 trials = self._trials.get(name)
                 if trials is None:
+                    # a robot that never had a fix identifies on the floor it starts on:
+                    # trying others would stall its own identification (its probes wait)
                     fixed_ns = runner.last_fix_t_ns
-                    if fixed_ns is None:
-                        fixed_ns = self._first_seen_ns.setdefault(name, now_ns)
-                    without_s = (now_ns - fixed_ns) * 1e-9
+                    without_s = 0.0 if fixed_ns is None else (now_ns - fixed_ns) * 1e-9
                     suspect = without_s >= cfg.suspect_after_s or (
                         unknown and self._sees_landmarks(runner)
                     )
