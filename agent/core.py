@@ -26,6 +26,7 @@ from typing import Literal, Protocol, TextIO
 import numpy as np
 import numpy.typing as npt
 
+from agent.floors import Floors
 from agent.timebase import TimeBase
 from fleet.payloads import (
     AgentSource,
@@ -175,12 +176,7 @@ class AgentCore:
         self._premap_motion: deque[OdometryMeasured | ImuMeasured]
         self._premap_motion = deque(maxlen=PREMAP_MOTION_EVENTS)
         self._premap_overflow = False
-        # floors: every floor's map as received, the floor to localize on, and whether to
-        # identify again (near a pose) once that floor's map is taken (a floor change)
-        self.floor_wanted: str | None = config.floor
-        self._floor_maps: dict[str, MapMessage] = {}
-        self._assignment_n: int | None = None
-        self._reidentify: tuple[bool, tuple[float, float, float] | None] = (False, None)
+        self.floors = Floors(config.name, config.floor)
 
     # -- from the network (any thread) -------------------------------------------------------
     def on_map(self, msg: MapMessage) -> None:
@@ -225,12 +221,12 @@ class AgentCore:
         self, msg: MapMessage | LedStateMessage | CommandMessage | FloorMessage, horizon: int
     ) -> None:
         if isinstance(msg, MapMessage):
-            self._floor_maps[msg.floor] = msg
-            # until told (or configured) its floor it keeps the floor of its first map
-            if msg.floor == (self.floor_wanted or self.map_floor or msg.floor):
+            if self.floors.on_map(msg, self.map_floor):
                 self._set_map(msg)
         elif isinstance(msg, FloorMessage):
-            self._assign(msg)
+            to_take = self.floors.on_floor(msg, self.map_floor)
+            if to_take is not None:
+                self._set_map(to_take)
         elif isinstance(msg, LedStateMessage):
             key = (msg.seq, msg.t_ns)
             if key == self._last_led:
@@ -246,24 +242,8 @@ class AgentCore:
         else:
             self._push(RelocalizeRequested(max(horizon, self._fed_t_ns), msg.near))
 
-    def _assign(self, msg: FloorMessage) -> None:
-        """The site has the robot on `msg.floor`: take that floor's map (at once when it
-        came already); a floor other than the one it localizes on, or a pose to start
-        from (`near`), makes it forget its pose and identify again."""
-        if msg.n == self._assignment_n:
-            return  # the retained copy of an assignment already taken (a reconnect)
-        self._assignment_n = msg.n
-        moved = msg.floor != (self.map_floor or self.floor_wanted)
-        self.floor_wanted = msg.floor
-        if moved or msg.near is not None:
-            self._reidentify = (True, msg.near)
-        log.info("%s: on floor %s (near %s)", self.config.name, msg.floor, msg.near)
-        held = self._floor_maps.get(msg.floor)
-        if held is not None:
-            self._set_map(held)
-
     def _set_map(self, msg: MapMessage) -> None:
-        again, near = self._reidentify
+        again, near = self.floors.reidentify()
         if msg.map_id == self.map_id and not again:
             return
         lmap = LandmarkMap.from_records(msg.records(), source=f"map {msg.map_id}")
@@ -276,7 +256,6 @@ class AgentCore:
         if again:  # changed floors: nothing of the old floor's pose is kept (before any
             # frame still queued meets the new map)
             self._push(RelocalizeRequested(self._fed_t_ns, near))
-        self._reidentify = (False, None)
         self.map_id = msg.map_id
         for observer in self.observers:
             observer.on_map(lmap)
@@ -348,10 +327,9 @@ class AgentCore:
         wall = self.time.site_now_ns()
         seq = next(self._seq)
         out: list[Outgoing] = []
-        if self.floor_wanted is not None and self.map_floor != self.floor_wanted:
-            # told another floor, its map not here yet: no pose on the old floor's map
+        if self.floors.waiting(self.map_floor):  # no pose on the old floor's map
             msg = PoseMessage(seq=seq, t_ns=t_site, wall_ns=wall, mode="identifying",
-                              floor=self.floor_wanted)  # fmt: skip
+                              floor=self.floors.wanted)  # fmt: skip
         elif isinstance(o, PoseEstimate):
             self.poses += 1
             msg = PoseMessage.from_estimate(
@@ -432,5 +410,5 @@ class AgentCore:
             errors=self.errors,
             map_id=self.map_id,
             map_version=self.map_version if self.map_id is not None else None,
-            floor=self.map_floor or self.floor_wanted,
+            floor=self.map_floor or self.floors.wanted,
         )
