@@ -315,6 +315,7 @@ class AgentCore:
 
     def _pose_out(self, o: PoseEstimate | NoPose, now_mono: int) -> list[Outgoing]:
         cfg = self.config
+        unknown = self.floors.withhold(o)  # every frame, sent or not
         mode_changed = o.mode != self._last_mode_sent
         # 0.8: a frame a little early still goes (a 10 Hz camera gives 10 Hz of poses)
         elapsed = now_mono - self._last_pose_mono
@@ -330,6 +331,10 @@ class AgentCore:
         if self.floors.waiting(self.map_floor):  # no pose on the old floor's map
             msg = PoseMessage(seq=seq, t_ns=t_site, wall_ns=wall, mode="identifying",
                               floor=self.floors.wanted)  # fmt: skip
+        elif unknown:  # its view does not fit its floor's map: no pose on it
+            msg = PoseMessage(seq=seq, t_ns=t_site, wall_ns=wall, mode=o.mode,
+                              floor=self.map_floor, map_version=self.map_version,
+                              floor_unknown=True)  # fmt: skip
         elif isinstance(o, PoseEstimate):
             self.poses += 1
             msg = PoseMessage.from_estimate(

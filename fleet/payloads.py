@@ -158,6 +158,9 @@ class PoseMessage(_Msg):
         lm: the landmarks used for this pose.
         floor, map_version: the floor and map version the agent localized on (absent from
             agents that do not say).
+        floor_unknown: true when its view does not fit its floor's map (it changed floors
+            untold, or rides a lift; `fleet.floor_fit`): the pose is withheld (no x, y,
+            theta) until it is told its floor or fits its map again.
         ex: the lit landmarks the localizer expected in view (sent with `spots`).
         spots: the frame's spot centres (col, row) in pixels, for map upkeep: sent with a
             confident frame now and then (`AgentConfig.spots_period_s`), else absent.
@@ -174,6 +177,7 @@ class PoseMessage(_Msg):
     lm: list[int] = []
     floor: str | None = Field(default=None, min_length=1, max_length=32)
     map_version: int | None = Field(default=None, ge=0)
+    floor_unknown: bool | None = None
     ex: list[int] | None = None
     spots: list[tuple[float, float]] | None = Field(default=None, max_length=MAX_SPOTS)
 

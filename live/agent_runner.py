@@ -116,7 +116,7 @@ class AgentRunner(RobotRunner):
             expected_ids=tuple(msg.ex or ()),
             floor=msg.floor if msg.floor is not None else self.floor,
             map_version=msg.map_version if msg.map_version is not None else self.map_version,
-            floor_unknown=withheld,
+            floor_unknown=withheld or bool(msg.floor_unknown),
         )
         if msg.spots is not None:  # a confident frame's spots: map upkeep takes them
             px = np.array(msg.spots, dtype=np.float64).reshape(-1, 2)
@@ -124,10 +124,10 @@ class AgentRunner(RobotRunner):
             with self._lock:
                 self.recent.append(SpotsObserved(upd.t_ns, px, np.ones(n), np.ones(n)))
         with self._lock:
-            if msg.x is not None or withheld:
+            if msg.x is not None or withheld or msg.floor_unknown:
                 self.latest = upd
                 self.poses += 1
-                if msg.mode == "landmark":
+                if msg.mode == "landmark" and msg.x is not None:
                     self.last_fix_t_ns = upd.t_ns
             old, self._mode = self._mode, msg.mode
             self._remote.mode = msg.mode

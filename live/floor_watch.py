@@ -1,5 +1,5 @@
 """Noticing a robot on the wrong floor. On a site with several floors each robot carries a
-`live.floor_fit.FloorFit`: as soon as its view stops fitting its floor's map its floor is
+`fleet.floor_fit.FloorFit`: as soon as its view stops fitting its floor's map its floor is
 *unknown* and its poses are withheld (no pose on the old floor's map goes out). Such a
 robot, and one that has had no fix on its floor's map for a while, is tried against the
 other floors' maps, and the floor whose landmarks it identifies and tracks is *proposed*
@@ -23,8 +23,8 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
+from fleet.floor_fit import FloorFit, FloorFitConfig
 from live.events import EventHub
-from live.floor_fit import FloorFit, FloorFitConfig
 from live.floors import Near, SiteFloors
 from live.robots import LocalizerLike, RobotRunner, make_localizer, only_landmarks
 from localizer.config import LocalizerConfig

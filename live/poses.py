@@ -35,7 +35,7 @@ class PoseUpdate:
         map_version: the version of that floor's map the localizer held.
         floor_unknown: the robot's view does not fit its floor's map (it changed floors
             untold, or rides a lift): its pose is withheld (x, y, theta None) until it is
-            told its floor or fits its map again (`live.floor_fit`).
+            told its floor or fits its map again (`fleet.floor_fit`).
     """
 
     robot: str

@@ -11,7 +11,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from live.floor_fit import FloorFit
+from fleet.floor_fit import FloorFit
 from live.poses import PoseUpdate
 from live.recording_queue import QueuedRecording, RecordingLimits, check_free_space
 from localizer.camera import CameraModel

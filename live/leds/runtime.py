@@ -23,10 +23,10 @@ from typing import Protocol
 import numpy as np
 import numpy.typing as npt
 
+from fleet.floor_fit import FloorFit
 from lighting.floors import plan_leds_per_floor
 from lighting.policy import LedPlan, RobotState, ScheduleConfig
 from lighting.wake_window import WakeWindow
-from live.floor_fit import FloorFit
 from live.poses import PoseUpdate
 from localizer.camera import CameraModel
 from localizer.events import LedsChanged, Mode
@@ -231,7 +231,7 @@ class LedScheduler:
     # -- planning ------------------------------------------------------------------------
     def _robots_on_floors(self, t_ns: int, floors: list[str]) -> tuple[list[RobotState], list[str]]:
         """Each robot's state and floor; a robot whose floor is unknown
-        (`live.floor_fit`) is planned on every floor too, at its latest pose there (the
+        (`fleet.floor_fit`) is planned on every floor too, at its latest pose there (the
         floors' frames are stacked), so the ceiling of the floor it is really on is lit
         for it and for its trials."""
         robots: list[RobotState] = []

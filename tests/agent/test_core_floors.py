@@ -86,3 +86,38 @@ def test_an_agent_that_knows_no_floor_takes_the_default_floors_map_until_told() 
     core.on_floor(FloorMessage(n=7, floor="1", version=2))
     core.tick(core.time.mono_ns())
     assert (core.map_floor, core.map_version, core.floors.wanted) == ("1", 2, "1")
+
+
+def test_an_agent_that_changes_floors_untold_withholds_its_poses() -> None:
+    """r3 rides from floor 1 to floor 0 and nobody tells its agent: from the cabin on its
+    view does not fit floor 1's map, so its poses go out without a position, flagged
+    `floor_unknown`, and none of floor 1's map is sent while it is on floor 0."""
+    source = SimRobotSource(load_scenario("two_floors"), "r3", light=True)
+    core = AgentCore(AgentConfig("a3", source="sim-light", floor="1"), source, TimeBase())
+    records = source.world.landmark_records()
+    core.on_map(floor_map(records, "0", 1))
+    core.on_map(floor_map(records, "1", 1))
+    site = FakeSite(core, [int(r["id"]) for r in records])  # type: ignore[call-overload]
+    now = core.time.mono_ns()
+    core.on_leds(site.state(now, set(site.ids)))
+    robot = source.rig.robot
+    fixed_before = False
+    on_floor_0: list[PoseMessage] = []
+    off_since = None
+    for _ in range(2600):
+        now += 10 * MS
+        outs = core.tick(now)
+        site.handle(now, outs)
+        got = poses(outs)
+        fixed_before |= robot.floor == "1" and any(p.mode == "landmark" for p in got)
+        if robot.floor == "0" and not robot.in_lift:
+            off_since = now if off_since is None else off_since
+            if now - off_since > 100 * MS:  # frames of the floor held back by the reorder
+                on_floor_0 += got
+        if off_since is not None and now - off_since > 4000 * MS:
+            break
+    assert fixed_before and off_since is not None, "r3 never rode down"
+    assert on_floor_0 and all(p.x is None for p in on_floor_0), [
+        (p.mode, p.floor) for p in on_floor_0 if p.x is not None
+    ][:5]
+    assert all(p.floor_unknown for p in on_floor_0)

@@ -1,4 +1,4 @@
-"""A robot whose floor is unknown (`live.floor_fit`) is planned on every floor by the LED
+"""A robot whose floor is unknown (`fleet.floor_fit`) is planned on every floor by the LED
 schedule, at its latest pose there: the ceiling it is really under is lit for it."""
 
 from __future__ import annotations
@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from agent.sim_source import SimRobotSource
-from live.floor_fit import FloorFit, FloorFitConfig
+from fleet.floor_fit import FloorFit, FloorFitConfig
 from live.leds.runtime import LedScheduler
 from live.poses import PoseUpdate
 from localizer.camera import CameraModel

@@ -6,8 +6,9 @@ reckoning while it expected landmarks of its map in view, and fixed on none: the
 it sees is not the one its map says (another floor, or the lift's cabin). Frames of an
 identification (`identifying`, `lost`) carry no pose to withhold and neither start nor
 break such a run. Its floor is then *unknown*: its poses are withheld
-(published without a position, `floor_unknown`), and the floor watch tries its view on
-the other floors at once. The floor is known again when the robot is told its floor (a
+(published without a position, `floor_unknown`), and the site's floor watch tries its
+view on the other floors (`live.floor_watch`; a robot agent withholds its own poses the
+same way, `agent.floors`). The floor is known again when the robot is told its floor (a
 move, or an accepted proposal), or when it has held landmark fixes on its own map for
 `own_fix_hold_s` (a moment's fix on a ceiling that only looks like its own, by the lift's
 door, is not enough).

@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from live.floor_fit import FloorFit, FloorFitConfig
+from fleet.floor_fit import FloorFit, FloorFitConfig
 from localizer.events import Mode, NoPose, PoseEstimate
 
 MS = 1_000_000
