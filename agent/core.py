@@ -394,7 +394,7 @@ class AgentCore:
             msg.wall_ns,
             self.config.manufacturer,
             self.config.name,
-            map_id=self.map_id or "",
+            map_id=self.map_floor or self.map_id or "",  # VDA 5050 mapId: the floor
             mode=msg.mode,
             pose=pose,
             covariance=msg.covariance(),
