@@ -82,6 +82,11 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--scenario", default="demo", help="the site's scenario (default demo)")
     p.add_argument("--seed", type=int, help="the site's seed (as `irloc serve --seed`)")
     p.add_argument("--robot", help="which robot of the scenario (default: --name if it is one)")
+    p.add_argument(
+        "--floor",
+        help="the floor it starts on (default: the site's default floor; --sim: "
+        "the scenario robot's); the site tells it its floor when it changes floors",
+    )
     p.add_argument("--count", type=int, default=1, help="robots in this process (NAME-000...)")
     p.add_argument("--camera-rate", type=float, help="the simulated camera's frames/s")
     p.add_argument("--odometry-rate", type=float, help="the simulated wheel samples/s")
@@ -155,6 +160,7 @@ def hardware_core(args: argparse.Namespace) -> AgentCore:
         reorder_hold_s=0.03 if args.hold is None else args.hold,
         pose_rate_hz=args.pose_rate,
         visualization_rate_hz=args.visualization_rate,
+        floor=args.floor and check_name("--floor", args.floor),
     )
     return AgentCore(config, source, TimeBase(round(args.clock_skew * 1e9)))
 
@@ -184,6 +190,7 @@ def build_cores(args: argparse.Namespace) -> list[AgentCore]:
             pose_rate_hz=args.pose_rate,
             visualization_rate_hz=args.visualization_rate,
             start_known=args.start_known,
+            floor=check_name("--floor", args.floor or source.start_floor),
         )
         truth = None
         if args.truth_csv is not None:

@@ -26,11 +26,13 @@ from typing import Literal, Protocol, TextIO
 import numpy as np
 import numpy.typing as npt
 
+from agent.floors import Floors
 from agent.timebase import TimeBase
 from fleet.payloads import (
     AgentSource,
     AgentStatus,
     CommandMessage,
+    FloorMessage,
     LedRequestMessage,
     LedStateMessage,
     MapMessage,
@@ -105,6 +107,10 @@ class AgentConfig:
             upkeep) at most this often, seconds (0: never), and only for a confident frame:
             landmark mode, two or more landmarks, 1-sigma position within
             `spots_max_sigma_m` metres.
+        floor: the floor it starts on, when it knows (a simulated robot's; `--floor`):
+            it takes that floor's map until the site tells it its floor
+            (`agents/<name>/floor`), and says so in its status; None: the site's default
+            floor's map until told.
     """
 
     name: str
@@ -116,6 +122,7 @@ class AgentConfig:
     start_known: bool = False
     spots_period_s: float = 1.0
     spots_max_sigma_m: float = 0.05
+    floor: str | None = None
 
 
 @dataclass(frozen=True)
@@ -149,7 +156,7 @@ class AgentCore:
         self.errors = 0
         self.late_leds = 0
         self.led_states = 0
-        self._inbox: list[MapMessage | LedStateMessage | CommandMessage] = []
+        self._inbox: list[MapMessage | LedStateMessage | CommandMessage | FloorMessage] = []
         self._inbox_lock = threading.Lock()
         self._heap: list[tuple[int, int, Event]] = []
         self._count = itertools.count()
@@ -169,6 +176,7 @@ class AgentCore:
         self._premap_motion: deque[OdometryMeasured | ImuMeasured]
         self._premap_motion = deque(maxlen=PREMAP_MOTION_EVENTS)
         self._premap_overflow = False
+        self.floors = Floors(config.name, config.floor)
 
     # -- from the network (any thread) -------------------------------------------------------
     def on_map(self, msg: MapMessage) -> None:
@@ -180,7 +188,11 @@ class AgentCore:
     def on_command(self, msg: CommandMessage) -> None:
         self._post(msg)
 
-    def _post(self, msg: MapMessage | LedStateMessage | CommandMessage) -> None:
+    def on_floor(self, msg: FloorMessage) -> None:
+        """The floor the site has this robot on (`agents/<name>/floor`)."""
+        self._post(msg)
+
+    def _post(self, msg: MapMessage | LedStateMessage | CommandMessage | FloorMessage) -> None:
         with self._inbox_lock:
             self._inbox.append(msg)
 
@@ -205,9 +217,16 @@ class AgentCore:
     def _push(self, event: Event) -> None:
         heapq.heappush(self._heap, (event.t_ns, next(self._count), event))
 
-    def _take(self, msg: MapMessage | LedStateMessage | CommandMessage, horizon: int) -> None:
+    def _take(
+        self, msg: MapMessage | LedStateMessage | CommandMessage | FloorMessage, horizon: int
+    ) -> None:
         if isinstance(msg, MapMessage):
-            self._set_map(msg)
+            if self.floors.on_map(msg, self.map_floor):
+                self._set_map(msg)
+        elif isinstance(msg, FloorMessage):
+            to_take = self.floors.on_floor(msg, self.map_floor)
+            if to_take is not None:
+                self._set_map(to_take)
         elif isinstance(msg, LedStateMessage):
             key = (msg.seq, msg.t_ns)
             if key == self._last_led:
@@ -224,19 +243,25 @@ class AgentCore:
             self._push(RelocalizeRequested(max(horizon, self._fed_t_ns), msg.near))
 
     def _set_map(self, msg: MapMessage) -> None:
-        if msg.map_id == self.map_id:
+        again, near = self.floors.reidentify()
+        if msg.map_id == self.map_id and not again:
             return
         lmap = LandmarkMap.from_records(msg.records(), source=f"map {msg.map_id}")
         if self.localizer is None:
             self.localizer = Localizer(self.source.camera, lmap, self.source.geometry)
             self._start_prior(self.localizer)
+            again = near is not None  # a fresh localizer identifies anyway
         else:
             self.localizer.set_map(lmap)
+        if again:  # changed floors: nothing of the old floor's pose is kept (before any
+            # frame still queued meets the new map)
+            self._push(RelocalizeRequested(self._fed_t_ns, near))
         self.map_id = msg.map_id
         for observer in self.observers:
             observer.on_map(lmap)
         self.map_floor, self.map_version = msg.floor, msg.version
-        log.info("%s: map %s (%d landmarks)", self.config.name, msg.map_id, len(msg.landmarks))
+        log.info("%s: map %s of floor %s, version %d (%d landmarks)", self.config.name,
+                 msg.map_id, msg.floor, msg.version, len(msg.landmarks))  # fmt: skip
 
     def _start_prior(self, localizer: Localizer) -> None:
         """The dock prior (`start_known`), stamped at the first sample it holds for, and
@@ -290,6 +315,7 @@ class AgentCore:
 
     def _pose_out(self, o: PoseEstimate | NoPose, now_mono: int) -> list[Outgoing]:
         cfg = self.config
+        unknown = self.floors.withhold(o)  # every frame, sent or not
         mode_changed = o.mode != self._last_mode_sent
         # 0.8: a frame a little early still goes (a 10 Hz camera gives 10 Hz of poses)
         elapsed = now_mono - self._last_pose_mono
@@ -302,7 +328,14 @@ class AgentCore:
         wall = self.time.site_now_ns()
         seq = next(self._seq)
         out: list[Outgoing] = []
-        if isinstance(o, PoseEstimate):
+        if self.floors.waiting(self.map_floor):  # no pose on the old floor's map
+            msg = PoseMessage(seq=seq, t_ns=t_site, wall_ns=wall, mode="identifying",
+                              floor=self.floors.wanted)  # fmt: skip
+        elif unknown:  # its view does not fit its floor's map: no pose on it
+            msg = PoseMessage(seq=seq, t_ns=t_site, wall_ns=wall, mode=o.mode,
+                              floor=self.map_floor, map_version=self.map_version,
+                              floor_unknown=True)  # fmt: skip
+        elif isinstance(o, PoseEstimate):
             self.poses += 1
             msg = PoseMessage.from_estimate(
                 seq, o, t_site, wall, self._spots_for(o, now_mono)
@@ -361,7 +394,7 @@ class AgentCore:
             msg.wall_ns,
             self.config.manufacturer,
             self.config.name,
-            map_id=self.map_id or "",
+            map_id=self.map_floor or self.map_id or "",  # VDA 5050 mapId: the floor
             mode=msg.mode,
             pose=pose,
             covariance=msg.covariance(),
@@ -382,4 +415,5 @@ class AgentCore:
             errors=self.errors,
             map_id=self.map_id,
             map_version=self.map_version if self.map_id is not None else None,
+            floor=self.map_floor or self.floors.wanted,
         )

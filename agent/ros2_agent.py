@@ -196,6 +196,7 @@ def build_ros2(args: argparse.Namespace, scenario: Scenario | None) -> list[Ros2
             name=check_name("--name", args.name), manufacturer=manufacturer, source="camera",
             reorder_hold_s=hold, pose_rate_hz=args.pose_rate,
             visualization_rate_hz=args.visualization_rate,
+            floor=args.floor and check_name("--floor", args.floor),
         )  # fmt: skip
         geometry = RobotGeometry(args.wheel_base, args.max_speed)
         return [ros2_robot(node, config, base, geometry, camera=camera)]
@@ -215,6 +216,7 @@ def build_ros2(args: argparse.Namespace, scenario: Scenario | None) -> list[Ros2
             name=name, manufacturer=manufacturer, source="sim", reorder_hold_s=hold,
             pose_rate_hz=args.pose_rate, visualization_rate_hz=args.visualization_rate,
             start_known=args.start_known,
+            floor=check_name("--floor", args.floor or sim.start_floor),
         )  # fmt: skip
         robots.append(ros2_robot(
             node, config, settings, sim.geometry, camera=sim.camera, driver_source=sim

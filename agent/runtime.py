@@ -4,7 +4,8 @@ that ticks every robot's `AgentCore`, the clock exchanges and the reconnect loop
 While the broker is away the robots go on localizing; their poses are dropped (a pose is
 worth nothing later) and LED requests too (the localizer's identification asks again after
 `led_timeout_s`). On every (re)connection the agent publishes `connection` ONLINE and its
-status, and subscribes again: the retained map and last LED state bring it up to date.
+status, and subscribes again: the retained maps (every floor's), its floor and the last LED
+state bring it up to date.
 """
 
 from __future__ import annotations
@@ -27,6 +28,7 @@ from fleet.payloads import (
     ClockReply,
     ClockRequest,
     CommandMessage,
+    FloorMessage,
     LedStateMessage,
     MapMessage,
     PayloadError,
@@ -231,6 +233,8 @@ class AgentRuntime:
         await client.subscribe(
             [
                 (t.map, QOS_STATE),
+                (t.floor_maps_wildcard, QOS_STATE),
+                (t.floor_assignment(name), QOS_STATE),
                 (t.leds, QOS_STATE),
                 (t.command(name), QOS_STATE),
                 (t.clock_reply(name), QOS_CLOCK),
@@ -245,6 +249,7 @@ class AgentRuntime:
     async def _receive(self, link: _Link, client: aiomqtt.Client) -> None:
         t = self.topics
         core = link.core
+        floor_topic = t.floor_assignment(core.config.name)
         async for message in client.messages:
             topic = message.topic.value
             payload = message.payload
@@ -253,8 +258,10 @@ class AgentRuntime:
             try:
                 if topic == t.leds:
                     core.on_leds(decode(LedStateMessage, topic, payload))
-                elif topic == t.map:
+                elif topic == t.map or t.floor_of_map(topic) is not None:
                     core.on_map(decode(MapMessage, topic, payload))
+                elif topic == floor_topic:
+                    core.on_floor(decode(FloorMessage, topic, payload))
                 elif topic.endswith("/clock/reply"):
                     self._clock_reply(link, decode(ClockReply, topic, payload))
                 elif topic.endswith("/command"):

@@ -23,6 +23,7 @@ from sim.build import build_robot, build_world, seed_generators
 from sim.render import render_frame
 from sim.robot import FloorArrival, FramePose
 from sim.scenario import Scenario
+from sim.world import IN_LIFT
 
 SPOT_AREA_PX = 9.0
 """Pixel count of a projected spot (light mode)."""
@@ -85,6 +86,11 @@ class SimRobotSource:
         """Where the robot starts (x, y, theta; metres, radians): its dock."""
         return self.rig.spec.start
 
+    @property
+    def start_floor(self) -> str:
+        """The floor the robot starts on (its scenario's)."""
+        return self.rig.spec.floor
+
     def true_pose_at(self, t_ns: int) -> tuple[float, float, float] | None:
         """The true planar pose when the frame stamped `t_ns` was taken (recent frames)."""
         return self.truth.get(t_ns)
@@ -112,7 +118,7 @@ class SimRobotSource:
             if isinstance(item, OdometryMeasured):
                 out.append(OdometryMeasured(t_out, item.v_left, item.v_right))
                 continue
-            if isinstance(item, FloorArrival):  # an agent's own site stays on one floor
+            if isinstance(item, FloorArrival):  # its fleet manager tells the site, not the agent
                 continue
             self.world.advance(item.t_ns)
             out.append(self._frame(item, t_out))
@@ -126,7 +132,8 @@ class SimRobotSource:
     def _frame(self, item: FramePose, t_ns: int) -> FrameObserved | SpotsObserved:
         cam = self.rig.camera_true
         p_cam = (item.T_world_body @ cam.T_body_camera)[:3, 3]
-        sources, intensities = self.world.point_sources(p_cam, t_ns=item.t_ns)
+        on = IN_LIFT if item.in_lift else item.floor  # the ceiling of its floor, none in the lift
+        sources, intensities = self.world.point_sources(p_cam, t_ns=item.t_ns, floor=on)
         if not self.light:
             image = render_frame(
                 cam, item.T_world_body, sources, intensities, rng=self._rng,

@@ -1,5 +1,7 @@
 """The fleet protocol: MQTT topics and payloads between robot agents and the site server,
-VDA 5050 messages and the clock-offset math. Pure: imports only `localizer`."""
+VDA 5050 messages, the clock-offset math, and whether a robot's view fits its floor's map
+(`fleet.floor_fit`, which the site and the agents both apply). Pure: imports only
+`localizer`."""
 
 from fleet.broker import BrokerAddress, parse_broker_url
 from fleet.clock import ClockConfig, ClockEstimate, ClockFilter, ClockSample

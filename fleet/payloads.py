@@ -62,6 +62,35 @@ class MapMessage(_Msg):
         return [lm.model_dump() for lm in self.landmarks]
 
 
+class FloorMessage(_Msg):
+    """`agents/<robot>/floor` (retained): the floor the site has the robot on.
+
+    Attributes:
+        n: this assignment's number (the site's wall clock, ns, when it was made): a new
+            one means the robot changed floors (or was told its floor again); a retained
+            copy seen again after a reconnect has the same.
+        floor: the floor (its map: `<site>/maps/<floor>`).
+        version: that floor's map version now.
+        near: (x, y, theta) on that floor where the robot is (the lift's node), metres and
+            radians; absent when unknown. Given, the agent forgets its pose and identifies
+            again near it.
+    """
+
+    n: int = Field(ge=0, le=MAX_T_NS)
+    floor: str = Field(min_length=1, max_length=32)
+    version: int = Field(0, ge=0)
+    near: tuple[float, float, float] | None = None
+
+    @field_validator("near")
+    @classmethod
+    def _finite_near(
+        cls, v: tuple[float, float, float] | None
+    ) -> tuple[float, float, float] | None:
+        if v is not None and not all(math.isfinite(a) for a in v):
+            raise ValueError("near: x, y and theta must be finite numbers")
+        return v
+
+
 class LedStateMessage(_Msg):
     """`<site>/leds`: one LED state of the site (`localizer.events.LedsChanged`), in force from
     `t_ns`; `seq` counts the server's states (a gap means a missed one)."""
@@ -129,6 +158,9 @@ class PoseMessage(_Msg):
         lm: the landmarks used for this pose.
         floor, map_version: the floor and map version the agent localized on (absent from
             agents that do not say).
+        floor_unknown: true when its view does not fit its floor's map (it changed floors
+            untold, or rides a lift; `fleet.floor_fit`): the pose is withheld (no x, y,
+            theta) until it is told its floor or fits its map again.
         ex: the lit landmarks the localizer expected in view (sent with `spots`).
         spots: the frame's spot centres (col, row) in pixels, for map upkeep: sent with a
             confident frame now and then (`AgentConfig.spots_period_s`), else absent.
@@ -145,6 +177,7 @@ class PoseMessage(_Msg):
     lm: list[int] = []
     floor: str | None = Field(default=None, min_length=1, max_length=32)
     map_version: int | None = Field(default=None, ge=0)
+    floor_unknown: bool | None = None
     ex: list[int] | None = None
     spots: list[tuple[float, float]] | None = Field(default=None, max_length=MAX_SPOTS)
 
@@ -207,6 +240,8 @@ class AgentStatus(_Msg):
         map_id: the map the agent localizes on.
         map_version: that map's version (`MapMessage.version`); the server tells an agent
             holding an old one (event `agent_map_outdated`, the map published again).
+        floor: the floor whose map it localizes on (before it holds one: the floor it
+            starts on, when it knows); a new agent is put on that floor.
     """
 
     source: AgentSource
@@ -221,6 +256,7 @@ class AgentStatus(_Msg):
     errors: int = 0
     map_id: str | None = None
     map_version: int | None = None
+    floor: str | None = Field(default=None, min_length=1, max_length=32)
 
 
 class ClockRequest(_Msg):

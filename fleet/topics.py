@@ -53,6 +53,30 @@ class SiteTopics:
         """The landmark map (retained)."""
         return f"{self.root}/map"
 
+    def floor_map(self, floor: str) -> str:
+        """One floor's landmark map (retained), `MapMessage` naming its floor and version."""
+        return f"{self.root}/maps/{check_name('floor', floor)}"
+
+    @property
+    def floor_maps_wildcard(self) -> str:
+        """Every floor's map (what an agent subscribes to: it keeps them all, so a floor
+        change needs no wait for the new floor's map)."""
+        return f"{self.root}/maps/+"
+
+    def floor_of_map(self, topic: str) -> str | None:
+        """The floor of a floor's map topic, else None."""
+        prefix = f"{self.root}/maps/"
+        if not topic.startswith(prefix):
+            return None
+        floor = topic[len(prefix) :]
+        return floor if _NAME.match(floor) else None
+
+    def floor_assignment(self, robot: str) -> str:
+        """The floor an agent is on, as the site has it (retained; `FloorMessage`): the
+        floor whose map it localizes on; a new one (its `n` changes) when it changed
+        floors (told through the API, or a floor proposal accepted)."""
+        return f"{self.agent(robot)}/floor"
+
     @property
     def leds(self) -> str:
         """Every confirmed or announced LED state, in order (retained: the last one)."""

@@ -92,6 +92,16 @@ class AgentRunner(RobotRunner):
         if self.last_seq is not None and msg.seq > self.last_seq + 1:
             self.lost_messages += msg.seq - self.last_seq - 1
         self.last_seq = msg.seq
+        if msg.floor is not None and msg.floor != self.floor and msg.x is not None:
+            # on another floor's map than the site has it on (it has not taken the floor
+            # it was told yet): no pose of one floor goes out as another's
+            msg = msg.model_copy(update={
+                "x": None, "y": None, "theta": None, "cov": None, "spots": None,
+                "floor": self.floor, "map_version": self.map_version,
+            })  # fmt: skip
+            withheld = True
+        else:
+            withheld = False
         cov = msg.covariance()
         upd = PoseUpdate(
             self.name,
@@ -106,6 +116,7 @@ class AgentRunner(RobotRunner):
             expected_ids=tuple(msg.ex or ()),
             floor=msg.floor if msg.floor is not None else self.floor,
             map_version=msg.map_version if msg.map_version is not None else self.map_version,
+            floor_unknown=withheld or bool(msg.floor_unknown),
         )
         if msg.spots is not None:  # a confident frame's spots: map upkeep takes them
             px = np.array(msg.spots, dtype=np.float64).reshape(-1, 2)
@@ -113,10 +124,10 @@ class AgentRunner(RobotRunner):
             with self._lock:
                 self.recent.append(SpotsObserved(upd.t_ns, px, np.ones(n), np.ones(n)))
         with self._lock:
-            if msg.x is not None:
+            if msg.x is not None or withheld or msg.floor_unknown:
                 self.latest = upd
                 self.poses += 1
-                if msg.mode == "landmark":
+                if msg.mode == "landmark" and msg.x is not None:
                     self.last_fix_t_ns = upd.t_ns
             old, self._mode = self._mode, msg.mode
             self._remote.mode = msg.mode

@@ -1,8 +1,11 @@
-"""Noticing a robot on the wrong floor: a robot that has had no fix on its floor's map for a
-while is tried against the other floors' maps, and the floor whose landmarks it identifies
-and tracks is *proposed* (an event `floor_proposed`; the API accepts or rejects it). A robot
-is never switched silently: until someone (or the fleet) accepts, its poses stay on the
-floor it was on.
+"""Noticing a robot on the wrong floor. On a site with several floors each robot carries a
+`fleet.floor_fit.FloorFit`: as soon as its view stops fitting its floor's map its floor is
+*unknown* and its poses are withheld (no pose on the old floor's map goes out). Such a
+robot, and one that has had no fix on its floor's map for a while, is tried against the
+other floors' maps, and the floor whose landmarks it identifies and tracks is *proposed*
+(an event `floor_proposed`; the API accepts or rejects it). A robot is never switched
+silently: until someone (or the fleet) accepts, it stays on the floor it was on (its
+floor unknown while its view does not fit it).
 
 A trial is a second localizer per other floor, fed the same events as the robot's own
 (`RobotRunner.add_tap`) on a worker thread. Its LED requests go to the LED coordinator
@@ -18,13 +21,22 @@ import queue
 import threading
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
+from fleet.floor_fit import FloorFit, FloorFitConfig
 from live.events import EventHub
-from live.floors import SiteFloors
+from live.floors import Near, SiteFloors
 from live.robots import LocalizerLike, RobotRunner, make_localizer, only_landmarks
 from localizer.config import LocalizerConfig
-from localizer.events import Event, LedRequest, LedsChanged, PoseEstimate, RelocalizeRequested
+from localizer.events import (
+    Event,
+    FrameObserved,
+    LedRequest,
+    LedsChanged,
+    PoseEstimate,
+    RelocalizeRequested,
+)
+from localizer.spots import DetectionConfig, detect_spots
 from store.errors import NotFoundError
 
 log = logging.getLogger(__name__)
@@ -35,8 +47,9 @@ class FloorWatchConfig:
     """When to try other floors and when to propose one.
 
     Attributes:
-        suspect_after_s: seconds (site clock) without a fix on its own floor (since its
-            last fix, or since it started) before its view is tried on the other floors.
+        suspect_after_s: seconds (site clock) without a fix on its own floor since its
+            last fix before its view is tried on the other floors (a robot that never had
+            one is not tried: it identifies on the floor it starts on).
         fixes_to_propose: consecutive landmark fixes on another floor's map that make a
             proposal.
         trial_s: a trial that proposes nothing within this is dropped (wall seconds).
@@ -45,6 +58,7 @@ class FloorWatchConfig:
             long (wall seconds; a moment's fix on a ceiling that only looks like its own
             floor's, by the lift, does not end it).
         period_s: how often robots are checked (wall seconds).
+        fit: when a robot's floor becomes unknown and known again (`FloorFit`).
     """
 
     suspect_after_s: float = 8.0
@@ -53,6 +67,7 @@ class FloorWatchConfig:
     retry_after_s: float = 10.0
     own_fix_hold_s: float = 3.0
     period_s: float = 0.5
+    fit: FloorFitConfig = field(default_factory=FloorFitConfig)
 
 
 @dataclass(frozen=True)
@@ -142,11 +157,12 @@ class FloorWatch:
         self._trials: dict[str, list[_Trial]] = {}
         self._proposals: dict[str, FloorProposal] = {}
         self._quiet_until: dict[str, float] = {}
-        self._first_seen_ns: dict[str, int] = {}
         self._own_fix_since: dict[str, float] = {}
         self._lock = threading.Lock()
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
+        self._trial_from: dict[str, str] = {}  # robot -> the floor it was on when tried
+        floors.add_listener(self._on_moved)
 
     # -- lifecycle -----------------------------------------------------------------------
     def start(self) -> None:
@@ -154,6 +170,7 @@ class FloorWatch:
         self._thread.start()
 
     def stop(self) -> None:
+        self.floors.remove_listener(self._on_moved)
         self._stop.set()
         if self._thread is not None:
             self._thread.join(5.0)
@@ -213,7 +230,24 @@ class FloorWatch:
             self._quiet_until[robot] = time.monotonic() + self.config.retry_after_s
         return found
 
+    def _on_moved(self, robot: str, floor: str, old: str, near: Near | None) -> None:
+        """A robot was told its floor (or a proposal accepted): its trials and proposal
+        are moot (its own identification must not wait for them)."""
+        with self._lock:
+            self._proposals.pop(robot, None)
+            self._end(robot)
+            self._own_fix_since.pop(robot, None)
+
     # -- watching ------------------------------------------------------------------------
+    def _fit(self, runner: RobotRunner, several: bool) -> FloorFit | None:
+        """The robot's floor fit: one for each robot localized here on a site with
+        several floors (with one floor there is no other to be on)."""
+        if not several:
+            runner.floor_fit = None
+        elif runner.floor_fit is None:
+            runner.floor_fit = FloorFit(self.config.fit)
+        return runner.floor_fit
+
     def check(self) -> list[FloorProposal]:
         """One round: start, judge and end trials; returns the proposals made now."""
         made: list[FloorProposal] = []
@@ -221,12 +255,18 @@ class FloorWatch:
             return made
         now_ns, now = self.clock_ns(), time.monotonic()
         cfg = self.config
+        several = len(self.floors.floors.ids()) > 1
         with self._lock:
             for runner in self.floors.robots.runners():
                 name = runner.name
                 if runner.source == "agent":  # localized on board: not ours to try
                     continue
-                if runner.mode == "landmark":  # fixed on its own floor: nothing to try
+                fit = self._fit(runner, several)
+                unknown = fit is not None and fit.unknown
+                if name in self._trials and self._trial_from.get(name) != runner.floor:
+                    self._end(name)  # moved meanwhile: those trials were of its old floor
+                    self._proposals.pop(name, None)
+                if runner.mode == "landmark" and not unknown:  # fixed on its own floor
                     since = self._own_fix_since.setdefault(name, now)
                     if name in self._trials and now - since >= cfg.own_fix_hold_s:
                         self._end(name)
@@ -237,11 +277,14 @@ class FloorWatch:
                     self._own_fix_since.pop(name, None)
                 trials = self._trials.get(name)
                 if trials is None:
+                    # a robot that never had a fix identifies on the floor it starts on:
+                    # trying others would stall its own identification (its probes wait)
                     fixed_ns = runner.last_fix_t_ns
-                    if fixed_ns is None:
-                        fixed_ns = self._first_seen_ns.setdefault(name, now_ns)
-                    without_s = (now_ns - fixed_ns) * 1e-9
-                    if without_s >= cfg.suspect_after_s and now >= self._quiet_until.get(name, 0):
+                    without_s = 0.0 if fixed_ns is None else (now_ns - fixed_ns) * 1e-9
+                    suspect = without_s >= cfg.suspect_after_s or (
+                        unknown and self._sees_landmarks(runner)
+                    )
+                    if suspect and several and now >= self._quiet_until.get(name, 0):
                         self._start(runner)
                     continue
                 if name not in self._proposals:
@@ -261,27 +304,56 @@ class FloorWatch:
             if lmap.ids.size < 2:
                 continue
             loc = make_localizer(runner.camera, lmap, runner.geometry, self.localizer_config)
-            upd = runner.latest  # floors' frames are stacked: start near where it was
-            if upd is not None and upd.x is not None and upd.y is not None and upd.theta:
-                loc.handle(RelocalizeRequested(upd.t_ns, (upd.x, upd.y, upd.theta)))
+            last = self._last_pose(runner)  # floors' frames are stacked: start near it
+            if last is not None:
+                t_ns, x, y, theta = last
+                loc.handle(RelocalizeRequested(t_ns, (x, y, theta)))
             assert self._request_leds is not None
             ids = frozenset(int(i) for i in lmap.ids)
             trials.append(_Trial(runner, floor, loc, ids, self._request_leds))
         if trials:
             self._trials[runner.name] = trials
+            self._trial_from[runner.name] = runner.floor
             log.info("robot %s: no fix on floor %s, trying floors %s", runner.name,
                      runner.floor, [t.floor for t in trials])  # fmt: skip
 
+    def _sees_landmarks(self, runner: RobotRunner) -> bool:
+        """Whether the robot's latest frame shows two spots or more: a view that does not
+        fit its floor is tried on the others once it shows a ceiling (not in the lift's
+        cabin, where a trial's identification would only fail)."""
+        frame = runner.recent[-1] if runner.recent else None
+        if frame is None:
+            return False
+        if isinstance(frame, FrameObserved):
+            cfg = self.localizer_config
+            detection = cfg.detection if cfg is not None else DetectionConfig()
+            return len(detect_spots(frame.image, detection).pixels) >= 2
+        return len(frame.pixels) >= 2
+
+    @staticmethod
+    def _last_pose(runner: RobotRunner) -> tuple[int, float, float, float] | None:
+        """(t_ns, x, y, theta) of the robot's latest pose on its floor's map, withheld or
+        not; None when it has none."""
+        fit = runner.floor_fit
+        est = fit.last_estimate if fit is not None else None
+        if est is not None:
+            return est.t_ns, float(est.x), float(est.y), float(est.theta)
+        upd = runner.latest
+        if upd is None or upd.x is None or upd.y is None or upd.theta is None:
+            return None
+        return upd.t_ns, upd.x, upd.y, upd.theta
+
     def _propose(self, runner: RobotRunner, trial: _Trial) -> FloorProposal:
-        assert trial.last is not None
+        assert trial.last is not None and trial.floor != runner.floor
         last = trial.last
         prop = FloorProposal(runner.name, trial.floor, float(last.x), float(last.y),
                              float(last.theta), last.t_ns, trial.fixes)  # fmt: skip
         self._proposals[runner.name] = prop
         self.events.emit(
             "floor_proposed",
-            f"robot {runner.name} is on floor {runner.floor} but its view fits floor "
-            f"{trial.floor} (at {prop.x:.2f}, {prop.y:.2f}): accept or reject",
+            f"robot {runner.name} seems to be on floor {trial.floor}, not on floor "
+            f"{runner.floor} where the site has it: its view fits floor {trial.floor}'s map "
+            f"(at {prop.x:.2f}, {prop.y:.2f}); accept or reject",
             robot=runner.name,
             data={"floor": trial.floor, "from": runner.floor, "x": prop.x, "y": prop.y,
                   "theta": prop.theta},
@@ -289,5 +361,6 @@ class FloorWatch:
         return prop
 
     def _end(self, name: str) -> None:
+        self._trial_from.pop(name, None)
         for trial in self._trials.pop(name, []):
             trial.stop()

@@ -52,6 +52,15 @@ class SiteFloors:
         self.start_floor: Callable[[str], str | None] = lambda _name: None
         """Where a robot starts when the site knows (the virtual site's robots); else the
         default floor (`FloorStore.default`)."""
+        self._listeners: tuple[Callable[[str, str, str, Near | None], None], ...] = ()
+
+    def add_listener(self, fn: Callable[[str, str, str, Near | None], None]) -> None:
+        """Call `fn(robot, floor, old floor, near)` after every move (on the mover's
+        thread: it must return at once)."""
+        self._listeners = (*self._listeners, fn)
+
+    def remove_listener(self, fn: Callable[[str, str, str, Near | None], None]) -> None:
+        self._listeners = tuple(f for f in self._listeners if f is not fn)
 
     def adopt(self, floors: list[tuple[str, str, int, float]]) -> None:
         """Create the floors (id, name, level, height in metres) the site does not have yet
@@ -110,4 +119,9 @@ class SiteFloors:
             },
         )
         log.info("robot %s: floor %s -> %s (%s)", name, old, floor, by, extra={"robot": name})
+        for fn in self._listeners:
+            try:
+                fn(name, floor, old, near)
+            except Exception:
+                log.exception("robot %s: a floor listener failed", name)
         return runner

@@ -9,6 +9,10 @@ ACL is the lock, docs/fleet.md): `FleetGuard` (`live.fleet_guard`) decides which
 registered, whose LED requests are served and which poses are dropped; a map on the map
 topic that this server did not publish is replaced by the site's at once.
 
+Each floor's map goes on its own retained topic and each agent is told its floor, again
+when it changes floors (`live.agent_floors`); an agent's poses on another floor's map than
+the site has it on are withheld.
+
 Runs on the server's event loop. When the broker goes away it reconnects by itself
 (backoff 0.2-2 s) and publishes the map and the current LED state again (retained), so a
 broker restarted without persistence is whole again; agents' robots stay registered.
@@ -19,11 +23,9 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import functools
-import hashlib
 import json
 import logging
 import time
-from collections import deque
 from concurrent.futures import ThreadPoolExecutor
 from typing import TYPE_CHECKING, Any
 
@@ -38,8 +40,6 @@ from fleet.payloads import (
     CommandMessage,
     LedRequestMessage,
     LedStateMessage,
-    MapLandmark,
-    MapMessage,
     PayloadError,
     PoseMessage,
     ServerState,
@@ -53,6 +53,7 @@ from fleet.topics import (
     vda_connection_wildcard,
     vda_serial_of,
 )
+from live.agent_floors import AgentFloors, Message, Near
 from live.agent_runner import AgentRunner
 from live.alerts import Notification
 from live.events import EventKind
@@ -108,7 +109,6 @@ class MqttBridge:
         self._online: set[str] = set()
         self._gateway_listening = False
         self._events = ThreadPoolExecutor(max_workers=1, thread_name_prefix="mqtt-events")
-        self._maps_sent: deque[bytes] = deque(maxlen=8)
         self.guard = FleetGuard(
             admitted=tuple(services.settings.mqtt_agents),
             max_agents=services.settings.mqtt_max_agents,
@@ -117,10 +117,12 @@ class MqttBridge:
             emit=self._emit,
         )
         self._alerts: dict[str, bytes] = {}  # topic -> retained payload of each active alert
+        self.agent_floors = AgentFloors(services, self.topics)
 
     # -- lifecycle --------------------------------------------------------------------------------
     def start(self) -> None:
         self.services.map.add_listener(self._on_map)
+        self.services.site_floors.add_listener(self._on_moved)
         self._gateway_listening = self.services.leds.add_listener(self._on_leds)
         self.services.alerts.add_listener(self._on_alert)
         self._task = self._loop.create_task(self._run())
@@ -128,6 +130,7 @@ class MqttBridge:
     async def stop(self) -> None:
         self.services.map.remove_listener(self._on_map)
         self.services.alerts.remove_listener(self._on_alert)
+        self.services.site_floors.remove_listener(self._on_moved)
         if self._gateway_listening:
             self.services.leds.remove_listener(self._on_leds)
         client = self.client
@@ -156,33 +159,30 @@ class MqttBridge:
         self._loop.call_soon_threadsafe(self._out.put_nowait, (topic, payload, qos, retain))
 
     def map_message(self, landmarks: list[LandmarkPublic] | None = None) -> bytes:
-        """The map the agents localize on: the agents' floor (the site's default floor)
-        with its version."""
-        floor = self.services.floors.default()
+        """The default floor's map with its version (the legacy `map` topic's)."""
         items = landmarks if landmarks is not None else self.services.map.list()
-        lms = [MapLandmark(id=lm.id, x=lm.x, y=lm.y, z=lm.z) for lm in items if lm.floor == floor]
-        body = json.dumps([lm.model_dump() for lm in lms], sort_keys=True).encode()
-        map_id = f"{self.topics.site}-{hashlib.sha256(body).hexdigest()[:12]}"
-        version = self.services.map_versions.version(floor)
-        return MapMessage(map_id=map_id, landmarks=lms, floor=floor, version=version).encode()
+        return self.agent_floors.map_message(self.services.floors.default(), items)
 
-    def _map_now(self, landmarks: list[LandmarkPublic] | None = None) -> bytes:
-        """The map message to publish now, remembered as ours (`_on_foreign_map`)."""
-        msg = self.map_message(landmarks)
-        self._maps_sent.append(msg)
-        return msg
+    def _send_all(self, messages: list[Message]) -> None:
+        for topic, payload in messages:
+            self._send(topic, payload, QOS_STATE, True)
 
     def _on_map(self, landmarks: list[LandmarkPublic]) -> None:
         self.guard.set_map(landmarks)
-        self._send(self.topics.map, self._map_now(landmarks), QOS_STATE, True)
+        self._send_all(self.agent_floors.maps(landmarks, changed=True))
 
-    def _on_map_seen(self, payload: bytes) -> None:
-        """A map on the map topic: ours comes back; any other was written by someone else
+    def _on_moved(self, robot: str, floor: str, old: str, near: Near | None) -> None:
+        """A robot changed floors (told, or a proposal accepted): an agent is told."""
+        if self._agent(robot) is not None:
+            self._send_all([self.agent_floors.assign(robot, floor, near)])
+
+    def _on_map_seen(self, topic: str, payload: bytes) -> None:
+        """A map on a map topic: ours comes back; any other was written by someone else
         (a broker without irloc's ACL): publish ours again, with an event."""
-        if payload in self._maps_sent or not payload:
+        if self.agent_floors.is_ours(payload):
             return
-        self._send(self.topics.map, self._map_now(), QOS_STATE, True)
-        self.guard.foreign_map(self.topics.map)
+        self._send_all(self.agent_floors.maps(changed=False))
+        self.guard.foreign_map(topic)
 
     def _on_leds(self, event: LedsChanged) -> None:
         """Every LED state, as the gateway publishes it (before the LEDs switch)."""
@@ -262,10 +262,13 @@ class MqttBridge:
                 (t.clock_request, QOS_CLOCK),
                 (t.map, QOS_STATE),
                 (t.alerts_wildcard, QOS_STATE),
+                (t.floor_maps_wildcard, QOS_STATE),
                 (vda_connection_wildcard(self.manufacturer), QOS_STATE),
             ]
         )
-        await client.publish(t.map, self._map_now(), qos=QOS_STATE, retain=True)
+        messages = self.agent_floors.maps(changed=False) + self.agent_floors.assignments()
+        for topic, payload in messages:
+            await client.publish(topic, payload, qos=QOS_STATE, retain=True)
         if self._led_last is not None:
             await client.publish(t.leds, self._led_last, qos=QOS_STATE, retain=True)
         for topic, payload in list(self._alerts.items()):  # a broker restarted empty
@@ -299,8 +302,8 @@ class MqttBridge:
             reply = ClockReply(n=req.n, t1=req.t1, t2=t2, t3=time.time_ns())
             self._out.put_nowait((t.clock_reply(req.robot), reply.encode(), QOS_CLOCK, False))
             return
-        if topic == t.map:
-            self._on_map_seen(payload)
+        if topic == t.map or t.floor_of_map(topic) is not None:
+            self._on_map_seen(topic, payload)
             return
         if t.is_alert(topic):
             self._on_alert_seen(topic, payload, retained)
@@ -385,11 +388,17 @@ class MqttBridge:
 
     def _check_map_version(self, robot: str, status: AgentStatus) -> None:
         """An agent holding an old version of its floor's map is told: an event
-        `agent_map_outdated` (once per version it holds) and the map published again."""
+        `agent_map_outdated` (once per version it holds) and the map published again; one
+        on another floor than the site has it on is told its floor again."""
+        runner = self._agent(robot)
+        floor = runner.floor if runner is not None else self.services.floors.default()
+        if runner is not None and status.floor is not None and status.floor != floor:
+            told = self.agent_floors.assigned(robot)
+            self._send_all([told] if told is not None else [])
+            return
         held = status.map_version
         if held is None:
             return
-        floor = self.services.floors.default()
         current = self.services.map_versions.version(floor)
         if held >= current or self._outdated_told.get(robot) == held:
             return
@@ -401,7 +410,9 @@ class MqttBridge:
             robot=robot,
             data={"floor": floor, "held": held, "current": current},
         )
-        self._send(self.topics.map, self.map_message(), QOS_STATE, True)
+        self._send_all([self.agent_floors.floor_map(floor)])
+        if floor == self.services.floors.default():
+            self._send(self.topics.map, self.map_message(), QOS_STATE, True)
 
     def _arrive(self, robot: str, status: AgentStatus) -> None:
         """Register (or mark connected again) an agent's robot; an event either way."""
@@ -423,7 +434,11 @@ class MqttBridge:
                 site_from_wall=self.site_from_wall,
             )
             runner.on_mode_change = self._on_mode_change
+            floor = self.agent_floors.start_floor(status, robot)
+            runner.floor = floor
+            runner.map_version = self.services.map_versions.version(floor)
             self.services.robots.add(runner)
+            self._send_all([self.agent_floors.assign(robot, floor)])
         elif runner.connected:
             return
         runner.connected = True

@@ -33,6 +33,9 @@ class PoseUpdate:
             and latency measurements.
         floor: the floor whose map the pose is on (its frame: that floor's map frame).
         map_version: the version of that floor's map the localizer held.
+        floor_unknown: the robot's view does not fit its floor's map (it changed floors
+            untold, or rides a lift): its pose is withheld (x, y, theta None) until it is
+            told its floor or fits its map again (`fleet.floor_fit`).
     """
 
     robot: str
@@ -47,6 +50,7 @@ class PoseUpdate:
     expected_ids: tuple[int, ...] = ()
     floor: str = DEFAULT_FLOOR
     map_version: int = 0
+    floor_unknown: bool = False
 
     @classmethod
     def from_estimate(
@@ -90,6 +94,7 @@ class PoseUpdate:
             "computed_wall_ns": self.computed_wall_ns,
             "floor": self.floor,
             "map_version": self.map_version,
+            "floor_unknown": self.floor_unknown,
         }
 
     @cached_property
@@ -131,13 +136,14 @@ def pose_json(
                 "stale": mode in NO_POSE_MODES,
                 "floor": floor,
                 "map_version": map_version,
+                "floor_unknown": False,
             }
         )
     d = upd.to_dict()
     d.pop("computed_wall_ns")
     d["mode"] = mode
     d["age_s"] = max(0.0, (time.time_ns() - upd.computed_wall_ns) / 1e9)
-    d["stale"] = stale = mode in NO_POSE_MODES
+    d["stale"] = stale = mode in NO_POSE_MODES or upd.floor_unknown
     if stale:
         d.update(x=None, y=None, theta=None, covariance=None, landmark_ids=[])
     return json.dumps(d, separators=(",", ":"))
@@ -173,3 +179,9 @@ class PosePublic(BaseModel):
     )
     floor: str = Field(DEFAULT_FLOOR, description="the floor whose map the pose is on")
     map_version: int = Field(0, description="the version of that floor's map it is on")
+    floor_unknown: bool = Field(
+        default=False,
+        description="true while the robot's view does not fit its floor's map (it changed "
+        "floors untold, or rides a lift): x, y, theta and covariance are then null and "
+        "stale is true until it is told its floor or fits its map again",
+    )

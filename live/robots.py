@@ -11,6 +11,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from fleet.floor_fit import FloorFit
 from live.poses import PoseUpdate
 from live.recording_queue import QueuedRecording, RecordingLimits, check_free_space
 from localizer.camera import CameraModel
@@ -117,6 +118,9 @@ class RobotRunner:
         self.map_version = 0
         """The version of that floor's map the localizer holds."""
         self._map_ids: frozenset[int] | None = None  # None: every LED is the map's
+        self.floor_fit: FloorFit | None = None
+        """Whether its view still fits its floor's map (a site with several floors; set by
+        `live.floor_watch`): while its floor is unknown its poses are withheld."""
 
     @property
     def mode(self) -> Mode:
@@ -174,6 +178,15 @@ class RobotRunner:
         return only_landmarks(event, self._map_ids)
 
     def _route(self, out: Output) -> None:
+        fit = self.floor_fit
+        if isinstance(out, PoseEstimate | NoPose) and fit is not None and fit.observe(out):
+            # its view does not fit its floor's map: no pose on that map goes out
+            self.latest = PoseUpdate(
+                self.name, out.t_ns, out.mode, floor=self.floor, map_version=self.map_version,
+                floor_unknown=True,
+            )  # fmt: skip
+            self._publish(self.latest)
+            return
         if isinstance(out, PoseEstimate):
             upd = PoseUpdate.from_estimate(
                 self.name, out, floor=self.floor, map_version=self.map_version
@@ -225,6 +238,8 @@ class RobotRunner:
         is carried over (the pose is forgotten)."""
         with self._lock:
             self.floor, self.map_version = floor, map_version
+            if self.floor_fit is not None:
+                self.floor_fit.known()
             self.set_map(landmark_map)
             self.latest = None
             self.handle(RelocalizeRequested(t_ns, near))

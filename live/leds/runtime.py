@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import dataclasses
 import logging
 import math
 import threading
@@ -23,6 +24,7 @@ from typing import Protocol
 import numpy as np
 import numpy.typing as npt
 
+from fleet.floor_fit import FloorFit
 from lighting.floors import plan_leds_per_floor
 from lighting.policy import LedPlan, RobotState, ScheduleConfig
 from lighting.wake_window import WakeWindow
@@ -230,6 +232,36 @@ class LedScheduler:
         return lit
 
     # -- planning ------------------------------------------------------------------------
+    def _robots_on_floors(self, t_ns: int, floors: list[str]) -> tuple[list[RobotState], list[str]]:
+        """Each robot's state and floor; a robot whose floor is unknown
+        (`fleet.floor_fit`) is planned on every floor too, at its latest pose there (the
+        floors' frames are stacked), so the ceiling of the floor it is really on is lit
+        for it and for its trials."""
+        robots: list[RobotState] = []
+        robot_floors: list[str] = []
+        for r in self._runners():
+            state = self._robot_state(r, t_ns)
+            floor = str(getattr(r, "floor", DEFAULT_FLOOR))
+            robots.append(state)
+            robot_floors.append(floor)
+            fit = getattr(r, "floor_fit", None)
+            if not isinstance(fit, FloorFit) or not fit.unknown:
+                continue
+            est = fit.last_estimate
+            elsewhere = dataclasses.replace(state, mode="lost", pose=None)
+            if est is not None:
+                pose = (float(est.x), float(est.y), float(est.theta))
+                age = max((t_ns - est.t_ns) * _NS, 0.0)
+                cov = np.asarray(est.covariance, dtype=np.float64)
+                elsewhere = dataclasses.replace(
+                    state, mode="dead_reckoning", pose=pose, covariance=cov, pose_age_s=age
+                )
+            for other in floors:
+                if other != floor:
+                    robots.append(elsewhere)
+                    robot_floors.append(other)
+        return robots, robot_floors
+
     def _robot_state(self, runner: RunnerLike, t_ns: int) -> RobotState:
         upd = runner.latest
         vmax = self._max_speed(runner.name)
@@ -276,12 +308,11 @@ class LedScheduler:
             pinned = {lid: ", ".join(rs) for lid, rs in reasons.items()}
             self._awake_reasons &= {reason for _, reason in self._pinned}
             switching = bool(self._awake_reasons)
-        runners = list(self._runners())
-        robots = [self._robot_state(r, t_ns) for r in runners]
         floor_of = {} if self._floors is None else self._floors()
+        robots, robot_floors = self._robots_on_floors(t_ns, sorted(set(floor_of.values())))
         plan = plan_leds_per_floor(
             robots,
-            [str(getattr(r, "floor", DEFAULT_FLOOR)) for r in runners],
+            robot_floors,
             ids,
             positions,
             [floor_of.get(i, DEFAULT_FLOOR) for i in ids],
