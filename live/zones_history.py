@@ -159,3 +159,18 @@ def coverage_grid(xy: np.ndarray, cell_m: float) -> tuple[tuple[float, float], n
     counts = np.zeros((n[1], n[0]), dtype=np.int64)
     np.add.at(counts, (idx[:, 1], idx[:, 0]), 1)
     return (float(lo[0]), float(lo[1])), counts
+
+
+def grid_from_cells(
+    cells: Sequence[tuple[int, int, int]], cell_m: float
+) -> tuple[tuple[float, float], np.ndarray]:
+    """Sparse (column, row, count) cells (`PoseHistory.cell_counts`) as the dense grid of
+    `coverage_grid`: ((x0, y0) of cell [0, 0]'s corner, counts (rows, cols))."""
+    if not cells:
+        return (0.0, 0.0), np.zeros((0, 0), dtype=np.int64)
+    a = np.asarray(cells, dtype=np.int64).reshape(-1, 3)
+    lo = a[:, :2].min(axis=0)
+    n = a[:, :2].max(axis=0) - lo + 1
+    counts = np.zeros((n[1], n[0]), dtype=np.int64)
+    np.add.at(counts, (a[:, 1] - lo[1], a[:, 0] - lo[0]), a[:, 2])
+    return (float(lo[0] * cell_m), float(lo[1] * cell_m)), counts

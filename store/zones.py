@@ -7,7 +7,7 @@ import threading
 from collections.abc import Callable, Sequence
 from datetime import datetime
 
-from sqlalchemy import Engine, delete
+from sqlalchemy import Engine, delete, func
 from sqlalchemy.exc import IntegrityError
 from sqlmodel import Session, col, select
 
@@ -69,6 +69,43 @@ class ZoneStore:
         self._changed()
         return rec
 
+    def update(
+        self,
+        zone_id: int,
+        *,
+        name: str | None = None,
+        polygon: Sequence[Sequence[float]] | None = None,
+        floor: str | None = None,
+        dwell_s: float | None = None,
+        clear_dwell: bool = False,
+    ) -> ZoneRecord:
+        """Change the fields given (None keeps one; `clear_dwell` drops the dwell limit);
+        NotFoundError, ConflictError (the name is taken), ValueError (a bad polygon)."""
+        if polygon is not None:
+            check_polygon(polygon)
+        with Session(self.engine, expire_on_commit=False) as s:
+            z = s.get(ZoneRecord, zone_id)
+            if z is None:
+                raise NotFoundError(f"no zone {zone_id}")
+            if name is not None:
+                z.name = name
+            if polygon is not None:
+                z.polygon = [[float(x), float(y)] for x, y in polygon]
+            if floor is not None:
+                z.floor = floor
+            if clear_dwell:
+                z.dwell_s = None
+            elif dwell_s is not None:
+                z.dwell_s = dwell_s
+            s.add(z)
+            try:
+                s.commit()
+            except IntegrityError:
+                raise ConflictError(f"a zone named {name!r} exists already") from None
+            s.refresh(z)
+        self._changed()
+        return z
+
     def delete(self, zone_id: int) -> None:
         with Session(self.engine) as s:
             z = s.get(ZoneRecord, zone_id)
@@ -121,6 +158,66 @@ class PoseHistory:
             if until is not None:
                 q = q.where(col(PoseRecord.t) < until)
             return builtins.list(s.exec(q))
+
+    def thinned(
+        self,
+        *,
+        robot: str | None = None,
+        since: datetime | None = None,
+        until: datetime | None = None,
+        max_points: int = 5_000,
+    ) -> tuple[builtins.list[PoseRecord], int]:
+        """At most `max_points` poses of [since, until), oldest first, evenly spread over
+        the kept ones (every k-th, counted in the database: a week of history is never
+        read whole); (the poses, how many are kept in the range)."""
+        if max_points < 2:
+            raise ValueError(f"history: max_points must be at least 2, got {max_points}")
+        conds = []
+        if robot is not None:
+            conds.append(col(PoseRecord.robot) == robot)
+        if since is not None:
+            conds.append(col(PoseRecord.t) >= since)
+        if until is not None:
+            conds.append(col(PoseRecord.t) < until)
+        with Session(self.engine, expire_on_commit=False) as s:
+            total = int(s.exec(select(func.count()).select_from(PoseRecord).where(*conds)).one())
+            stride = max(1, -(-total // max_points))  # ceil
+            if stride == 1:
+                q = select(PoseRecord).where(*conds)
+            else:
+                rn = func.row_number().over(order_by=(col(PoseRecord.t), col(PoseRecord.id)))
+                ranked = select(col(PoseRecord.id), rn.label("rn")).where(*conds).subquery()
+                q = select(PoseRecord).join(ranked, col(PoseRecord.id) == ranked.c.id)
+                q = q.where((ranked.c.rn - 1) % stride == 0)
+            q = q.order_by(col(PoseRecord.t), col(PoseRecord.id))
+            return builtins.list(s.exec(q)), total
+
+    def cell_counts(
+        self,
+        cell_m: float,
+        *,
+        robot: str | None = None,
+        since: datetime | None = None,
+        until: datetime | None = None,
+    ) -> tuple[builtins.list[tuple[int, int, int]], int]:
+        """Kept poses counted per floor cell, in the database (one row a visited cell, however
+        long the range): ([(column, row, count)], poses), cell (i, j) spanning
+        [i * cell_m, (i + 1) * cell_m) in x and [j * cell_m, ...) in y."""
+        if not cell_m > 0:
+            raise ValueError(f"coverage: cell_m must be positive, got {cell_m}")
+        conds = []
+        if robot is not None:
+            conds.append(col(PoseRecord.robot) == robot)
+        if since is not None:
+            conds.append(col(PoseRecord.t) >= since)
+        if until is not None:
+            conds.append(col(PoseRecord.t) < until)
+        i = func.floor(col(PoseRecord.x) / cell_m)
+        j = func.floor(col(PoseRecord.y) / cell_m)
+        q = select(i, j, func.count()).where(*conds).group_by(i, j)
+        with Session(self.engine) as s:
+            rows = [(int(a), int(b), int(n)) for a, b, n in s.exec(q)]
+        return rows, sum(n for _, _, n in rows)
 
     def prune(self, older_than: datetime) -> int:
         """Remove poses older than `older_than`; how many."""

@@ -99,5 +99,73 @@ def test_zones_and_history_through_the_api(live: Api) -> None:
     r = c.get("/api/v1/history/poses", params={"since": "2030-01-02T00:00:00Z",
               "until": "2030-01-01T00:00:00Z"}, headers=viewer)  # fmt: skip
     assert r.status_code == 422 and "until" in r.json()["detail"]
+    thin = c.get("/api/v1/history/poses", params={"max_points": 3}, headers=viewer).json()
+    assert 2 <= len(thin) <= 3
+    r = c.patch(f"/api/v1/zones/{zone['id']}", json={"name": "hall 2", "dwell_s": 30},
+                headers=admin)  # fmt: skip
+    assert r.status_code == 200 and r.json()["name"] == "hall 2" and r.json()["dwell_s"] == 30
+    r = c.patch(f"/api/v1/zones/{zone['id']}", json={"dwell_s": None}, headers=admin)
+    assert r.json()["dwell_s"] is None and r.json()["name"] == "hall 2"
+    assert c.patch(f"/api/v1/zones/{zone['id']}", json={"name": "x"},
+                   headers=viewer).status_code == 403  # fmt: skip
     assert c.delete(f"/api/v1/zones/{zone['id']}", headers=admin).status_code == 204
     assert c.get(f"/api/v1/zones/{zone['id']}", headers=viewer).status_code == 404
+
+
+def test_a_week_of_history_is_thinned_and_counted_in_the_database(tmp_path: Path) -> None:
+    from store.models import PoseRecord
+
+    engine = make_engine(f"sqlite:///{tmp_path / 'irloc.db'}")
+    migrate(engine)
+    history = PoseHistory(engine)
+    t0 = datetime(2026, 12, 1, tzinfo=UTC)
+    rng = np.random.default_rng(3)
+    n = 20_000  # a pose every 30 s for a week
+    xy = rng.uniform(-4.0, 6.0, size=(n, 2))
+    history.add([PoseRecord(robot="r1", t=t0 + timedelta(seconds=30 * k), t_ns=k, x=xy[k, 0],
+                            y=xy[k, 1], theta=0.0, sigma_m=0.01, mode="landmark")
+                 for k in range(n)])  # fmt: skip
+    history.add([PoseRecord(robot="r2", t=t0, t_ns=0, x=0.0, y=0.0, theta=0.0, mode="landmark")])
+    poses, total = history.thinned(robot="r1", max_points=500)
+    assert total == n and len(poses) == 500  # every 40th
+    assert [p.t_ns for p in poses[:3]] == [0, 40, 80] and poses[-1].t_ns == n - 40
+    day2 = t0 + timedelta(days=1)
+    poses, total = history.thinned(robot="r1", since=day2, until=day2 + timedelta(hours=1),
+                                   max_points=1000)  # fmt: skip
+    assert total == 120 and len(poses) == 120  # an hour: every pose
+    cells, counted = history.cell_counts(1.0, robot="r1")
+    assert counted == n
+    (x0, y0), dense = coverage_grid(xy, 1.0)
+    from live.zones_history import grid_from_cells
+
+    (gx0, gy0), grid = grid_from_cells(cells, 1.0)
+    assert (gx0, gy0) == (x0, y0) == (-4.0, -4.0)
+    np.testing.assert_array_equal(grid, dense)
+    assert history.cell_counts(1.0)[1] == n + 1
+    with pytest.raises(ValueError, match="max_points"):
+        history.thinned(max_points=1)
+    engine.dispose()
+
+
+def test_a_zone_is_renamed_reshaped_and_its_dwell_dropped(tmp_path: Path) -> None:
+    from store.errors import ConflictError, NotFoundError
+
+    engine = make_engine(f"sqlite:///{tmp_path / 'irloc.db'}")
+    migrate(engine)
+    zones = ZoneStore(engine)
+    heard: list[int] = []
+    zones.add_listener(lambda zs: heard.append(len(zs)))
+    dock = zones.create("dock", [(0, 0), (2, 0), (2, 2)], dwell_s=5.0)
+    zones.create("bay", [(3, 0), (4, 0), (4, 1)])
+    assert dock.id is not None
+    z = zones.update(dock.id, name="dock A", polygon=[(0, 0), (3, 0), (3, 3), (0, 3)])
+    assert (z.name, len(z.polygon), z.dwell_s) == ("dock A", 4, 5.0)
+    assert zones.update(dock.id, clear_dwell=True).dwell_s is None
+    with pytest.raises(ConflictError, match="'bay'"):
+        zones.update(dock.id, name="bay")
+    with pytest.raises(ValueError, match="no area"):
+        zones.update(dock.id, polygon=[(0, 0), (1, 1), (2, 2)])
+    with pytest.raises(NotFoundError):
+        zones.update(999, name="x")
+    assert zones.get(dock.id).name == "dock A" and heard == [1, 2, 2, 2]
+    engine.dispose()
