@@ -54,6 +54,15 @@ class FloorPlanLayer:
         self.info: FloorPlanInfo | None = None
         """What is drawn (None: no plan)."""
 
+    def follow(self, store: FloorPlanStore) -> bool:
+        """Show `store`'s plan from now on (another floor's); True when it is another
+        store (then redrawn at once)."""
+        if store is self.store:
+            return False
+        self.store, self._version = store, None
+        self.refresh()
+        return True
+
     def refresh(self) -> bool:
         """Redraw when the plan changed; True when it did."""
         if self._version == self.store.version:
@@ -81,16 +90,18 @@ def stretched_placement(bounds: Bounds, width_px: int) -> Placement:
 
 
 class FloorPlanPanel:
-    """Upload, place (two points) and remove the floor plan (admin)."""
+    """Upload, place (two points) and remove the floor plan (admin); `store` may be a
+    function giving the store of the floor shown (each floor has its plan)."""
 
     def __init__(
         self,
         gui: viser.GuiApi,
-        store: FloorPlanStore,
+        store: FloorPlanStore | Callable[[], FloorPlanStore],
         bounds: Bounds,
         notify: Callable[[str, str], None],
     ) -> None:
-        self.store, self.bounds, self.notify = store, bounds, notify
+        self._store_of = store if callable(store) else lambda: store
+        self.bounds, self.notify = bounds, notify
         x0, x1, _, y1 = bounds
         with gui.add_folder("Floor plan", expand_by_default=False):
             gui.add_markdown(
@@ -112,6 +123,11 @@ class FloorPlanPanel:
         self.gui_upload.on_upload(lambda _: self._on_upload())
         self.gui_place.on_click(lambda _: self._on_place())
         self.gui_remove.on_click(lambda _: self.remove())
+
+    @property
+    def store(self) -> FloorPlanStore:
+        """The store the panel acts on (the floor shown's)."""
+        return self._store_of()
 
     def _points(self) -> Placement:
         a_px, a_m = self.gui_a_px.value, self.gui_a_m.value

@@ -18,7 +18,9 @@ from __future__ import annotations
 
 import math
 from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -257,7 +259,17 @@ class SiteScene:
         self._positions: dict[int, FloatArray] = {}
         self.ceiling_z = 2.5
         self.bounds: Bounds = (-5.0, 5.0, -5.0, 5.0)
+        self.on_pick: Callable[[int, str, str], None] | None = None
+        """Told of a click on a landmark or robot: (client id, "landmark" or "robot", its ID
+        or name); set by the viewer (click-to-inspect)."""
         server.scene.set_up_direction("+z")
+
+    def _picker(self, kind: str, key: str) -> Callable[[viser.SceneNodePointerEvent[Any]], None]:
+        def picked(event: viser.SceneNodePointerEvent[Any]) -> None:
+            if self.on_pick is not None:
+                self.on_pick(event.client_id, kind, key)
+
+        return picked
 
     def set_site(self, bounds: tuple[float, float, float, float], ceiling_z: float) -> None:
         """Floor grid, ceiling grid and the starting camera for a site's extent (metres)."""
@@ -322,6 +334,8 @@ class SiteScene:
             )  # fmt: skip
             self._spheres[lm.id] = (sphere, label, glow)
             self._landmarks[lm.id] = state
+            for node in (sphere, glow):  # the glow (larger) is what a click hits while lit
+                node.on_click(self._picker("landmark", str(lm.id)))
         for gone in set(self._landmarks) - seen_ids:
             self._spheres.pop(gone)[0].remove()
             del self._landmarks[gone]
@@ -360,6 +374,8 @@ class SiteScene:
                 color = robot_color(len(self._colors_used))
                 self._colors_used.append(rb.name)
                 nodes = self._robots[rb.name] = _RobotNodes(scene, rb.name, self.config, color)
+                for node in (nodes.body, nodes.nose):
+                    node.on_click(self._picker("robot", rb.name))
             self._update_robot(nodes, rb)
 
     def _update_robot(self, nodes: _RobotNodes, rb: RobotState) -> None:
