@@ -36,7 +36,7 @@ def test_a_week_plays_back_in_a_bounded_trail_with_a_ghost_and_a_heatmap(
     ])  # fmt: skip
     history.add([PoseRecord(robot="r2", t=now - timedelta(minutes=5), t_ns=0, x=9.0, y=9.0,
                             theta=0.0, mode="landmark")])  # fmt: skip
-    panel = PlaybackPanel(server, history, lambda: ["r1", "r2"], lambda t, b: None,  # type: ignore[arg-type]
+    panel = PlaybackPanel(server, history, lambda: ["r1", "r2"], lambda t, b: None,
                           max_points=1000, now=lambda: now)  # fmt: skip
     panel.gui_window.value = "last 7 days"  # type: ignore[misc]
     panel.gui_heat.value = True  # type: ignore[misc]

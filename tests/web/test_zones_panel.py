@@ -42,7 +42,7 @@ def test_admin_makes_edits_and_deletes_a_zone_and_the_layer_follows(
 ) -> None:
     notes: list[str] = []
     floor: list[str | None] = [None]
-    panel = ZonesPanel(server, store, Session("admin", "key:1"), lambda: floor[0],  # type: ignore[arg-type]
+    panel = ZonesPanel(server, store, Session("admin", "key:1"), lambda: floor[0],
                        lambda t, b: notes.append(b))  # fmt: skip
     layer = ZonesLayer(server.scene, store)
     assert layer.refresh(None) and layer.shown == {}
@@ -84,7 +84,7 @@ def test_zones_of_another_floor_are_not_drawn_and_viewers_only_read(
     assert sorted(z.name for z, _ in layer.shown.values()) == ["lab", "shaft"]
     layer.refresh(None)
     assert len(layer.shown) == 3
-    panel = ZonesPanel(server, store, Session("operator", "key:2"), lambda: "0",  # type: ignore[arg-type]
+    panel = ZonesPanel(server, store, Session("operator", "key:2"), lambda: "0",
                        lambda t, b: None)  # fmt: skip
     assert not panel.editing and not hasattr(panel, "gui_create")
     assert "**lobby**" in panel.gui_list.content and "lab" not in panel.gui_list.content
