@@ -209,13 +209,13 @@ class SiteViewer:
         if panels is not None:
             panels.inspect.select(kind, key)
 
-    def _follow_floor(self, lms: list[LandmarkState]) -> None:
+    def _follow_floor(self) -> None:
         """The floor shown changed: its extent, ceiling, plan and zones."""
         assert self.scene is not None  # started
         floor = self.site.floor_shown()
         if floor != self._floor_drawn:
-            self._floor_drawn = floor
-            self.scene.set_site(self._extent(lms), self.site.ceiling_height())
+            self._floor_drawn = floor  # its landmarks read after the floor: never the last's
+            self.scene.set_site(self._extent(self.site.landmarks()), self.site.ceiling_height())
         store = self.site.floorplan()
         if self.floorplan is not None and store is not None:
             self.floorplan.follow(store)
@@ -340,8 +340,8 @@ class SiteViewer:
                 if landmarks_due and lms is not None:
                     self.scene.update_landmarks(lms, self.site.lit())
         self.last_use.add(robots)
-        if landmarks_due and lms is not None:
-            self._follow_floor(lms)
+        if landmarks_due:
+            self._follow_floor()
         if landmarks_due and self.floorplan is not None:
             self.floorplan.refresh()
         with self._lock:
