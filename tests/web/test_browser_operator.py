@@ -207,7 +207,9 @@ def test_zones_click_to_inspect_and_history_playback(
         page.wait_for_function("() => ['/playback/trail', '/playback/ghost', '/playback/heatmap']"
                                ".every(k => !!window.__viserMutable.nodeRefFromName[k])",
                                timeout=30_000)  # fmt: skip
-        page.get_by_text("heatmap:").first.wait_for(timeout=10_000)
+        summary = page.get_by_text("heatmap:").first
+        summary.wait_for(timeout=10_000)
+        summary.scroll_into_view_if_needed()
         wait_frames(page, 5)
         save_shot(page, "viewer-history.png", doc=True)
     finally:

@@ -34,6 +34,8 @@ WINDOWS: dict[str, float] = {
 """The time windows offered, hours."""
 COLOR_BY = ("mode", "quality (1-sigma error)")
 GHOST_COLOR: RGB = (60, 60, 200)
+TRAIL_Z_M = 0.03
+"""The played-back trail lies over the live trails (0.01 m) and thicker (0.12 m), metres."""
 GOOD_SIGMA_M, BAD_SIGMA_M = 0.02, 0.10
 """The quality colours run from green (1-sigma at or under 2 cm) to red (10 cm and worse)."""
 
@@ -57,7 +59,7 @@ def trail_segments(
     xy = np.array([[p.x, p.y] for p in poses], dtype=np.float64)
     t = np.array([p.t.timestamp() for p in poses])
     keep = np.diff(t) <= max_gap_s
-    p3 = np.column_stack([xy, np.full(len(xy), 0.015)])
+    p3 = np.column_stack([xy, np.full(len(xy), TRAIL_Z_M)])
     seg = np.stack([p3[:-1], p3[1:]], axis=1)[keep]
     if by == "mode":
         rgb = [mode_color(p.mode) for p in poses[:-1]]
@@ -177,7 +179,7 @@ class PlaybackPanel:
         by = "mode" if self.gui_by.value == "mode" else "quality"
         seg, colors = trail_segments(self.poses, by, max_gap_s=self._gap_s())
         self.client.scene.add_line_segments(
-            "/playback/trail", seg.astype(np.float32), colors, thickness=0.04
+            "/playback/trail", seg.astype(np.float32), colors, thickness=0.12
         )
 
     def scrub(self, index: int) -> PoseRecord | None:
