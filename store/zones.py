@@ -7,7 +7,7 @@ import threading
 from collections.abc import Callable, Sequence
 from datetime import datetime
 
-from sqlalchemy import Engine, delete, func
+from sqlalchemy import ColumnElement, Engine, delete, func
 from sqlalchemy.exc import IntegrityError
 from sqlmodel import Session, col, select
 
@@ -127,6 +127,22 @@ class ZoneStore:
             fn(zones)
 
 
+def _conditions(
+    robot: str | None, since: datetime | None, until: datetime | None, floor: str | None
+) -> builtins.list[ColumnElement[bool]]:
+    """The WHERE terms of a history read (None: no bound)."""
+    conds: builtins.list[ColumnElement[bool]] = []
+    if robot is not None:
+        conds.append(col(PoseRecord.robot) == robot)
+    if since is not None:
+        conds.append(col(PoseRecord.t) >= since)
+    if until is not None:
+        conds.append(col(PoseRecord.t) < until)
+    if floor is not None:
+        conds.append(col(PoseRecord.floor) == floor)
+    return conds
+
+
 class PoseHistory:
     """Kept poses: written in batches, read by robot and time range, pruned by age."""
 
@@ -147,16 +163,13 @@ class PoseHistory:
         since: datetime | None = None,
         until: datetime | None = None,
         limit: int = 10_000,
+        floor: str | None = None,
     ) -> builtins.list[PoseRecord]:
-        """Poses oldest first, of `robot` (None: all), in [since, until)."""
+        """Poses oldest first, of `robot` (None: all), in [since, until), on `floor`
+        (None: every floor)."""
         with Session(self.engine, expire_on_commit=False) as s:
             q = select(PoseRecord).order_by(col(PoseRecord.t), col(PoseRecord.id)).limit(limit)
-            if robot is not None:
-                q = q.where(PoseRecord.robot == robot)
-            if since is not None:
-                q = q.where(col(PoseRecord.t) >= since)
-            if until is not None:
-                q = q.where(col(PoseRecord.t) < until)
+            q = q.where(*_conditions(robot, since, until, floor))
             return builtins.list(s.exec(q))
 
     def thinned(
@@ -166,19 +179,14 @@ class PoseHistory:
         since: datetime | None = None,
         until: datetime | None = None,
         max_points: int = 5_000,
+        floor: str | None = None,
     ) -> tuple[builtins.list[PoseRecord], int]:
         """At most `max_points` poses of [since, until), oldest first, evenly spread over
         the kept ones (every k-th, counted in the database: a week of history is never
         read whole); (the poses, how many are kept in the range)."""
         if max_points < 2:
             raise ValueError(f"history: max_points must be at least 2, got {max_points}")
-        conds = []
-        if robot is not None:
-            conds.append(col(PoseRecord.robot) == robot)
-        if since is not None:
-            conds.append(col(PoseRecord.t) >= since)
-        if until is not None:
-            conds.append(col(PoseRecord.t) < until)
+        conds = _conditions(robot, since, until, floor)
         with Session(self.engine, expire_on_commit=False) as s:
             total = int(s.exec(select(func.count()).select_from(PoseRecord).where(*conds)).one())
             stride = max(1, -(-total // max_points))  # ceil
@@ -199,19 +207,14 @@ class PoseHistory:
         robot: str | None = None,
         since: datetime | None = None,
         until: datetime | None = None,
+        floor: str | None = None,
     ) -> tuple[builtins.list[tuple[int, int, int]], int]:
         """Kept poses counted per floor cell, in the database (one row a visited cell, however
         long the range): ([(column, row, count)], poses), cell (i, j) spanning
         [i * cell_m, (i + 1) * cell_m) in x and [j * cell_m, ...) in y."""
         if not cell_m > 0:
             raise ValueError(f"coverage: cell_m must be positive, got {cell_m}")
-        conds = []
-        if robot is not None:
-            conds.append(col(PoseRecord.robot) == robot)
-        if since is not None:
-            conds.append(col(PoseRecord.t) >= since)
-        if until is not None:
-            conds.append(col(PoseRecord.t) < until)
+        conds = _conditions(robot, since, until, floor)
         i = func.floor(col(PoseRecord.x) / cell_m)
         j = func.floor(col(PoseRecord.y) / cell_m)
         q = select(i, j, func.count()).where(*conds).group_by(i, j)

@@ -83,6 +83,7 @@ class ClientPanels:
         self.recordings: RecordingsPanel | None = None
         self.zones: ZonesPanel | None = None
         self.playback: PlaybackPanel | None = None
+        self.floorplan: FloorPlanPanel | None = None
         if session.can_commission:
             tabs = gui.add_tab_group()
             with tabs.add_tab("Monitor"):
@@ -137,7 +138,7 @@ class ClientPanels:
         history = site.pose_history()
         if history is not None:
             names = [r.name for r in site.robots()]
-            self.playback = PlaybackPanel(client, history, lambda: names, notify)
+            self.playback = PlaybackPanel(client, history, lambda: names, notify, site.floor_shown)
 
     def refresh(
         self,
@@ -155,3 +156,6 @@ class ClientPanels:
         ):  # fmt: skip
             if panel is not None:
                 panel.refresh()
+        for owner in (self.commission, self.history, self.floorplan):
+            if owner is not None:
+                owner.status.refresh()  # an action's status clears a while after it

@@ -18,6 +18,7 @@ import viser
 
 from store.floorplan import FloorPlanInfo, FloorPlanStore, Placement, image_size
 from web.footprint import Bounds
+from web.status_line import StatusLine
 
 FLOORPLAN_Z_M = -0.01
 """The image lies just below the floor grid (its lines stay visible on it), metres."""
@@ -120,6 +121,7 @@ class FloorPlanPanel:
             self.gui_place = gui.add_button("Place by the two points")
             self.gui_remove = gui.add_button("Remove floor plan")
             self.gui_status = gui.add_markdown("")
+        self.status = StatusLine(self.gui_status)
         self.gui_upload.on_upload(lambda _: self._on_upload())
         self.gui_place.on_click(lambda _: self._on_place())
         self.gui_remove.on_click(lambda _: self.remove())
@@ -167,10 +169,10 @@ class FloorPlanPanel:
         return self._done("placed", info)
 
     def remove(self) -> None:
-        self.gui_status.content = "removed" if self.store.delete() else "there was no plan"
+        self.status.say("removed" if self.store.delete() else "there was no plan")
 
     def _done(self, what: str, info: FloorPlanInfo) -> FloorPlanInfo:
-        self.gui_status.content = (
+        self.status.say(
             f"{what}: {info.width_px}x{info.height_px} px, {100 * info.metres_per_px:.2f} cm "
             f"a pixel, {info.width_m:.1f} x {info.height_m:.1f} m, turned "
             f"{math.degrees(info.rotation_rad):.1f} deg"
@@ -178,5 +180,5 @@ class FloorPlanPanel:
         return info
 
     def _refused(self, text: str) -> None:
-        self.gui_status.content = f"**refused**: {text}"
+        self.status.say(f"**refused**: {text}")
         self.notify("Floor plan", text)

@@ -78,6 +78,7 @@ class PosePoint(BaseModel):
     theta: float = Field(description="radians, REP-103")
     sigma_m: float | None = Field(description="1-sigma position error, metres")
     mode: str
+    floor: str = Field(description="the floor whose map frame x, y are in")
 
 
 class Coverage(BaseModel):
@@ -111,7 +112,10 @@ def list_zones(services: ServicesDep, _: Viewer) -> list[ZonePublic]:
 
 @router.post("/zones", status_code=status.HTTP_201_CREATED)
 def create_zone(body: ZoneCreate, services: ServicesDep, _: Admin) -> ZonePublic:
-    """A new zone (409 when the name is taken; 422 naming a bad polygon)."""
+    """A new zone (409 when the name is taken; 422 naming a bad polygon; 404 naming an
+    unknown floor)."""
+    if body.floor:
+        services.floors.check(body.floor, what="zone")
     z = services.zones.create(body.name, body.polygon, floor=body.floor, dwell_s=body.dwell_s)
     return _zone(z)
 
@@ -126,6 +130,8 @@ def update_zone(zone_id: ZoneId, body: ZoneUpdate, services: ServicesDep, _: Adm
     """Rename, reshape, move to a floor or change the dwell limit (409 when the name is
     taken; 422 naming a bad polygon)."""
     fields = body.model_fields_set
+    if body.floor:
+        services.floors.check(body.floor, what="zone")
     z = services.zones.update(
         zone_id, name=body.name, polygon=body.polygon, floor=body.floor, dwell_s=body.dwell_s,
         clear_dwell="dwell_s" in fields and body.dwell_s is None,
@@ -148,9 +154,16 @@ def _range(
 
 
 def _poses(services: ServicesDep, robot: str | None, since: datetime | None,
-           until: datetime | None, limit: int) -> list[PoseRecord]:  # fmt: skip
+           until: datetime | None, limit: int, floor: str | None) -> list[PoseRecord]:  # fmt: skip
     since, until = _range(since, until)
-    return services.pose_history.query(robot=robot, since=since, until=until, limit=limit)
+    return services.pose_history.query(
+        robot=robot, since=since, until=until, limit=limit, floor=floor
+    )
+
+
+FloorFilter = Annotated[
+    str | None, Query(max_length=32, description="only poses on this floor (floor ID)")
+]
 
 
 @router.get("/history/poses")
@@ -168,15 +181,16 @@ def pose_history(
         description="at most this many, spread evenly over the whole range (every k-th kept "
         "pose; `limit` then does not apply): a week of history in a few thousand points",
     ),
+    floor: FloorFilter = None,
 ) -> list[PosePoint]:
     """Kept poses oldest first (about one a second a robot while it has a pose)."""
     if max_points is not None:
         since, until = _range(since, until)
         poses = services.pose_history.thinned(
-            robot=robot, since=since, until=until, max_points=max_points
+            robot=robot, since=since, until=until, max_points=max_points, floor=floor
         )[0]
     else:
-        poses = _poses(services, robot, since, until, limit)
+        poses = _poses(services, robot, since, until, limit, floor)
     return [
         PosePoint(
             robot=p.robot,
@@ -187,6 +201,7 @@ def pose_history(
             theta=p.theta,
             sigma_m=p.sigma_m,
             mode=p.mode,
+            floor=p.floor,
         )
         for p in poses
     ]
@@ -200,10 +215,13 @@ def history_coverage(
     until: Until = None,
     robot: str | None = Query(None, max_length=64),
     cell_m: float = Query(0.5, ge=0.05, le=10.0, description="cell size, metres"),
+    floor: FloorFilter = None,
 ) -> Coverage:
     """Where the robots went: every kept pose of the range counted per floor cell (a
     heatmap; counted in the database, however long the range)."""
     since, until = _range(since, until)
-    cells, n = services.pose_history.cell_counts(cell_m, robot=robot, since=since, until=until)
+    cells, n = services.pose_history.cell_counts(
+        cell_m, robot=robot, since=since, until=until, floor=floor
+    )
     (x0, y0), counts = grid_from_cells(cells, cell_m)
     return Coverage(x0=x0, y0=y0, cell_m=cell_m, poses=n, counts=counts.tolist())

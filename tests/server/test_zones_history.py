@@ -6,6 +6,7 @@ from __future__ import annotations
 import itertools
 import time
 from collections.abc import Iterator
+from dataclasses import replace
 from datetime import UTC, datetime, timedelta
 from pathlib import Path
 from typing import Any
@@ -100,7 +101,10 @@ def test_zones_and_history_through_the_api(live: Api) -> None:
               "until": "2030-01-01T00:00:00Z"}, headers=viewer)  # fmt: skip
     assert r.status_code == 422 and "until" in r.json()["detail"]
     thin = c.get("/api/v1/history/poses", params={"max_points": 3}, headers=viewer).json()
-    assert 2 <= len(thin) <= 3
+    assert 2 <= len(thin) <= 3 and {p["floor"] for p in thin} == {"0"}
+    assert c.get("/api/v1/history/poses", params={"floor": "7"}, headers=viewer).json() == []
+    r = c.post("/api/v1/zones", json={**everywhere, "name": "up", "floor": "7"}, headers=admin)
+    assert r.status_code == 404 and "'7'" in r.text  # no such floor: nothing stored
     r = c.patch(f"/api/v1/zones/{zone['id']}", json={"name": "hall 2", "dwell_s": 30},
                 headers=admin)  # fmt: skip
     assert r.status_code == 200 and r.json()["name"] == "hall 2" and r.json()["dwell_s"] == 30
@@ -168,4 +172,35 @@ def test_a_zone_is_renamed_reshaped_and_its_dwell_dropped(tmp_path: Path) -> Non
     with pytest.raises(NotFoundError):
         zones.update(999, name="x")
     assert zones.get(dock.id).name == "dock A" and heard == [1, 2, 2, 2]
+    engine.dispose()
+
+
+def test_zones_and_history_keep_to_the_robots_floor(tmp_path: Path) -> None:
+    """A robot on floor 1 at the x, y of a floor-0 zone is not in it (each floor has its own
+    map frame); a zone of no floor is on every floor; kept poses carry their floor and are
+    read back per floor. Poses kept before the floor column (migration 0009) are floor 0's."""
+    from sqlalchemy import text
+
+    engine = make_engine(f"sqlite:///{tmp_path / 'irloc.db'}")
+    migrate(engine, "0008")
+    with engine.begin() as conn:
+        row = "VALUES ('r0', '2026-12-01 00:00:00', 0, 1, 1, 0, 'landmark')"
+        conn.execute(text(f"INSERT INTO pose_history (robot, t, t_ns, x, y, theta, mode) {row}"))
+    migrate(engine)
+    zones, history = ZoneStore(engine), PoseHistory(engine)
+    assert [(p.robot, p.floor) for p in history.query()] == [("r0", "0")]
+    events: list[tuple[str, dict[str, Any]]] = []
+    keeper = ZonesAndHistory(None, zones, history, lambda kind, msg, **kw: events.append(
+        (kind, kw)), HistoryConfig(keep_every_s=1.0))  # fmt: skip
+    zones.add_listener(keeper._on_zones)
+    zones.create("hall dock", [(0, 0), (2, 0), (2, 2), (0, 2)], floor="0")
+    zones.create("lift", [(0, 0), (2, 0), (2, 2), (0, 2)])  # every floor
+    t0 = 1_800_000_000.0
+    up = [replace(_pose("r2", 1.0, 1.0, t0 + k), floor="1") for k in range(3)]
+    assert keeper.take(up) == 3
+    assert [(k, kw["data"]["zone"]) for k, kw in events] == [("zone_enter", "lift")]
+    assert [p.floor for p in history.query(robot="r2")] == ["1", "1", "1"]
+    assert history.thinned(floor="1", max_points=10)[1] == 3
+    assert history.thinned(floor="0", max_points=10)[1] == 1
+    assert history.cell_counts(1.0, floor="1") == ([(1, 1, 3)], 3)
     engine.dispose()

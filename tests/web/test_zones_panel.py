@@ -88,3 +88,16 @@ def test_zones_of_another_floor_are_not_drawn_and_viewers_only_read(
                        lambda t, b: None)  # fmt: skip
     assert not panel.editing and not hasattr(panel, "gui_create")
     assert "**lobby**" in panel.gui_list.content and "lab" not in panel.gui_list.content
+
+
+def test_a_status_line_clears_a_while_after_its_action(server: viser.ViserServer) -> None:
+    from web.status_line import StatusLine
+
+    now = [100.0]
+    line = StatusLine(server.gui.add_markdown(""), ttl_s=20.0, clock=lambda: now[0])
+    line.say("zone **dock** saved")
+    now[0] = 119.0
+    assert not line.refresh() and line.handle.content == "zone **dock** saved"
+    now[0] = 120.5
+    assert line.refresh() and line.handle.content == ""
+    assert not line.refresh()  # nothing to clear

@@ -1,5 +1,6 @@
 """History playback: where a robot went in a time window, from the kept poses (as
-`GET /api/v1/history/poses?max_points=` and `/history/coverage` serve them).
+`GET /api/v1/history/poses?max_points=&floor=` and `/history/coverage` serve them), on the
+floor shown (each floor's poses are in its own map frame).
 
 The trail is coloured by the localizer's mode or by the pose's 1-sigma error; a time slider
 moves a ghost robot along it; the heatmap counts every kept pose of the window (every robot)
@@ -90,6 +91,7 @@ class PlaybackPanel:
         history: the kept poses.
         robots: the robots' names now (for the dropdown).
         notify: a pop-up for refusals.
+        floor: the floor shown (its poses only; None: every floor's).
         max_points: the trail's bound, poses.
         cell_m: the heatmap's cell, metres.
         now: the wall clock (UTC; tests pass their own).
@@ -101,12 +103,14 @@ class PlaybackPanel:
         history: PoseHistory,
         robots: Callable[[], Sequence[str]],
         notify: Callable[[str, str], None],
+        floor: Callable[[], str | None] = lambda: None,
         *,
         max_points: int = 3000,
         cell_m: float = 0.5,
         now: Callable[[], datetime] = lambda: datetime.now(UTC),
     ) -> None:
         self.client, self.history, self.robots, self.notify = client, history, robots, notify
+        self.floor = floor
         self.max_points, self.cell_m, self.now = max_points, cell_m, now
         self.poses: list[PoseRecord] = []
         gui = client.gui
@@ -138,17 +142,19 @@ class PlaybackPanel:
             self.gui_robot.options = names
         robot = str(self.gui_robot.value)
         since, until = self._window()
+        floor = self.floor()
         self.poses, total = self.history.thinned(
-            robot=robot, since=since, until=until, max_points=self.max_points
+            robot=robot, since=since, until=until, max_points=self.max_points, floor=floor
         )
         scene = self.client.scene
         scene.remove_by_name("/playback")
         scene.add_frame("/playback", show_axes=False)
-        heat = self._draw_heatmap(since, until) if self.gui_heat.value else ""
+        heat = self._draw_heatmap(since, until, floor) if self.gui_heat.value else ""
+        where = "" if floor is None else f" on floor {floor}"
         if not self.poses:
             self.gui_time.disabled = True
             self.gui_at.content = ""
-            text = f"no kept poses of **{robot}** in the {self.gui_window.value}{heat}"
+            text = f"no kept poses of **{robot}**{where} in the {self.gui_window.value}{heat}"
             self.gui_text.content = text
             return text
         self._redraw_trail()
@@ -160,7 +166,7 @@ class PlaybackPanel:
         every = "every pose" if n == total else f"every {math.ceil(total / n)}th of {total}"
         first, last = self.poses[0].t, self.poses[-1].t
         text = (
-            f"**{robot}**, {local_time_text(first)} to {local_time_text(last)}: {n} poses "
+            f"**{robot}**{where}, {local_time_text(first)} to {local_time_text(last)}: {n} poses "
             f"({every}){heat}"
         )
         self.gui_text.content = text
@@ -198,8 +204,8 @@ class PlaybackPanel:
         )
         return p
 
-    def _draw_heatmap(self, since: datetime, until: datetime) -> str:
-        cells, n = self.history.cell_counts(self.cell_m, since=since, until=until)
+    def _draw_heatmap(self, since: datetime, until: datetime, floor: str | None) -> str:
+        cells, n = self.history.cell_counts(self.cell_m, since=since, until=until, floor=floor)
         if not cells:
             return "; no poses for the heatmap"
         a = np.array(cells, dtype=np.int64)

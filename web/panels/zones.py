@@ -18,6 +18,7 @@ from store.errors import ConflictError, NotFoundError
 from store.models import ZoneRecord
 from store.zones import ZoneStore, check_polygon
 from web.roles import Session
+from web.status_line import StatusLine
 from web.zones_view import DRAFT_COLOR, on_floor, ring_segments
 
 NEW = "(new zone)"
@@ -112,6 +113,7 @@ class ZonesPanel:
                 self.gui_sure = gui.add_checkbox("Yes, delete this zone", False)
                 self.gui_delete = gui.add_button("Delete zone")
                 self.gui_status = gui.add_markdown("")
+                self.status = StatusLine(self.gui_status)
                 self.gui_zone.on_update(lambda _: self._load())
                 self.gui_draw.on_update(lambda _: self._drawing(bool(self.gui_draw.value)))
                 self.gui_points.on_update(lambda _: self._draw_draft())
@@ -128,6 +130,7 @@ class ZonesPanel:
         if text != self._listed:
             self.gui_list.content = self._listed = text
         if self.editing:
+            self.status.refresh()
             options = (NEW, *(f"{z.id}: {z.name}" for z in zones))
             if options != self._options:
                 self._options = options
@@ -242,11 +245,11 @@ class ZonesPanel:
         return True
 
     def _done(self, text: str) -> None:
-        self.gui_status.content = text
+        self.status.say(text)
         self.gui_draw.value = False  # type: ignore[misc]
         self._drawing(False)
         self.refresh()
 
     def _refused(self, text: str) -> None:
-        self.gui_status.content = f"**refused**: {text}"
+        self.status.say(f"**refused**: {text}")
         self.notify("Zones", text)
