@@ -116,10 +116,12 @@ def test_zones_and_history_through_the_api(live: Api) -> None:
     assert c.get(f"/api/v1/zones/{zone['id']}", headers=viewer).status_code == 404
 
 
-def test_a_week_of_history_is_thinned_and_counted_in_the_database(tmp_path: Path) -> None:
+def test_a_week_of_history_is_thinned_and_counted_in_the_database(db_url: str) -> None:
+    """(Run again on PostgreSQL by tests/server/test_postgres.py: the window function and
+    floor() of the two reads.)"""
     from store.models import PoseRecord
 
-    engine = make_engine(f"sqlite:///{tmp_path / 'irloc.db'}")
+    engine = make_engine(db_url)
     migrate(engine)
     history = PoseHistory(engine)
     t0 = datetime(2026, 12, 1, tzinfo=UTC)
