@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 from dataclasses import replace
+from pathlib import Path
 
 import pytest
 import viser
@@ -43,8 +44,26 @@ def test_a_landmark_and_a_robot_are_described_and_cells_replaced_needs_a_tick(
     assert "battery 3.15 V (100 %): no trend yet" in panel.refresh()
     robot = panel.select("robot", "r1")
     assert robot.startswith("**Robot r1**") and "at (1.50, 1.00) m" in robot
+    assert "in zone" not in robot  # the site keeps no zones
     assert not panel.gui_cells.visible  # not for a robot
     assert "not in the map" in panel.select("landmark", "999")
+
+
+def test_a_robot_says_which_zones_it_is_in(server: viser.ViserServer, tmp_path: Path) -> None:
+    from store.db import make_engine, migrate
+    from store.zones import ZoneStore
+
+    engine = make_engine(f"sqlite:///{tmp_path / 'irloc.db'}")
+    migrate(engine)
+    site = grid_site()
+    site.zone_store = ZoneStore(engine)
+    site.zone_store.create("dock", [(1, 0), (2, 0), (2, 2), (1, 2)])  # r1 at (1.5, 1)
+    site.zone_store.create("bay", [(5, 5), (6, 5), (6, 6)])
+    panel = InspectPanel(server.gui, site, Session("viewer", "key:3"), LastUse(),
+                         lambda t, b: None)  # fmt: skip
+    assert "- in zone dock" in panel.select("robot", "r1")
+    assert "in zone" not in panel.select("robot", "r2")  # at (0.5, 0.2)
+    engine.dispose()
 
 
 @pytest.mark.parametrize("role", ["viewer"])

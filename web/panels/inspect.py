@@ -3,7 +3,8 @@
 A landmark: its position and map uncertainty, radio, battery (reading, charge, days left by
 the trend and by the energy model at its duty), LED state and why, which robots use it now
 and which one last did (since the viewer started), and who edited it last (the map's audit
-log). A robot: its mode, position, error, last fix and the landmarks it uses. Operators and
+log). A robot: its mode, position, error, last fix, the landmarks it uses and the zones it
+is in. Operators and
 admins also get "Cells replaced" for the landmark shown (after ticking the confirmation), as
 `POST /api/v1/landmarks/{id}/cells-replaced?confirm=true`.
 """
@@ -15,12 +16,16 @@ import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
+import numpy as np
 import viser
+from matplotlib.path import Path as PolygonPath
 
 from store.errors import NotFoundError, UnavailableError
+from store.models import ZoneRecord
 from web.panels.monitor import MODE_TEXT, error_text, fix_age_s, local_time_text
 from web.roles import Session
 from web.services import LandmarkState, RobotState, ViewerSite
+from web.zones_view import on_floor
 
 
 @dataclass(frozen=True)
@@ -104,8 +109,13 @@ def landmark_text(
     return "\n".join(lines)
 
 
-def robot_text(rb: RobotState) -> str:
-    """Markdown describing a robot."""
+def zones_at(zones: Sequence[ZoneRecord], x: float, y: float) -> list[str]:
+    """Names of the zones whose polygon holds (x, y)."""
+    return [z.name for z in zones if PolygonPath(np.asarray(z.polygon)).contains_point((x, y))]
+
+
+def robot_text(rb: RobotState, zones: Sequence[ZoneRecord] = ()) -> str:
+    """Markdown describing a robot (`zones`: those of the floor shown)."""
     lines = [f"**Robot {rb.name}**: {MODE_TEXT.get(rb.mode, rb.mode)}"]
     if rb.pose is not None:
         p = rb.pose
@@ -113,6 +123,9 @@ def robot_text(rb: RobotState) -> str:
         lines.append(f"- error (1 sigma) {error_text(rb)}")
         ids = ", ".join(str(i) for i in p.landmark_ids) or "none"
         lines.append(f"- landmarks used: {ids}")
+        inside = zones_at(zones, p.x, p.y)
+        if inside:
+            lines.append(f"- in zone {', '.join(inside)}")
     age = fix_age_s(rb)
     lines.append("- last landmark fix: " + ("never" if age is None else _ago(age)))
     return "\n".join(lines)
@@ -156,7 +169,9 @@ class InspectPanel:
         robots = self.site.robots()
         if kind == "robot":
             rb = next((r for r in robots if r.name == key), None)
-            text = f"robot {key} is not shown" if rb is None else robot_text(rb)
+            store = self.site.zones()
+            zones = [] if store is None else on_floor(store.list(), self.site.floor_shown())
+            text = f"robot {key} is not shown" if rb is None else robot_text(rb, zones)
         else:
             lid = int(key)
             lm = next((m for m in self.site.landmarks() if m.id == lid), None)
