@@ -5,7 +5,8 @@ from then on the landmark's battery status (`LedsAndRadio.battery`: the latest r
 days-left trend, and the energy model's days at the schedule's duty, `live.leds.status`)
 reads only the readings taken after it (a trend across the swap would read as a charging
 battery), the radio gateway forgets the old readings and its low-battery latch (a new low
-reading is reported again), and the supply is read at once when the radio answers.
+reading is reported again), and the supply is read at once when the radio answers. On the
+simulated site the virtual landmark gets its fresh cells too (there is no one to put them in).
 """
 
 from __future__ import annotations
@@ -47,6 +48,10 @@ async def replace_cells(services: SiteServices, landmark_id: int, *, actor: str)
         landmark_id=landmark_id, data={"actor": actor},
     )  # fmt: skip
     services.events.flush()  # stored before the status below reads past it
+    sim = services.sim
+    if sim is not None and landmark_id in sim.world.landmarks:
+        # the virtual site has no technician: its landmark gets the fresh cells here
+        sim.world.replace_cells(landmark_id)
     gw = services.leds.gateway
     if gw is not None:
         gw.batteries.forget(landmark_id)

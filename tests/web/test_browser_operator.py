@@ -5,6 +5,7 @@ sent to it (the uncertainty curve once reached the page as 600 points and drew n
 from __future__ import annotations
 
 import io
+import re
 import time
 from typing import Any
 
@@ -176,8 +177,9 @@ def test_zones_click_to_inspect_and_history_playback(
     live_site: LiveSite,
 ) -> None:
     """A zone made through the API is drawn on the floor in its colour; a landmark clicked in
-    the view is described in the Selected panel; the history folder draws a robot's trail,
-    its ghost and the heatmap from the kept poses."""
+    the view is described in the Selected panel, and Cells replaced (ticked) starts its
+    battery estimate over; the history folder draws a robot's trail, its ghost and the
+    heatmap from the kept poses."""
     from web.zones_view import ZONE_COLOR
 
     services = live_site.services
@@ -201,6 +203,13 @@ def test_zones_click_to_inspect_and_history_playback(
         page.get_by_role("button", name="Cells replaced").wait_for(timeout=10_000)
         wait_frames(page, 3)
         save_shot(page, "viewer-inspect.png", doc=True)
+        page.get_by_label("Yes, its cells are new").check()
+        page.get_by_role("button", name="Cells replaced").click()
+        note = page.get_by_text("battery estimate starts over").first
+        note.wait_for(timeout=60_000)
+        # the virtual landmark got its fresh cells: the supply read at once is a new pair's
+        assert re.search(r"reads 3\.\d\d V", note.inner_text()), note.inner_text()
+        assert services.log.last_event("cells_replaced", landmark_id=target.id) is not None
         page.get_by_text("History playback").first.click()
         page.get_by_label("Heatmap of every robot").check()
         page.get_by_role("button", name="Show history").click()
