@@ -8,11 +8,11 @@ without turning), `/robots/r1/position/body` (turns with its heading),
 `/robots/r1/position/body/footprint`, `/robots/r1/position/ellipse`, `/robots/r1/trail/<k>`,
 `/robots/r1/rays`, `/coverage/*`. Landmark spheres (and their glow) and robot boxes answer
 clicks: `SiteScene.on_pick(client_id, kind, key)` (click-to-inspect). `/robots/<name>`
-itself stays at the world origin so that the trail and rays are in world coordinates. Only one thread (the viewer's update loop)
-calls `update`; it diffs against the last snapshot and sends only what changed: a robot's
-pose when it has a new estimate, its ellipse when the covariance changed by more than
-`ellipse_rtol`, its rays when the landmarks used changed (else at `rays_every`), and only
-the newest piece of its trail.
+itself stays at the world origin so that the trail and rays are in world coordinates. Only
+one thread (the viewer's update loop) calls `update`; it diffs against the last snapshot and
+sends only what changed: a robot's pose when it has a new estimate, its ellipse when the
+covariance changed by more than `ellipse_rtol`, its rays when the landmarks used changed
+(else at `rays_every`), and only the newest piece of its trail.
 """
 
 from __future__ import annotations
