@@ -24,14 +24,14 @@ def test_a_week_plays_back_in_a_bounded_trail_with_a_ghost_and_a_heatmap(
     migrate(engine)
     history = PoseHistory(engine)
     now = datetime(2026, 12, 7, 12, tzinfo=UTC)
-    n = 20_000  # every 30 s over a week, a circle of 3 m
+    n = 4_000  # every 150 s over a week, a circle of 3 m
     k = np.arange(n)
     a = 2 * np.pi * k / 400
     history.add([
-        PoseRecord(robot="r1", t=now - timedelta(seconds=30 * (n - i)), t_ns=int(i),
+        PoseRecord(robot="r1", t=now - timedelta(seconds=150 * (n - i)), t_ns=int(i),
                    x=3 * np.cos(a[i]), y=3 * np.sin(a[i]), theta=a[i] + np.pi / 2,
                    sigma_m=0.01 if i % 2 else 0.2,
-                   mode="landmark" if i < n - 100 else "dead_reckoning")
+                   mode="landmark" if i < n - 20 else "dead_reckoning")
         for i in range(n)
     ])  # fmt: skip
     history.add([PoseRecord(robot="r2", t=now - timedelta(minutes=5), t_ns=0, x=9.0, y=9.0,
@@ -41,8 +41,8 @@ def test_a_week_plays_back_in_a_bounded_trail_with_a_ghost_and_a_heatmap(
     panel.gui_window.value = "last 7 days"  # type: ignore[misc]
     panel.gui_heat.value = True  # type: ignore[misc]
     text = panel.load()
-    assert len(panel.poses) == 1000 and "every 20th of 20000" in text
-    assert "heatmap: 20001 poses" in text  # every pose of every robot, not the thinned
+    assert len(panel.poses) == 1000 and "every 4th of 4000" in text
+    assert "heatmap: 4001 poses" in text  # every pose of every robot, not the thinned
     assert panel.gui_time.max == 999 and not panel.gui_time.disabled
     ghost = panel.scrub(0)
     assert ghost is not None and ghost.t_ns == 0 and "landmarks" in panel.gui_at.content
@@ -50,7 +50,7 @@ def test_a_week_plays_back_in_a_bounded_trail_with_a_ghost_and_a_heatmap(
     assert "dead reckoning" in panel.gui_at.content
     panel.gui_window.value = "last 15 minutes"  # type: ignore[misc]
     panel.gui_heat.value = False  # type: ignore[misc]
-    assert "30 poses (every pose)" in panel.load()  # 15 min at one pose every 30 s
+    assert "6 poses (every pose)" in panel.load()  # 15 min at one pose every 150 s
     panel.gui_robot.value = "r2"  # type: ignore[misc]
     panel.gui_window.value = "last 15 minutes"  # type: ignore[misc]
     assert "1 poses" in panel.load()
