@@ -30,18 +30,18 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import numpy.typing as npt
 
 ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
 import localizer.first_fix as first_fix_module  # noqa: E402
-import localizer.landmark_tracker as tracker_module  # noqa: E402
+import localizer.fix_fusion as fix_fusion_module  # noqa: E402
 import localizer.localizer as localizer_module  # noqa: E402
 from irloc.simulate_cli import main as simulate_main  # noqa: E402
 from localizer.camera import CameraModel, predict_pixels  # noqa: E402
 from localizer.pose import PoseFix  # noqa: E402
+from localizer.types import FloatArray  # noqa: E402
 from recording.reader import read_groundtruth  # noqa: E402
 from recording.replay_cli import main as replay_main  # noqa: E402
 from recording.scoring import error_stats, read_poses  # noqa: E402
@@ -55,8 +55,6 @@ MISID_TOLERANCE_PX = 12.0
 nearest other source, a glint 25 cm from a landmark, is ~36 px away; correct claims are
 within ~1 px, or a few px for a first fix's sightings carried by odometry)."""
 
-FloatArray = npt.NDArray[np.float64]
-
 
 @dataclasses.dataclass(frozen=True)
 class Claim:
@@ -69,11 +67,11 @@ class Claim:
 @contextmanager
 def watch_fixes() -> Iterator[list[Claim]]:
     """Record, per frame the localizer outputs with landmark IDs, the pixels of the fix that
-    used those IDs (by wrapping `solve_pose` where the localizer calls it, in the tracker
+    used those IDs (by wrapping `solve_pose` where the localizer calls it, in the fix-fusion
     and first-fix modules, and `Localizer._on_frame`; nothing else changes)."""
     claims: list[Claim] = []
     calls: list[tuple[tuple[int, ...], FloatArray]] = []
-    namespaces = [vars(tracker_module), vars(first_fix_module)]  # where it is called
+    namespaces = [vars(fix_fusion_module), vars(first_fix_module)]  # where it is called
     real_solve = namespaces[0]["solve_pose"]
     real_on_frame = localizer_module.Localizer._on_frame
 

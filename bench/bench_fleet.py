@@ -254,6 +254,17 @@ def _agents(
     return subprocess.Popen(cmd, env=ENV, cwd=ROOT, stdout=subprocess.DEVNULL)
 
 
+def stop_agents(procs: list[subprocess.Popen[bytes]]) -> None:
+    """End agent processes (SIGTERM: their agents go OFFLINE), killing any that hang."""
+    for p in procs:
+        p.send_signal(signal.SIGTERM)
+    for p in procs:
+        try:
+            p.wait(15)
+        except subprocess.TimeoutExpired:
+            p.kill()
+
+
 def _pct(a: np.ndarray, q: float) -> float:
     return float(np.percentile(a, q)) if len(a) else float("nan")
 
@@ -301,13 +312,7 @@ def run_round(
         up1, down1, b1 = counter.snapshot()
         lat.close()
     finally:
-        for p in procs:
-            p.send_signal(signal.SIGTERM)
-        for p in procs:
-            try:
-                p.wait(15)
-            except subprocess.TimeoutExpired:
-                p.kill()
+        stop_agents(procs)
     dt = t1 - t0
     ms = np.array([s[2] for s in lat.samples if t0 <= s[0] <= t1 and s[1] in counter.sampled])
     hop = np.array(

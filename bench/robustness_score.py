@@ -30,12 +30,10 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
-import numpy.typing as npt
 
 from localizer.camera import CameraModel, T_camera_world, predict_pixels
 from localizer.geometry import T_world_body_from_pose, transform_points, wrap_angle
-
-FloatArray = npt.NDArray[np.float64]
+from localizer.types import BoolArray, FloatArray, IntArray
 
 GROSS_POSITION_M = 0.25
 GROSS_HEADING_RAD = math.radians(5.0)
@@ -72,7 +70,7 @@ class SiteTruth:
     """
 
     sources: FloatArray
-    source_ids: npt.NDArray[np.int64]
+    source_ids: IntArray
     camera_true: CameraModel
     camera_nominal: CameraModel
     surveyed: dict[int, FloatArray]
@@ -137,7 +135,7 @@ def wrong_ids(
 
 def _pixels(
     cam: CameraModel, T_world_body: FloatArray, p: FloatArray
-) -> tuple[FloatArray, npt.NDArray[np.bool_]]:
+) -> tuple[FloatArray, BoolArray]:
     """Pixels of world points (N, 2) and whether each is in the field of view and within
     `EDGE_MARGIN_PX` of the image."""
     px, _ = predict_pixels(cam, T_world_body, p)

@@ -20,7 +20,8 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 
-FloatArray = npt.NDArray[np.float64]
+from localizer.types import FloatArray, ImageU8
+
 BoardKind = Literal["chessboard", "charuco"]
 
 _SUBPIX_CRITERIA = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_MAX_ITER, 50, 1e-3)
@@ -126,7 +127,7 @@ class BoardCorners:
         return len(self.image_points)
 
 
-def as_gray(image: npt.NDArray[np.generic], name: str = "image") -> npt.NDArray[np.uint8]:
+def as_gray(image: npt.NDArray[np.generic], name: str = "image") -> ImageU8:
     """An 8-bit single-channel copy of a decoded image (gray, BGR or BGRA; uint8 or uint16)."""
     img = np.asarray(image)
     if img.ndim == 3 and img.shape[2] in (3, 4):
@@ -141,7 +142,7 @@ def as_gray(image: npt.NDArray[np.generic], name: str = "image") -> npt.NDArray[
     return np.ascontiguousarray(img)
 
 
-def find_board(gray: npt.NDArray[np.uint8], board: BoardSpec) -> BoardCorners | None:
+def find_board(gray: ImageU8, board: BoardSpec) -> BoardCorners | None:
     """Find the board's inner corners in a gray image; None when it is not found.
 
     A chessboard must be found whole; a ChArUco board counts with at least
@@ -153,7 +154,7 @@ def find_board(gray: npt.NDArray[np.uint8], board: BoardSpec) -> BoardCorners | 
 
 
 def _find_chessboard(
-    gray: npt.NDArray[np.uint8], pattern: tuple[int, int], object_points: FloatArray
+    gray: ImageU8, pattern: tuple[int, int], object_points: FloatArray
 ) -> BoardCorners | None:
     flags = cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE
     found, corners = cv2.findChessboardCorners(gray, pattern, flags=flags)
@@ -185,7 +186,7 @@ def _subpix_half_window(grid: FloatArray) -> int:
     return int(np.clip(np.floor(0.5 * min(dx, dy)), 2, 11))
 
 
-def _find_charuco(gray: npt.NDArray[np.uint8], board: BoardSpec) -> BoardCorners | None:
+def _find_charuco(gray: ImageU8, board: BoardSpec) -> BoardCorners | None:
     cv_board = board.charuco_board()
     corners, ids, _, _ = cv2.aruco.CharucoDetector(cv_board).detectBoard(gray)
     if corners is None or ids is None or len(ids) < board.min_charuco_corners:
@@ -199,9 +200,7 @@ def _find_charuco(gray: npt.NDArray[np.uint8], board: BoardSpec) -> BoardCorners
     return BoardCorners(image_points=pts, object_points=obj_pts)
 
 
-def suggest_pattern(
-    gray: npt.NDArray[np.uint8], pattern: tuple[int, int]
-) -> tuple[int, int] | None:
+def suggest_pattern(gray: ImageU8, pattern: tuple[int, int]) -> tuple[int, int] | None:
     """A nearby inner-corner count that finds a chessboard in `gray`, or None.
 
     Tries the usual mistakes: squares counted instead of inner corners (one too many each

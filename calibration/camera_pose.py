@@ -18,8 +18,7 @@ import numpy.typing as npt
 
 from localizer.camera import CameraModel, normalized_from_pixels, pixels_from_points_camera
 from localizer.geometry import invert_transform, transform_points
-
-FloatArray = npt.NDArray[np.float64]
+from localizer.types import FloatArray
 
 
 @dataclass(frozen=True, eq=False)

@@ -31,8 +31,8 @@ from calibration.camera_pose import camera_pose_from_landmarks
 from localizer.camera import CameraModel, pixels_from_points_camera
 from localizer.geometry import invert_transform, transform_points
 from localizer.landmark_map import LandmarkMap
+from localizer.types import FloatArray
 
-FloatArray = npt.NDArray[np.float64]
 Detection = tuple[int, list[int], FloatArray]
 
 
@@ -105,8 +105,9 @@ def identify_spots(
             taken = {s for s, _ in pairs}
             named.update(_named_by_elimination(lit_ids, spots, named, taken))
             if len(named) == 2:
-                named.update(_named_by_hypothesis(camera, landmark_map, lit_ids, spots, named,
-                                                  taken, cfg))  # fmt: skip
+                named.update(
+                    _named_by_hypothesis(camera, landmark_map, lit_ids, spots, named, taken, cfg)
+                )
         if len(named) >= 3:
             ids = list(named)
             pose = camera_pose_from_landmarks(

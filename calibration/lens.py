@@ -18,8 +18,8 @@ from calibration.board import BoardCorners, BoardSpec, as_gray, find_board, sugg
 from calibration.coverage import Coverage, corner_coverage
 from calibration.lens_fit import fit_lens
 from localizer.camera import CameraModel, T_body_camera_upward, sensor_from_camera
+from localizer.types import FloatArray, ImageU8
 
-FloatArray = npt.NDArray[np.float64]
 LensModel = Literal["pinhole", "fisheye"]
 LENS_MODELS: tuple[LensModel, ...] = ("pinhole", "fisheye")
 
@@ -240,8 +240,12 @@ def calibrate_lens(
         for i in outliers:
             reasons[i] = f"outlier: error {errors[i]:.2f} px > {limit:.2f} px"
         usable = [i for i in usable if i not in outliers]
-        refit = fit_lens([corners[i] for i in usable], resolution, model,  # type: ignore[misc]
-                         min_views=cfg.min_views)  # fmt: skip
+        refit = fit_lens(
+            [corners[i] for i in usable],  # type: ignore[misc]
+            resolution,
+            model,
+            min_views=cfg.min_views,
+        )
         for k, why in refit.dropped:
             reasons[usable[k]] = why
         usable = [usable[k] for k in refit.kept]
@@ -290,7 +294,7 @@ def calibrate_lens(
 
 
 def _common_resolution(
-    grays: Sequence[npt.NDArray[np.uint8]],
+    grays: Sequence[ImageU8],
     names: Sequence[str],
     expected: tuple[int, int] | None,
 ) -> tuple[int, int]:
@@ -313,9 +317,7 @@ def _common_resolution(
     return next(iter(groups))
 
 
-def _no_board_message(
-    grays: Sequence[npt.NDArray[np.uint8]], names: Sequence[str], spec: BoardSpec
-) -> str:
+def _no_board_message(grays: Sequence[ImageU8], names: Sequence[str], spec: BoardSpec) -> str:
     cols, rows = spec.pattern
     msg = f"no {spec.kind} with {cols}x{rows} inner corners found in any of the {len(grays)} images"
     if spec.kind == "chessboard":
@@ -339,7 +341,7 @@ def _rejected(labels: Sequence[str], reasons: Sequence[str | None]) -> str:
 
 
 def _input_warnings(
-    grays: Sequence[npt.NDArray[np.uint8]],
+    grays: Sequence[ImageU8],
     labels: Sequence[str],
     reasons: Sequence[str | None],
     spec: BoardSpec,
@@ -356,10 +358,13 @@ def _input_warnings(
     if spec.kind == "chessboard" and 2 * len(missing) > len(grays):
         cols, rows = spec.pattern
         hint = next(
-            ((labels[i], h) for i in missing[:3]
-             if (h := suggest_pattern(grays[i], spec.pattern)) is not None),
+            (
+                (labels[i], h)
+                for i in missing[:3]
+                if (h := suggest_pattern(grays[i], spec.pattern)) is not None
+            ),
             None,
-        )  # fmt: skip
+        )
         text = (
             f"the {cols}x{rows} pattern was found on only {len(grays) - len(missing)} of "
             f"{len(grays)} photos"

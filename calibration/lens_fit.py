@@ -22,11 +22,9 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
-import numpy.typing as npt
 
 from calibration.board import BoardCorners
-
-FloatArray = npt.NDArray[np.float64]
+from localizer.types import FloatArray
 
 _FISHEYE_CRITERIA = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 200, 1e-12)
 FOCAL_GRID = np.geomspace(0.1, 2.0, 48)
@@ -130,8 +128,9 @@ def fit_lens(
     dropped: list[tuple[int, str]] = []
     while True:
         try:
-            return _finish(_fit([views[i] for i in kept], resolution, model, guess),
-                           kept, dropped, guess)  # fmt: skip
+            return _finish(
+                _fit([views[i] for i in kept], resolution, model, guess), kept, dropped, guess
+            )
         except _FitError as failure:
             error = failure.message
         if len(kept) <= min_views:

@@ -32,8 +32,8 @@ from localizer.camera import CameraModel, T_body_camera_upward
 from localizer.geometry import rotation_2d, rotation_z, wrap_angle
 from localizer.landmark_map import LandmarkMap
 from localizer.odometry import odometry_increments
+from localizer.types import BoolArray, FloatArray
 
-FloatArray = npt.NDArray[np.float64]
 _R_UP = T_body_camera_upward()[:3, :3]  # camera axes of the reference (yaw 0) mounting
 
 
@@ -261,7 +261,7 @@ def _yaw_from_straight(
     centres: FloatArray,
     psi: FloatArray,
     v: FloatArray,
-    straight: npt.NDArray[np.bool_],
+    straight: BoolArray,
     cfg: MountingConfig,
 ) -> tuple[float, float, FloatArray]:
     """Mounting yaw and its variance from the straight segments, with line residuals."""

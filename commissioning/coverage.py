@@ -18,9 +18,7 @@ import numpy.typing as npt
 
 from localizer.camera import CameraModel, pixels_from_points_camera
 from localizer.geometry import rotation_z
-
-FloatArray = npt.NDArray[np.float64]
-IntArray = npt.NDArray[np.int64]
+from localizer.types import BoolArray, FloatArray, IntArray
 
 
 @dataclass(frozen=True)
@@ -71,7 +69,7 @@ class Coverage:
 
 def _pixels_at(
     cam: CameraModel, p_world: FloatArray, xy: FloatArray, theta: float
-) -> tuple[FloatArray, npt.NDArray[np.bool_]]:
+) -> tuple[FloatArray, BoolArray]:
     """Pixels of every landmark from every grid pose at one heading.
 
     Args:

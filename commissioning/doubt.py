@@ -38,8 +38,7 @@ from commissioning.geometry import in_view_camera
 from localizer.camera import CameraModel, T_camera_world
 from localizer.events import PoseEstimate
 from localizer.geometry import T_world_body_from_pose, transform_points
-
-FloatArray = npt.NDArray[np.float64]
+from localizer.types import BoolArray, FloatArray
 
 
 @dataclass(frozen=True)
@@ -97,7 +96,7 @@ def expected_in_view(
     *,
     margin_px: float,
     max_off_axis_rad: float = math.pi / 2,
-) -> npt.NDArray[np.bool_]:
+) -> BoolArray:
     """Which landmark positions (N, 3) project into the image, `margin_px` inside its border,
     at most `max_off_axis_rad` from the optical axis, for a body pose (x, y, theta); shape
     (N,)."""

@@ -10,9 +10,7 @@ import numpy.typing as npt
 
 from localizer.camera import CameraModel, pixels_from_points_camera, rays_from_pixels
 from localizer.geometry import T_world_body_from_pose, invert_transform
-
-FloatArray = npt.NDArray[np.float64]
-BoolArray = npt.NDArray[np.bool_]
+from localizer.types import BoolArray, FloatArray
 
 
 def in_view_camera(

@@ -27,8 +27,7 @@ from commissioning.geometry import point_in_view_from_poses, points_on_ceiling
 from commissioning.types import MapLandmark
 from localizer.camera import CameraModel
 from localizer.geometry import T_world_body_from_pose
-
-FloatArray = npt.NDArray[np.float64]
+from localizer.types import FloatArray
 
 
 @dataclass(frozen=True, eq=False)

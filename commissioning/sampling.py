@@ -9,9 +9,6 @@ import math
 from collections import deque
 from collections.abc import Sequence
 
-import numpy as np
-import numpy.typing as npt
-
 from commissioning.measuring import (
     Agreement,
     PlacedFrame,
@@ -21,8 +18,7 @@ from commissioning.measuring import (
 )
 from commissioning.wizard_config import WizardConfig
 from localizer.camera import CameraModel
-
-FloatArray = npt.NDArray[np.float64]
+from localizer.types import FloatArray
 
 
 class TargetSamples:

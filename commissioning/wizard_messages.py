@@ -7,16 +7,13 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Literal
 
-import numpy as np
-import numpy.typing as npt
-
 from commissioning.measuring import Plausibility
 from commissioning.types import Candidate, MapLandmark
 from localizer.camera import CameraModel
 from localizer.events import PoseEstimate
+from localizer.types import FloatArray
 
 Phase = Literal["idle", "waiting", "measuring", "done", "cancelled"]
-FloatArray = npt.NDArray[np.float64]
 
 
 # -- events in ---------------------------------------------------------------------------------
@@ -115,9 +112,17 @@ class Cancel:
 
 
 WizardEvent = (
-    Start | PoseSeen | FrameSeen | LedsSeen | RadioSwitched | Tick | Confirm | Skip
-    | SwitchAnyway | Cancel
-)  # fmt: skip
+    Start
+    | PoseSeen
+    | FrameSeen
+    | LedsSeen
+    | RadioSwitched
+    | Tick
+    | Confirm
+    | Skip
+    | SwitchAnyway
+    | Cancel
+)
 
 
 # -- outputs --------------------------------------------------------------------------------------

@@ -29,12 +29,11 @@ from localizer.geometry import (
 )
 from localizer.odometry import integrate_odometry
 from localizer.spots import DetectionConfig, detect_spots
+from localizer.types import FloatArray, IntArray
 from recording.layout import GROUNDTRUTH_FILE
 from recording.localize import PoseSource, localized
 from recording.reader import Recording, read_groundtruth
 
-FloatArray = npt.NDArray[np.float64]
-IntArray = npt.NDArray[np.int64]
 Pose2 = tuple[float, float, float]
 
 

@@ -17,10 +17,10 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-import numpy.typing as npt
 
 from export import report_plots as plots
 from localizer.events import NoPose, PoseEstimate
+from localizer.types import FloatArray, IntArray
 from recording.layout import GROUNDTRUTH_FILE
 from recording.localize import PoseSource, localized, pose_source
 from recording.reader import Recording, read_groundtruth_file, read_recording
@@ -36,9 +36,6 @@ from recording.scoring import (
     sec_v,
     track_from_estimates,
 )
-
-FloatArray = npt.NDArray[np.float64]
-IntArray = npt.NDArray[np.int64]
 
 
 @dataclass(frozen=True, eq=False)

@@ -8,12 +8,11 @@ import io
 from collections.abc import Sequence
 
 import numpy as np
-import numpy.typing as npt
 from matplotlib.figure import Figure
 
+from localizer.types import FloatArray
 from recording.scoring import PAPER, PoseTrack, StopScore
 
-FloatArray = npt.NDArray[np.float64]
 MODE_COLOURS = {
     "landmark": "#2a9d3f",
     "dead_reckoning": "#e08a00",

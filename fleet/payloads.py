@@ -12,10 +12,10 @@ import math
 from typing import Literal, TypeVar
 
 import numpy as np
-import numpy.typing as npt
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
 from localizer.events import LedRequest, LedsChanged, Mode, PoseEstimate
+from localizer.types import FloatArray
 
 M = TypeVar("M", bound=BaseModel)
 MAX_T_NS = 2**63 - 1
@@ -162,7 +162,7 @@ class PoseMessage(_Msg):
         est: PoseEstimate,
         t_ns: int,
         wall_ns: int,
-        spots: npt.NDArray[np.float64] | None = None,
+        spots: FloatArray | None = None,
     ) -> PoseMessage:
         """The message of an estimate, with the frame's `spots` (N, 2) when given."""
         c = np.asarray(est.covariance, dtype=np.float64)
@@ -182,7 +182,7 @@ class PoseMessage(_Msg):
             else [(round(float(u), 2), round(float(v), 2)) for u, v in spots[:MAX_SPOTS]],
         )
 
-    def covariance(self) -> npt.NDArray[np.float64] | None:
+    def covariance(self) -> FloatArray | None:
         """The full (3, 3) covariance, or None."""
         if self.cov is None:
             return None

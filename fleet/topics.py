@@ -63,6 +63,20 @@ class SiteTopics:
         """The site server's presence, `{"state": "ONLINE" | "OFFLINE"}` (retained, will)."""
         return f"{self.root}/server"
 
+    def alert(self, kind: str, subject: str) -> str:
+        """One alert (retained while it is active; docs/alerts.md)."""
+        return (
+            f"{self.root}/alerts/{check_name('alert kind', kind)}/{check_name('subject', subject)}"
+        )
+
+    @property
+    def alerts_wildcard(self) -> str:
+        """Every alert of the site."""
+        return f"{self.root}/alerts/+/+"
+
+    def is_alert(self, topic: str) -> bool:
+        return topic.startswith(f"{self.root}/alerts/")
+
     def clock_reply(self, robot: str) -> str:
         return f"{self.agent(robot)}/clock/reply"
 

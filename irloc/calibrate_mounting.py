@@ -23,9 +23,10 @@ import yaml
 
 from calibration.atomic import write_atomic
 from calibration.identify import identify_spots
-from calibration.mounting import FloatArray, MountingCalibration, mounting_from_observations
+from calibration.mounting import MountingCalibration, mounting_from_observations
 from localizer.camera import sensor_from_camera
 from localizer.spots import DetectionConfig, detect_spots
+from localizer.types import FloatArray
 from recording.reader import Recording, read_recording
 
 

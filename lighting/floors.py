@@ -13,7 +13,8 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-from lighting.policy import FloatArray, LedPlan, RobotState, ScheduleConfig, plan_leds
+from lighting.policy import LedPlan, RobotState, ScheduleConfig, plan_leds
+from localizer.types import FloatArray
 
 
 def plan_leds_per_floor(
@@ -47,9 +48,16 @@ def plan_leds_per_floor(
     P = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
     if len(floors) <= 1:
         return plan_leds(
-            robots, landmark_ids, P, lit_now=lit_now, last_chosen_s=last_chosen_s,
-            wear_h=wear_h, pinned=pinned, config=config, confirmed=confirmed,
-        )  # fmt: skip
+            robots,
+            landmark_ids,
+            P,
+            lit_now=lit_now,
+            last_chosen_s=last_chosen_s,
+            wear_h=wear_h,
+            pinned=pinned,
+            config=config,
+            confirmed=confirmed,
+        )
     plans = []
     for floor in floors:
         rows = [i for i, f in enumerate(landmark_floors) if f == floor]

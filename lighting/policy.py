@@ -42,12 +42,10 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
-import numpy.typing as npt
 
-from localizer.camera import CameraModel, predict_pixels
+from localizer.camera import CameraModel, pixels_from_points_camera
 from localizer.events import Mode
-
-FloatArray = npt.NDArray[np.float64]
+from localizer.types import BoolArray, FloatArray, IntArray
 
 
 @dataclass(frozen=True)
@@ -189,7 +187,7 @@ def in_view(
     positions: FloatArray,
     margin_m: float,
     ceiling_m: float,
-) -> tuple[npt.NDArray[np.bool_], FloatArray]:
+) -> tuple[BoolArray, FloatArray]:
     """Which landmarks a camera sees from a planar pose with `margin_m` to spare, and their
     distance from the image centre in pixels.
 
@@ -199,18 +197,49 @@ def in_view(
     Returns:
         (visible shape (N,), centre distance in pixels shape (N,)).
     """
-    px, valid = predict_pixels(camera, body_pose(*pose), positions)
+    px, valid = project_from_poses(camera, [pose], positions)
+    ok, centre = visible(camera, px, valid, margin_m, ceiling_m)
+    return ok[0], centre[0]
+
+
+def project_from_poses(
+    camera: CameraModel, poses: Sequence[tuple[float, float, float]], positions: FloatArray
+) -> tuple[FloatArray, BoolArray]:
+    """The landmarks' pixels seen from each planar pose, in one projection.
+
+    Returns:
+        (pixels shape (S, N, 2), valid shape (S, N)) for S poses and N positions.
+    """
+    P = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
+    xyt = np.asarray(poses, dtype=np.float64).reshape(-1, 3)
+    c, s = np.cos(xyt[:, 2]), np.sin(xyt[:, 2])
+    R_wb = np.zeros((len(xyt), 3, 3))  # planar body poses: a turn about z
+    R_wb[:, 0, 0], R_wb[:, 0, 1], R_wb[:, 1, 0], R_wb[:, 1, 1] = c, -s, s, c
+    R_wb[:, 2, 2] = 1.0
+    T_bc = camera.T_body_camera
+    R_wc = R_wb @ T_bc[:3, :3]  # world from camera, per pose
+    t_wc = R_wb @ T_bc[:3, 3] + np.column_stack([xyt[:, :2], np.zeros(len(xyt))])
+    p_camera = np.einsum("sji,snj->sni", R_wc, P[None, :, :] - t_wc[:, None, :])
+    px, valid = pixels_from_points_camera(camera, p_camera.reshape(-1, 3))
+    return px.reshape(len(xyt), len(P), 2), valid.reshape(len(xyt), len(P))
+
+
+def visible(
+    camera: CameraModel,
+    px: FloatArray,
+    valid: BoolArray,
+    margin_m: float,
+    ceiling_m: float,
+) -> tuple[BoolArray, FloatArray]:
+    """`in_view` of projected pixels (any leading shape, (..., 2)): inside the image with
+    `margin_m` to spare, and the distance from the image centre (inf when not)."""
     height = max(ceiling_m - float(camera.T_body_camera[2, 3]), 0.5)
     margin_px = margin_m * camera.fu / height
     w, h = camera.width, camera.height
-    ok = (
-        valid
-        & (px[:, 0] >= margin_px)
-        & (px[:, 0] <= w - 1 - margin_px)
-        & (px[:, 1] >= margin_px)
-        & (px[:, 1] <= h - 1 - margin_px)
-    )
-    centre = np.hypot(px[:, 0] - camera.cu, px[:, 1] - camera.cv)
+    u, v = px[..., 0], px[..., 1]
+    ok = valid & (u >= margin_px) & (u <= w - 1 - margin_px) & (v >= margin_px)
+    ok &= v <= h - 1 - margin_px
+    centre = np.hypot(u - camera.cu, v - camera.cv)
     return ok, np.where(ok, centre, np.inf)
 
 
@@ -282,7 +311,7 @@ def _neighbourhood(
 
 
 def _choose(
-    candidates: npt.NDArray[np.int64],
+    candidates: IntArray,
     centre_px: FloatArray,
     chosen: set[int],
     need: int,
@@ -320,7 +349,7 @@ def _choose(
 
 def _cover(
     camera: CameraModel,
-    views: list[tuple[float, npt.NDArray[np.int64], FloatArray]],
+    views: list[tuple[float, IntArray, FloatArray]],
     chosen: set[int],
     ids: Sequence[int],
     xy: FloatArray,
@@ -425,12 +454,14 @@ def plan_leds(
             for k in np.flatnonzero(seen):
                 want(ids[int(k)], f"boost {robot.name} (no fix)", 0.0)
         views = []
-        for t, pose in motion_samples(robot, cfg):
-            robust, centre = in_view(robot.camera, pose, P, margin, cfg.ceiling_m)
-            cand = np.flatnonzero(robust)
+        samples = motion_samples(robot, cfg)  # one projection serves every sample
+        px, valid = project_from_poses(robot.camera, [pose for _, pose in samples], P)
+        robust, centre_robust = visible(robot.camera, px, valid, margin, cfg.ceiling_m)
+        seen, centre_seen = visible(robot.camera, px, valid, 0.0, cfg.ceiling_m)
+        for j, (t, _) in enumerate(samples):
+            cand, centre = np.flatnonzero(robust[j]), centre_robust[j]
             if len(cand) < cfg.per_robot:  # sparse ceiling: any landmark in view will do
-                seen, centre = in_view(robot.camera, pose, P, 0.0, cfg.ceiling_m)
-                cand = np.flatnonzero(seen)
+                cand, centre = np.flatnonzero(seen[j]), centre_seen[j]
             views.append((t, cand, centre))
         cover = _cover(robot.camera, views, set(reasons) | planned, ids, xy, keep, wear_h, cfg)
         for lid, t in cover:

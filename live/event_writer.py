@@ -53,6 +53,7 @@ class EventWriter:
         self.publish = publish
         self.dropped = 0
         self.written = 0
+        self.store_failures = 0
         self.problem: str | None = None
         self.failing_since: float | None = None
         self._queue: queue.Queue[PendingEvent | None] = queue.Queue(maxsize)
@@ -110,6 +111,7 @@ class EventWriter:
                 t=ev.t,
             )  # fmt: skip
         except Exception as exc:  # the database is down, locked or full: keep it for later
+            self.store_failures += 1
             if self.problem is None:
                 first = str(getattr(exc, "orig", None) or exc).splitlines()[0][:160]
                 self.problem = f"database unavailable: events cannot be stored ({first})"

@@ -5,12 +5,9 @@ An agent's arrival (`connection` ONLINE) and loss (OFFLINE, or its last will
 CONNECTIONBROKEN) are site events. Topics and payloads: `fleet`, docs/fleet.md.
 
 What a hostile or broken client on the broker could do is bounded here too (the broker's
-ACL is the lock, docs/fleet.md): only admitted agents (names or patterns in `mqtt_agents`,
-else any up to `mqtt_max_agents`) are registered; their LED requests are served when they
-are admitted by name, or when the server logs in to the broker (its ACL then vouches for
-who wrote what), never on an open broker without a list; poses outside the
-site are dropped and counted; a map on the map topic that this server did not publish is
-replaced by the site's at once. Each is a `fleet_intrusion` event.
+ACL is the lock, docs/fleet.md): `FleetGuard` (`live.fleet_guard`) decides which agents are
+registered, whose LED requests are served and which poses are dropped; a map on the map
+topic that this server did not publish is replaced by the site's at once.
 
 Runs on the server's event loop. When the broker goes away it reconnects by itself
 (backoff 0.2-2 s) and publishes the map and the current LED state again (retained), so a
@@ -21,12 +18,10 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-import fnmatch
 import functools
 import hashlib
 import json
 import logging
-import math
 import time
 from collections import deque
 from concurrent.futures import ThreadPoolExecutor
@@ -59,7 +54,9 @@ from fleet.topics import (
     vda_serial_of,
 )
 from live.agent_runner import AgentRunner
+from live.alerts import Notification
 from live.events import EventKind
+from live.fleet_guard import FleetGuard
 from localizer.events import LedsChanged, Mode
 from store.models import LandmarkPublic
 
@@ -67,9 +64,6 @@ if TYPE_CHECKING:
     from live.services import SiteServices
 
 log = logging.getLogger(__name__)
-SITE_MARGIN_M = 50.0
-"""Poses farther than this outside the map's extent are dropped."""
-MAX_ABS_XY_M = 10_000.0
 MAX_PENDING = 1000
 """Messages handed to the connection and not yet written before the bridge waits."""
 
@@ -114,27 +108,26 @@ class MqttBridge:
         self._online: set[str] = set()
         self._gateway_listening = False
         self._events = ThreadPoolExecutor(max_workers=1, thread_name_prefix="mqtt-events")
-        s = services.settings
-        self.admitted = tuple(s.mqtt_agents)
-        self.trust_logins = broker.username is not None
-        self.led_requests_refused = 0
-        self._led_refusal_told: set[str] = set()
-        self.max_agents = s.mqtt_max_agents
-        self.foreign_maps = 0
-        self.poses_outside = 0
-        self.refused_agents: set[str] = set()
         self._maps_sent: deque[bytes] = deque(maxlen=8)
-        self._outside_told: set[str] = set()
-        self._bounds = _extent(services.map.list())
+        self.guard = FleetGuard(
+            admitted=tuple(services.settings.mqtt_agents),
+            max_agents=services.settings.mqtt_max_agents,
+            trust_logins=broker.username is not None,
+            landmarks=services.map.list(),
+            emit=self._emit,
+        )
+        self._alerts: dict[str, bytes] = {}  # topic -> retained payload of each active alert
 
     # -- lifecycle --------------------------------------------------------------------------------
     def start(self) -> None:
         self.services.map.add_listener(self._on_map)
         self._gateway_listening = self.services.leds.add_listener(self._on_leds)
+        self.services.alerts.add_listener(self._on_alert)
         self._task = self._loop.create_task(self._run())
 
     async def stop(self) -> None:
         self.services.map.remove_listener(self._on_map)
+        self.services.alerts.remove_listener(self._on_alert)
         if self._gateway_listening:
             self.services.leds.remove_listener(self._on_leds)
         client = self.client
@@ -180,7 +173,7 @@ class MqttBridge:
         return msg
 
     def _on_map(self, landmarks: list[LandmarkPublic]) -> None:
-        self._bounds = _extent(landmarks)
+        self.guard.set_map(landmarks)
         self._send(self.topics.map, self._map_now(landmarks), QOS_STATE, True)
 
     def _on_map_seen(self, payload: bytes) -> None:
@@ -188,17 +181,8 @@ class MqttBridge:
         (a broker without irloc's ACL): publish ours again, with an event."""
         if payload in self._maps_sent or not payload:
             return
-        self.foreign_maps += 1
         self._send(self.topics.map, self._map_now(), QOS_STATE, True)
-        if self.foreign_maps == 1 or self.foreign_maps % 100 == 0:
-            self._emit(
-                "fleet_intrusion",
-                f"a map not published by this server appeared on {self.topics.map} "
-                f"({self.foreign_maps} so far): the site's map was published again; "
-                "restrict the broker with irloc's ACL (docs/fleet.md)",
-                robot=None,
-                data={"what": "foreign_map", "count": self.foreign_maps},
-            )
+        self.guard.foreign_map(self.topics.map)
 
     def _on_leds(self, event: LedsChanged) -> None:
         """Every LED state, as the gateway publishes it (before the LEDs switch)."""
@@ -207,6 +191,26 @@ class MqttBridge:
         self._led_seq += 1
         self._led_last = msg
         self._send(self.topics.leds, msg, QOS_STATE, True)
+
+    def _on_alert(self, note: Notification) -> None:
+        """An alert raised: retained on its topic; resolved: the resolved message, then the
+        retained one cleared (docs/alerts.md)."""
+        c = note.alert.condition
+        topic = self.topics.alert(c.kind, c.subject)
+        payload = note.json(self.topics.site)
+        if note.state == "raised":
+            self._alerts[topic] = payload
+            self._send(topic, payload, QOS_STATE, True)
+        else:
+            self._alerts.pop(topic, None)
+            self._send(topic, payload, QOS_STATE, False)
+            self._send(topic, b"", QOS_STATE, True)
+
+    def _on_alert_seen(self, topic: str, payload: bytes, retained: bool) -> None:
+        """A retained alert the broker kept from before (this server's last run): cleared
+        when it is not active now."""
+        if retained and payload and topic not in self._alerts:
+            self._send(topic, b"", QOS_STATE, True)
 
     def _send_command(self, robot: str, near: tuple[float, float, float] | None) -> None:
         msg = CommandMessage(command="relocalize", near=near)
@@ -257,12 +261,15 @@ class MqttBridge:
                 (t.agents_wildcard, QOS_STATE),
                 (t.clock_request, QOS_CLOCK),
                 (t.map, QOS_STATE),
+                (t.alerts_wildcard, QOS_STATE),
                 (vda_connection_wildcard(self.manufacturer), QOS_STATE),
             ]
         )
         await client.publish(t.map, self._map_now(), qos=QOS_STATE, retain=True)
         if self._led_last is not None:
             await client.publish(t.leds, self._led_last, qos=QOS_STATE, retain=True)
+        for topic, payload in list(self._alerts.items()):  # a broker restarted empty
+            await client.publish(topic, payload, qos=QOS_STATE, retain=True)
         await client.publish(t.server, ServerState(state="ONLINE").encode(), qos=1, retain=True)
         self.connects += 1
         self.client = client
@@ -295,6 +302,9 @@ class MqttBridge:
         if topic == t.map:
             self._on_map_seen(payload)
             return
+        if t.is_alert(topic):
+            self._on_alert_seen(topic, payload, retained)
+            return
         serial = vda_serial_of(topic)
         if serial is not None and topic.endswith("/connection"):
             self._on_connection(serial, payload, retained)
@@ -307,7 +317,7 @@ class MqttBridge:
             runner = self._agent(robot)
             if runner is not None:
                 msg = decode(PoseMessage, topic, payload)
-                if self._inside_site(robot, msg):
+                if self.guard.inside_site(robot, msg):
                     runner.receive(msg)
         elif leaf == "status":
             if payload:
@@ -320,7 +330,7 @@ class MqttBridge:
         kind: EventKind,
         message: str,
         *,
-        robot: str | None,
+        robot: str | None = None,
         data: dict[str, Any] | None = None,
     ) -> None:
         """A site event, written off the loop (each is a database commit: a hundred agents
@@ -400,12 +410,10 @@ class MqttBridge:
             if robot in self.services.robots.names():
                 log.error("agent %s: a robot of that name is localized here; ignored", robot)
                 return
-            refusal = self._refusal(robot)
+            agents = sum(1 for r in self.services.robots.runners() if isinstance(r, AgentRunner))
+            refusal = self.guard.refusal(robot, agents)
             if refusal is not None:
-                if robot not in self.refused_agents:
-                    self.refused_agents.add(robot)
-                    self._emit("fleet_intrusion", f"agent {robot} refused: {refusal}",
-                               robot=robot, data={"what": "agent_refused"})  # fmt: skip
+                self.guard.refuse(robot, refusal)
                 return
             runner = AgentRunner(
                 robot,
@@ -427,47 +435,6 @@ class MqttBridge:
             data={"source": "agent"},
         )
         self._check_clock(runner, None)
-
-    def _admitted(self, robot: str) -> bool:
-        return any(fnmatch.fnmatchcase(robot, pattern) for pattern in self.admitted)
-
-    def _refusal(self, robot: str) -> str | None:
-        """Why a new agent may not join (None: it may)."""
-        if self.admitted and not self._admitted(robot):
-            return "not among the admitted agents (setting mqtt_agents)"
-        agents = sum(1 for r in self.services.robots.runners() if isinstance(r, AgentRunner))
-        if agents >= self.max_agents:
-            return f"the site has its {self.max_agents} agents (setting mqtt_max_agents)"
-        return None
-
-    def _inside_site(self, robot: str, msg: PoseMessage) -> bool:
-        """Whether a pose is on the site (the map's extent and `SITE_MARGIN_M` around it);
-        one outside is dropped and counted (an event the first time for each agent)."""
-        if msg.x is None or msg.y is None:
-            return True
-        box = self._bounds
-        if box is not None:
-            x0, y0, x1, y1 = box
-            m = SITE_MARGIN_M
-            if (
-                x0 - m <= msg.x <= x1 + m
-                and y0 - m <= msg.y <= y1 + m
-                and math.isfinite(msg.theta if msg.theta is not None else 0.0)
-            ):
-                return True
-        elif abs(msg.x) <= MAX_ABS_XY_M and abs(msg.y) <= MAX_ABS_XY_M:
-            return True
-        self.poses_outside += 1
-        if robot not in self._outside_told:
-            self._outside_told.add(robot)
-            self._emit(
-                "fleet_intrusion",
-                f"agent {robot}: a pose outside the site (x {msg.x:.4g}, y {msg.y:.4g} m) "
-                "dropped; such poses are dropped and counted",
-                robot=robot,
-                data={"what": "pose_outside", "x": msg.x, "y": msg.y},
-            )
-        return False
 
     def _check_clock(self, runner: AgentRunner, was_ok: bool | None) -> None:
         est = runner.clock
@@ -499,28 +466,8 @@ class MqttBridge:
         runner = self._agent(robot)
         if coordinator is None or runner is None or not runner.connected:
             return
-        if not self.admitted and not self.trust_logins:
-            # an open broker and no list: anyone could claim to be this agent
-            self.led_requests_refused += 1
-            if robot not in self._led_refusal_told:
-                self._led_refusal_told.add(robot)
-                self._emit(
-                    "fleet_intrusion",
-                    f"agent {robot}: its LED requests are not served: the broker is open (no "
-                    "login) and no agent is admitted (setting mqtt_agents, docs/fleet.md)",
-                    robot=robot,
-                    data={"what": "led_request_refused"},
-                )
-            return
-        coordinator.request(robot, msg.request())
-
-
-def _extent(landmarks: list[LandmarkPublic]) -> tuple[float, float, float, float] | None:
-    """(x min, y min, x max, y max) of the map, None when it is empty."""
-    if not landmarks:
-        return None
-    xs, ys = [lm.x for lm in landmarks], [lm.y for lm in landmarks]
-    return min(xs), min(ys), max(xs), max(ys)
+        if self.guard.serves_led_requests(robot):
+            coordinator.request(robot, msg.request())
 
 
 def _count_failure(task: asyncio.Task[None]) -> None:

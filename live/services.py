@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING, Any, TypeVar
 
 from sqlalchemy import Engine
 
+from live.alert_service import SiteAlerts
 from live.commissioning_service import Commissioning
 from live.events import EventHub
 from live.facades import LedsAndRadio, Recordings, Robots
@@ -63,9 +64,10 @@ class SiteServices:
         settings, engine; map (MapRepository), keys (KeyStore), robot_store (RobotStore),
         log (EventLog); robots (Robots); leds (LedsAndRadio); recordings (Recordings);
         commissioning (Commissioning); survey (LiveSurvey); upkeep (MapUpkeepService, the
-        map's proposals from the robots' views); poses (Bus[PoseUpdate]); events (EventHub, whose
-        `bus` is a Bus[SiteEvent]); live (the LiveSiteRunner, None when stopped or
-        disabled); clock_ns (the site clock); initial_admin_key (str once, on first start).
+        map's proposals from the robots' views); alerts (SiteAlerts, docs/alerts.md); poses
+        (Bus[PoseUpdate]); events (EventHub, whose `bus` is a Bus[SiteEvent]); live (the
+        LiveSiteRunner, None when stopped or disabled); clock_ns (the site clock);
+        initial_admin_key (str once, on first start).
     """
 
     def __init__(self, settings: Settings, engine: Engine | None = None) -> None:
@@ -103,6 +105,7 @@ class SiteServices:
             self.robots, self.zones, self.pose_history, self.events.emit,
             HistoryConfig(keep_days=settings.history_keep_days),
         )  # fmt: skip
+        self.alerts = SiteAlerts(settings, self.robots.runners, self.leds, self.events)
         self.live: LiveSiteRunner | None = None
         self.loop: asyncio.AbstractEventLoop | None = None
         self.map.add_listener(self._on_map_changed)
@@ -151,9 +154,11 @@ class SiteServices:
         self.commissioning.start()
         self.upkeep.start()
         self.whereabouts.start()
+        self.alerts.start()
 
     async def stop(self) -> None:
         """Stop commissioning and the site (LEDs left all on), then close the database."""
+        await self.alerts.stop()
         await self.commissioning.stop()
         await self.upkeep.stop()
         await self.whereabouts.stop()

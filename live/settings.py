@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import Any, Literal
 
 import yaml
-from pydantic import Field, field_validator, model_validator
+from pydantic import Field, SecretStr, field_validator, model_validator
 from pydantic_settings import BaseSettings, PydanticBaseSettingsSource, SettingsConfigDict
 
 from fleet.broker import BrokerAddress, parse_broker_url
@@ -78,6 +78,14 @@ class Settings(BaseSettings):
         mqtt_url: the site's MQTT broker, `mqtt://HOST[:PORT]` (None: no fleet; docs/fleet.md).
         mqtt_site: the site's name in the MQTT topics (`irloc/v1/<site>/...`).
         vda_manufacturer: the VDA 5050 manufacturer of the agents (`uagv/v2/<it>/...`).
+        alert_webhook_urls: http(s) URLs each alert notification is POSTed to (JSON).
+        alert_webhook_secret: key of the webhooks' `X-Irloc-Signature` HMAC (None: none).
+        alert_webhook_timeout_s, alert_webhook_retries: one try's timeout; tries after it.
+        alert_webhook_max_per_minute: notifications sent to the webhooks a minute at most.
+        alert_raise_after_s, alert_clear_after_s, alert_min_interval_s: how long a condition
+            holds before it is raised, is absent before it is resolved; the least time
+            between two raises of the same alert (docs/alerts.md).
+        alert_stale_s: a camera or the wheels silent this long is stale.
         sim_robots: localize the virtual site's robots here (false: the site only, robots
             come as agents).
         led_policy: `scheduled` lights only the landmarks the robots need
@@ -146,6 +154,15 @@ class Settings(BaseSettings):
     mqtt_max_agents: int = Field(default=200, ge=1)
     mqtt_site: str = Field(default="default", pattern=r"^[A-Za-z0-9_.-]{1,64}$")
     vda_manufacturer: str = Field(default="irloc", pattern=r"^[A-Za-z0-9_.-]{1,64}$")
+    alert_webhook_urls: list[str] = Field(default_factory=list)
+    alert_webhook_secret: SecretStr | None = None
+    alert_webhook_timeout_s: float = Field(default=5.0, gt=0.0, le=120.0)
+    alert_webhook_retries: int = Field(default=5, ge=0, le=20)
+    alert_webhook_max_per_minute: int = Field(default=30, ge=1)
+    alert_raise_after_s: float = Field(default=3.0, ge=0.0)
+    alert_clear_after_s: float = Field(default=10.0, ge=0.0)
+    alert_min_interval_s: float = Field(default=60.0, ge=0.0)
+    alert_stale_s: float = Field(default=5.0, gt=0.0)
     sim_robots: bool = True
     max_body_bytes: int = Field(default=1024 * 1024, ge=1024)
     header_timeout_s: float = Field(default=10.0, gt=0.0, le=300.0)
@@ -184,6 +201,17 @@ class Settings(BaseSettings):
             sleeping = self.radio_sleep_period_s is not None
             self.led_policy = "scheduled" if sleeping else "all_lit"
         return self
+
+    @field_validator("alert_webhook_urls")
+    @classmethod
+    def _check_webhooks(cls, value: list[str]) -> list[str]:
+        from urllib.parse import urlsplit
+
+        for url in value:
+            parts = urlsplit(url)
+            if parts.scheme not in ("http", "https") or not parts.hostname:
+                raise ValueError(f"alert_webhook_urls: {url!r} is not an http(s) URL")
+        return value
 
     @field_validator("trusted_proxies")
     @classmethod

@@ -16,7 +16,7 @@ from __future__ import annotations
 import logging
 import threading
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 from datetime import UTC, datetime, timedelta
 from typing import Any
@@ -24,13 +24,13 @@ from typing import Any
 import numpy as np
 from matplotlib.path import Path as PolygonPath
 
+from live.events import EmitEvent
 from live.pose_pump import PosePump
 from live.poses import PoseUpdate
 from store.models import PoseRecord, ZoneRecord
 from store.zones import PoseHistory, ZoneStore
 
 log = logging.getLogger(__name__)
-Emit = Callable[..., Any]
 TRACKED_MODES = frozenset({"landmark", "dead_reckoning"})
 
 
@@ -58,7 +58,7 @@ class ZonesAndHistory:
         robots: Any,
         zones: ZoneStore,
         history: PoseHistory,
-        emit: Emit,
+        emit: EmitEvent,
         config: HistoryConfig | None = None,
     ) -> None:
         self.zones, self.history, self.emit = zones, history, emit

@@ -16,12 +16,13 @@ from localizer.events import (
     RelocalizeRequested,
     SpotsObserved,
 )
+from localizer.filter_config import FilterConfig
 from localizer.handoff import HandoffConfig
 from localizer.identification import IdentificationConfig, Identifier
 from localizer.landmark_map import LandmarkMap
 from localizer.localizer import Localizer
 from localizer.pose import PoseFix, pose_from_landmark_pair, solve_pose
-from localizer.pose_filter import FilterConfig, PoseFilter
+from localizer.pose_filter import PoseFilter
 from localizer.robot import RobotGeometry
 from localizer.spot_windows import detect_spots_in_windows
 from localizer.spots import DetectionConfig, Spots, detect_spots

@@ -41,8 +41,7 @@ import numpy as np
 import numpy.typing as npt
 
 from localizer.camera import CameraModel, normalized_from_pixels, pixels_from_points_camera
-
-FloatArray = npt.NDArray[np.float64]
+from localizer.types import BoolArray, FloatArray
 
 _GRID_STEP_PX = 20.0  # spacing of the cached tables over the image
 _RAY_STEP = 1e-4  # central-difference step of s (per metre of rise)
@@ -123,7 +122,7 @@ def _bilinear(table: FloatArray, step: float, px: FloatArray) -> FloatArray:
     return shaped
 
 
-def _fill_invalid(table: FloatArray, ok: npt.NDArray[np.bool_]) -> FloatArray:
+def _fill_invalid(table: FloatArray, ok: BoolArray) -> FloatArray:
     """Nodes past the invertible area take the value of the nearest valid node."""
     if ok.all() or not ok.any():
         return np.nan_to_num(table)

@@ -17,9 +17,8 @@ import numpy as np
 import numpy.typing as npt
 
 from localizer.geometry import check_transform, invert_transform, transform_points
+from localizer.types import BoolArray, FloatArray
 
-FloatArray = npt.NDArray[np.float64]
-BoolArray = npt.NDArray[np.bool_]
 DistortionModel = Literal["radial-tangential", "equidistant"]
 Row4 = tuple[float, float, float, float]
 Rows3x4 = tuple[Row4, Row4, Row4]

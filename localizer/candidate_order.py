@@ -22,15 +22,13 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import numpy as np
-import numpy.typing as npt
 
 from localizer.camera import CameraModel, pixels_from_points_camera
 from localizer.first_fix import OdometryPose, body_motion
 from localizer.geometry import wrap_angle
 from localizer.handoff import ceiling_points_body
 from localizer.identification import Sighting
-
-FloatArray = npt.NDArray[np.float64]
+from localizer.types import FloatArray
 
 
 def view_fractions(

@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+from localizer.filter_config import FilterConfig
 from localizer.fix_run import FixRunConfig
 from localizer.floor_plane import FloorPlaneConfig
 from localizer.handoff import HandoffConfig
@@ -12,7 +13,6 @@ from localizer.identification_config import IdentificationConfig
 from localizer.imu_tilt import ImuTiltConfig
 from localizer.motion_model import MotionModelConfig
 from localizer.noise_model import PixelNoiseConfig
-from localizer.pose_filter import FilterConfig
 from localizer.relocalization import RelocalizationConfig
 from localizer.self_calibration import SelfCalibrationConfig
 from localizer.spots import DetectionConfig

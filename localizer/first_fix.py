@@ -11,7 +11,6 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 
 import numpy as np
-import numpy.typing as npt
 
 from localizer.camera import CameraModel, pixels_from_points_camera
 from localizer.geometry import invert_transform, rotation_2d, transform_points, wrap_angle
@@ -19,8 +18,8 @@ from localizer.handoff import ceiling_points_body
 from localizer.identification import Sighting
 from localizer.landmark_map import LandmarkMap
 from localizer.pose import PoseFix, solve_pose
+from localizer.types import FloatArray
 
-FloatArray = npt.NDArray[np.float64]
 OdometryPose = tuple[float, float, float]
 
 

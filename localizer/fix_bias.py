@@ -47,11 +47,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import numpy.typing as npt
 
 from localizer.small_linalg import clipped_to_unit_3x3_sym, inverse_3x3_sym
-
-FloatArray = npt.NDArray[np.float64]
+from localizer.types import FloatArray
 
 
 def carried_correlation(old: frozenset[int], new: frozenset[int]) -> float:

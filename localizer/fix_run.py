@@ -25,14 +25,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import numpy as np
-import numpy.typing as npt
-
 from localizer.geometry import wrap_angle
 from localizer.pose import PoseFix
-
-FloatArray = npt.NDArray[np.float64]
-Pose3 = tuple[float, float, float]
+from localizer.types import FloatArray, Pose
 
 
 @dataclass(frozen=True)
@@ -98,7 +93,7 @@ class TrackPoint:
     """
 
     t_ns: int
-    pose: Pose3
+    pose: Pose
     covariance: FloatArray
     landmark_ids: frozenset[int]
 
@@ -179,7 +174,7 @@ class FixRun:
         self._run = []
         self.accepted = False
 
-    def fused(self, t_ns: int, pose: Pose3, covariance: FloatArray, ids: tuple[int, ...]) -> None:
+    def fused(self, t_ns: int, pose: Pose, covariance: FloatArray, ids: tuple[int, ...]) -> None:
         """A fix was fused: the filter's pose then is the new anchor. The run starts over;
         an accepted one stays accepted until `min_fixes` fixes in a row (each linked to the
         one before) have been fused: the odometry is trusted again as it was distrusted

@@ -85,12 +85,11 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-import numpy.typing as npt
 
 from localizer.geometry import wrap_angle
 from localizer.pose import PoseFix
+from localizer.types import FloatArray
 
-FloatArray = npt.NDArray[np.float64]
 FloorPrior = tuple[tuple[float, float, float], FloatArray]  # e = (roll, pitch, dz), cov (3, 3)
 
 

@@ -12,7 +12,7 @@ import math
 import numpy as np
 import numpy.typing as npt
 
-FloatArray = npt.NDArray[np.float64]
+from localizer.types import FloatArray
 
 
 def wrap_angle(angle: float | FloatArray) -> float | FloatArray:

@@ -18,14 +18,12 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-import numpy.typing as npt
 
 from localizer.camera import CameraModel, bearings_body_from_pixels
 from localizer.geometry import rotation_2d, wrap_angle
 from localizer.lens import pixel_from_point
+from localizer.types import FloatArray, IntArray
 
-FloatArray = npt.NDArray[np.float64]
-IntArray = npt.NDArray[np.int64]
 Covariance = FloatArray | Sequence[Sequence[float]]
 
 

@@ -16,18 +16,15 @@ import math
 from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
-import numpy.typing as npt
 from scipy.spatial import cKDTree
 
 from localizer.camera import CameraModel, pixels_from_points_camera
 from localizer.geometry import wrap_angle
 from localizer.handoff import ceiling_points_body
+from localizer.types import BoolArray, FloatArray, IntArray
 
 if TYPE_CHECKING:
     from localizer.relocalization import RelocalizationConfig
-
-FloatArray = npt.NDArray[np.float64]
-IntArray = npt.NDArray[np.int64]
 
 
 def score_hypotheses(
@@ -36,7 +33,7 @@ def score_hypotheses(
     radial_m: FloatArray,
     tree: cKDTree,
     config: RelocalizationConfig,
-) -> tuple[FloatArray, npt.NDArray[np.int64], npt.NDArray[np.int64]]:
+) -> tuple[FloatArray, IntArray, IntArray]:
     """Inliers of each hypothesis: every spot's ceiling point carried into the world and
     matched to its nearest landmark.
 
@@ -61,7 +58,7 @@ def missing_landmarks(
     config: RelocalizationConfig,
     *,
     reach_m: float | None = None,
-    counted: npt.NDArray[np.bool_] | None = None,
+    counted: BoolArray | None = None,
     weights: FloatArray | None = None,
 ) -> FloatArray:
     """Per hypothesis, the landmarks it predicts well inside the image with no spot near
@@ -117,10 +114,10 @@ def seen_radius_px(camera: CameraModel, pixels: FloatArray) -> float:
 def well_in_view(
     camera: CameraModel,
     px: FloatArray,
-    valid: npt.NDArray[np.bool_],
+    valid: BoolArray,
     r_seen_px: float,
     config: RelocalizationConfig,
-) -> npt.NDArray[np.bool_]:
+) -> BoolArray:
     """Which predicted pixels (N, 2) lie well inside the image: valid, `miss_margin_px`
     from its edges and from the radius `r_seen_px` spots are seen at all on this frame.
     A lit landmark predicted there should be detected (its absence is evidence)."""
@@ -128,7 +125,7 @@ def well_in_view(
     inner = valid & (px[:, 0] >= m) & (px[:, 0] <= camera.width - 1 - m)
     inner &= (px[:, 1] >= m) & (px[:, 1] <= camera.height - 1 - m)
     inner &= np.hypot(px[:, 0] - camera.cu, px[:, 1] - camera.cv) <= r_seen_px - m
-    out: npt.NDArray[np.bool_] = inner
+    out: BoolArray = inner
     return out
 
 
@@ -230,8 +227,8 @@ def frame_log_lr(
     offset: FloatArray | None = None,
     cutoff: float = math.inf,
     refits: int = 2,
-    counted: npt.NDArray[np.bool_] | None = None,
-) -> tuple[FloatArray, FloatArray, FloatArray, npt.NDArray[np.bool_]]:
+    counted: BoolArray | None = None,
+) -> tuple[FloatArray, FloatArray, FloatArray, BoolArray]:
     """Each hypothesis's log-likelihood ratio on one frame (step 3 of the module docstring):
     refit to its inliers, `inlier_log_lr` per inlier minus each missing landmark's weight
     (`view.miss_weights`), plus `offset`.

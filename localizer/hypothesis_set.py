@@ -34,7 +34,6 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-import numpy.typing as npt
 from scipy.spatial import cKDTree
 
 from localizer.camera import CameraModel
@@ -53,10 +52,8 @@ from localizer.relocalization import (
     seed_hypotheses,
     unique_hypotheses,
 )
+from localizer.types import FloatArray, Pose
 
-FloatArray = npt.NDArray[np.float64]
-BoolArray = npt.NDArray[np.bool_]
-Pose = tuple[float, float, float]
 _NS = 1e-9
 
 

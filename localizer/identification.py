@@ -43,13 +43,12 @@ from collections.abc import Callable, Collection, Sequence
 from dataclasses import dataclass
 
 import numpy as np
-import numpy.typing as npt
 
 from localizer.events import LedRequest
 from localizer.identification_config import IdentificationConfig, Probe
 from localizer.probing import ProbePlan, Progress
+from localizer.types import FloatArray
 
-FloatArray = npt.NDArray[np.float64]
 OdometryPose = tuple[float, float, float]
 
 _NS = 1e-9

@@ -30,15 +30,12 @@ dark when it was in view while tracking, unknown, and weighing little, otherwise
 from __future__ import annotations
 
 import numpy as np
-import numpy.typing as npt
 
 from localizer.camera import CameraModel, predict_pixels
 from localizer.geometry import T_world_body_from_pose
 from localizer.hypothesis_scoring import seen_radius_px, well_in_view
 from localizer.relocalization import RelocalizationConfig
-
-FloatArray = npt.NDArray[np.float64]
-IntArray = npt.NDArray[np.int64]
+from localizer.types import FloatArray, IntArray
 
 
 class LandmarkLiveness:

@@ -8,7 +8,8 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-import numpy.typing as npt
+
+from localizer.types import FloatArray, IntArray
 
 
 class DuplicateLandmarkError(ValueError):
@@ -27,9 +28,9 @@ class LandmarkMap:
             localizer then takes `PixelNoiseConfig.survey_sigma_m` for every landmark).
     """
 
-    ids: npt.NDArray[np.int64]
-    positions: npt.NDArray[np.float64]
-    sigmas: npt.NDArray[np.float64] | None = None
+    ids: IntArray
+    positions: FloatArray
+    sigmas: FloatArray | None = None
     _index: dict[int, int] = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
@@ -79,9 +80,9 @@ class LandmarkMap:
         v = float(self.sigmas[row])
         return v if math.isfinite(v) else None
 
-    def position(self, landmark_id: int) -> npt.NDArray[np.float64]:
+    def position(self, landmark_id: int) -> FloatArray:
         """World position of one landmark, shape (3,)."""
-        position: npt.NDArray[np.float64] = self.positions[self.index_of(landmark_id)]
+        position: FloatArray = self.positions[self.index_of(landmark_id)]
         return position
 
     @classmethod

@@ -60,8 +60,8 @@ from localizer.pose import PoseFix, solve_pose
 from localizer.pose_filter import PoseFilter
 from localizer.robot import RobotGeometry
 from localizer.spots import Spots
+from localizer.types import FloatArray
 
-FloatArray = npt.NDArray[np.float64]
 _NS = 1e-9
 _CHI2_2DOF_95_RADIUS = 2.4477  # sqrt of chi-square's 95 % point with 2 dof: radius / sigma
 

@@ -34,12 +34,10 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-import numpy.typing as npt
 
 from localizer.calibration_consider import CalibrationConsider
 from localizer.camera import CameraModel, normalized_from_pixels, pixels_from_points_camera
-
-FloatArray = npt.NDArray[np.float64]
+from localizer.types import FloatArray
 
 
 @dataclass(frozen=True)

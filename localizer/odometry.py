@@ -14,11 +14,10 @@ import math
 from typing import overload
 
 import numpy as np
-import numpy.typing as npt
 
 from localizer.geometry import wrap_angle
+from localizer.types import FloatArray
 
-FloatArray = npt.NDArray[np.float64]
 Scalar = float | FloatArray
 
 

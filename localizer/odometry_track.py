@@ -20,10 +20,9 @@ from __future__ import annotations
 from collections import deque
 
 from localizer.odometry import integrate_arc
+from localizer.types import Pose
 
 _NS = 1e-9
-
-Pose = tuple[float, float, float]
 
 
 class OdometryTrack:

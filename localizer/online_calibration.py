@@ -49,9 +49,8 @@ from localizer.self_calibration import (
     corrected_camera,
     run_steps,
 )
+from localizer.types import FloatArray, Pose
 
-FloatArray = npt.NDArray[np.float64]
-Pose = tuple[float, float, float]
 _NS = 1e-9
 
 

@@ -31,6 +31,8 @@ from localizer.camera import CameraModel, normalized_from_pixels
 from localizer.geometry import wrap_angle
 from localizer.pose_planar import (
     ROBUST_WEIGHTS,
+    Mat2,
+    Point,
     floor_change_chi2,
     floor_points,
     level_mounting,
@@ -38,8 +40,7 @@ from localizer.pose_planar import (
     solve_planar,
     solve_tilted,
 )
-
-FloatArray = npt.NDArray[np.float64]
+from localizer.types import FloatArray
 
 _JACOBIAN_STEP_PX = 0.5  # forward-difference step for d(normalised)/d(pixel)
 
@@ -286,6 +287,101 @@ def solve_pose(
     Raises:
         ValueError: when `pixels` and `p_world` have mismatched or wrong shapes.
     """
+    rays = _rays_on_landmark_planes(camera, pixels, p_world, min_separation_px, floor_prior)
+    if rays is None:
+        return None
+    fit = _level_fit(rays, initial, pixel_sigma_px, loss, loss_scale, max_iterations)
+    if fit is None:
+        return None
+    # Tilt only when the data demand it: the level fit's chi-square must drop by more than
+    # `tilt_min_chi2_drop` (a likelihood-ratio test, 2 dof). The drop cannot exceed the level
+    # fit's own chi-square, so a consistent level fit skips the tilted solve altogether.
+    test = estimate_tilt and rays.n >= 3 and fit.chi2 > tilt_min_chi2_drop
+    if floor_prior is not None:
+        fit = _on_carried_floor(
+            rays, fit, floor_prior, test, loss, loss_scale, tilt_min_chi2_drop,
+            calibration_jacobian, floor_sensitivity, max_iterations,
+        )  # fmt: skip
+    elif test:
+        tilt0 = initial.tilt if isinstance(initial, PoseFix) else (0.0, 0.0)
+        fit = _zero_mean_tilt(rays, fit, tilt0, tilt_sigma_rad, tilt_min_chi2_drop, max_iterations)
+    return PoseFix(
+        x=fit.x,
+        y=fit.y,
+        theta=float(wrap_angle(fit.theta)),
+        covariance=fit.covariance,
+        tilt=fit.tilt,
+        residual_rms_px=fit.rms,
+        landmark_ids=tuple(map(int, landmark_ids)),
+        n_landmarks=rays.n,
+        residuals_px=fit.residuals,
+        floor=fit.floor,
+        floor_covariance=fit.floor_covariance,
+        floor_cross=fit.floor_cross,
+        floor_sensitivity=fit.floor_sensitivity if fit.floor_covariance is not None else None,
+    )
+
+
+# ---------------------------------------------------------------------------------------------
+# solve_pose's steps: the rays, the level fit, the tilt test (on the carried floor or zero-mean)
+
+
+@dataclass(frozen=True, slots=True)
+class _Rays:
+    """The spots undistorted and carried to their landmarks' height planes (body frame).
+
+    pl, Pl: the pixels (N, 2) and world positions (N, 3) as nested lists; m: normalised
+    image coordinates; A: d m / d pixel per spot (a 2x2 as 4 floats); q: the body-frame
+    points where the rays meet the height planes; G: d q / d pixel; P_xy: the landmarks'
+    map (x, y); heights: their z.
+    """
+
+    pl: list[list[float]]
+    Pl: list[list[float]]
+    m: list[Point]
+    A: list[Mat2]
+    q: list[Point]
+    G: list[Mat2]
+    P_xy: list[Point]
+    heights: list[float]
+    T_body_camera: FloatArray
+
+    @property
+    def n(self) -> int:
+        return len(self.pl)
+
+
+@dataclass(slots=True)
+class _Fit:
+    """A fit on its way to a `PoseFix`: the pose, its covariance and what the tests need
+    (`chi2` and `sigmas` are the level fit's, per landmark)."""
+
+    x: float
+    y: float
+    theta: float
+    covariance: FloatArray
+    rms: float
+    residuals: tuple[float, ...]
+    chi2: float
+    sigmas: list[float]
+    raw_residuals: list[float]
+    tilt: FloatArray
+    floor: FloatArray | None = None
+    floor_covariance: FloatArray | None = None
+    floor_cross: FloatArray | None = None
+    floor_sensitivity: FloatArray | None = None
+
+
+def _rays_on_landmark_planes(
+    camera: CameraModel,
+    pixels: npt.ArrayLike,
+    p_world: npt.ArrayLike,
+    min_separation_px: float,
+    floor_prior: tuple[tuple[float, float, float], FloatArray] | None,
+) -> _Rays | None:
+    """Step 1: the inputs checked, undistorted once with their Jacobians, and the rays met
+    with the landmarks' height planes (on the carried floor's tilt and height when given).
+    None when degenerate (fewer than 2, not finite, coincident, a landmark not above)."""
     if isinstance(pixels, list) and isinstance(p_world, list):
         # nested lists (the tracking hot path): checked as they are, no round trip through numpy
         pl, Pl = pixels, p_world
@@ -310,7 +406,6 @@ def solve_pose(
         for j in range(i + 1, n):
             if (pl[i][0] - pl[j][0]) ** 2 + (pl[i][1] - pl[j][1]) ** 2 < min_sep2:
                 return None
-
     # Undistort the pixels and two offset copies in one call: m and A = d m / d pixel.
     h = _JACOBIAN_STEP_PX
     shifted = pl + [[c + h, r] for c, r in pl] + [[c, r + h] for c, r in pl]
@@ -323,11 +418,25 @@ def solve_pose(
     mounting: Sequence[Sequence[float]] = camera.T_body_camera_rows
     if floor_prior is not None:
         mounting = level_mounting(camera.T_body_camera, *floor_prior[0])
-    floor = floor_points(m, A, [p[2] for p in Pl], mounting)
+    heights = [p[2] for p in Pl]
+    floor = floor_points(m, A, heights, mounting)
     if floor is None:
         return None
     q, G = floor
     P_xy = [(p[0], p[1]) for p in Pl]
+    return _Rays(pl, Pl, m, A, q, G, P_xy, heights, camera.T_body_camera)
+
+
+def _level_fit(
+    rays: _Rays,
+    initial: PoseFix | tuple[float, float, float] | None,
+    pixel_sigma_px: float | Sequence[float],
+    loss: str | None,
+    loss_scale: float,
+    max_iterations: int,
+) -> _Fit | None:
+    """Step 2: the level (or carried-floor) planar fit from the closed form or `initial`."""
+    q, G, P_xy = rays.q, rays.G, rays.P_xy
     if initial is None:
         weights = [
             1.0 / (g00 * g00 + g01 * g01 + g10 * g10 + g11 * g11) for g00, g01, g10, g11 in G
@@ -345,83 +454,90 @@ def solve_pose(
     if planar is None:
         return None
     (x, y, theta), c, rms, res = planar
+    n = rays.n
     sig = [pixel_sigma_px] * n if isinstance(pixel_sigma_px, int | float) else pixel_sigma_px
-    chi2_level = sum([(r / si) ** 2 for r, si in zip(res, sig, strict=True)])
-    sigma_px = math.sqrt(sum([si * si for si in sig]) / n)
+    chi2 = sum([(r / si) ** 2 for r, si in zip(res, sig, strict=True)])
     covariance = np.array([[c[0], c[1], c[2]], [c[1], c[3], c[4]], [c[2], c[4], c[5]]])
-    tilt = np.zeros(2)
-    # Tilt only when the data demand it: the level fit's chi-square must drop by more than
-    # `tilt_min_chi2_drop` (a likelihood-ratio test, 2 dof). The drop cannot exceed the level
-    # fit's own chi-square, so a consistent level fit skips the tilted solve altogether.
-    residuals = tuple(res)
-    floor_e = floor_cov = floor_cross = floor_sens = None
-    if floor_prior is not None:
-        # The carried floor's fit (above) unless the spots demand a floor of their own: the
-        # tilted fit with the carried floor as its prior must lower the chi-square by more
-        # than `tilt_min_chi2_drop` (the likelihood-ratio test of the zero-mean case,
-        # around the carried floor instead of the level one).
-        e0, _ = floor_prior
-        floor_e = np.array(e0, dtype=np.float64)
-        tilt = floor_e[:2].copy()
-        if estimate_tilt and n >= 3 and chi2_level > tilt_min_chi2_drop:
-            # the carried fit's robust weights kept: sigma_i / sqrt(w_i)
-            w = [ROBUST_WEIGHTS[loss](r / si, loss_scale) if loss else 1.0
-                 for r, si in zip(res, sig, strict=True)]  # fmt: skip
-            sig_w = [si / math.sqrt(wi) for si, wi in zip(sig, w, strict=True)]
-            tilted = solve_tilted(m, A, [p[2] for p in Pl], P_xy, camera.T_body_camera,
-                                  (x, y, theta, *e0), sig_w, None, max_iterations,
-                                  floor_prior=floor_prior)  # fmt: skip
-            if tilted is not None:
-                params, cov_full, rms_t, res_t = tilted
-                chi2_t = sum((r / si) ** 2 for r, si in zip(res_t, sig, strict=True))
-                take = tilt_min_chi2_drop <= 0 or chi2_level - chi2_t > tilt_min_chi2_drop
-                if take and calibration_jacobian is not None:
-                    change, floor_sens = floor_change_chi2(
-                        m, A, [p[2] for p in Pl], P_xy, camera.T_body_camera, params, cov_full,
-                        sig_w, floor_prior, calibration_jacobian(pl),
-                        floor_sensitivity)  # fmt: skip
-                    # nan (degenerate): as without
-                    take = tilt_min_chi2_drop <= 0 or not change <= tilt_min_chi2_drop
-                if take:
-                    x, y, theta = params[0], params[1], params[2]
-                    covariance, rms = cov_full[:3, :3].copy(), rms_t
-                    floor_e, floor_cov = np.array(params[3:6]), cov_full[3:6, 3:6].copy()
-                    floor_cross = cov_full[:3, 3:6].copy()
-                    tilt = floor_e[:2].copy()
-                    residuals = tuple(res_t)
-    elif estimate_tilt and n >= 3 and chi2_level > tilt_min_chi2_drop:
-        roll0, pitch0 = (float(v) for v in initial.tilt) if isinstance(initial, PoseFix) else (0, 0)
-        tilted = solve_tilted(
-            m,
-            A,
-            [p[2] for p in Pl],
-            P_xy,
-            camera.T_body_camera,
-            (x, y, theta, roll0, pitch0),
-            sigma_px,
-            tilt_sigma_rad,
-            max_iterations,
-        )
-        if tilted is not None:
-            params, cov_full, rms_tilted, _ = tilted
-            drop = chi2_level - n * (rms_tilted / sigma_px) ** 2
-            if tilt_min_chi2_drop <= 0 or drop > tilt_min_chi2_drop:
-                x, y, theta = params[0], params[1], params[2]
-                covariance, tilt = cov_full[:3, :3].copy(), np.array(params[3:5])
-                rms = rms_tilted
-                residuals = ()
-    return PoseFix(
-        x=x,
-        y=y,
-        theta=float(wrap_angle(theta)),
-        covariance=covariance,
-        tilt=tilt,
-        residual_rms_px=rms,
-        landmark_ids=tuple(map(int, landmark_ids)),
-        n_landmarks=n,
-        residuals_px=residuals,
-        floor=floor_e,
-        floor_covariance=floor_cov,
-        floor_cross=floor_cross,
-        floor_sensitivity=floor_sens if floor_cov is not None else None,
-    )
+    return _Fit(x, y, theta, covariance, rms, tuple(res), chi2, list(sig), list(res), np.zeros(2))
+
+
+def _on_carried_floor(
+    rays: _Rays,
+    fit: _Fit,
+    floor_prior: tuple[tuple[float, float, float], FloatArray],
+    test: bool,
+    loss: str | None,
+    loss_scale: float,
+    tilt_min_chi2_drop: float,
+    calibration_jacobian: Callable[[list[list[float]]], FloatArray] | None,
+    floor_sensitivity: FloatArray | None,
+    max_iterations: int,
+) -> _Fit:
+    """Step 3 with a carried floor: its fit (step 2's) unless the spots demand a floor of
+    their own: the tilted fit with the carried floor as its prior must lower the chi-square
+    by more than `tilt_min_chi2_drop` (the likelihood-ratio test of the zero-mean case,
+    around the carried floor instead of the level one), and, given the calibration's
+    Jacobian, its floor's change must be significant against the calibration's error too."""
+    e0, _ = floor_prior
+    fit.floor = np.array(e0, dtype=np.float64)
+    fit.tilt = fit.floor[:2].copy()
+    if not test:
+        return fit
+    sig, res = fit.sigmas, fit.raw_residuals
+    # the carried fit's robust weights kept: sigma_i / sqrt(w_i)
+    w = [ROBUST_WEIGHTS[loss](r / si, loss_scale) if loss else 1.0
+         for r, si in zip(res, sig, strict=True)]  # fmt: skip
+    sig_w = [si / math.sqrt(wi) for si, wi in zip(sig, w, strict=True)]
+    tilted = solve_tilted(rays.m, rays.A, rays.heights, rays.P_xy, rays.T_body_camera,
+                          (fit.x, fit.y, fit.theta, *e0), sig_w, None, max_iterations,
+                          floor_prior=floor_prior)  # fmt: skip
+    if tilted is None:
+        return fit
+    params, cov_full, rms_t, res_t = tilted
+    chi2_t = sum((r / si) ** 2 for r, si in zip(res_t, sig, strict=True))
+    take = tilt_min_chi2_drop <= 0 or fit.chi2 - chi2_t > tilt_min_chi2_drop
+    if take and calibration_jacobian is not None:
+        change, fit.floor_sensitivity = floor_change_chi2(
+            rays.m, rays.A, rays.heights, rays.P_xy, rays.T_body_camera, params, cov_full,
+            sig_w, floor_prior, calibration_jacobian(rays.pl), floor_sensitivity,
+        )  # fmt: skip
+        # nan (degenerate): as without
+        take = tilt_min_chi2_drop <= 0 or not change <= tilt_min_chi2_drop
+    if take:
+        fit.x, fit.y, fit.theta = params[0], params[1], params[2]
+        fit.covariance, fit.rms = cov_full[:3, :3].copy(), rms_t
+        fit.floor, fit.floor_covariance = np.array(params[3:6]), cov_full[3:6, 3:6].copy()
+        fit.floor_cross = cov_full[:3, 3:6].copy()
+        fit.tilt = fit.floor[:2].copy()
+        fit.residuals = tuple(res_t)
+    return fit
+
+
+def _zero_mean_tilt(
+    rays: _Rays,
+    fit: _Fit,
+    tilt0: Sequence[float] | FloatArray,
+    tilt_sigma_rad: float | None,
+    tilt_min_chi2_drop: float,
+    max_iterations: int,
+) -> _Fit:
+    """Step 3 without a carried floor: the tilted fit (roll, pitch; an optional zero-mean
+    prior) taken when it lowers the level fit's chi-square by more than
+    `tilt_min_chi2_drop`."""
+    n = rays.n
+    sigma_px = math.sqrt(sum([si * si for si in fit.sigmas]) / n)
+    roll0, pitch0 = (float(v) for v in tilt0)
+    tilted = solve_tilted(
+        rays.m, rays.A, rays.heights, rays.P_xy, rays.T_body_camera,
+        (fit.x, fit.y, fit.theta, roll0, pitch0), sigma_px, tilt_sigma_rad, max_iterations,
+    )  # fmt: skip
+    if tilted is None:
+        return fit
+    params, cov_full, rms_tilted, _ = tilted
+    drop = fit.chi2 - n * (rms_tilted / sigma_px) ** 2
+    if tilt_min_chi2_drop <= 0 or drop > tilt_min_chi2_drop:
+        fit.x, fit.y, fit.theta = params[0], params[1], params[2]
+        fit.covariance, fit.tilt = cov_full[:3, :3].copy(), np.array(params[3:5])
+        fit.rms = rms_tilted
+        fit.residuals = ()
+    return fit

@@ -7,8 +7,9 @@ radii and a wrong wheel base, the two dominant systematic errors of Borenstein's
 three are observable from fixes: driving straight shows (k_r - k_l) / k_b through the heading
 drift and (k_r + k_l) / 2 through the distance, turning shows (k_r + k_l) / k_b.
 
-Written line for line like the math (PythonRobotics style): `motion_model`, `jacob_f`,
-`observation_model` (H = [I 0]), then the predict and update equations.
+The models (`motion_model`, `jacob_f`, `observation_model`, H = [I 0]) are in
+`calibrated_odometry`, the tuning in `filter_config`; here are the predict and update
+equations, written line for line like the math (PythonRobotics style).
 
 The output can be smoothed (`output_state`): a fix moves the estimate at once, but the
 output follows it with a time constant, so the reported pose has no jumps.
@@ -22,172 +23,29 @@ read), with the composed Jacobian (`propagation.py`; exact, not an approximation
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
 
+from localizer.calibrated_odometry import (
+    OdometryCalibration,
+    Rows,
+    State,
+    motion_step,
+    observation_model,
+)
+from localizer.filter_config import FilterConfig
 from localizer.fix_bias import (
     carried_correlation,
     carry_bias,
     consider_update,
 )
 from localizer.geometry import wrap_angle
-from localizer.odometry import odometry_increments, odometry_partials
+from localizer.odometry import odometry_partials
 from localizer.pose import PoseFix
 from localizer.propagation import DeferredPropagation
 from localizer.small_linalg import inverse_3x3_sym
-
-FloatArray = npt.NDArray[np.float64]
-
-
-@dataclass(frozen=True)
-class FilterConfig:
-    """Noise model and tuning of `PoseFilter` (SI units).
-
-    Attributes:
-        wheel_noise_m_per_sqrt_s: white noise on each wheel's measured travel, metres per
-            sqrt(second) (the speed noise's spectral density, (m/s)/sqrt(Hz)): over a step
-            dt a wheel's travel has variance wheel_noise^2 dt, whatever the odometry rate.
-        wheel_slip_m_per_sqrt_m: travel noise growing with distance (slip, uneven floor):
-            variance wheel_slip^2 |travel| per wheel.
-        calibration_walk_per_sqrt_s: random walk of each calibration factor, 1/sqrt(s)
-            (lets the estimate follow slow changes: load, tyre wear).
-        calibration_prior_sigma: prior standard deviation of each factor around 1.
-        estimate_calibration: learn (k_r, k_l, k_b) from the fixes; False freezes them at
-            their current value (1 at start).
-        calibration_bounds: the factors are kept inside these bounds.
-        output_time_constant_s: how fast `output_state` follows a correction, seconds
-            (0: no smoothing).
-        output_snap_m: a correction larger than this (a relocalisation) is not smoothed.
-        output_settle_s: for this long after `reset` (a first fix, a relocalisation) the
-            output takes corrections at once: the refinements of a fresh estimate (e.g. a
-            third landmark after a first fix from two) are not smoothed into a slow drift.
-        adapt_noise: adapt the odometry noise (`noise_scale`, a factor on both noise
-            terms) from the fused fixes' NIS: a running estimate of NIS / 3 (1 when the
-            filter's predicted covariance is right); the configured values are the prior.
-        adapt_gain: weight of one fix in that running estimate.
-        noise_scale_bounds: the factor stays within these.
-        attenuate_turn_scale: evaluate the wheel base's Jacobian at the expected true turn
-            given the measured one (the measured turn's noise otherwise biases k_b upwards
-            while driving straight; see `predict`).
-        turn_power_time_constant_s: the expected true turn rate's prior variance is
-            estimated from the measured turn rates of the samples before, averaged with
-            this time constant, seconds (empirical Bayes: driving straight it is the
-            wheels' noise alone, so the wheel base's Jacobian is shrunk to nearly zero; in
-            a turn it is the turn's own). 0: from the step's own measured turn (a partial
-            shrink: that turn's noise is the heading error it causes).
-    """
-
-    wheel_noise_m_per_sqrt_s: float = 0.003
-    wheel_slip_m_per_sqrt_m: float = 0.002
-    calibration_walk_per_sqrt_s: float = 1e-5
-    calibration_prior_sigma: float = 0.03
-    estimate_calibration: bool = True
-    calibration_bounds: tuple[float, float] = (0.8, 1.2)
-    output_time_constant_s: float = 0.05
-    output_snap_m: float = 0.5
-    output_settle_s: float = 1.0
-    adapt_noise: bool = True
-    adapt_gain: float = 0.005
-    noise_scale_bounds: tuple[float, float] = (0.7, 4.0)
-    attenuate_turn_scale: bool = True
-    turn_power_time_constant_s: float = 0.25
-
-    def __post_init__(self) -> None:
-        for name in (
-            "wheel_noise_m_per_sqrt_s",
-            "wheel_slip_m_per_sqrt_m",
-            "calibration_walk_per_sqrt_s",
-            "output_time_constant_s",
-            "output_settle_s",
-            "turn_power_time_constant_s",
-        ):
-            v = getattr(self, name)
-            if not math.isfinite(v) or v < 0:
-                raise ValueError(f"FilterConfig: {name} must be >= 0, got {v!r}")
-        for name in ("calibration_prior_sigma", "output_snap_m"):
-            v = getattr(self, name)
-            if not math.isfinite(v) or v <= 0:
-                raise ValueError(f"FilterConfig: {name} must be > 0, got {v!r}")
-        lo, hi = self.calibration_bounds
-        if not 0 < lo < 1 < hi:
-            raise ValueError(
-                f"FilterConfig: calibration_bounds must satisfy 0 < lo < 1 < hi, got {(lo, hi)}"
-            )
-
-
-@dataclass(frozen=True)
-class OdometryCalibration:
-    """Estimated odometry factors: true = factor x nominal.
-
-    Attributes:
-        right_scale, left_scale: wheel speed factors k_r, k_l (wheel radius errors).
-        wheel_base_scale: k_b, true wheel base over the configured one.
-        covariance: of (k_r, k_l, k_b), shape (3, 3).
-    """
-
-    right_scale: float
-    left_scale: float
-    wheel_base_scale: float
-    covariance: FloatArray
-
-
-State = list[float]  # (x, y, theta, k_r, k_l, k_b)
-Rows = list[list[float]]
-
-
-def motion_model(X: State, v_left: float, v_right: float, dt: float, wheel_base: float) -> State:
-    """X_t = f(X, u): eqs. (5)-(6) with the calibrated speeds k_l v_l, k_r v_r and base k_b W."""
-    return motion_step(X, v_left, v_right, dt, wheel_base)[0]
-
-
-def jacob_f(
-    X: State, v_left: float, v_right: float, dt: float, wheel_base: float
-) -> tuple[Rows, Rows]:
-    """The Jacobians of `motion_model`.
-
-    Returns:
-        (F_top: the pose rows of F = df/dX, 3 x 6 (the calibration rows of F are [0 I]; the
-         pose block is [[1, 0, a], [0, 1, b], [0, 0, 1]] as eq. (5) gives),
-         G: d(x, y, theta)_t / d(true wheel speeds k_l v_l, k_r v_r), 3 x 2).
-    """
-    _, F_top, G = motion_step(X, v_left, v_right, dt, wheel_base)
-    return F_top, G
-
-
-def motion_step(
-    X: State, v_left: float, v_right: float, dt: float, wheel_base: float
-) -> tuple[State, Rows, Rows]:
-    """`motion_model` and `jacob_f` in one pass (they share the increments and the midpoint
-    heading's sine and cosine): (X_t, F_top, G)."""
-    x, y, theta, k_r, k_l, k_b = X
-    W = k_b * wheel_base
-    inc_T, inc_R = odometry_increments(k_l * v_left, k_r * v_right, dt, W)
-    dT, dR = float(inc_T), float(inc_R)
-    xT, yT, xR, yR = odometry_partials(theta, dT, dR)  # xT, yT: the midpoint heading's cos, sin
-    X_t = [x + dT * xT, y + dT * yT, float(wrap_angle(theta + dR)), k_r, k_l, k_b]  # eq. (5)
-    # chain rule through dT = (k_l v_l + k_r v_r) dt / 2 and dR = (k_r v_r - k_l v_l) dt / (k_b W)
-    T_r, R_r = 0.5 * v_right * dt, v_right * dt / W  # d dT / d k_r, d dR / d k_r
-    T_l, R_l = 0.5 * v_left * dt, -v_left * dt / W  # d dT / d k_l, d dR / d k_l
-    R_b = -dR / k_b  # d dR / d k_b
-    F_top = [
-        [1.0, 0.0, 2.0 * xR, xT * T_r + xR * R_r, xT * T_l + xR * R_l, xR * R_b],
-        [0.0, 1.0, 2.0 * yR, yT * T_r + yR * R_r, yT * T_l + yR * R_l, yR * R_b],
-        [0.0, 0.0, 1.0, R_r, R_l, R_b],
-    ]
-    T_v, R_v = 0.5 * dt, dt / W  # d dT / d v (either wheel), d dR / d v_r (= -d dR / d v_l)
-    G = [
-        [xT * T_v - xR * R_v, xT * T_v + xR * R_v],
-        [yT * T_v - yR * R_v, yT * T_v + yR * R_v],
-        [-R_v, R_v],
-    ]
-    return X_t, F_top, G
-
-
-def observation_model(X: State) -> list[float]:
-    """z = h(X) = (x, y, theta): a landmark fix observes the pose, H = dh/dX = [I 0]."""
-    return X[:3]
+from localizer.types import FloatArray
 
 
 class PoseFilter:

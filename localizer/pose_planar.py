@@ -25,11 +25,9 @@ import math
 from collections.abc import Sequence
 
 import numpy as np
-import numpy.typing as npt
 
 from localizer.small_linalg import inverse_3x3_sym
-
-FloatArray = npt.NDArray[np.float64]
+from localizer.types import FloatArray
 
 Point = tuple[float, float]
 Mat2 = tuple[float, float, float, float]  # row-major a00 a01 a10 a11

@@ -26,12 +26,11 @@ from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
-import numpy.typing as npt
 
 from localizer.events import LedRequest
 from localizer.identification_config import IdentificationConfig
+from localizer.types import FloatArray
 
-FloatArray = npt.NDArray[np.float64]
 _NS = 1e-9
 
 

@@ -55,7 +55,7 @@ class DeferredPropagation:
         """Fold in one step.
 
         Args:
-            F_top: the pose rows of F = df/dX, 3 x 6 (`pose_filter.jacob_f`).
+            F_top: the pose rows of F = df/dX, 3 x 6 (`calibrated_odometry.jacob_f`).
             G: d pose / d (true left, right wheel speeds), 3 x 2.
             m_left, m_right: variances of the true wheel speeds over the step, (m/s)^2.
             walk: variance added to each calibration factor over the step.

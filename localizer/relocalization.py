@@ -40,7 +40,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-import numpy.typing as npt
 
 from localizer.camera import CameraModel
 from localizer.geometry import wrap_angle
@@ -51,9 +50,7 @@ from localizer.hypothesis_scoring import (
     inlier_pairs,
     inliers_needed,
 )
-
-FloatArray = npt.NDArray[np.float64]
-IntArray = npt.NDArray[np.int64]
+from localizer.types import FloatArray, IntArray
 
 
 @dataclass(frozen=True)

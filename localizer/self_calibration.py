@@ -50,9 +50,8 @@ import numpy.typing as npt
 
 from localizer.camera import CameraModel
 from localizer.geometry import wrap_angle
+from localizer.types import FloatArray, IntArray, Pose
 
-FloatArray = npt.NDArray[np.float64]
-Pose = tuple[float, float, float]
 Frame = tuple[FloatArray, FloatArray, Pose, Pose]
 T = TypeVar("T")
 NAMES = ("cu_px", "cv_px", "k1_rel", "k2_rel", "focal_rel", "yaw_rad")
@@ -205,7 +204,7 @@ def project_with_jacobians(
     c: FloatArray,
     poses: FloatArray,
     P: FloatArray,
-    frame: npt.NDArray[np.int64],
+    frame: IntArray,
     floors: FloatArray | None = None,
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """Pixels of landmarks P seen from body poses through the corrected camera, and their

@@ -17,7 +17,6 @@ import numpy.typing as npt
 
 from localizer.spots import (
     DetectionConfig,
-    ImageU8,
     SpotRow,
     Spots,
     append_centroid,
@@ -28,6 +27,7 @@ from localizer.spots import (
     threshold_for,
     window_boxes,
 )
+from localizer.types import ImageU8
 
 
 def detect_spots_in_windows(

@@ -19,10 +19,9 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
-import numpy.typing as npt
 
-FloatArray = npt.NDArray[np.float64]
-ImageU8 = npt.NDArray[np.uint8]
+from localizer.types import BoolArray, FloatArray, ImageU8
+
 SpotRow = tuple[float, float, float, float]
 """One spot as (col, row, intensity, area), the fields of `Spots`."""
 
@@ -210,7 +209,7 @@ def append_centroid(
     out.append((col + origin[0], row + origin[1], total, area))
 
 
-def _runs(mask: npt.NDArray[np.bool_]) -> list[tuple[int, int]]:
+def _runs(mask: BoolArray) -> list[tuple[int, int]]:
     """Start and end (exclusive) of the runs of True in a 1-D mask."""
     d = np.diff(np.concatenate(([0], mask.view(np.int8), [0])))
     starts = np.flatnonzero(d == 1)

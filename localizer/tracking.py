@@ -15,11 +15,9 @@ from dataclasses import dataclass
 from typing import overload
 
 import numpy as np
-import numpy.typing as npt
 from scipy.optimize import linear_sum_assignment
 
-FloatArray = npt.NDArray[np.float64]
-IntArray = npt.NDArray[np.int64]
+from localizer.types import BoolArray, FloatArray
 
 
 @dataclass(frozen=True)
@@ -257,7 +255,7 @@ def unambiguous_pairs(
     return keep, left
 
 
-def _matching_size(allowed: npt.NDArray[np.bool_]) -> int:
+def _matching_size(allowed: BoolArray) -> int:
     """Size of a maximum matching in a bipartite graph given as a boolean matrix."""
     rows, cols = linear_sum_assignment(~allowed)
     return int(np.count_nonzero(allowed[rows, cols]))

@@ -23,18 +23,17 @@ from typing import Literal
 
 import cv2
 import numpy as np
-import numpy.typing as npt
 
 from localizer.config import LocalizerConfig
 from localizer.events import FrameObserved, NoPose, PoseEstimate, RelocalizeRequested
 from localizer.localizer import Localizer
+from localizer.types import ImageU8
 from recording.layout import LIVE_POSES_FILE
 from recording.poses_file import estimates_from_track
 from recording.reader import FrameEntry, Recording, RecordingError, iter_timeline
 from recording.scoring import read_poses
 from recording.start_pose import StartPose
 
-ImageU8 = npt.NDArray[np.uint8]
 PoseSource = Literal["replay", "live"]
 
 _SWITCH_INTERVAL_S = 0.0005  # GIL hand-over while replaying (CPython's default: 0.005)

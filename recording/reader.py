@@ -19,13 +19,13 @@ from pathlib import Path
 from typing import Any, TypeVar
 
 import numpy as np
-import numpy.typing as npt
 import yaml
 
 from localizer.camera import CameraModel, camera_from_sensor
 from localizer.events import ImuMeasured, LedsChanged, OdometryMeasured
 from localizer.landmark_map import LandmarkMap
 from localizer.robot import RobotGeometry, robot_from_yaml_dict
+from localizer.types import FloatArray, IntArray
 from recording import layout
 from recording.start_pose import StartPose, start_pose_from_dict
 
@@ -90,12 +90,12 @@ class Recording:
     robot: RobotGeometry
     camera: CameraModel
     frames: list[FrameEntry]
-    odom_t_ns: npt.NDArray[np.int64]
-    odom_v: npt.NDArray[np.float64]
+    odom_t_ns: IntArray
+    odom_v: FloatArray
     leds: list[LedsChanged]
     start_pose: StartPose | None = None
-    imu_t_ns: npt.NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, np.int64))
-    imu: npt.NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 6)))
+    imu_t_ns: IntArray = field(default_factory=lambda: np.zeros(0, np.int64))
+    imu: FloatArray = field(default_factory=lambda: np.zeros((0, 6)))
 
 
 Item = OdometryMeasured | ImuMeasured | LedsChanged | FrameEntry
@@ -203,7 +203,7 @@ def read_frames(path: Path, frames_dir: Path) -> list[FrameEntry]:
     return out
 
 
-def read_odometry(path: Path) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.float64]]:
+def read_odometry(path: Path) -> tuple[IntArray, FloatArray]:
     """odom0/data.csv -> (t_ns (N,), (v_left, v_right) (N, 2)); empty when the file is absent."""
     if not path.exists():
         return np.zeros(0, dtype=np.int64), np.zeros((0, 2))
@@ -235,9 +235,7 @@ def read_start_pose(path: Path) -> StartPose | None:
         raise RecordingError(path, None, str(exc)) from None
 
 
-def read_imu(
-    path: Path, sensor_path: Path
-) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.float64]]:
+def read_imu(path: Path, sensor_path: Path) -> tuple[IntArray, FloatArray]:
     """imu0/data.csv (EuRoC: t, w_x, w_y, w_z, a_x, a_y, a_z in the IMU frame) -> (t_ns (M,),
     body-frame (w, a) (M, 6)) rotated by imu0/sensor.yaml's T_BS when present; empty when
     the data file is absent."""
@@ -302,14 +300,14 @@ def read_leds(path: Path, landmark_map: LandmarkMap) -> list[LedsChanged]:
     return out
 
 
-def read_groundtruth(root: Path | str) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.float64]]:
+def read_groundtruth(root: Path | str) -> tuple[IntArray, FloatArray]:
     """groundtruth.csv of a simulated recording -> (t_ns (N,), (x, y, theta) (N, 3))."""
     return read_groundtruth_file(Path(root) / layout.GROUNDTRUTH_FILE)
 
 
 def read_groundtruth_file(
     path: Path | str,
-) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.float64]]:
+) -> tuple[IntArray, FloatArray]:
     """A ground-truth CSV (`timestamp_ns,x,y,theta`, header optional) anywhere -> (t_ns (N,),
     (x, y, theta) (N, 3)); RecordingError naming the file and line of a bad value."""
     path = Path(path)
@@ -359,9 +357,19 @@ def read_recording(root: Path | str) -> Recording:
     start_pose = read_start_pose(base / layout.START_POSE_FILE)
     imu_t_ns, imu = read_imu(base / layout.IMU_FILE, base / layout.IMU_SENSOR_FILE)
     return Recording(
-        base, landmark_map, records, robot, camera, frames, odom_t_ns, odom_v, leds,
-        start_pose, imu_t_ns, imu,
-    )  # fmt: skip
+        root=base,
+        landmark_map=landmark_map,
+        landmark_records=records,
+        robot=robot,
+        camera=camera,
+        frames=frames,
+        odom_t_ns=odom_t_ns,
+        odom_v=odom_v,
+        leds=leds,
+        start_pose=start_pose,
+        imu_t_ns=imu_t_ns,
+        imu=imu,
+    )
 
 
 def iter_timeline(recording: Recording) -> Iterator[Item]:

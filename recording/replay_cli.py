@@ -198,13 +198,17 @@ def main(argv: list[str] | None = None) -> int:
             )
         tmp.replace(args.out)
         used = read_recording(args.recording).start_pose if prior == "recording" else prior
-        source = "none" if used is None else (
-            "recording" if prior == "recording" else "command line"
-        )  # fmt: skip
+        source = (
+            "none" if used is None else ("recording" if prior == "recording" else "command line")
+        )
         write_settings_record(
-            args.out, recording=args.recording, config=config or LocalizerConfig(),
-            start_pose=used, start_pose_source=source, config_file=args.config,
-        )  # fmt: skip
+            args.out,
+            recording=args.recording,
+            config=config or LocalizerConfig(),
+            start_pose=used,
+            start_pose_source=source,
+            config_file=args.config,
+        )
         table = None
         if truth is not None and not args.quiet:
             table = truth_summary(args.recording, truth, estimates)

@@ -26,16 +26,25 @@ import numpy.typing as npt
 
 from localizer.events import NoPose, PoseEstimate
 from localizer.geometry import wrap_angle
+from localizer.types import BoolArray, FloatArray, IntArray
 
-FloatArray = npt.NDArray[np.float64]
-IntArray = npt.NDArray[np.int64]
-
-PAPER = {"mean_cm": 4.1, "std_cm": 2.9, "max_cm": 17.1, "heading_deg": 0.26,
-         "jitter_cm": 0.5, "jitter_deg": 0.3}  # fmt: skip
+PAPER = {
+    "mean_cm": 4.1,
+    "std_cm": 2.9,
+    "max_cm": 17.1,
+    "heading_deg": 0.26,
+    "jitter_cm": 0.5,
+    "jitter_deg": 0.3,
+}
 """The paper's Sec. V figures."""
-SEC_V_LABELS = {"mean_cm": "mean position error, cm", "std_cm": "  std, cm",
-                "max_cm": "max position error, cm", "heading_deg": "mean heading error, deg",
-                "jitter_cm": "jitter, cm", "jitter_deg": "jitter, deg"}  # fmt: skip
+SEC_V_LABELS = {
+    "mean_cm": "mean position error, cm",
+    "std_cm": "  std, cm",
+    "max_cm": "max position error, cm",
+    "heading_deg": "mean heading error, deg",
+    "jitter_cm": "jitter, cm",
+    "jitter_deg": "jitter, deg",
+}
 SETTLE_S = 0.25
 MIN_STOP_S = 0.45
 
@@ -59,7 +68,7 @@ class PoseTrack:
     covariance_diag: FloatArray
 
     @property
-    def has_pose(self) -> npt.NDArray[np.bool_]:
+    def has_pose(self) -> BoolArray:
         return np.isfinite(self.pose[:, 0])
 
 

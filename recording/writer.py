@@ -17,13 +17,13 @@ from typing import Any, TextIO
 
 import cv2
 import numpy as np
-import numpy.typing as npt
 import yaml
 
 from localizer.camera import CameraModel, sensor_from_camera
 from localizer.events import LedsChanged, NoPose, PoseEstimate
 from localizer.landmark_map import LandmarkMap
 from localizer.robot import RobotGeometry
+from localizer.types import ImageU8
 from recording import layout, poses_file
 from recording.start_pose import StartPose, write_start_pose
 
@@ -118,7 +118,7 @@ class RecordingWriter:
         for f in (self._frames, self._odometry, self._leds):
             f.open_empty()
 
-    def add_frame(self, t_ns: int, image: npt.NDArray[np.uint8]) -> Path:
+    def add_frame(self, t_ns: int, image: ImageU8) -> Path:
         """Write an 8-bit grayscale frame as `cam0/data/<t_ns>.png` and list it; returns the path.
 
         Raises:
@@ -137,11 +137,13 @@ class RecordingWriter:
         self._pending.append(self._pool.submit(self._write_png, path, img.copy()))
         return path
 
-    def _write_png(self, path: Path, image: npt.NDArray[np.uint8]) -> None:
+    def _write_png(self, path: Path, image: ImageU8) -> None:
         params = [
-            cv2.IMWRITE_PNG_COMPRESSION, self.png_compression,
-            cv2.IMWRITE_PNG_STRATEGY, cv2.IMWRITE_PNG_STRATEGY_HUFFMAN_ONLY,
-        ]  # fmt: skip
+            cv2.IMWRITE_PNG_COMPRESSION,
+            self.png_compression,
+            cv2.IMWRITE_PNG_STRATEGY,
+            cv2.IMWRITE_PNG_STRATEGY_HUFFMAN_ONLY,
+        ]
         if not cv2.imwrite(str(path), image, params):
             raise OSError(f"{path}: could not write the PNG")
 
@@ -223,8 +225,14 @@ class RecordingWriter:
                 self._pending.popleft().result()
         finally:
             self._pool.shutdown(wait=True)
-        for f in (self._frames, self._odometry, self._leds, self._groundtruth, self._live_poses,
-                  self._imu):  # fmt: skip
+        for f in (
+            self._frames,
+            self._odometry,
+            self._leds,
+            self._groundtruth,
+            self._live_poses,
+            self._imu,
+        ):
             f.close()
 
     def __enter__(self) -> RecordingWriter:

@@ -144,6 +144,12 @@ class BatteryHistory:
             arr[:, 0], arr[:, 1], self.config.cutoff_mv, min_span_days=self.config.min_fit_span_days
         )
 
+    @property
+    def low(self) -> frozenset[int]:
+        """Landmarks whose battery is low now (read at or below `low_mv`, not yet
+        `low_hysteresis_mv` above it again)."""
+        return frozenset(self._low)
+
     def became_low(self, reading: BatteryReading) -> bool:
         """True the first time a landmark reads at or below `low_mv` (until it recovers
         `low_hysteresis_mv` above it: new cells)."""

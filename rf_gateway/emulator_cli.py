@@ -45,9 +45,11 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--delay-ms", type=float, default=5.0, help="reply latency")
     p.add_argument("--drop", type=float, default=0.0, help="probability a reply is lost")
     p.add_argument(
-        "--sleep-ms", type=float, default=None,
+        "--sleep-ms",
+        type=float,
+        default=None,
         help="the landmarks sleep in cycles of this period (XBee SP): commands wait for them",
-    )  # fmt: skip
+    )
     args = p.parse_args(argv)
     if args.sleep_ms is not None and not 320 <= args.sleep_ms <= 28000:
         p.error(f"--sleep-ms: XBee 3 cyclic sleep periods are 320 .. 28000 ms, got {args.sleep_ms}")

@@ -85,9 +85,14 @@ class Gateway(StartupSweep, LandmarkReads):
         self._slots = PrioritySlots(self.config.max_in_flight, self.config.max_waiting)
         self.wake = WakeTracker(self.config.sleep)
         self._commands = RadioCommands(
-            self.config, self.stats, self._slots, self.wake,
-            lambda lid: self._addresses[lid], self._publish_event, clock_ns,
-        )  # fmt: skip
+            self.config,
+            self.stats,
+            self._slots,
+            self.wake,
+            lambda lid: self._addresses[lid],
+            self._publish_event,
+            clock_ns,
+        )
         self._desired: dict[int, tuple[bool, int]] = {}  # id -> (level, seq)
         self._confirmed: dict[int, tuple[bool, int, int]] = {}  # id -> (level, seq, t_ns)
         self._waiters = SeqWaiters()

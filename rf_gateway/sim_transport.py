@@ -42,9 +42,10 @@ class SimTransport(StateReporter):
         self.radio = radio
         if command_timeout_s is None:
             command_timeout_s = (
-                _radio_float(radio, "timeout_s", 0.3) + 0.2
+                _radio_float(radio, "timeout_s", 0.3)
+                + 0.2
                 + _radio_float(radio, "sleep_period_s", 0.0)
-            )  # fmt: skip
+            )
         self.command_timeout_s = command_timeout_s
 
     async def open(self) -> None:

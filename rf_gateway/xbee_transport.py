@@ -126,8 +126,9 @@ class XBeeTransport(StateReporter):
             except (TimeoutException, InvalidOperatingModeException) as exc:
                 if attempt == self.config.open_tries or self._state == "closed":
                     raise
-                log.info("xbee %s: open attempt %d lost a reply (%s); again", self.port,
-                         attempt, exc)  # fmt: skip
+                log.info(
+                    "xbee %s: open attempt %d lost a reply (%s); again", self.port, attempt, exc
+                )
         raise AssertionError("unreachable")  # the loop returns or raises
 
     def _open_once(self) -> XBeeDevice:

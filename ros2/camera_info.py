@@ -12,9 +12,9 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
-import numpy.typing as npt
 
 from localizer.camera import CameraModel
+from localizer.types import FloatArray
 
 ROS_TO_MODEL = {
     "plumb_bob": "radial-tangential",
@@ -65,7 +65,7 @@ def camera_info_disagreement(info: Any, camera: CameraModel) -> list[str]:
 
 
 def camera_from_camera_info(
-    info: Any, T_body_camera: npt.NDArray[np.float64], rate_hz: float = 30.0
+    info: Any, T_body_camera: FloatArray, rate_hz: float = 30.0
 ) -> CameraModel:
     """The camera a CameraInfo describes, mounted at `T_body_camera` (shape (4, 4)).
 

@@ -12,9 +12,8 @@ from typing import Any
 
 import cv2
 import numpy as np
-import numpy.typing as npt
 
-GRAY8 = npt.NDArray[np.uint8]
+from localizer.types import ImageU8
 
 _BAYER = {
     "bayer_rggb8": cv2.COLOR_BayerRGGB2GRAY,
@@ -38,7 +37,7 @@ class ImageError(ValueError):
     """A frame that cannot be read as it is described."""
 
 
-def gray8_from_image(msg: Any, *, expected_size: tuple[int, int] | None = None) -> GRAY8:
+def gray8_from_image(msg: Any, *, expected_size: tuple[int, int] | None = None) -> ImageU8:
     """8-bit grayscale (H, W) of a `sensor_msgs/Image`.
 
     mono16 / 16UC1 are scaled by 1/256 (the 16-bit range to 8 bits: a camera's 10 or
@@ -91,7 +90,7 @@ def gray8_from_image(msg: Any, *, expected_size: tuple[int, int] | None = None) 
     return np.ascontiguousarray(rows)
 
 
-def gray8_from_compressed(msg: Any, *, expected_size: tuple[int, int] | None = None) -> GRAY8:
+def gray8_from_compressed(msg: Any, *, expected_size: tuple[int, int] | None = None) -> ImageU8:
     """8-bit grayscale (H, W) of a `sensor_msgs/CompressedImage` (PNG or JPEG, 8 or 16 bit).
 
     Raises:

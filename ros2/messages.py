@@ -11,8 +11,8 @@ import math
 from typing import Any
 
 import numpy as np
-import numpy.typing as npt
 
+from localizer.types import FloatArray
 from ros2.idl import EMPTY_FIELD, message_class, typestore
 
 NS = 1_000_000_000
@@ -135,7 +135,7 @@ FLAT_VARIANCE = 1e6
 consumer that fuses them (robot_localization) ignores them."""
 
 
-def covariance6(cov3: npt.NDArray[np.float64]) -> list[float]:
+def covariance6(cov3: FloatArray) -> list[float]:
     """The 6x6 row-major covariance (x, y, z, rotX, rotY, rotZ) of a (3, 3) covariance of
     (x, y, yaw); z, roll and pitch get `FLAT_VARIANCE`."""
     c = np.zeros((6, 6))
@@ -145,7 +145,7 @@ def covariance6(cov3: npt.NDArray[np.float64]) -> list[float]:
     return [float(v) for v in c.ravel()]
 
 
-def covariance3(cov6: Any) -> npt.NDArray[np.float64]:
+def covariance3(cov6: Any) -> FloatArray:
     """The (3, 3) covariance of (x, y, yaw) in a 6x6 row-major covariance."""
     c = np.asarray(cov6, dtype=np.float64).reshape(6, 6)
     idx = [0, 1, 5]

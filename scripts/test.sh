@@ -29,7 +29,7 @@ set +e
 # Two workers (pytest-xdist), a test file each at a time: most of the suite waits on live
 # servers, browsers and sockets, so two share the CI's two cores well (about half the serial
 # time). IRLOC_TEST_WORKERS=0 runs in one process; a later -n among the arguments wins.
-.venv/bin/python -m pytest -n "${IRLOC_TEST_WORKERS:-2}" --dist loadfile "$@"
+.venv/bin/python -m pytest -n "${IRLOC_TEST_WORKERS:-2}" --dist loadfile --durations=30 --durations-min=5 "$@"
 status=$?
 set -e
 # pytest's exit status 5 means "no tests collected": that is a failure of the suite here.

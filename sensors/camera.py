@@ -96,8 +96,11 @@ class CameraSource:
                     return
                 log.warning(
                     "robot %s: camera %r cannot be opened; retrying every %.1f s",
-                    self.robot, self.device, self.retry_s, extra=extra,
-                )  # fmt: skip
+                    self.robot,
+                    self.device,
+                    self.retry_s,
+                    extra=extra,
+                )
                 self._stop.wait(self.retry_s)
                 continue
             try:

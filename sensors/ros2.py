@@ -84,15 +84,19 @@ class Ros2Source:
         self.image_topic = s.topic(s.image_topic) + ("/compressed" if s.compressed else "")
         node.subscribe(self.image_topic, image_type, self.on_image, s.image_qos)
         node.subscribe(
-            s.topic(s.camera_info_topic), "sensor_msgs/msg/CameraInfo", self.on_camera_info,
+            s.topic(s.camera_info_topic),
+            "sensor_msgs/msg/CameraInfo",
+            self.on_camera_info,
             s.image_qos,
-        )  # fmt: skip
+        )
         if s.wheel_joints:
             self.joints = tuple(j.strip() for j in s.wheel_joints.split(","))
             node.subscribe(
-                s.topic(s.joint_states_topic), "sensor_msgs/msg/JointState",
-                self.on_joint_states, s.odom_qos,
-            )  # fmt: skip
+                s.topic(s.joint_states_topic),
+                "sensor_msgs/msg/JointState",
+                self.on_joint_states,
+                s.odom_qos,
+            )
         else:
             node.subscribe(
                 s.topic(s.odom_topic), "nav_msgs/msg/Odometry", self.on_odometry, s.odom_qos
@@ -144,17 +148,19 @@ class Ros2Source:
         ahead = t_ros - (time.monotonic_ns() + offset)
         if ahead > self.settings.future_tolerance_s * 1e9:
             self.health.report(
-                key, "error",
+                key,
+                "error",
                 f"stamped {ahead / 1e9:.3f} s in the future "
                 "(is the robot's clock synchronised?): refused",
-            )  # fmt: skip
+            )
             return None
         if t_ros <= last_ns:
             self.health.report(
-                key, "error",
+                key,
+                "error",
                 f"out of order: stamp {(last_ns - t_ros) / 1e6:.1f} ms before the previous "
                 "one: refused",
-            )  # fmt: skip
+            )
             return None
         return t_ros - offset
 
@@ -200,10 +206,11 @@ class Ros2Source:
             self._info_ok = not diffs
             if diffs:
                 self.health.report(
-                    "camera_info", "error",
+                    "camera_info",
+                    "error",
                     f"{topic} disagrees with sensor.yaml ({'; '.join(diffs)}): frames refused "
                     "until they agree (recalibrate, or fix the driver's camera_info_url)",
-                )  # fmt: skip
+                )
             else:
                 self.health.clear("camera_info")
             return
@@ -222,10 +229,11 @@ class Ros2Source:
         frame, child = str(msg.header.frame_id), str(msg.child_frame_id)
         if (frame, child) != (s.odom, s.base):
             self.health.report(
-                "odom", "error",
+                "odom",
+                "error",
                 f"{s.topic(s.odom_topic)} is {frame!r} -> {child!r}, expected {s.odom!r} -> "
                 f"{s.base!r} (set odom_frame/base_frame): refused",
-            )  # fmt: skip
+            )
             return
         v = float(msg.twist.twist.linear.x)
         w = float(msg.twist.twist.angular.z)
@@ -249,9 +257,10 @@ class Ros2Source:
         vel = list(msg.velocity)
         if len(vel) != len(names):
             self.health.report(
-                "odom", "error",
+                "odom",
+                "error",
                 f"{topic}: {len(vel)} velocities for {len(names)} joints: refused",
-            )  # fmt: skip
+            )
             return
         r = self.settings.wheel_radius_m
         left, right = float(vel[idx[0]]) * r, float(vel[idx[1]]) * r

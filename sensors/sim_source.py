@@ -145,5 +145,9 @@ class SimSource:
         now = time.monotonic()
         if now - self._error_logged_at >= ERROR_LOG_EVERY_S:
             self._error_logged_at = now
-            log.exception("robot %s: an event could not be fed (%d such errors so far)",
-                          robot, self.errors, extra={"robot": robot})  # fmt: skip
+            log.exception(
+                "robot %s: an event could not be fed (%d such errors so far)",
+                robot,
+                self.errors,
+                extra={"robot": robot},
+            )

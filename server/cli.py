@@ -172,9 +172,12 @@ def main(
     from server.console import leds_line, startup_lines
 
     lines = startup_lines(
-        host=settings.host, port=settings.port, data_dir=settings.data_dir,
-        viewer_enabled=viewer is not None, first_key=first_key,
-    )  # fmt: skip
+        host=settings.host,
+        port=settings.port,
+        data_dir=settings.data_dir,
+        viewer_enabled=viewer is not None,
+        first_key=first_key,
+    )
     print("\n".join(lines[:-1] if first_key is not None else lines))
     if not is_loopback(settings.host):
         print(
@@ -208,7 +211,12 @@ def uvicorn_config(settings: Settings, app: object, log_level: str = "info") -> 
     `trusted_proxies` (uvicorn believes loopback's by default), the open-file limit raised."""
     import uvicorn
 
-    from server.connections import EdgeLimits, GuardedHttpProtocol, raise_open_file_limit
+    from server.connections import (
+        EdgeLimits,
+        GuardedHttpProtocol,
+        guard_of,
+        raise_open_file_limit,
+    )
 
     raise_open_file_limit()
     config = uvicorn.Config(
@@ -228,4 +236,7 @@ def uvicorn_config(settings: Settings, app: object, log_level: str = "info") -> 
         max_per_address=settings.max_connections_per_address,
         max_connections=settings.max_connections,
     )
+    state = getattr(app, "state", None)
+    if state is not None:  # /metrics reads its counters
+        state.connection_guard = guard_of(config)
     return config

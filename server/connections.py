@@ -97,8 +97,12 @@ class ConnectionGuard:
             log.warning(
                 "connection limits: %s (%s); %d such closes since the last line; "
                 "%d open, %d still sending headers",
-                what, address, self._unlogged, self.total, len(self.pending),
-            )  # fmt: skip
+                what,
+                address,
+                self._unlogged,
+                self.total,
+                len(self.pending),
+            )
             self._logged_at, self._unlogged = now, 0
 
     def _evict_oldest(self, address: str | None) -> bool:

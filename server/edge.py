@@ -121,10 +121,15 @@ async def _answer(send: Send, status: int, detail: str, headers: list[tuple[byte
 class EdgeGuard:
     """See the module. `default_body_bytes`: the limit of routes not in `ROUTE_BODY_BYTES`."""
 
-    def __init__(self, app: ASGIApp, default_body_bytes: int = DEFAULT_BODY_BYTES) -> None:
+    def __init__(
+        self,
+        app: ASGIApp,
+        default_body_bytes: int = DEFAULT_BODY_BYTES,
+        counters: EdgeCounters | None = None,
+    ) -> None:
         self.app = app
         self.default_body_bytes = default_body_bytes
-        self.counters = EdgeCounters()
+        self.counters = counters if counters is not None else EdgeCounters()
 
     def _refused(self, status: int) -> None:
         self.counters.by_status[status] = self.counters.by_status.get(status, 0) + 1

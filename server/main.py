@@ -29,7 +29,7 @@ from rf_gateway.errors import (
     UnknownLandmarkError,
 )
 from server.auth import Viewer, authenticate
-from server.edge import EdgeGuard
+from server.edge import EdgeCounters, EdgeGuard
 from server.fanout import PoseFanout
 from server.health import Health, check_health
 from server.http_errors import (
@@ -42,6 +42,7 @@ from server.metrics import make_registry, render
 from server.openapi import install_openapi
 from server.routes import (
     admin,
+    alerts,
     calibration,
     commissioning,
     floorplan,
@@ -135,6 +136,7 @@ def create_app(settings: Settings | None = None, viewer: ViewerApp | None = None
         registry, collector = make_registry(services)
         app.state.metrics_registry = registry
         app.state.metrics_collector = collector
+        collector.app_state = app.state
         await services.start()
         fanout = PoseFanout(services.poses, flush_s=settings.ws_flush_s)
         fanout.start()
@@ -166,12 +168,30 @@ def create_app(settings: Settings | None = None, viewer: ViewerApp | None = None
     )
     _install_error_handlers(app)
     install_body_errors(app)
-    app.add_middleware(EdgeGuard, default_body_bytes=settings.max_body_bytes)
+    app.state.edge_counters = EdgeCounters()  # the guard is built lazily: /metrics reads these
+    app.add_middleware(
+        EdgeGuard, default_body_bytes=settings.max_body_bytes, counters=app.state.edge_counters
+    )
     api = APIRouter(prefix=API_PREFIX, dependencies=[Depends(refuse_unknown_query)])
     for module in (
-        landmarks, map, history, floorplan, robots, calibration, remote, admin, streams,
-        commissioning, survey, leds, map_proposals, recordings, zones, floors,
-    ):  # fmt: skip
+        landmarks,
+        map,
+        history,
+        floorplan,
+        robots,
+        calibration,
+        remote,
+        admin,
+        streams,
+        commissioning,
+        survey,
+        leds,
+        map_proposals,
+        recordings,
+        zones,
+        floors,
+        alerts,
+    ):
         api.include_router(module.router)
     api.add_api_route(
         "/metrics",

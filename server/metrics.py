@@ -8,8 +8,10 @@ from typing import TYPE_CHECKING
 from prometheus_client import CollectorRegistry, generate_latest
 from prometheus_client.core import CounterMetricFamily, GaugeMetricFamily, Metric
 from prometheus_client.registry import Collector
+from starlette.datastructures import State
 
 from live.leds.status import energy_metrics
+from server.metrics_reliability import reliability_metrics
 
 if TYPE_CHECKING:
     from live.services import SiteServices
@@ -17,12 +19,16 @@ if TYPE_CHECKING:
 
 
 class SiteCollector(Collector):
-    """Poses per robot, pose-bus drops, radio queue and failures, HTTP errors."""
+    """Poses per robot, pose-bus drops, radio queue and failures, HTTP errors, and the
+    reliability counters (`server.metrics_reliability`)."""
 
     def __init__(self, services: SiteServices) -> None:
         self.services = services
         self.http_errors: dict[str, int] = {}
         self.fanout: PoseFanout | None = None
+        self.app_state: State | None = None
+        """The app's state: the edge guard's counters, the connection guard, the bad-key
+        throttle, the MQTT bridge (`server.metrics_reliability`)."""
 
     def collect(self) -> Iterator[Metric]:
         s = self.services
@@ -93,6 +99,7 @@ class SiteCollector(Collector):
         for code, n in sorted(self.http_errors.items()):
             http.add_metric([code], n)
         yield http
+        yield from reliability_metrics(s, self.app_state)
 
 
 def make_registry(services: SiteServices) -> tuple[CollectorRegistry, SiteCollector]:

@@ -45,8 +45,11 @@ class GracefulServer(uvicorn.Server):
             draining(target).set()
         await super().shutdown(sockets)
         if services is not None:
-            log.info("shutdown complete in %.1f s: %s", time.monotonic() - t0,
-                     _summary(services, gateway, recording))  # fmt: skip
+            log.info(
+                "shutdown complete in %.1f s: %s",
+                time.monotonic() - t0,
+                _summary(services, gateway, recording),
+            )
 
 
 def _innermost(app: Any) -> Any:

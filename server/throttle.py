@@ -85,5 +85,7 @@ class BadKeyThrottle:
         if due:
             log.warning(
                 "bad API keys: %d since the last such line (%d throttled), the latest from %s",
-                count, throttled, address,
-            )  # fmt: skip
+                count,
+                throttled,
+                address,
+            )

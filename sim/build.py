@@ -45,11 +45,16 @@ def build_world(scenario: Scenario, rng: np.random.Generator) -> World:
         p_true = np.array([spec.x, spec.y, spec.z])
         p_surveyed = p_true + rng.normal(0.0, scenario.survey_sigma_m, 3)
         landmarks[spec.id] = SimLandmark(
-            spec.id, p_true, p_surveyed, (spec.address or default_address(spec.id)).upper(),
+            spec.id,
+            p_true,
+            p_surveyed,
+            (spec.address or default_address(spec.id)).upper(),
             Battery(BatteryConfig(capacity_mah=spec.capacity_mah), charge=spec.charge),
-            radio_dead=spec.radio_dead, led_on=not spec.radio_dead, led_dead=spec.led_dead,
+            radio_dead=spec.radio_dead,
+            led_on=not spec.radio_dead,
+            led_dead=spec.led_dead,
             floor=spec.floor,
-        )  # fmt: skip
+        )
     extended = []
     for e in scenario.extended:
         if e.kind == "lamp":
@@ -67,9 +72,11 @@ def build_robot(
 ) -> RobotRig:
     """One robot of a scenario; `rng` draws its calibration error, noise and dropped frames."""
     mount = T_body_camera_upward(
-        yaw=spec.camera.yaw_rad, offset_xy=spec.camera.offset_xy_m,
-        height=spec.camera.height_m, tilt_xy=spec.camera.tilt_xy_rad,
-    )  # fmt: skip
+        yaw=spec.camera.yaw_rad,
+        offset_xy=spec.camera.offset_xy_m,
+        height=spec.camera.height_m,
+        tilt_xy=spec.camera.tilt_xy_rad,
+    )
     nominal = wide_angle_camera(spec.camera.lens, T_body_camera=mount, rate_hz=spec.camera.rate_hz)
     error = spec.camera.calibration_error
     if isinstance(error, CalibrationError):
@@ -84,12 +91,20 @@ def build_robot(
         noise_rel=spec.odometry_noise_rel,
     )
     robot = SimRobot(
-        spec.name, start=spec.start, route=spec.route, odometry=odometry,
-        camera_rate_hz=spec.camera.rate_hz, frame_drop=spec.camera.drop_rate,
-        bumps=scenario.bumps, rng=rng, t0_ns=t0_ns,
+        spec.name,
+        start=spec.start,
+        route=spec.route,
+        odometry=odometry,
+        camera_rate_hz=spec.camera.rate_hz,
+        frame_drop=spec.camera.drop_rate,
+        bumps=scenario.bumps,
+        rng=rng,
+        t0_ns=t0_ns,
         frame_offset_ns=(index * 7_000_000) % round(1e9 / spec.camera.rate_hz),
-        limits=spec.limits, slips=scenario.slips, floor=spec.floor,
-    )  # fmt: skip
+        limits=spec.limits,
+        slips=scenario.slips,
+        floor=spec.floor,
+    )
     geometry = RobotGeometry(spec.wheel_base_m, spec.max_speed_mps)
     return RobotRig(spec, robot, geometry, nominal, true)
 

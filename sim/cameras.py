@@ -11,13 +11,20 @@ from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
-import numpy.typing as npt
 
-from localizer.camera import CameraModel, T_body_camera_upward
+from localizer.camera import CameraModel, DistortionModel, T_body_camera_upward
+from localizer.types import FloatArray
 
 Lens = Literal["pinhole", "fisheye", "wide_radtan"]
 LENSES: tuple[Lens, ...] = ("pinhole", "fisheye", "wide_radtan")
-FloatArray = npt.NDArray[np.float64]
+
+
+# lens: (focal length over image width, OpenCV model, distortion coefficients)
+_LENS_TABLE: dict[str, tuple[float, DistortionModel, list[float]]] = {
+    "pinhole":     (0.5,     "radial-tangential", [-0.22, 0.05, 0.0, 0.0, 0.0]),
+    "fisheye":     (0.47,    "equidistant",       [0.02, -0.01, 0.002, 0.0]),
+    "wide_radtan": (0.46875, "radial-tangential", [-0.28, 0.07, 4e-4, -3e-4, -0.006]),
+}  # fmt: skip
 
 
 def wide_angle_camera(
@@ -43,25 +50,11 @@ def wide_angle_camera(
     """
     T = T_body_camera_upward() if T_body_camera is None else T_body_camera
     cu, cv = (width - 1) / 2.0, (height - 1) / 2.0
-    if lens == "pinhole":
-        f = 0.5 * width
-        return CameraModel(
-            width, height, f, f, cu, cv, "radial-tangential",
-            np.array([-0.22, 0.05, 0.0, 0.0, 0.0]), T, rate_hz,
-        )  # fmt: skip
-    if lens == "fisheye":
-        f = 0.47 * width
-        return CameraModel(
-            width, height, f, f, cu, cv, "equidistant",
-            np.array([0.02, -0.01, 0.002, 0.0]), T, rate_hz,
-        )  # fmt: skip
-    if lens == "wide_radtan":
-        f = 0.46875 * width
-        return CameraModel(
-            width, height, f, f, cu, cv, "radial-tangential",
-            np.array([-0.28, 0.07, 4e-4, -3e-4, -0.006]), T, rate_hz,
-        )  # fmt: skip
-    raise ValueError(f"lens must be one of {LENSES}, got {lens!r}")
+    if lens not in _LENS_TABLE:
+        raise ValueError(f"lens must be one of {LENSES}, got {lens!r}")
+    f_per_width, model, distortion = _LENS_TABLE[lens]
+    f = f_per_width * width
+    return CameraModel(width, height, f, f, cu, cv, model, np.array(distortion), T, rate_hz)
 
 
 def perturbed_camera(

@@ -15,9 +15,9 @@ from typing import Protocol
 
 import cv2
 import numpy as np
-import numpy.typing as npt
 
 from localizer.camera import CameraModel, rays_from_pixels
+from localizer.types import FloatArray, ImageU8
 
 
 class BoardSpec(Protocol):
@@ -30,12 +30,8 @@ class BoardSpec(Protocol):
     def square_m(self) -> float: ...
     @property
     def kind(self) -> str: ...
-    def object_points(self) -> npt.NDArray[np.float64]: ...
+    def object_points(self) -> FloatArray: ...
     def charuco_board(self) -> cv2.aruco.CharucoBoard: ...
-
-
-FloatArray = npt.NDArray[np.float64]
-ImageU8 = npt.NDArray[np.uint8]
 
 
 def board_texture(board: BoardSpec, *, px_per_square: int = 32) -> tuple[ImageU8, float]:
@@ -182,9 +178,13 @@ class BoardRenderer:
         lo, hi = contrast
         tex = (lo + (hi - lo) * (self.texture.astype(np.float32) / 255.0)).astype(np.float32)
         sampled = cv2.remap(
-            tex, map_u, map_v, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
+            tex,
+            map_u,
+            map_v,
+            cv2.INTER_LINEAR,
+            borderMode=cv2.BORDER_CONSTANT,
             borderValue=background,
-        )  # fmt: skip
+        )
         ss = self.supersample
         h, w = self.camera.height, self.camera.width
         img = sampled.reshape(h, ss, w, ss).mean(axis=(1, 3))

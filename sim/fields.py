@@ -54,9 +54,13 @@ class Node:
         return [Node(v, self._child_path(i), self.source) for i, v in enumerate(self.value)]
 
     def number(
-        self, key: str, default: float | None = None, *, low: float = -math.inf,
+        self,
+        key: str,
+        default: float | None = None,
+        *,
+        low: float = -math.inf,
         high: float = math.inf,
-    ) -> float:  # fmt: skip
+    ) -> float:
         """A finite number in [low, high]; `default` when absent (None: required)."""
         node = self.child(key, default, required=default is None)
         v = node.value

@@ -15,12 +15,11 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-import numpy.typing as npt
 
 from localizer.events import ImuMeasured
 from localizer.geometry import wrap_angle
+from localizer.types import FloatArray
 
-FloatArray = npt.NDArray[np.float64]
 GRAVITY_M_S2 = 9.81
 
 

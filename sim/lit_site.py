@@ -12,12 +12,10 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import numpy.typing as npt
 
 from localizer.events import LedsChanged
-from sim.scenario import Scenario, scenario_from_dict
-
-FloatArray = npt.NDArray[np.float64]
+from sim.scenario import Scenario
+from sim.survey_floor import surveyor_scenario
 
 
 def _place(
@@ -95,31 +93,17 @@ def lit_site_scenario(
         a, b = (end[1], h - end[1]) if n % 2 == 0 else (h - end[1], end[1])
         mow += [[float(x), a], [float(x), b]]
     start = [m, m, 0.0]
-    return scenario_from_dict(
-        {
-            "name": "lit_site",
-            "description": f"{len(landmarks)} landmarks, every LED lit, lawnmower drive",
-            "seed": seed,
-            "survey_sigma_m": 0.001,
-            "ceiling_height_m": ceiling_m,
-            "lens": lens,
-            "landmarks": landmarks,
-            "radio": {"latency_s": [0.01, 0.03], "loss": 0.0},
-            "robots": [
-                {
-                    "name": "surveyor",
-                    "start": start,
-                    "wheel_base_m": 0.36,
-                    "max_speed_mps": 1.0,
-                    "wheel_radius_error": [0.004, -0.003],
-                    "wheel_base_error": 0.01,
-                    "odometry": {"rate_hz": 100, "noise_rel": 0.01},
-                    "camera": {"drop_rate": 0.01},
-                    "route": {"loop": True, "speed_mps": speed_mps, "waypoints": mow},
-                }
-            ],
-        },
-        source="lit_site",
+    return surveyor_scenario(
+        name="lit_site",
+        description=f"{len(landmarks)} landmarks, every LED lit, lawnmower drive",
+        seed=seed,
+        landmarks=landmarks,
+        start=start,
+        waypoints=mow,
+        speed_mps=speed_mps,
+        ceiling_m=ceiling_m,
+        lens=lens,
+        survey_sigma_m=0.001,
     )
 
 

@@ -12,12 +12,12 @@ from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
-import numpy.typing as npt
 
 from lighting.energy import RadioSleep
 from localizer.camera import CameraModel
 from localizer.events import FrameObserved, OdometryMeasured, SpotsObserved
 from localizer.robot import RobotGeometry
+from localizer.types import FloatArray, ImageU8
 from sim.build import RobotRig, build_robot, build_world, seed_generators
 from sim.radio import SimRadio
 from sim.render import RenderConfig, render_frame
@@ -30,17 +30,22 @@ from sim.world import IN_LIFT, World
 def render_view(
     world: World,
     camera: CameraModel,
-    T_world_body: npt.NDArray[np.float64],
+    T_world_body: FloatArray,
     rng: np.random.Generator,
     config: RenderConfig,
-) -> npt.NDArray[np.uint8]:
+) -> ImageU8:
     """The frame a (true) camera sees from a body pose (4, 4) in the world as it is now."""
     p_cam = (T_world_body @ camera.T_body_camera)[:3, 3]
     sources, intensities = world.point_sources(p_cam)
     return render_frame(
-        camera, T_world_body, sources, intensities, rng=rng, config=config,
+        camera,
+        T_world_body,
+        sources,
+        intensities,
+        rng=rng,
+        config=config,
         extended=world.extended,
-    )  # fmt: skip
+    )
 
 
 @dataclass(frozen=True, eq=False)
@@ -79,9 +84,13 @@ class LiveSite:
         gens = seed_generators(sc.seed if seed is None else seed, 3 + len(sc.robots))
         self.world: World = build_world(sc, gens[0])
         self.radio = SimRadio(
-            self.world, rng=gens[1], latency_s=sc.radio_latency_s, loss=sc.radio_loss,
-            timeout_s=max(0.3, 2.0 * sc.radio_latency_s[1]), sleep=radio_sleep,
-        )  # fmt: skip
+            self.world,
+            rng=gens[1],
+            latency_s=sc.radio_latency_s,
+            loss=sc.radio_loss,
+            timeout_s=max(0.3, 2.0 * sc.radio_latency_s[1]),
+            sleep=radio_sleep,
+        )
         self.observe = observe
         self._render_rng = gens[2]
         self._rigs: dict[str, RobotRig] = {
@@ -158,11 +167,11 @@ class LiveSite:
     def render(
         self,
         name: str,
-        T_world_body: npt.NDArray[np.float64],
+        T_world_body: FloatArray,
         *,
         t_ns: int | None = None,
         floor: str | None = None,
-    ) -> npt.NDArray[np.uint8]:
+    ) -> ImageU8:
         """The frame robot `name`'s true camera sees from a body pose, with the world now
         (with the LEDs as they were at site time `t_ns` when given), on `floor` (None: the
         robot's floor now; `sim.world.IN_LIFT`: in the lift cabin)."""
@@ -171,9 +180,14 @@ class LiveSite:
         on = self.true_floor(name) if floor is None else floor
         sources, intensities = self.world.point_sources(p_cam, t_ns=t_ns, floor=on)
         return render_frame(
-            cam, T_world_body, sources, intensities, rng=self._render_rng,
-            config=self.scenario.render, extended=self.world.extended,
-        )  # fmt: skip
+            cam,
+            T_world_body,
+            sources,
+            intensities,
+            rng=self._render_rng,
+            config=self.scenario.render,
+            extended=self.world.extended,
+        )
 
     def step(self, t_ns: int) -> list[SensorSample]:
         """Advance robots, batteries and people to `t_ns`; the samples due, in time order.
@@ -215,9 +229,15 @@ class LiveSite:
                 if self.observe == "spots":
                     cam = self.rig(name).camera_true
                     spots = observe_spots(
-                        self.world, cam, item.T_world_body, t_out, self._render_rng,
-                        self.scenario.render, led_t_ns=t_local, floor=on,
-                    )  # fmt: skip
+                        self.world,
+                        cam,
+                        item.T_world_body,
+                        t_out,
+                        self._render_rng,
+                        self.scenario.render,
+                        led_t_ns=t_local,
+                        floor=on,
+                    )
                     out.append(SensorSample(name, spots))
                     continue
                 image = self.render(name, item.T_world_body, t_ns=t_local, floor=on)

@@ -19,12 +19,12 @@ from dataclasses import dataclass
 from typing import Protocol
 
 import numpy as np
-import numpy.typing as npt
 
 from localizer.camera import CameraModel, predict_pixels
 from localizer.events import LedsChanged, OdometryMeasured
 from localizer.geometry import T_world_body_from_pose
 from localizer.robot import RobotGeometry
+from localizer.types import ImageU8
 from sim.build import RobotRig, build_robot, build_world, seed_generators
 from sim.cameras import Lens
 from sim.imu import SimImu
@@ -39,7 +39,7 @@ NS = 1_000_000_000
 class RecordingSink(Protocol):
     """Where a simulated drive goes: `recording.RecordingWriter` is one."""
 
-    def add_frame(self, t_ns: int, image: npt.NDArray[np.uint8], /) -> object: ...
+    def add_frame(self, t_ns: int, image: ImageU8, /) -> object: ...
     def add_odometry(self, t_ns: int, v_left: float, v_right: float, /) -> None: ...
     def add_leds(self, event: LedsChanged, /) -> None: ...
     def add_groundtruth(self, t_ns: int, x: float, y: float, theta: float, /) -> None: ...

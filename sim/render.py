@@ -28,9 +28,7 @@ from scipy.special import erf
 
 from localizer.camera import CameraModel, T_camera_world, pixels_from_points_camera
 from localizer.geometry import transform_points
-
-FloatArray = npt.NDArray[np.float64]
-ImageU8 = npt.NDArray[np.uint8]
+from localizer.types import BoolArray, FloatArray, ImageU8
 
 _NOISE_POOL_SEED = 0x1D5EED
 
@@ -125,19 +123,19 @@ def disc_outline(
 @functools.lru_cache(maxsize=4)
 def _noise_pool(
     height: int, width: int, background: float, sigma: float, frames: int, margin: int
-) -> npt.NDArray[np.uint8]:
+) -> ImageU8:
     """Pre-drawn dark frames (background + read noise, rounded and clipped), uint8,
     shape (frames, height + margin, width + margin)."""
     rng = np.random.default_rng(_NOISE_POOL_SEED)
     noise = rng.normal(background, sigma, size=(frames, height + margin, width + margin))
-    pool: npt.NDArray[np.uint8] = np.clip(np.rint(noise), 0, 255).astype(np.uint8)
+    pool: ImageU8 = np.clip(np.rint(noise), 0, 255).astype(np.uint8)
     pool.setflags(write=False)
     return pool
 
 
 def _dark_frame(
     camera: CameraModel, rng: np.random.Generator | None, config: RenderConfig
-) -> npt.NDArray[np.float32] | npt.NDArray[np.uint8]:
+) -> npt.NDArray[np.float32] | ImageU8:
     """The frame before any source is drawn.
 
     Without noise: float32 background, sources added exactly, rounded once at the end.
@@ -157,7 +155,7 @@ def _dark_frame(
 
 
 def _add_patch(
-    frame: npt.NDArray[np.float32] | npt.NDArray[np.uint8], r0: int, c0: int, patch: FloatArray
+    frame: npt.NDArray[np.float32] | ImageU8, r0: int, c0: int, patch: FloatArray
 ) -> None:
     """Add counts to a float frame, or to a uint8 frame with rounding and saturation."""
     rows, cols = slice(r0, r0 + patch.shape[0]), slice(c0, c0 + patch.shape[1])
@@ -170,7 +168,7 @@ def _add_patch(
 
 def _camera_points(
     camera: CameraModel, T_world_body: FloatArray, p_world: FloatArray
-) -> tuple[FloatArray, FloatArray, npt.NDArray[np.bool_]]:
+) -> tuple[FloatArray, FloatArray, BoolArray]:
     """Camera-frame points, their pixels and which are visible in the image."""
     p_camera = transform_points(T_camera_world(camera, T_world_body), p_world)
     pixels, valid = pixels_from_points_camera(camera, p_camera)
@@ -197,7 +195,7 @@ def spot_fluxes(p_camera: FloatArray, intensities: FloatArray, config: RenderCon
 
 
 def add_spots(
-    frame: npt.NDArray[np.float32] | npt.NDArray[np.uint8],
+    frame: npt.NDArray[np.float32] | ImageU8,
     centers: FloatArray,
     fluxes: FloatArray,
     config: RenderConfig,
@@ -245,7 +243,7 @@ def add_spots(
 
 
 def render_extended(
-    frame: npt.NDArray[np.float32] | npt.NDArray[np.uint8],
+    frame: npt.NDArray[np.float32] | ImageU8,
     camera: CameraModel,
     T_world_body: FloatArray,
     source: ExtendedSource,

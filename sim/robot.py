@@ -18,14 +18,12 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-import numpy.typing as npt
 
 from localizer.events import OdometryMeasured
 from localizer.geometry import rotation_z, wrap_angle
 from localizer.odometry import integrate_arc
+from localizer.types import FloatArray
 from sim.routes import DriveLimits, Lift, Route, RouteFollower
-
-FloatArray = npt.NDArray[np.float64]
 
 
 @dataclass(frozen=True)
@@ -290,8 +288,9 @@ class SimRobot:
             return
         if self._lift is not None:
             self.floor, self.in_lift = self._lift.floor, False
-            out.append(FloorArrival(tick_ns, self.floor, (self.x, self.y, self.theta),
-                                    self._lift.announce))  # fmt: skip
+            out.append(
+                FloorArrival(tick_ns, self.floor, (self.x, self.y, self.theta), self._lift.announce)
+            )
             self._lift = None
 
     def _add_frame(self, out: list[OdometryMeasured | FramePose | FloorArrival], t_ns: int) -> None:

@@ -110,11 +110,13 @@ def route_from_node(n: Node, max_speed: float, start_theta: float) -> Route:
             x, y, deg = k.child_vector("to", 3, "[x, y, theta_deg]")
             steps.append(
                 Kidnap(
-                    x, y, math.radians(deg),
+                    x,
+                    y,
+                    math.radians(deg),
                     k.number("carry_s", 2.0, low=0.1, high=60.0),
                     k.number("lift_m", 0.3, low=0.0, high=1.5),
                 )
-            )  # fmt: skip
+            )
         else:
             d = s.child("drive", required=True).mapping(("seconds", "v_mps", "omega_deg_s"))
             steps.append(

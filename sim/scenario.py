@@ -280,8 +280,9 @@ def _floors(doc: Node, layout: _Layout) -> tuple[tuple[FloorSpec, ...], tuple[La
     floors: list[FloorSpec] = []
     landmarks: list[LandmarkSpec] = []
     for n in doc.child("floors").items():
-        n.mapping(("id", "name", "level", "height_m", "landmarks", "landmark_grid",
-                   "landmark_pairs"))  # fmt: skip
+        n.mapping(
+            ("id", "name", "level", "height_m", "landmarks", "landmark_grid", "landmark_pairs")
+        )
         floor = FloorSpec(
             n.string("id"),
             n.string("name", f"Floor {n.string('id')}"),
@@ -401,8 +402,9 @@ def _slips(doc: Node) -> tuple[SlipPatch, ...]:
         left, right = n.child_vector("slip", 2, "[left, right] slip (0..0.9)")
         if not (0 <= left <= 0.9 and 0 <= right <= 0.9):
             raise n.child("slip").error(f"each slip must be in [0, 0.9], got {[left, right]}")
-        out.append(SlipPatch(n.number("x"), n.number("y"), n.number("radius_m", low=0.05),
-                             (left, right)))  # fmt: skip
+        out.append(
+            SlipPatch(n.number("x"), n.number("y"), n.number("radius_m", low=0.05), (left, right))
+        )
     return tuple(out)
 
 

@@ -12,15 +12,13 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import numpy.typing as npt
 
 from localizer.camera import CameraModel, T_camera_world, pixels_from_points_camera
 from localizer.events import SpotsObserved
 from localizer.geometry import transform_points
+from localizer.types import FloatArray
 from sim.render import RenderConfig, spot_fluxes
 from sim.world import World
-
-FloatArray = npt.NDArray[np.float64]
 
 
 def observe_spots(

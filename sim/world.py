@@ -13,13 +13,12 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
-import numpy.typing as npt
 
 from lighting.battery import Battery
 from lighting.energy import EnergyLedger
+from localizer.types import BoolArray, FloatArray
 from sim.render import ExtendedSource
 
-FloatArray = npt.NDArray[np.float64]
 IN_LIFT = "\x00lift"
 """`point_sources(floor=IN_LIFT)`: what a camera in the lift cabin sees (no landmark)."""
 
@@ -100,7 +99,7 @@ class Person:
         cum = np.concatenate([[0.0], np.cumsum(seg)])
         return np.array([np.interp(s, cum, pts[:, 0]), np.interp(s, cum, pts[:, 1])])
 
-    def blocks(self, t_s: float, p_from: FloatArray, p_to: FloatArray) -> npt.NDArray[np.bool_]:
+    def blocks(self, t_s: float, p_from: FloatArray, p_to: FloatArray) -> BoolArray:
         """Which segments p_from -> p_to[i] (shape (N, 3)) pass through the person."""
         c = self.position(t_s)
         a = np.asarray(p_from, dtype=np.float64)
@@ -116,7 +115,7 @@ class Person:
         len2 = np.maximum((d2**2).sum(axis=1), 1e-12)
         s = np.clip(((c - a2) * d2).sum(axis=1) / len2, 0.0, 1.0)
         nearest = a2 + d2 * s[:, None]
-        blocked: npt.NDArray[np.bool_] = (np.linalg.norm(nearest - c, axis=1) < self.radius_m) & (
+        blocked: BoolArray = (np.linalg.norm(nearest - c, axis=1) < self.radius_m) & (
             a[2] < self.height_m
         )
         return blocked

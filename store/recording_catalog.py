@@ -136,8 +136,9 @@ class RecordingCatalog:
                 frames = sum(1 for line in fh if line.strip() and not line.startswith("#"))
         except OSError:
             frames = 0
-        return RecordingInfo(folder.name, robot or folder.name, started, trigger, live, size,
-                             frames)  # fmt: skip
+        return RecordingInfo(
+            folder.name, robot or folder.name, started, trigger, live, size, frames
+        )
 
     # -- download ----------------------------------------------------------------------------
     def zip_file(self, name: str) -> Path:

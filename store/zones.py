@@ -53,12 +53,20 @@ class ZoneStore:
         return z
 
     def create(
-        self, name: str, polygon: Sequence[Sequence[float]], *, floor: str = "",
+        self,
+        name: str,
+        polygon: Sequence[Sequence[float]],
+        *,
+        floor: str = "",
         dwell_s: float | None = None,
-    ) -> ZoneRecord:  # fmt: skip
+    ) -> ZoneRecord:
         check_polygon(polygon)
-        rec = ZoneRecord(name=name, floor=floor, dwell_s=dwell_s,
-                         polygon=[[float(x), float(y)] for x, y in polygon])  # fmt: skip
+        rec = ZoneRecord(
+            name=name,
+            floor=floor,
+            dwell_s=dwell_s,
+            polygon=[[float(x), float(y)] for x, y in polygon],
+        )
         with Session(self.engine, expire_on_commit=False) as s:
             s.add(rec)
             try:

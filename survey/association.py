@@ -25,18 +25,16 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-import numpy.typing as npt
 from scipy.optimize import linear_sum_assignment
 
 from localizer.camera import predict_pixels
 from localizer.geometry import T_world_body_from_pose
+from localizer.types import BoolArray, FloatArray, IntArray
 from survey.ceiling import ceiling_points_world
 from survey.estimates import independent_views, weighted_information
 from survey.layout import Fit
 from survey.problem import BundleConfig, SurveyProblem
 
-FloatArray = npt.NDArray[np.float64]
-IntArray = npt.NDArray[np.int64]
 _FAR = 1e6
 
 
@@ -232,7 +230,7 @@ def name_by_association(
     cfg: BundleConfig,
     fit: Fit,
     labels: IntArray,
-    in_window: npt.NDArray[np.bool_],
+    in_window: BoolArray,
     rejected: set[int],
     z_m: float,
 ) -> tuple[int, dict[int, set[int]]]:

@@ -28,11 +28,11 @@ import math
 from collections.abc import Callable
 
 import numpy as np
-import numpy.typing as npt
 from threadpoolctl import threadpool_limits
 
 from localizer.camera import CameraModel, pixels_from_points_camera
 from localizer.geometry import transform_points
+from localizer.types import BoolArray, FloatArray, IntArray
 from survey.association import name_by_association, unnamed_reasons
 from survey.estimates import survey_result
 from survey.initial import initial_guess
@@ -43,8 +43,6 @@ from survey.problem import BundleConfig, SurveyProblem
 from survey.result import SurveyResult
 from survey.sparse_lm import levenberg_marquardt
 
-FloatArray = npt.NDArray[np.float64]
-IntArray = npt.NDArray[np.int64]
 _NS = 1e-9
 _OUT_OF_VIEW = 100.0
 
@@ -171,7 +169,7 @@ def _adjust(
     zc: float,
     previous: Fit | None,
     budget: int,
-    window: npt.NDArray[np.bool_] | None = None,
+    window: BoolArray | None = None,
 ) -> Fit:
     """One bundle adjustment over the observations `rows` (and the drive they span).
 
@@ -270,7 +268,7 @@ def _adjust(
 
     sigma_px = cfg.pixel_sigma_px
 
-    def project(x: FloatArray) -> tuple[FloatArray, npt.NDArray[np.bool_]]:
+    def project(x: FloatArray) -> tuple[FloatArray, BoolArray]:
         poses, lms, _, c = lay.split(x)
         pw = lms[o_free]
         pk = poses[o_key]

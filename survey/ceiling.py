@@ -11,9 +11,7 @@ import numpy as np
 import numpy.typing as npt
 
 from localizer.camera import CameraModel, bearings_body_from_pixels
-
-FloatArray = npt.NDArray[np.float64]
-BoolArray = npt.NDArray[np.bool_]
+from localizer.types import BoolArray, FloatArray
 
 
 def ceiling_points_body(

@@ -14,7 +14,6 @@ from typing import Any
 
 import cv2
 import numpy as np
-import numpy.typing as npt
 import yaml
 
 from localizer.camera import CameraModel, camera_from_sensor
@@ -22,15 +21,13 @@ from localizer.events import LedsChanged
 from localizer.landmark_map import LandmarkMap
 from localizer.robot import RobotGeometry, robot_from_yaml_dict
 from localizer.spots import DetectionConfig, detect_spots
+from localizer.types import FloatArray, IntArray
 from recording import layout
 from recording.reader import read_frames, read_leds, read_odometry
 from survey.observations import TrackingConfig, label_spot_tracks
 from survey.odometry_chain import relative_motions, wheel_intervals
 from survey.problem import SurveyProblem
 from survey.survey_map import SurveyLandmark, read_survey_map
-
-FloatArray = npt.NDArray[np.float64]
-IntArray = npt.NDArray[np.int64]
 
 
 @dataclass(frozen=True, eq=False)

@@ -7,16 +7,13 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import numpy.typing as npt
 import scipy.sparse as sp
 
+from localizer.types import FloatArray, IntArray
 from survey.layout import Fit
 from survey.normal_equations import BandedSchur
 from survey.problem import BundleConfig, SurveyProblem
 from survey.result import LandmarkEstimate, SurveyResult
-
-FloatArray = npt.NDArray[np.float64]
-IntArray = npt.NDArray[np.int64]
 
 
 def variance_factor(r: FloatArray, huber_k: float, redundancy: int) -> float:

@@ -9,15 +9,12 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import numpy.typing as npt
 
 from localizer.camera import CameraModel
 from localizer.pose import solve_pose
+from localizer.types import FloatArray, IntArray
 from survey.ceiling import ceiling_points_world
 from survey.odometry_chain import compose, dead_reckoning
-
-FloatArray = npt.NDArray[np.float64]
-IntArray = npt.NDArray[np.int64]
 
 
 def invert_deltas(deltas: FloatArray) -> FloatArray:

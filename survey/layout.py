@@ -7,11 +7,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import numpy.typing as npt
 import scipy.sparse as sp
 
-FloatArray = npt.NDArray[np.float64]
-IntArray = npt.NDArray[np.int64]
+from localizer.types import BoolArray, FloatArray, IntArray
+
 N_CAMERA = 10
 """The camera correction: focal scales - 1 (fu, fv), principal point (du, dv) px, mounting
 yaw rad, the change of the first distortion coefficient (k1), mounting roll and pitch rad
@@ -73,7 +72,7 @@ class Fit:
     o_track: IntArray
     o_rows: IntArray  # rows of the observations used, into problem.observations
     err: FloatArray
-    valid: npt.NDArray[np.bool_]
+    valid: BoolArray
     jac: sp.csr_matrix
     fun: FloatArray
     nfev: int

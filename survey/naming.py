@@ -5,14 +5,11 @@
 from __future__ import annotations
 
 import numpy as np
-import numpy.typing as npt
 
+from localizer.types import BoolArray, FloatArray, IntArray
 from survey.ceiling import ceiling_points_world
 from survey.layout import Fit
 from survey.problem import BundleConfig, SurveyProblem
-
-FloatArray = npt.NDArray[np.float64]
-IntArray = npt.NDArray[np.int64]
 
 
 def name_by_geometry(
@@ -20,7 +17,7 @@ def name_by_geometry(
     cfg: BundleConfig,
     fit: Fit,
     labels: IntArray,
-    in_window: npt.NDArray[np.bool_],
+    in_window: BoolArray,
     rejected: set[int],
     zc: float,
 ) -> int:

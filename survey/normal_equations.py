@@ -21,7 +21,7 @@ import numpy.typing as npt
 import scipy.sparse as sp
 from scipy.linalg import cho_factor, cho_solve, cho_solve_banded, cholesky_banded
 
-FloatArray = npt.NDArray[np.float64]
+from localizer.types import FloatArray
 
 
 class BandedSchur:

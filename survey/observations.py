@@ -34,16 +34,13 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
-import numpy.typing as npt
 from scipy.optimize import linear_sum_assignment
 
 from localizer.camera import CameraModel, pixels_from_points_camera
 from localizer.events import LedsChanged
 from localizer.geometry import transform_points
+from localizer.types import BoolArray, FloatArray, IntArray
 from survey.ceiling import ceiling_points_body
-
-FloatArray = npt.NDArray[np.float64]
-IntArray = npt.NDArray[np.int64]
 
 
 @dataclass(frozen=True)
@@ -171,7 +168,7 @@ def settled_states(
 
 def predict_pixels_after_motion(
     camera: CameraModel, pixels: FloatArray, delta: FloatArray, ceiling_z_m: float
-) -> tuple[FloatArray, npt.NDArray[np.bool_]]:
+) -> tuple[FloatArray, BoolArray]:
     """Where ceiling spots (N, 2) appear after the body moved by `delta` (dx, dy, dtheta) in
     its own frame; their rays are taken to meet the ceiling at `ceiling_z_m` above the floor.
     """
@@ -276,7 +273,7 @@ def label_spot_tracks(
 
 
 def _pair(
-    pred: FloatArray, valid: npt.NDArray[np.bool_], spots: FloatArray, gate_px: float
+    pred: FloatArray, valid: BoolArray, spots: FloatArray, gate_px: float
 ) -> list[tuple[int, int]]:
     if len(pred) == 0 or len(spots) == 0:
         return []

@@ -6,14 +6,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-import numpy as np
-import numpy.typing as npt
-
 from localizer.camera import CameraModel
+from localizer.types import FloatArray, IntArray
 from survey.observations import LabelledObservations
-
-FloatArray = npt.NDArray[np.float64]
-IntArray = npt.NDArray[np.int64]
 
 
 @dataclass(frozen=True)

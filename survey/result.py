@@ -6,9 +6,8 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-import numpy.typing as npt
 
-FloatArray = npt.NDArray[np.float64]
+from localizer.types import FloatArray, IntArray
 
 
 @dataclass(frozen=True, eq=False)
@@ -87,7 +86,7 @@ class SurveyResult:
 
     landmarks: dict[int, LandmarkEstimate]
     unseen: tuple[int, ...]
-    trajectory_t_ns: npt.NDArray[np.int64]
+    trajectory_t_ns: IntArray
     trajectory: FloatArray
     wheel_calibration: tuple[float, float, float]
     camera_correction: tuple[float, ...]

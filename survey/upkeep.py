@@ -34,9 +34,9 @@ import numpy.typing as npt
 from localizer.camera import CameraModel
 from localizer.events import PoseEstimate
 from localizer.noise_model import PixelNoiseConfig, PixelNoiseModel
+from localizer.types import FloatArray
 from survey.upkeep_frame import INTRINSICS, frame_evidence, match_spots
 
-FloatArray = npt.NDArray[np.float64]
 ProposalKind = Literal["moved", "refined"]
 
 

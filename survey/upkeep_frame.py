@@ -25,9 +25,8 @@ import numpy.typing as npt
 from localizer.camera import CameraModel, predict_pixels
 from localizer.geometry import T_world_body_from_pose
 from localizer.pose import solve_pose
+from localizer.types import FloatArray
 from survey.ceiling import ceiling_points_world
-
-FloatArray = npt.NDArray[np.float64]
 
 _STEP_M = 1e-4
 """Finite-difference step of a landmark position, metres."""

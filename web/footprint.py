@@ -15,12 +15,11 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import numpy.typing as npt
 
 from localizer.camera import CameraModel, rays_from_pixels
+from localizer.types import FloatArray
 from web.geometry import image_border_pixels
 
-FloatArray = npt.NDArray[np.float64]
 Bounds = tuple[float, float, float, float]
 """x_min, x_max, y_min, y_max, metres."""
 

@@ -14,8 +14,7 @@ import numpy.typing as npt
 from commissioning.geometry import points_on_ceiling
 from localizer.camera import CameraModel
 from localizer.geometry import T_world_body_from_pose
-
-FloatArray = npt.NDArray[np.float64]
+from localizer.types import FloatArray
 
 
 def ellipse_axes(cov_xy: npt.ArrayLike, *, n_sigma: float = 2.0) -> tuple[float, float, float]:

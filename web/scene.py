@@ -24,10 +24,10 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-import numpy.typing as npt
 import viser
 
 from commissioning.coverage import Coverage, SpacingFlag
+from localizer.types import FloatArray
 from web.colors import (
     LIT_COLOR,
     RGB,
@@ -41,7 +41,6 @@ from web.footprint import Bounds, footprint_in_site, usable_footprint_body
 from web.geometry import ellipse_points
 from web.services import LandmarkState, RobotState
 
-FloatArray = npt.NDArray[np.float64]
 TRAIL_COLOR: RGB = (90, 90, 200)
 FOOTPRINT_COLOR: RGB = (80, 160, 200)
 RAY_COLOR: RGB = (250, 220, 90)

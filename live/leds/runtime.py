@@ -1,8 +1,9 @@
 """`LedScheduler`: runs the LED policy on the server's loop and keeps its books.
 
 Every `period_s` it reads each robot's latest pose (speed and turn rate from the change since
-the last plan), plans (`policy.plan_leds`) and hands the lit set to the LED coordinator,
-which lights it as the site's normal state (a robot's identification probe then darkens one
+the last plan) and plans (`policy.plan_leds`) on a worker thread (a plan for a hundred robots
+would hold up every pose on the loop), then hands the lit set to the LED coordinator on the
+loop, which lights it as the site's normal state (a robot's identification probe then darkens one
 landmark *of it*). It also counts what the plan did: lit-seconds per landmark (the wear it
 spreads, and each landmark's duty cycle for the days-left model), the site's lit fraction,
 and why each landmark is lit.
@@ -221,8 +222,10 @@ class LedScheduler:
             dt = max((t_ns - self._t_books_ns) * _NS, 0.0)
             self.accounted_s += dt
             self.lit_landmark_s += dt * len(lit)
+            books = dict(self.lit_s)  # replaced whole: the API's threads read it meanwhile
             for lid in lit:
-                self.lit_s[lid] = self.lit_s.get(lid, 0.0) + dt
+                books[lid] = books.get(lid, 0.0) + dt
+            self.lit_s = books
         self._t_books_ns = t_ns
         return lit
 
@@ -257,6 +260,11 @@ class LedScheduler:
 
     def step(self, t_ns: int) -> LedPlan:
         """Account the time since the last step and plan (call every `period_s`)."""
+        return self._apply(t_ns, *self._plan(t_ns))
+
+    def _plan(self, t_ns: int) -> tuple[LedPlan, list[RobotState], bool]:
+        """The books and the plan (any one thread at a time: `_run` runs it off the loop,
+        a plan for many robots takes long enough to hold up every pose on it)."""
         self._account(t_ns)
         lit = self._heading()
         ids, positions = self._landmarks()
@@ -286,6 +294,12 @@ class LedScheduler:
         )
         for lid in plan.wanted | plan.planned:
             self._chosen_ns[lid] = t_ns
+        return plan, robots, switching
+
+    def _apply(
+        self, t_ns: int, plan: LedPlan, robots: list[RobotState], switching: bool
+    ) -> LedPlan:
+        """Take a plan on the loop: the wake window, the coordinator (`on_plan`)."""
         self._update_wake_window(robots, t_ns, switching=switching)
         changed = self.plan is None or plan.lit != self.plan.lit
         self.plan = plan
@@ -340,7 +354,8 @@ class LedScheduler:
     async def _run(self) -> None:
         while True:
             try:
-                self.step(self._clock_ns())
+                t_ns = self._clock_ns()
+                self._apply(t_ns, *await asyncio.to_thread(self._plan, t_ns))
             except Exception:
                 log.exception("LED schedule failed")
             await asyncio.sleep(self.period_s)

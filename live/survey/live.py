@@ -17,12 +17,12 @@ from dataclasses import dataclass, field
 from typing import Literal
 
 import numpy as np
-import numpy.typing as npt
 
 from localizer.camera import CameraModel
 from localizer.events import Event, FrameObserved, LedsChanged, OdometryMeasured, SpotsObserved
 from localizer.robot import RobotGeometry
 from localizer.spots import DetectionConfig, detect_spots
+from localizer.types import FloatArray
 from survey.drive import SurveyDrive
 from survey.problem import BundleConfig
 from survey.result import LandmarkEstimate
@@ -31,7 +31,6 @@ from survey.survey_map import SurveyLandmark
 
 log = logging.getLogger(__name__)
 
-FloatArray = npt.NDArray[np.float64]
 
 LandmarkSurveyState = Literal["anchor", "converging", "converged", "flagged"]
 

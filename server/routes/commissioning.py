@@ -116,10 +116,15 @@ def status_public(st: WizardStatus) -> WizardStatusPublic:
     if m is not None:
         x, y, z = m.position
         meas = MeasurementPublic(
-            x=x, y=y, z=z, samples=m.samples, spread_m=m.spread_m,
-            distance_from_map_m=m.plausibility.distance_m, far=m.plausibility.far,
+            x=x,
+            y=y,
+            z=z,
+            samples=m.samples,
+            spread_m=m.spread_m,
+            distance_from_map_m=m.plausibility.distance_m,
+            far=m.plausibility.far,
             note=m.plausibility.note,
-        )  # fmt: skip
+        )
     return WizardStatusPublic(
         phase=st.phase,
         robot=st.robot,
@@ -193,9 +198,12 @@ def get_coverage(
     cov = services.commissioning.coverage(robot, step_m=step_m)
     err = [[None if not math.isfinite(v) else float(v) for v in row] for row in cov.error_m]
     return CoveragePublic(
-        robot=robot, xs=cov.xs.tolist(), ys=cov.ys.tolist(), counts=cov.counts.tolist(),
+        robot=robot,
+        xs=cov.xs.tolist(),
+        ys=cov.ys.tolist(),
+        counts=cov.counts.tolist(),
         error_m=err,
-    )  # fmt: skip
+    )
 
 
 @router.get("/spacing")
@@ -225,8 +233,11 @@ def wizard_start(body: WizardStart, services: ServicesDep, who: Admin) -> Wizard
     c = services.commissioning
     if not body.landmarks and not body.radios:
         raise ValueError("landmarks, radios: name at least one landmark ID or radio address")
-    suggested = {cand.radio: cand for cand in c.to_identify(
-        [(r.address, r.node_id) for r in services.leds.discovered]) if cand.radio}  # fmt: skip
+    suggested = {
+        cand.radio: cand
+        for cand in c.to_identify([(r.address, r.node_id) for r in services.leds.discovered])
+        if cand.radio
+    }
     taken = {lm.id for lm in services.map.list()}
     queue = [Candidate(lid) for lid in body.landmarks]
     for address in body.radios:

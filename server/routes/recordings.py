@@ -26,10 +26,12 @@ router = APIRouter(prefix="/recordings", tags=["recordings"])
 RecordingName = Annotated[
     str,
     PathParam(
-        min_length=1, max_length=128, pattern=r"^[A-Za-z0-9_.-]+$",
+        min_length=1,
+        max_length=128,
+        pattern=r"^[A-Za-z0-9_.-]+$",
         description="the recording's name, as listed",
     ),
-]  # fmt: skip
+]
 
 
 class RecordingPublic(BaseModel):
@@ -49,9 +51,14 @@ class RecordingPublic(BaseModel):
 
 def _public(r: RecordingInfo) -> RecordingPublic:
     return RecordingPublic(
-        name=r.name, robot=r.robot, started=r.started, trigger=r.trigger, live=r.live,
-        size_bytes=r.size_bytes, frames=r.frames,
-    )  # fmt: skip
+        name=r.name,
+        robot=r.robot,
+        started=r.started,
+        trigger=r.trigger,
+        live=r.live,
+        size_bytes=r.size_bytes,
+        frames=r.frames,
+    )
 
 
 @router.get("")

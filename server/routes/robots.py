@@ -208,9 +208,15 @@ def _watch(services: ServicesDep) -> FloorWatch:
 
 def _proposal(services: ServicesDep, p: FloorProposal) -> FloorProposalPublic:
     return FloorProposalPublic(
-        robot=p.robot, floor=p.floor, current_floor=services.robots.get(p.robot).floor,
-        x=p.x, y=p.y, theta=p.theta, t_ns=p.t_ns, fixes=p.fixes,
-    )  # fmt: skip
+        robot=p.robot,
+        floor=p.floor,
+        current_floor=services.robots.get(p.robot).floor,
+        x=p.x,
+        y=p.y,
+        theta=p.theta,
+        t_ns=p.t_ns,
+        fixes=p.fixes,
+    )
 
 
 @router.get("/{name}/floor-proposal")

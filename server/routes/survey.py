@@ -92,21 +92,39 @@ class SurveyStatusPublic(BaseModel):
 
 def _public(st: SurveyStatus) -> SurveyStatusPublic:
     return SurveyStatusPublic(
-        state=st.state, robot=st.robot, recording=st.recording, started_s=st.started_s,
-        blinks=st.blinks, message=st.message,
+        state=st.state,
+        robot=st.robot,
+        recording=st.recording,
+        started_s=st.started_s,
+        blinks=st.blinks,
+        message=st.message,
         proposals=[
             ProposalPublic(
-                landmark_id=p.landmark_id, x=p.x, y=p.y, z=p.z, sigma_m=p.sigma_m,
-                moved_m=p.moved_m, views=p.views, rms_px=p.rms_px, anchor=p.anchor,
-                flags=list(p.flags), state=p.state, ellipse_major_m=p.ellipse[0],
-                ellipse_minor_m=p.ellipse[1], ellipse_angle_rad=p.ellipse[2],
+                landmark_id=p.landmark_id,
+                x=p.x,
+                y=p.y,
+                z=p.z,
+                sigma_m=p.sigma_m,
+                moved_m=p.moved_m,
+                views=p.views,
+                rms_px=p.rms_px,
+                anchor=p.anchor,
+                flags=list(p.flags),
+                state=p.state,
+                ellipse_major_m=p.ellipse[0],
+                ellipse_minor_m=p.ellipse[1],
+                ellipse_angle_rad=p.ellipse[2],
             )
             for p in st.proposals
         ],
-        accepted=list(st.accepted), unseen=list(st.unseen), drive_s=st.drive_s,
-        estimates=st.estimates, route=list(st.route),
-        converged_sigma_m=st.converged_sigma_m, no_radio=list(st.no_radio),
-    )  # fmt: skip
+        accepted=list(st.accepted),
+        unseen=list(st.unseen),
+        drive_s=st.drive_s,
+        estimates=st.estimates,
+        route=list(st.route),
+        converged_sigma_m=st.converged_sigma_m,
+        no_radio=list(st.no_radio),
+    )
 
 
 @router.get("")

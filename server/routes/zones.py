@@ -47,9 +47,11 @@ class ZoneCreate(BaseModel):
     polygon: list[tuple[float, float]] = Field(min_length=3, max_length=1000)
     floor: str = Field(default="", max_length=64, description="the site's floor ('' for one)")
     dwell_s: float | None = Field(
-        default=None, gt=0, le=86_400,
+        default=None,
+        gt=0,
+        le=86_400,
         description="a zone_dwell event when a robot stays longer than this, seconds",
-    )  # fmt: skip
+    )
 
 
 class ZoneUpdate(BaseModel):
@@ -94,8 +96,14 @@ class Coverage(BaseModel):
 
 def _zone(z: ZoneRecord) -> ZonePublic:
     assert z.id is not None  # stored
-    return ZonePublic(id=z.id, name=z.name, polygon=[(p[0], p[1]) for p in z.polygon],
-                      floor=z.floor, dwell_s=z.dwell_s, created_at=z.created_at)  # fmt: skip
+    return ZonePublic(
+        id=z.id,
+        name=z.name,
+        polygon=[(p[0], p[1]) for p in z.polygon],
+        floor=z.floor,
+        dwell_s=z.dwell_s,
+        created_at=z.created_at,
+    )
 
 
 def _utc(t: datetime | None) -> datetime | None:
@@ -153,8 +161,14 @@ def _range(
     return since, until
 
 
-def _poses(services: ServicesDep, robot: str | None, since: datetime | None,
-           until: datetime | None, limit: int, floor: str | None) -> list[PoseRecord]:  # fmt: skip
+def _poses(
+    services: ServicesDep,
+    robot: str | None,
+    since: datetime | None,
+    until: datetime | None,
+    limit: int,
+    floor: str | None,
+) -> list[PoseRecord]:
     since, until = _range(since, until)
     return services.pose_history.query(
         robot=robot, since=since, until=until, limit=limit, floor=floor

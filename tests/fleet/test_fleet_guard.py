@@ -106,7 +106,7 @@ def test_a_pose_outside_the_site_is_dropped_and_counted(site: tuple[Api, int]) -
         far = PoseMessage(seq=1, t_ns=time.time_ns(), wall_ns=time.time_ns(), mode="landmark",
                           x=1e300, y=0.0, theta=0.0)  # fmt: skip
         c.pub(T.pose("a1"), far.encode())
-        wait_until(lambda: bridge.poses_outside >= 1, 5, "the far pose counted")
+        wait_until(lambda: bridge.guard.poses_outside >= 1, 5, "the far pose counted")
         r = api.client.get("/api/v1/robots/a1/pose", headers=api.h("viewer"))
         assert r.status_code in (200, 404) and (r.status_code == 404 or r.json()["x"] != 1e300)
         assert any(k == "fleet_intrusion" and "outside the site" in m for k, _, m in kinds(api))
@@ -122,7 +122,7 @@ def test_a_foreign_map_is_replaced_by_the_sites(site: tuple[Api, int]) -> None:
     c = Client(port, "mapper")
     try:
         c.pub(T.map, fake, retain=True)
-        wait_until(lambda: bridge.foreign_maps >= 1, 5, "the foreign map seen")
+        wait_until(lambda: bridge.guard.foreign_maps >= 1, 5, "the foreign map seen")
     finally:
         c.close()
     late = Client(port, "late-agent")  # an agent arriving now gets the retained map
@@ -141,14 +141,14 @@ def test_on_an_open_broker_without_a_list_led_requests_are_not_served(
     bridge = api.client.app.state.mqtt_bridge  # type: ignore[attr-defined]
     coordinator = api.services.leds.coordinator
     c = Client(port, "a1-leds")
-    kept = bridge.admitted
+    kept = bridge.guard.admitted
     try:
         c.arrive("a1")
         wait_until(lambda: "a1" in api.services.robots.names(), 10, "a1 registered")
-        bridge.admitted = ()  # as with no mqtt_agents and no broker login
+        bridge.guard.admitted = ()  # as with no mqtt_agents and no broker login
         before = coordinator.requests
         c.pub(T.led_request("a1"), json.dumps({"lit": [], "all_lit": True, "dark": [101]}).encode())
-        wait_until(lambda: bridge.led_requests_refused >= 1, 5, "the request refused")
+        wait_until(lambda: bridge.guard.led_requests_refused >= 1, 5, "the request refused")
         assert coordinator.requests == before
         wait_until(  # (events are stored by the site's event writer, on its own thread)
             lambda: any("not served" in m for k, _, m in kinds(api) if k == "fleet_intrusion"),
@@ -156,5 +156,5 @@ def test_on_an_open_broker_without_a_list_led_requests_are_not_served(
             "a fleet_intrusion event saying the request was not served",
         )
     finally:
-        bridge.admitted = kept
+        bridge.guard.admitted = kept
         c.close()

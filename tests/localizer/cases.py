@@ -17,7 +17,6 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
-import numpy.typing as npt
 
 from localizer.camera import CameraModel, T_body_camera_upward
 from localizer.config import LocalizerConfig
@@ -32,12 +31,11 @@ from localizer.geometry import T_world_body_from_pose, wrap_angle
 from localizer.landmark_map import LandmarkMap
 from localizer.localizer import Localizer
 from localizer.robot import RobotGeometry
+from localizer.types import FloatArray, Pose
 from sim.cameras import wide_angle_camera
 from sim.render import render_frame
 from tests.localizer.drive import leds_after
 
-FloatArray = npt.NDArray[np.float64]
-Pose = tuple[float, float, float]
 Segment = tuple[float, float, float]  # (seconds, v m/s, omega rad/s)
 
 

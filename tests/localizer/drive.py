@@ -21,9 +21,8 @@ from localizer.events import (
 from localizer.geometry import T_world_body_from_pose, wrap_angle
 from localizer.landmark_map import LandmarkMap
 from localizer.localizer import Localizer
+from localizer.types import Pose
 from sim.render import ExtendedSource, render_frame
-
-Pose = tuple[float, float, float]
 
 
 @dataclass

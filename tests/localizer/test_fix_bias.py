@@ -7,9 +7,10 @@ import math
 
 import numpy as np
 
+from localizer.filter_config import FilterConfig
 from localizer.fix_bias import carried_correlation, carry_bias, consider_update, moved_bias
 from localizer.pose import PoseFix
-from localizer.pose_filter import FilterConfig, PoseFilter
+from localizer.pose_filter import PoseFilter
 
 W = 0.36
 

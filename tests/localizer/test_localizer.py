@@ -5,7 +5,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import numpy.typing as npt
 import pytest
 
 from localizer.camera import CameraModel, T_body_camera_upward, predict_pixels
@@ -24,6 +23,7 @@ from localizer.identification import Sighting
 from localizer.landmark_map import LandmarkMap
 from localizer.localizer import Localizer
 from localizer.robot import RobotGeometry
+from localizer.types import FloatArray
 from sim.cameras import wide_angle_camera
 from tests.localizer.drive import drive
 
@@ -267,7 +267,7 @@ def test_estimate_says_which_lit_landmarks_were_expected_and_which_used() -> Non
     assert all(set(o.landmark_ids) <= set(o.expected_ids) for o in tracked)
 
 
-def _triangle_seen() -> tuple[Localizer, npt.NDArray[np.float64], tuple[float, float, float]]:
+def _triangle_seen() -> tuple[Localizer, FloatArray, tuple[float, float, float]]:
     """A localizer over TRIANGLE, and the landmarks' pixels from a pose (all in view)."""
     cam = _camera("pinhole", "centred")
     pose = (0.45, 0.3, 0.7)

@@ -11,10 +11,10 @@ from localizer.camera import CameraModel, predict_pixels
 from localizer.geometry import T_world_body_from_pose
 from localizer.online_calibration import OnlineCalibration, reprojection_chi2
 from localizer.self_calibration import SelfCalibrationConfig, corrected_camera
+from localizer.types import Pose
 from tests.localizer.cases import grid_positions, strong_radtan_camera
 
 GRID = grid_positions(9, 6, 0.5, 2.5)
-Pose = tuple[float, float, float]
 
 
 def _path(n: int) -> list[Pose]:

@@ -6,10 +6,12 @@ from dataclasses import dataclass
 import numpy as np
 import pytest
 
+from localizer.calibrated_odometry import jacob_f, motion_model
+from localizer.filter_config import FilterConfig
 from localizer.geometry import wrap_angle
 from localizer.odometry import integrate_arc
 from localizer.pose import PoseFix
-from localizer.pose_filter import FilterConfig, PoseFilter, jacob_f, motion_model
+from localizer.pose_filter import PoseFilter
 
 W = 0.36  # configured wheel base, metres
 K_TRUE = (1.01, 1.0, 1.02)  # right wheel 1 % larger, wheel base 2 % longer than configured

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from localizer.pose_filter import jacob_f, motion_model
+from localizer.calibrated_odometry import jacob_f, motion_model
 from localizer.propagation import DeferredPropagation
 
 W = 0.36

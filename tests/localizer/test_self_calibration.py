@@ -19,12 +19,12 @@ from localizer.self_calibration import (
     corrected_camera,
     project_with_jacobians,
 )
+from localizer.types import Pose
 from tests.localizer.cases import fisheye_camera, grid_positions, strong_radtan_camera
 
 # cu, cv px; k1, k2 relative; focal relative; yaw rad
 TRUE_C = np.array([0.5, -0.4, 0.04, -0.03, 0.0015, math.radians(0.3)])
 GRID = grid_positions(9, 6, 0.5, 2.5)
-Pose = tuple[float, float, float]
 
 
 def _frames(

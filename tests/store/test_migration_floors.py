@@ -11,7 +11,7 @@ import shutil
 from pathlib import Path
 
 from alembic import command
-from sqlalchemy import text
+from sqlalchemy import Connection, text
 
 from store import MapRepository, RobotStore
 from store.db import alembic_config, make_engine, migrate
@@ -19,6 +19,18 @@ from store.floors import FloorStore, map_hash
 from store.map_versions import MapVersions
 
 FIXTURE = Path(__file__).parents[1] / "data" / "floors" / "single_floor_0004.db"
+
+
+def _seed_0004_landmark(conn: Connection) -> None:
+    """Landmark 7 at (1.5, -2.0, 2.5) as a schema-0004 database holds it (no floor)."""
+    conn.execute(
+        text(
+            "INSERT INTO landmarks (id, x, y, z, radio, locked, note, created_at, "
+            "updated_at) VALUES (7, 1.5, -2.0, 2.5, NULL, :no, '', '2025-01-02 03:04:05', "
+            "'2025-01-02 03:04:05')"
+        ),
+        {"no": False},
+    )
 
 
 def test_a_single_floor_database_opens_as_floor_0(tmp_path: Path) -> None:
@@ -59,14 +71,7 @@ def test_0005_upgrades_a_0004_database_with_its_landmarks_and_downgrades(db_url:
     engine = make_engine(db_url)
     migrate(engine, "0004")
     with engine.begin() as conn:
-        conn.execute(
-            text(
-                "INSERT INTO landmarks (id, x, y, z, radio, locked, note, created_at, "
-                "updated_at) VALUES (7, 1.5, -2.0, 2.5, NULL, :no, '', '2025-01-02 03:04:05', "
-                "'2025-01-02 03:04:05')"
-            ),
-            {"no": False},
-        )
+        _seed_0004_landmark(conn)
     migrate(engine, "0005")
     with engine.connect() as conn:  # (the models are the head's: read the row as 0005 left it)
         assert conn.execute(text("SELECT floor FROM landmarks WHERE id = 7")).scalar() == "0"
@@ -83,14 +88,7 @@ def test_0005_keeps_battery_readings(db_url: str) -> None:
     engine = make_engine(db_url)
     migrate(engine, "0004")
     with engine.begin() as conn:
-        conn.execute(
-            text(
-                "INSERT INTO landmarks (id, x, y, z, radio, locked, note, created_at, "
-                "updated_at) VALUES (7, 1.5, -2.0, 2.5, NULL, :no, '', '2025-01-02 03:04:05', "
-                "'2025-01-02 03:04:05')"
-            ),
-            {"no": False},
-        )
+        _seed_0004_landmark(conn)
         conn.execute(
             text(
                 "INSERT INTO battery_readings (landmark_id, t, supply_mv) "

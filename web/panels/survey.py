@@ -13,16 +13,14 @@ import math
 from collections.abc import Callable, Sequence
 
 import numpy as np
-import numpy.typing as npt
 import viser
 
 from live.survey.service import Proposal, SurveyStatus
+from localizer.types import FloatArray
 from web.colors import RGB, ROUTE_COLOR, SURVEY_STATE_COLORS
 from web.roles import Session
 from web.scene import polyline_segments
 from web.services import LandmarkState, ViewerSite
-
-FloatArray = npt.NDArray[np.float64]
 
 MIN_RING_M = 0.15
 """An ellipse is drawn at least this large (a converged one is millimetres across)."""
