@@ -40,6 +40,7 @@ EventKind = Literal[
     "fleet_intrusion",
     "alert_raised",
     "alert_resolved",
+    "cells_replaced",
 ]
 """What an event is about (the API's enumerated type). A new kind is added here: every
 emitter is typed with it (`EventHub.emit`, `EmitEvent`), so mypy refuses a kind not listed."""

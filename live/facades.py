@@ -288,7 +288,10 @@ class LedsAndRadio:
     def battery(self, landmark_id: int) -> BatteryStatus:
         """Latest reading, percent, days left and history from the database."""
         self.map.get(landmark_id)
-        rows = self.log.battery_history(landmark_id)
+        replaced = self.log.last_event("cells_replaced", landmark_id=landmark_id)
+        # new cells: the old ones' readings say nothing of them (a trend across the swap
+        # would read as a charging battery)
+        rows = self.log.battery_history(landmark_id, since=None if replaced is None else replaced.t)
         if not rows:
             return BatteryStatus(landmark_id, None, None, None, [])
         cfg = self.gateway.config.battery if self.gateway is not None else BatteryMonitorConfig()

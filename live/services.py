@@ -35,6 +35,7 @@ from store import EventLog, KeyStore, MapRepository, RobotStore
 from store.db import make_engine, migrate
 from store.errors import UnavailableError
 from store.floorplan import FloorPlanStore
+from store.floorplans import FloorPlans
 from store.floors import FloorStore
 from store.landmarks import parse_map_json
 from store.map_versions import MapVersions
@@ -77,6 +78,7 @@ class SiteServices:
         self.floors = FloorStore(self.engine)
         self.map_versions = MapVersions(self.engine, self.map, self.floors)
         self.floorplan = FloorPlanStore(settings.data_dir)
+        self.floorplans = FloorPlans(settings.data_dir, self.floors, self.floorplan)
         self.keys = KeyStore(self.engine)
         self.robot_store = RobotStore(self.engine)
         self.log = EventLog(self.engine)

@@ -4,7 +4,8 @@ the floor with enter, exit and dwell events.
 One `PosePump` feeds both from the pose bus. A robot's pose is kept at most every
 `keep_every_s` (1 s: about 86,400 rows a robot a day), and only while it has one (a robot
 identifying or lost adds nothing); rows older than `keep_days` are removed hourly. A robot is
-inside a zone when its position lies in the zone's polygon (matplotlib's path test); entering
+inside a zone when it is on the zone's floor (or the zone has none) and its position lies in
+the zone's polygon (matplotlib's path test); entering
 and leaving are events (`zone_enter`, `zone_exit` with the time spent), and staying longer
 than the zone's `dwell_s` one `zone_dwell` per visit. Only poses from landmark fixes and dead
 reckoning count: a robot that loses its pose leaves no zone until it has one again.
@@ -100,9 +101,9 @@ class ZonesAndHistory:
                 kept.append(PoseRecord(
                     robot=upd.robot, t=datetime.fromtimestamp(wall_s, UTC),
                     t_ns=upd.t_ns, x=upd.x, y=upd.y, theta=upd.theta, sigma_m=sigma,
-                    mode=upd.mode,
+                    mode=upd.mode, floor=upd.floor,
                 ))  # fmt: skip
-            self._zones_at(upd.robot, upd.x, upd.y, wall_s)
+            self._zones_at(upd.robot, upd.floor, upd.x, upd.y, wall_s)
         self.history.add(kept)
         now = time.monotonic()
         if now >= self._next_prune:
@@ -113,13 +114,15 @@ class ZonesAndHistory:
                 log.info("pose history: %d poses older than %s removed", gone, cutoff)
         return len(kept)
 
-    def _zones_at(self, robot: str, x: float, y: float, wall_s: float) -> None:
+    def _zones_at(self, robot: str, floor: str, x: float, y: float, wall_s: float) -> None:
         with self._lock:
             paths = list(self._paths)
         for zone, path in paths:
             assert zone.id is not None  # stored
             key = (robot, zone.id)
-            inside = bool(path.contains_point((x, y)))
+            # a zone of another floor is not where the robot is, whatever its x, y (each
+            # floor's map frame has its own origin); a zone of no floor ("") is on every one
+            inside = zone.floor in ("", floor) and bool(path.contains_point((x, y)))
             with self._lock:
                 visit = self._inside.get(key)
                 if inside and visit is None:
@@ -159,3 +162,18 @@ def coverage_grid(xy: np.ndarray, cell_m: float) -> tuple[tuple[float, float], n
     counts = np.zeros((n[1], n[0]), dtype=np.int64)
     np.add.at(counts, (idx[:, 1], idx[:, 0]), 1)
     return (float(lo[0]), float(lo[1])), counts
+
+
+def grid_from_cells(
+    cells: Sequence[tuple[int, int, int]], cell_m: float
+) -> tuple[tuple[float, float], np.ndarray]:
+    """Sparse (column, row, count) cells (`PoseHistory.cell_counts`) as the dense grid of
+    `coverage_grid`: ((x0, y0) of cell [0, 0]'s corner, counts (rows, cols))."""
+    if not cells:
+        return (0.0, 0.0), np.zeros((0, 0), dtype=np.int64)
+    a = np.asarray(cells, dtype=np.int64).reshape(-1, 3)
+    lo = a[:, :2].min(axis=0)
+    n = a[:, :2].max(axis=0) - lo + 1
+    counts = np.zeros((n[1], n[0]), dtype=np.int64)
+    np.add.at(counts, (a[:, 1] - lo[1], a[:, 0] - lo[0]), a[:, 2])
+    return (float(lo[0] * cell_m), float(lo[1] * cell_m)), counts

@@ -215,6 +215,13 @@ class World:
                 lm.battery.draw(led_ma * dt_s / 3600.0 + radio_mah)
         self._battery_t_ns = t_ns
 
+    def replace_cells(self, landmark_id: int) -> None:
+        """Fresh cells in a landmark (what a technician does on a ladder): full charge, the
+        same circuit; KeyError for an unknown landmark."""
+        with self._lock:
+            lm = self.landmarks[landmark_id]
+            lm.battery = Battery(lm.battery.config)
+
     def radio_message(self, landmark_id: int, extra_awake_s: float = 0.0) -> None:
         """A command reached the landmark and it answered (and stays awake `extra_awake_s`
         longer than it would have; negative: shorter, after a shorter `ST`): account the

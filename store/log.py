@@ -30,8 +30,10 @@ class EventLog:
             s.commit()
             return True
 
-    def battery_history(self, landmark_id: int, limit: int = 500) -> list[BatteryRecord]:
-        """Readings of one landmark, oldest first (the newest `limit`)."""
+    def battery_history(
+        self, landmark_id: int, limit: int = 500, *, since: datetime | None = None
+    ) -> list[BatteryRecord]:
+        """Readings of one landmark, oldest first (the newest `limit`; from `since` on)."""
         with Session(self.engine) as s:
             q = (
                 select(BatteryRecord)
@@ -39,7 +41,17 @@ class EventLog:
                 .order_by(col(BatteryRecord.t).desc())
                 .limit(limit)
             )
+            if since is not None:
+                q = q.where(col(BatteryRecord.t) >= since)
             return list(reversed(list(s.exec(q))))
+
+    def last_event(self, kind: str, *, landmark_id: int | None = None) -> EventRecord | None:
+        """The newest event of this kind (about this landmark), None when there is none."""
+        with Session(self.engine) as s:
+            q = select(EventRecord).where(EventRecord.kind == kind)
+            if landmark_id is not None:
+                q = q.where(EventRecord.landmark_id == landmark_id)
+            return s.exec(q.order_by(col(EventRecord.id).desc()).limit(1)).first()
 
     def add_event(
         self,

@@ -453,3 +453,4 @@ class PoseRecord(SQLModel, table=True):
     theta: float
     sigma_m: float | None = None
     mode: str
+    floor: str = Field(default="0", description="the floor whose map frame x, y are in")

@@ -7,7 +7,7 @@ import threading
 from collections.abc import Callable, Sequence
 from datetime import datetime
 
-from sqlalchemy import Engine, delete
+from sqlalchemy import ColumnElement, Engine, delete, func
 from sqlalchemy.exc import IntegrityError
 from sqlmodel import Session, col, select
 
@@ -77,6 +77,43 @@ class ZoneStore:
         self._changed()
         return rec
 
+    def update(
+        self,
+        zone_id: int,
+        *,
+        name: str | None = None,
+        polygon: Sequence[Sequence[float]] | None = None,
+        floor: str | None = None,
+        dwell_s: float | None = None,
+        clear_dwell: bool = False,
+    ) -> ZoneRecord:
+        """Change the fields given (None keeps one; `clear_dwell` drops the dwell limit);
+        NotFoundError, ConflictError (the name is taken), ValueError (a bad polygon)."""
+        if polygon is not None:
+            check_polygon(polygon)
+        with Session(self.engine, expire_on_commit=False) as s:
+            z = s.get(ZoneRecord, zone_id)
+            if z is None:
+                raise NotFoundError(f"no zone {zone_id}")
+            if name is not None:
+                z.name = name
+            if polygon is not None:
+                z.polygon = [[float(x), float(y)] for x, y in polygon]
+            if floor is not None:
+                z.floor = floor
+            if clear_dwell:
+                z.dwell_s = None
+            elif dwell_s is not None:
+                z.dwell_s = dwell_s
+            s.add(z)
+            try:
+                s.commit()
+            except IntegrityError:
+                raise ConflictError(f"a zone named {name!r} exists already") from None
+            s.refresh(z)
+        self._changed()
+        return z
+
     def delete(self, zone_id: int) -> None:
         with Session(self.engine) as s:
             z = s.get(ZoneRecord, zone_id)
@@ -96,6 +133,22 @@ class ZoneStore:
             listeners = builtins.list(self._listeners)
         for fn in listeners:
             fn(zones)
+
+
+def _conditions(
+    robot: str | None, since: datetime | None, until: datetime | None, floor: str | None
+) -> builtins.list[ColumnElement[bool]]:
+    """The WHERE terms of a history read (None: no bound)."""
+    conds: builtins.list[ColumnElement[bool]] = []
+    if robot is not None:
+        conds.append(col(PoseRecord.robot) == robot)
+    if since is not None:
+        conds.append(col(PoseRecord.t) >= since)
+    if until is not None:
+        conds.append(col(PoseRecord.t) < until)
+    if floor is not None:
+        conds.append(col(PoseRecord.floor) == floor)
+    return conds
 
 
 class PoseHistory:
@@ -118,17 +171,64 @@ class PoseHistory:
         since: datetime | None = None,
         until: datetime | None = None,
         limit: int = 10_000,
+        floor: str | None = None,
     ) -> builtins.list[PoseRecord]:
-        """Poses oldest first, of `robot` (None: all), in [since, until)."""
+        """Poses oldest first, of `robot` (None: all), in [since, until), on `floor`
+        (None: every floor)."""
         with Session(self.engine, expire_on_commit=False) as s:
             q = select(PoseRecord).order_by(col(PoseRecord.t), col(PoseRecord.id)).limit(limit)
-            if robot is not None:
-                q = q.where(PoseRecord.robot == robot)
-            if since is not None:
-                q = q.where(col(PoseRecord.t) >= since)
-            if until is not None:
-                q = q.where(col(PoseRecord.t) < until)
+            q = q.where(*_conditions(robot, since, until, floor))
             return builtins.list(s.exec(q))
+
+    def thinned(
+        self,
+        *,
+        robot: str | None = None,
+        since: datetime | None = None,
+        until: datetime | None = None,
+        max_points: int = 5_000,
+        floor: str | None = None,
+    ) -> tuple[builtins.list[PoseRecord], int]:
+        """At most `max_points` poses of [since, until), oldest first, evenly spread over
+        the kept ones (every k-th, counted in the database: a week of history is never
+        read whole); (the poses, how many are kept in the range)."""
+        if max_points < 2:
+            raise ValueError(f"history: max_points must be at least 2, got {max_points}")
+        conds = _conditions(robot, since, until, floor)
+        with Session(self.engine, expire_on_commit=False) as s:
+            total = int(s.exec(select(func.count()).select_from(PoseRecord).where(*conds)).one())
+            stride = max(1, -(-total // max_points))  # ceil
+            if stride == 1:
+                q = select(PoseRecord).where(*conds)
+            else:
+                rn = func.row_number().over(order_by=(col(PoseRecord.t), col(PoseRecord.id)))
+                ranked = select(col(PoseRecord.id), rn.label("rn")).where(*conds).subquery()
+                q = select(PoseRecord).join(ranked, col(PoseRecord.id) == ranked.c.id)
+                q = q.where((ranked.c.rn - 1) % stride == 0)
+            q = q.order_by(col(PoseRecord.t), col(PoseRecord.id))
+            return builtins.list(s.exec(q)), total
+
+    def cell_counts(
+        self,
+        cell_m: float,
+        *,
+        robot: str | None = None,
+        since: datetime | None = None,
+        until: datetime | None = None,
+        floor: str | None = None,
+    ) -> tuple[builtins.list[tuple[int, int, int]], int]:
+        """Kept poses counted per floor cell, in the database (one row a visited cell, however
+        long the range): ([(column, row, count)], poses), cell (i, j) spanning
+        [i * cell_m, (i + 1) * cell_m) in x and [j * cell_m, ...) in y."""
+        if not cell_m > 0:
+            raise ValueError(f"coverage: cell_m must be positive, got {cell_m}")
+        conds = _conditions(robot, since, until, floor)
+        i = func.floor(col(PoseRecord.x) / cell_m)
+        j = func.floor(col(PoseRecord.y) / cell_m)
+        q = select(i, j, func.count()).where(*conds).group_by(i, j)
+        with Session(self.engine) as s:
+            rows = [(int(a), int(b), int(n)) for a, b, n in s.exec(q)]
+        return rows, sum(n for _, _, n in rows)
 
     def prune(self, older_than: datetime) -> int:
         """Remove poses older than `older_than`; how many."""

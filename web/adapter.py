@@ -20,6 +20,7 @@ import numpy as np
 
 from commissioning.doubt import Doubt
 from commissioning.wizard import WizardStatus
+from live.cells import CellsReplaced, replace_cells
 from live.facades import BatteryStatus, Recordings
 from live.leds.status import site_energy
 from live.services import SiteServices
@@ -32,6 +33,7 @@ from store.errors import UnavailableError
 from store.floorplan import FloorPlanStore
 from store.landmarks import MapRepository
 from store.models import LandmarkCreate, LandmarkPublic, LandmarkUpdate
+from store.zones import PoseHistory, ZoneStore
 from web.panels.monitor import local_time_text
 from web.services import (
     CameraView,
@@ -171,13 +173,19 @@ class SiteAdapter:
         return self.services.upkeep
 
     def floorplan(self) -> FloorPlanStore:
-        return self.services.floorplan
+        return self.services.floorplans.of(self.shown_floor)
+
+    def zones(self) -> ZoneStore:
+        return self.services.zones
+
+    def pose_history(self) -> PoseHistory:
+        return self.services.pose_history
 
     def recordings(self) -> Recordings:
         return self.services.recordings
 
     def ceiling_height(self) -> float:
-        zs = [lm.z for lm in self._map()]
+        zs = [lm.z for lm in self._map() if self.shown_floor in (None, lm.floor)]
         return float(statistics.median(zs)) if zs else 2.5
 
     def floors(self) -> list[tuple[str, str]]:
@@ -187,6 +195,9 @@ class SiteAdapter:
         if floor is not None:
             self.services.floors.get(floor)  # NotFoundError naming it
         self.shown_floor = floor
+
+    def floor_shown(self) -> str | None:
+        return self.shown_floor
 
     def elsewhere(self) -> list[tuple[str, str]]:
         shown = self.shown_floor
@@ -246,6 +257,13 @@ class SiteAdapter:
 
     def delete_landmark(self, landmark_id: int, *, actor: str) -> None:
         self.services.map.delete(landmark_id, actor=actor)
+
+    def replace_cells(self, landmark_id: int, *, actor: str) -> CellsReplaced:
+        done = self.services.call(
+            replace_cells(self.services, landmark_id, actor=actor), timeout_s=60.0
+        )
+        self._battery.pop(landmark_id, None)  # the next refresh reads the new status
+        return done
 
     def doubt(self, landmark_id: int) -> Doubt:
         """A landmark's chances and uses so far (`commissioning.doubt`)."""

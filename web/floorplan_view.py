@@ -18,6 +18,7 @@ import viser
 
 from store.floorplan import FloorPlanInfo, FloorPlanStore, Placement, image_size
 from web.footprint import Bounds
+from web.status_line import StatusLine
 
 FLOORPLAN_Z_M = -0.01
 """The image lies just below the floor grid (its lines stay visible on it), metres."""
@@ -54,6 +55,15 @@ class FloorPlanLayer:
         self.info: FloorPlanInfo | None = None
         """What is drawn (None: no plan)."""
 
+    def follow(self, store: FloorPlanStore) -> bool:
+        """Show `store`'s plan from now on (another floor's); True when it is another
+        store (then redrawn at once)."""
+        if store is self.store:
+            return False
+        self.store, self._version = store, None
+        self.refresh()
+        return True
+
     def refresh(self) -> bool:
         """Redraw when the plan changed; True when it did."""
         if self._version == self.store.version:
@@ -81,16 +91,18 @@ def stretched_placement(bounds: Bounds, width_px: int) -> Placement:
 
 
 class FloorPlanPanel:
-    """Upload, place (two points) and remove the floor plan (admin)."""
+    """Upload, place (two points) and remove the floor plan (admin); `store` may be a
+    function giving the store of the floor shown (each floor has its plan)."""
 
     def __init__(
         self,
         gui: viser.GuiApi,
-        store: FloorPlanStore,
+        store: FloorPlanStore | Callable[[], FloorPlanStore],
         bounds: Bounds,
         notify: Callable[[str, str], None],
     ) -> None:
-        self.store, self.bounds, self.notify = store, bounds, notify
+        self._store_of = store if callable(store) else lambda: store
+        self.bounds, self.notify = bounds, notify
         x0, x1, _, y1 = bounds
         with gui.add_folder("Floor plan", expand_by_default=False):
             gui.add_markdown(
@@ -109,9 +121,15 @@ class FloorPlanPanel:
             self.gui_place = gui.add_button("Place by the two points")
             self.gui_remove = gui.add_button("Remove floor plan")
             self.gui_status = gui.add_markdown("")
+        self.status = StatusLine(self.gui_status)
         self.gui_upload.on_upload(lambda _: self._on_upload())
         self.gui_place.on_click(lambda _: self._on_place())
         self.gui_remove.on_click(lambda _: self.remove())
+
+    @property
+    def store(self) -> FloorPlanStore:
+        """The store the panel acts on (the floor shown's)."""
+        return self._store_of()
 
     def _points(self) -> Placement:
         a_px, a_m = self.gui_a_px.value, self.gui_a_m.value
@@ -151,10 +169,10 @@ class FloorPlanPanel:
         return self._done("placed", info)
 
     def remove(self) -> None:
-        self.gui_status.content = "removed" if self.store.delete() else "there was no plan"
+        self.status.say("removed" if self.store.delete() else "there was no plan")
 
     def _done(self, what: str, info: FloorPlanInfo) -> FloorPlanInfo:
-        self.gui_status.content = (
+        self.status.say(
             f"{what}: {info.width_px}x{info.height_px} px, {100 * info.metres_per_px:.2f} cm "
             f"a pixel, {info.width_m:.1f} x {info.height_m:.1f} m, turned "
             f"{math.degrees(info.rotation_rad):.1f} deg"
@@ -162,5 +180,5 @@ class FloorPlanPanel:
         return info
 
     def _refused(self, text: str) -> None:
-        self.gui_status.content = f"**refused**: {text}"
+        self.status.say(f"**refused**: {text}")
         self.notify("Floor plan", text)

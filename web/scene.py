@@ -6,19 +6,22 @@ into a moire), `/floorplan` (`web.floorplan_view`), `/landmarks/17` (sphere), `/
 `/landmarks/17/glow` (shown while lit), `/robots/r1/position` (follows the robot's position
 without turning), `/robots/r1/position/body` (turns with its heading),
 `/robots/r1/position/body/footprint`, `/robots/r1/position/ellipse`, `/robots/r1/trail/<k>`,
-`/robots/r1/rays`, `/coverage/*`. `/robots/<name>` itself stays at the world origin so that
-the trail and rays are in world coordinates. Only one thread (the viewer's update loop)
-calls `update`; it diffs against the last snapshot and sends only what changed: a robot's
-pose when it has a new estimate, its ellipse when the covariance changed by more than
-`ellipse_rtol`, its rays when the landmarks used changed (else at `rays_every`), and only
-the newest piece of its trail.
+`/robots/r1/rays`, `/coverage/*`. Landmark spheres (and their glow) and robot boxes answer
+clicks: `SiteScene.on_pick(client_id, kind, key)` (click-to-inspect). `/robots/<name>`
+itself stays at the world origin so that the trail and rays are in world coordinates. Only
+one thread (the viewer's update loop) calls `update`; it diffs against the last snapshot and
+sends only what changed: a robot's pose when it has a new estimate, its ellipse when the
+covariance changed by more than `ellipse_rtol`, its rays when the landmarks used changed
+(else at `rays_every`), and only the newest piece of its trail.
 """
 
 from __future__ import annotations
 
 import math
 from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 import viser
@@ -256,7 +259,17 @@ class SiteScene:
         self._positions: dict[int, FloatArray] = {}
         self.ceiling_z = 2.5
         self.bounds: Bounds = (-5.0, 5.0, -5.0, 5.0)
+        self.on_pick: Callable[[int, str, str], None] | None = None
+        """Told of a click on a landmark or robot: (client id, "landmark" or "robot", its ID
+        or name); set by the viewer (click-to-inspect)."""
         server.scene.set_up_direction("+z")
+
+    def _picker(self, kind: str, key: str) -> Callable[[viser.SceneNodePointerEvent[Any]], None]:
+        def picked(event: viser.SceneNodePointerEvent[Any]) -> None:
+            if self.on_pick is not None:
+                self.on_pick(event.client_id, kind, key)
+
+        return picked
 
     def set_site(self, bounds: tuple[float, float, float, float], ceiling_z: float) -> None:
         """Floor grid, ceiling grid and the starting camera for a site's extent (metres)."""
@@ -321,6 +334,8 @@ class SiteScene:
             )  # fmt: skip
             self._spheres[lm.id] = (sphere, label, glow)
             self._landmarks[lm.id] = state
+            for node in (sphere, glow):  # the glow (larger) is what a click hits while lit
+                node.on_click(self._picker("landmark", str(lm.id)))
         for gone in set(self._landmarks) - seen_ids:
             self._spheres.pop(gone)[0].remove()
             del self._landmarks[gone]
@@ -359,6 +374,8 @@ class SiteScene:
                 color = robot_color(len(self._colors_used))
                 self._colors_used.append(rb.name)
                 nodes = self._robots[rb.name] = _RobotNodes(scene, rb.name, self.config, color)
+                for node in (nodes.body, nodes.nose):
+                    node.on_click(self._picker("robot", rb.name))
             self._update_robot(nodes, rb)
 
     def _update_robot(self, nodes: _RobotNodes, rb: RobotState) -> None:

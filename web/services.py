@@ -17,6 +17,7 @@ import numpy.typing as npt
 
 from commissioning.types import Candidate
 from commissioning.wizard import WizardStatus
+from live.cells import CellsReplaced
 from live.facades import Recordings
 from live.survey.service import SurveyStatus
 from live.upkeep_service import MapUpkeepService
@@ -24,6 +25,7 @@ from localizer.camera import CameraModel
 from localizer.events import PoseEstimate
 from store.floorplan import FloorPlanStore
 from store.landmarks import MapRepository
+from store.zones import PoseHistory, ZoneStore
 
 __all__ = [
     "CameraView",
@@ -159,7 +161,15 @@ class ViewerSite(Protocol):
         ...
 
     def floorplan(self) -> FloorPlanStore | None:
-        """The floor plan image and its placement (None: the site keeps none)."""
+        """The shown floor's plan image and its placement (None: the site keeps none)."""
+        ...
+
+    def zones(self) -> ZoneStore | None:
+        """The site's zones, as `/api/v1/zones` (None: the site keeps none)."""
+        ...
+
+    def pose_history(self) -> PoseHistory | None:
+        """The robots' kept poses, as `/api/v1/history` (None: the site keeps none)."""
         ...
 
     def recordings(self) -> Recordings | None:
@@ -180,6 +190,10 @@ class ViewerSite(Protocol):
 
     def elsewhere(self) -> list[tuple[str, str]]:
         """(robot, floor) of the robots on a floor not shown, by name."""
+        ...
+
+    def floor_shown(self) -> str | None:
+        """The floor shown (`show_floor`; None: every floor)."""
         ...
 
     # -- actions (role checked by the caller); ValueError/KeyError carry the reason --------
@@ -217,6 +231,11 @@ class ViewerSite(Protocol):
     ) -> LandmarkState: ...
 
     def delete_landmark(self, landmark_id: int, *, actor: str) -> None: ...
+
+    def replace_cells(self, landmark_id: int, *, actor: str) -> CellsReplaced:
+        """Fresh cells in a landmark: its battery estimate starts over (`live.cells`, as
+        `POST /landmarks/{id}/cells-replaced`; waits for the radio's reading)."""
+        ...
 
     def store_camera(self, robot: str, camera: CameraModel, *, actor: str) -> None:
         """Replace the robot's camera (lens and mounting) and restart its localizer."""

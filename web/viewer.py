@@ -14,8 +14,6 @@ import logging
 import secrets
 import threading
 import time
-from collections.abc import Callable
-from contextlib import nullcontext
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -29,22 +27,13 @@ from server.loopback import is_loopback
 from server.seams import Authenticate
 from store.errors import NotFoundError
 from web.adapter import SiteAdapter
-from web.floorplan_view import FloorPlanLayer, FloorPlanPanel
-from web.layout import ClientLayout, wait_for_width, window_class
-from web.panels.calibration import CalibrationPanel
-from web.panels.commission import CommissionPanel
-from web.panels.coverage import CoveragePanel
-from web.panels.floor import FloorPanel
-from web.panels.history import HistoryPanel
-from web.panels.monitor import MonitorPanel, UncertaintyHistory
-from web.panels.proposals import ProposalsPanel
-from web.panels.recordings import RecordingsPanel
-from web.panels.survey import SurveyPanel
-from web.panels.view import ViewPanel
-from web.panels.wizard import WizardPanel
+from web.client_panels import ClientPanels
+from web.floorplan_view import FloorPlanLayer
+from web.panels.inspect import LastUse
+from web.panels.monitor import UncertaintyHistory
 from web.roles import ANONYMOUS, TICKET_PARAM, Session
 from web.scene import SiteScene
-from web.services import ViewerSite
+from web.services import LandmarkState, ViewerSite
 from web.viser_compat import (
     ViserCompatError,
     check_viser,
@@ -54,6 +43,7 @@ from web.viser_compat import (
     request_header,
     request_path,
 )
+from web.zones_view import ZonesLayer
 
 if TYPE_CHECKING:
     from live.services import SiteServices
@@ -81,86 +71,6 @@ class ViewerConfig:
     event_limit: int = 15
     ticket_ttl_s: float = 60.0
     margin_m: float = 2.0
-
-
-class _ClientPanels:
-    def __init__(self, viewer: SiteViewer, client: viser.ClientHandle, session: Session) -> None:
-
-        def notify(title: str, body: str) -> None:
-            client.add_notification(title, body, auto_close_seconds=6.0)
-
-        gui = client.gui
-        self.layout = ClientLayout(client)  # a wide screen gets a wider panel
-        gui.add_markdown(f"**irloc** - signed in as *{session.role}*")
-        # on a phone every panel starts folded into one line: unfolded, the panel covered
-        # the hall (the browser's size arrives with its first camera message)
-        width = wait_for_width(client, timeout_s=2.0)
-        kind = window_class(width)
-        with (
-            gui.add_folder("Panels", expand_by_default=False) if kind == "phone" else nullcontext()
-        ):
-            self._build(viewer, client, session, notify)
-        if width > 0:  # the top view fitted to this window, beside (or above) the panel
-            panel_px = {"phone": 0.0, "wide": self.layout.config.wide_panel_px}.get(kind, 320.0)
-            self.view.fit_window(width, client.camera.image_height, panel_px)
-
-    def _build(
-        self,
-        viewer: SiteViewer,
-        client: viser.ClientHandle,
-        session: Session,
-        notify: Callable[[str, str], None],
-    ) -> None:
-        site, gui = viewer.site, client.gui
-        assert viewer.scene is not None  # started
-        bounds, ceiling_z = viewer.scene.bounds, viewer.scene.ceiling_z
-        self.view = ViewPanel(client, bounds, ceiling_z, [r.name for r in site.robots()])
-        self.floor = FloorPanel(gui, site) if len(site.floors()) > 1 else None
-        self.monitor: MonitorPanel
-        self.wizard: WizardPanel | None = None
-        self.survey: SurveyPanel | None = None
-        self.commission: CommissionPanel | None = None
-        self.history: HistoryPanel | None = None
-        self.proposals: ProposalsPanel | None = None
-        self.recordings: RecordingsPanel | None = None
-        if session.can_commission:
-            tabs = gui.add_tab_group()
-            with tabs.add_tab("Monitor"):
-                self.monitor = MonitorPanel(gui, site, session, viewer.history, notify)
-                self._recordings(viewer, gui, session, notify)
-                self.coverage = CoveragePanel(client, site, notify)
-            with tabs.add_tab("Commission"):
-                self.wizard = WizardPanel(gui, site, session, notify)
-                self.commission = CommissionPanel(client, site, session, notify)
-                repo = site.map_history()
-                if repo is not None:
-                    self.history = HistoryPanel(gui, repo, session, notify)
-                upkeep = site.map_proposals()
-                if upkeep is not None:
-                    self.proposals = ProposalsPanel(gui, upkeep, session, notify)
-                self.calibration = CalibrationPanel(gui, site, session, notify)
-                store = site.floorplan()
-                if store is not None:
-                    self.floorplan = FloorPlanPanel(gui, store, bounds, notify)
-            with tabs.add_tab("Survey"):
-                self.survey = SurveyPanel(client, site, session, notify)
-        else:
-            self.monitor = MonitorPanel(gui, site, session, viewer.history, notify)
-            self._recordings(viewer, gui, session, notify)
-            self.coverage = CoveragePanel(client, site, notify)
-
-    def _recordings(
-        self,
-        viewer: SiteViewer,
-        gui: viser.GuiApi,
-        session: Session,
-        notify: Callable[[str, str], None],
-    ) -> None:
-        """The recordings folder, for operators and admins of a site that records."""
-        store = viewer.site.recordings()
-        if store is not None and session.can_operate:
-            robot = self.monitor.gui_robot
-            self.recordings = RecordingsPanel(gui, store, session, lambda: robot.value, notify)
 
 
 class SiteViewer:
@@ -204,9 +114,13 @@ class SiteViewer:
         self.scene: SiteScene | None = None
         self.floorplan: FloorPlanLayer | None = None
         self.history = UncertaintyHistory()
+        self.last_use = LastUse()
+        """Which robot last used each landmark (the inspect panel's "last used")."""
+        self.zones: ZonesLayer | None = None
+        self._floor_drawn: str | None = None
         self._tickets: dict[str, tuple[float, Session]] = {}
         self._sessions: dict[int, Session] = {}
-        self._panels: dict[int, _ClientPanels] = {}
+        self._panels: dict[int, ClientPanels] = {}
         self._lock = threading.Lock()
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
@@ -251,15 +165,17 @@ class SiteViewer:
             raise RuntimeError(f"viewer: {exc}") from exc
         self.server.gui.configure_theme(show_share_button=False, control_width="medium")
         self.scene = SiteScene(self.server)
+        self.scene.on_pick = self._picked
         lms = self.site.landmarks()
-        pos = np.array([[lm.x, lm.y] for lm in lms]).reshape(-1, 2)
-        m = self.config.margin_m
-        lo = pos.min(axis=0) - m if len(pos) else np.array([-5.0, -5.0])
-        hi = pos.max(axis=0) + m if len(pos) else np.array([5.0, 5.0])
-        self.scene.set_site((lo[0], hi[0], lo[1], hi[1]), self.site.ceiling_height())
+        self._floor_drawn = self.site.floor_shown()
+        self.scene.set_site(self._extent(lms), self.site.ceiling_height())
         self.scene.update_landmarks(lms, self.site.lit())
         store = self.site.floorplan()
         self.floorplan = None if store is None else FloorPlanLayer(self.server.scene, store)
+        zones = self.site.zones()
+        self.zones = None if zones is None else ZonesLayer(self.server.scene, zones)
+        if self.zones is not None:
+            self.zones.refresh(self._floor_drawn)
         self.server.on_client_connect(self._on_connect)
         self.server.on_client_disconnect(self._on_disconnect)
         self._stop.clear()
@@ -277,6 +193,34 @@ class SiteViewer:
             self.server = None
         if self._adapter is not None:
             self._adapter.close()
+
+    def _extent(self, lms: list[LandmarkState]) -> tuple[float, float, float, float]:
+        """The floor's extent: its landmarks and `margin_m` around them, metres."""
+        pos = np.array([[lm.x, lm.y] for lm in lms]).reshape(-1, 2)
+        m = self.config.margin_m
+        lo = pos.min(axis=0) - m if len(pos) else np.array([-5.0, -5.0])
+        hi = pos.max(axis=0) + m if len(pos) else np.array([5.0, 5.0])
+        return (float(lo[0]), float(hi[0]), float(lo[1]), float(hi[1]))
+
+    def _picked(self, client_id: int, kind: str, key: str) -> None:
+        """A landmark or robot clicked in a browser: its inspect panel shows it."""
+        with self._lock:
+            panels = self._panels.get(client_id)
+        if panels is not None:
+            panels.inspect.select(kind, key)
+
+    def _follow_floor(self) -> None:
+        """The floor shown changed: its extent, ceiling, plan and zones."""
+        assert self.scene is not None  # started
+        floor = self.site.floor_shown()
+        if floor != self._floor_drawn:
+            self._floor_drawn = floor  # its landmarks read after the floor: never the last's
+            self.scene.set_site(self._extent(self.site.landmarks()), self.site.ceiling_height())
+        store = self.site.floorplan()
+        if self.floorplan is not None and store is not None:
+            self.floorplan.follow(store)
+        if self.zones is not None:
+            self.zones.refresh(floor)
 
     # -- sessions ------------------------------------------------------------------------------
     def issue_ticket(self, session: Session) -> str:
@@ -360,7 +304,7 @@ class SiteViewer:
             return
         with self._lock:
             self._sessions[client.client_id] = session
-        panels = _ClientPanels(self, client, session)
+        panels = ClientPanels(self, client, session)
         with self._lock:
             self._panels[client.client_id] = panels
 
@@ -395,6 +339,9 @@ class SiteViewer:
                 self.scene.update_robots(robots)
                 if landmarks_due and lms is not None:
                     self.scene.update_landmarks(lms, self.site.lit())
+        self.last_use.add(robots)
+        if landmarks_due:
+            self._follow_floor()
         if landmarks_due and self.floorplan is not None:
             self.floorplan.refresh()
         with self._lock:
@@ -411,20 +358,7 @@ class SiteViewer:
                 panels = list(self._panels.items())
             for cid, p in panels:
                 try:
-                    p.monitor.refresh(robots, lms, events)
-                    p.coverage.refresh(lms)
-                    if p.floor is not None:
-                        p.floor.refresh()
-                    if p.wizard is not None:
-                        p.wizard.refresh()
-                    if p.survey is not None:
-                        p.survey.refresh()
-                    if p.history is not None:
-                        p.history.refresh()
-                    if p.proposals is not None:
-                        p.proposals.refresh()
-                    if p.recordings is not None:
-                        p.recordings.refresh()
+                    p.refresh(robots, lms, events)
                 except Exception:  # its browser went away mid-update
                     log.debug("viewer: dropping the panels of client %s", cid, exc_info=True)
                     with self._lock:

@@ -1,4 +1,5 @@
-"""`/map/floorplan`: the floor plan image (PNG/JPEG) shown under the map, placed by two points."""
+"""`/map/floorplan`: a floor's plan image (PNG/JPEG) shown under its map, placed by two points
+(`?floor=`: which floor; default: the default floor)."""
 
 from __future__ import annotations
 
@@ -56,24 +57,32 @@ def _public(info: FloorPlanInfo) -> FloorPlanPublic:
     )
 
 
-def _store(services: ServicesDep) -> FloorPlanStore:
-    store: FloorPlanStore = services.floorplan
+FloorQuery = Annotated[
+    str | None,
+    Query(max_length=32, description="the floor's plan (floor ID; default: the default floor)"),
+]
+
+
+def _store(services: ServicesDep, floor: str | None) -> FloorPlanStore:
+    store: FloorPlanStore = services.floorplans.of(floor)
     return store
 
 
 @router.get("", response_class=Response, responses={200: {"content": {"image/png": {}}}})
-def get_floorplan_image(services: ServicesDep, _: Viewer) -> Response:
+def get_floorplan_image(services: ServicesDep, _: Viewer, floor: FloorQuery = None) -> Response:
     """The floor plan image as uploaded (404 when there is none)."""
-    found = _store(services).image()
+    found = _store(services, floor).image()
     if found is None:
         raise NotFoundError("there is no floor plan")
     return Response(found[0], media_type=found[1])
 
 
 @router.get("/placement")
-def get_floorplan_placement(services: ServicesDep, _: Viewer) -> FloorPlanPublic:
+def get_floorplan_placement(
+    services: ServicesDep, _: Viewer, floor: FloorQuery = None
+) -> FloorPlanPublic:
     """Where the floor plan lies on the floor (404 when there is none)."""
-    info = _store(services).info()
+    info = _store(services, floor).info()
     if info is None:
         raise NotFoundError("there is no floor plan")
     return _public(info)
@@ -112,6 +121,7 @@ async def put_floorplan(
     a_m: Annotated[list[float], Query(description="its floor position: x, y (metres)")],
     b_px: Annotated[list[float], Query(description="second image point: column, row (px)")],
     b_m: Annotated[list[float], Query(description="its floor position: x, y (metres)")],
+    floor: FloorQuery = None,
 ) -> FloorPlanPublic:
     """Upload the floor plan (the body is the PNG or JPEG file, `Content-Type` image/png,
     image/jpeg, or application/octet-stream: then told apart by the file's first bytes),
@@ -126,19 +136,21 @@ async def put_floorplan(
     body = await request.body()
     if media_type == "application/octet-stream":
         media_type = image_type_of(body)
-    info = await asyncio.to_thread(_store(services).put, body, media_type, placement)
+    info = await asyncio.to_thread(_store(services, floor).put, body, media_type, placement)
     return _public(info)
 
 
 @router.patch("/placement")
-def place_floorplan(body: PlacementBody, services: ServicesDep, _: Admin) -> FloorPlanPublic:
+def place_floorplan(
+    body: PlacementBody, services: ServicesDep, _: Admin, floor: FloorQuery = None
+) -> FloorPlanPublic:
     """Move the stored floor plan by two new points (404 when there is none)."""
-    return _public(_store(services).place(body.placement()))
+    return _public(_store(services, floor).place(body.placement()))
 
 
 @router.delete("", status_code=status.HTTP_204_NO_CONTENT)
-def delete_floorplan(services: ServicesDep, _: Admin) -> Response:
+def delete_floorplan(services: ServicesDep, _: Admin, floor: FloorQuery = None) -> Response:
     """Remove the floor plan (404 when there is none)."""
-    if not _store(services).delete():
+    if not _store(services, floor).delete():
         raise NotFoundError("there is no floor plan")
     return Response(status_code=status.HTTP_204_NO_CONTENT)

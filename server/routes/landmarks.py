@@ -5,9 +5,12 @@ from __future__ import annotations
 from fastapi import APIRouter, HTTPException, Query, Response, status
 from pydantic import BaseModel, Field, StrictBool
 
+from live.cells import replace_cells
+from live.facades import BatteryStatus
 from localizer.events import LedsChanged
 from server.auth import Admin, Operator, Viewer
 from server.deps import LandmarkId, ServicesDep
+from store.errors import ConflictError
 from store.models import LandmarkCreate, LandmarkPublic, LandmarkUpdate
 
 router = APIRouter(prefix="/landmarks", tags=["landmarks"])
@@ -148,7 +151,10 @@ async def battery(
         if not who.allows("operator"):
             raise HTTPException(status.HTTP_403_FORBIDDEN, "refresh needs the operator role")
         await services.leds.read_battery(landmark_id)
-    st = services.leds.battery(landmark_id)
+    return _battery(landmark_id, services.leds.battery(landmark_id))
+
+
+def _battery(landmark_id: int, st: BatteryStatus) -> BatteryPublic:
     volts = None if st.supply_mv is None else st.supply_mv / 1000.0
     return BatteryPublic(
         landmark_id=landmark_id,
@@ -157,4 +163,34 @@ async def battery(
         percent=st.percent,
         days_left=st.days_left,
         history=[BatteryReadingPublic(t=t, supply_mv=mv) for t, mv in st.history],
+    )
+
+
+class CellsReplacedPublic(BaseModel):
+    """The landmark's battery after its cells were replaced."""
+
+    battery: BatteryPublic
+    read: bool = Field(description="the supply was read after the swap (the radio answered)")
+    why_not: str | None = Field(description="why it was not read (null when it was)")
+
+
+@router.post("/{landmark_id}/cells-replaced")
+async def cells_replaced(
+    landmark_id: LandmarkId,
+    services: ServicesDep,
+    who: Operator,
+    confirm: bool = Query(False, description="required: the battery trend starts over"),
+) -> CellsReplacedPublic:
+    """Fresh cells in this landmark: its battery estimate (trend, days left, the energy
+    model's days) starts over from readings after now, the low-battery warning re-arms, and
+    the supply is read at once (a `cells_replaced` event names who). Needs `confirm=true`
+    (409 without it, nothing done)."""
+    if not confirm:
+        raise ConflictError(
+            f"landmark {landmark_id}: cells replaced drops its battery trend so far; "
+            "repeat with confirm=true"
+        )
+    done = await replace_cells(services, landmark_id, actor=who.actor)
+    return CellsReplacedPublic(
+        battery=_battery(landmark_id, done.battery), read=done.read, why_not=done.why_not
     )

@@ -6,11 +6,10 @@ from __future__ import annotations
 from datetime import UTC, datetime
 from typing import Annotated
 
-import numpy as np
 from fastapi import APIRouter, Path, Query, status
 from pydantic import BaseModel, BeforeValidator, Field
 
-from live.zones_history import coverage_grid
+from live.zones_history import grid_from_cells
 from server.auth import Admin, Viewer
 from server.deps import ServicesDep
 from store.models import PoseRecord, ZoneRecord
@@ -55,6 +54,16 @@ class ZoneCreate(BaseModel):
     )
 
 
+class ZoneUpdate(BaseModel):
+    """The fields to change; those left out keep their value (`dwell_s: null` drops the
+    dwell limit)."""
+
+    name: str | None = Field(default=None, min_length=1, max_length=64)
+    polygon: list[tuple[float, float]] | None = Field(default=None, min_length=3, max_length=1000)
+    floor: str | None = Field(default=None, max_length=64)
+    dwell_s: float | None = Field(default=None, gt=0, le=86_400)
+
+
 class ZonePublic(ZoneCreate):
     id: int
     created_at: datetime
@@ -71,6 +80,7 @@ class PosePoint(BaseModel):
     theta: float = Field(description="radians, REP-103")
     sigma_m: float | None = Field(description="1-sigma position error, metres")
     mode: str
+    floor: str = Field(description="the floor whose map frame x, y are in")
 
 
 class Coverage(BaseModel):
@@ -110,7 +120,10 @@ def list_zones(services: ServicesDep, _: Viewer) -> list[ZonePublic]:
 
 @router.post("/zones", status_code=status.HTTP_201_CREATED)
 def create_zone(body: ZoneCreate, services: ServicesDep, _: Admin) -> ZonePublic:
-    """A new zone (409 when the name is taken; 422 naming a bad polygon)."""
+    """A new zone (409 when the name is taken; 422 naming a bad polygon; 404 naming an
+    unknown floor)."""
+    if body.floor:
+        services.floors.check(body.floor, what="zone")
     z = services.zones.create(body.name, body.polygon, floor=body.floor, dwell_s=body.dwell_s)
     return _zone(z)
 
@@ -120,9 +133,32 @@ def get_zone(zone_id: ZoneId, services: ServicesDep, _: Viewer) -> ZonePublic:
     return _zone(services.zones.get(zone_id))
 
 
+@router.patch("/zones/{zone_id}")
+def update_zone(zone_id: ZoneId, body: ZoneUpdate, services: ServicesDep, _: Admin) -> ZonePublic:
+    """Rename, reshape, move to a floor or change the dwell limit (409 when the name is
+    taken; 422 naming a bad polygon)."""
+    fields = body.model_fields_set
+    if body.floor:
+        services.floors.check(body.floor, what="zone")
+    z = services.zones.update(
+        zone_id, name=body.name, polygon=body.polygon, floor=body.floor, dwell_s=body.dwell_s,
+        clear_dwell="dwell_s" in fields and body.dwell_s is None,
+    )  # fmt: skip
+    return _zone(z)
+
+
 @router.delete("/zones/{zone_id}", status_code=status.HTTP_204_NO_CONTENT)
 def delete_zone(zone_id: ZoneId, services: ServicesDep, _: Admin) -> None:
     services.zones.delete(zone_id)
+
+
+def _range(
+    since: datetime | None, until: datetime | None
+) -> tuple[datetime | None, datetime | None]:
+    since, until = _utc(since), _utc(until)
+    if since is not None and until is not None and until <= since:
+        raise ValueError(f"history: until ({until}) must be after since ({since})")
+    return since, until
 
 
 def _poses(
@@ -131,13 +167,17 @@ def _poses(
     since: datetime | None,
     until: datetime | None,
     limit: int,
+    floor: str | None,
 ) -> list[PoseRecord]:
-    since, until = _utc(since), _utc(until)
-    if since is not None and until is not None and until <= since:
-        raise ValueError(f"history: until ({until}) must be after since ({since})")
+    since, until = _range(since, until)
     return services.pose_history.query(
-        robot=robot, since=_utc(since), until=_utc(until), limit=limit
+        robot=robot, since=since, until=until, limit=limit, floor=floor
     )
+
+
+FloorFilter = Annotated[
+    str | None, Query(max_length=32, description="only poses on this floor (floor ID)")
+]
 
 
 @router.get("/history/poses")
@@ -148,8 +188,23 @@ def pose_history(
     until: Until = None,
     robot: str | None = Query(None, max_length=64),
     limit: int = Query(10_000, ge=1, le=100_000),
+    max_points: int | None = Query(
+        None,
+        ge=2,
+        le=100_000,
+        description="at most this many, spread evenly over the whole range (every k-th kept "
+        "pose; `limit` then does not apply): a week of history in a few thousand points",
+    ),
+    floor: FloorFilter = None,
 ) -> list[PosePoint]:
     """Kept poses oldest first (about one a second a robot while it has a pose)."""
+    if max_points is not None:
+        since, until = _range(since, until)
+        poses = services.pose_history.thinned(
+            robot=robot, since=since, until=until, max_points=max_points, floor=floor
+        )[0]
+    else:
+        poses = _poses(services, robot, since, until, limit, floor)
     return [
         PosePoint(
             robot=p.robot,
@@ -160,8 +215,9 @@ def pose_history(
             theta=p.theta,
             sigma_m=p.sigma_m,
             mode=p.mode,
+            floor=p.floor,
         )
-        for p in _poses(services, robot, since, until, limit)
+        for p in poses
     ]
 
 
@@ -173,9 +229,13 @@ def history_coverage(
     until: Until = None,
     robot: str | None = Query(None, max_length=64),
     cell_m: float = Query(0.5, ge=0.05, le=10.0, description="cell size, metres"),
+    floor: FloorFilter = None,
 ) -> Coverage:
-    """Where the robots went: kept poses counted per floor cell (a heatmap)."""
-    poses = _poses(services, robot, since, until, 100_000)
-    xy = np.array([[p.x, p.y] for p in poses], dtype=float).reshape(-1, 2)
-    (x0, y0), counts = coverage_grid(xy, cell_m)
-    return Coverage(x0=x0, y0=y0, cell_m=cell_m, poses=len(poses), counts=counts.tolist())
+    """Where the robots went: every kept pose of the range counted per floor cell (a
+    heatmap; counted in the database, however long the range)."""
+    since, until = _range(since, until)
+    cells, n = services.pose_history.cell_counts(
+        cell_m, robot=robot, since=since, until=until, floor=floor
+    )
+    (x0, y0), counts = grid_from_cells(cells, cell_m)
+    return Coverage(x0=x0, y0=y0, cell_m=cell_m, poses=n, counts=counts.tolist())

@@ -28,9 +28,13 @@ from tests.server.test_auth import (  # noqa: E402
 )
 from tests.server.test_landmarks import *  # noqa: E402, F403
 from tests.server.test_map import *  # noqa: E402, F403
+from tests.server.test_zones_history import (  # noqa: E402
+    test_a_week_of_history_is_thinned_and_counted_in_the_database,
+)
 from tests.store.test_migrations import test_upgrade_from_first_schema_keeps_data  # noqa: E402
 
 __all__ = [
+    "test_a_week_of_history_is_thinned_and_counted_in_the_database",
     "test_admin_api_and_cli_show_last_use",
     "test_revoked_key_is_refused",
     "test_upgrade_from_first_schema_keeps_data",

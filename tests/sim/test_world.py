@@ -72,3 +72,13 @@ def test_frames_see_the_leds_as_they_were_at_their_own_time() -> None:
     world.set_led(2, False)  # no change: not logged
     world.advance(9_000 + 3_000_000_000)  # the log keeps the last `led_log_s` only
     assert len(world.point_sources(camera, t_ns=0)[0]) == 0
+
+
+def test_fresh_cells_bring_a_flat_landmark_back() -> None:
+    world = _world()
+    world.landmarks[2].battery = Battery(charge=0.0)
+    assert not world.landmarks[2].reachable
+    world.replace_cells(2)
+    assert world.landmarks[2].reachable and world.landmarks[2].battery.drawn_fraction == 0.0
+    with pytest.raises(KeyError):
+        world.replace_cells(99)

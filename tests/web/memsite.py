@@ -26,11 +26,14 @@ from commissioning.wizard import (
     WizardEvent,
     WizardStatus,
 )
+from live.cells import CellsReplaced
+from live.facades import BatteryStatus
 from live.survey.service import SurveyStatus
 from localizer.camera import CameraModel, predict_pixels
 from localizer.events import PoseEstimate
 from localizer.geometry import T_world_body_from_pose
 from sim.cameras import wide_angle_camera
+from store.zones import PoseHistory, ZoneStore
 from web.services import CameraView, Candidate, EventLine, LandmarkState, RobotState
 
 
@@ -57,6 +60,9 @@ class MemSite:
         self.lock = threading.Lock()
         self.wizard = IdentificationWizard()  # driven by the tests (no LEDs switched here)
         self.survey = SurveyStatus("idle")  # the tests set its estimate
+        self.zone_store: ZoneStore | None = None  # real stores on a SQLite file, when set
+        self.history_store: PoseHistory | None = None
+        self.cells: list[tuple[int, str]] = []
 
     # -- reads -----------------------------------------------------------------------------
     def landmarks(self) -> list[LandmarkState]:
@@ -114,6 +120,15 @@ class MemSite:
     def recordings(self) -> None:
         return None
 
+    def zones(self) -> ZoneStore | None:
+        return self.zone_store
+
+    def pose_history(self) -> PoseHistory | None:
+        return self.history_store
+
+    def floor_shown(self) -> str | None:
+        return None
+
     def ceiling_height(self) -> float:
         return 2.5
 
@@ -127,6 +142,15 @@ class MemSite:
         return []
 
     # -- actions -----------------------------------------------------------------------------
+    def replace_cells(self, landmark_id: int, *, actor: str) -> CellsReplaced:
+        if landmark_id not in self.map:
+            raise KeyError(f"no landmark {landmark_id}")
+        self.cells.append((landmark_id, actor))
+        with self.lock:
+            self.map[landmark_id] = replace(self.map[landmark_id], supply_mv=3150, percent=100.0,
+                                            days_left=None)  # fmt: skip
+        return CellsReplaced(BatteryStatus(landmark_id, 3150, 100.0, None, []), True)
+
     def relocalize(self, robot: str, *, actor: str) -> None:
         self.relocalized.append(robot)
 

@@ -5,6 +5,7 @@ sent to it (the uncertainty curve once reached the page as 600 points and drew n
 from __future__ import annotations
 
 import io
+import re
 import time
 from typing import Any
 
@@ -153,5 +154,72 @@ def test_phone_shows_the_hall_and_a_wide_screen_a_wide_panel(
     try:
         wait_frames(page, 5)
         save_shot(page, "viewer-desktop.png", doc=True)
+    finally:
+        page.close()
+
+
+def screen_xy(page: Any, node: str) -> tuple[float, float]:
+    """Where a scene node's origin is drawn on the page, CSS pixels (three.js projection
+    with the page's camera)."""
+    xy: list[float] = page.evaluate(
+        """name => { const m = window.__viserMutable; const o = m.nodeRefFromName[name];
+        const v = o.position.clone(); o.parent.localToWorld(v); v.project(m.camera);
+        const r = document.querySelector('canvas').getBoundingClientRect();
+        return [r.left + (v.x + 1) / 2 * r.width, r.top + (1 - v.y) / 2 * r.height]; }""",
+        node,
+    )
+    return xy[0], xy[1]
+
+
+@pytest.mark.timeout(300)
+def test_zones_click_to_inspect_and_history_playback(
+    browser: Any,  # noqa: F811
+    live_site: LiveSite,
+) -> None:
+    """A zone made through the API is drawn on the floor in its colour; a landmark clicked in
+    the view is described in the Selected panel, and Cells replaced (ticked) starts its
+    battery estimate over; the history folder draws a robot's trail, its ghost and the
+    heatmap from the kept poses."""
+    from web.zones_view import ZONE_COLOR
+
+    services = live_site.services
+    lms = services.map.list()
+    xs, ys = [lm.x for lm in lms], [lm.y for lm in lms]
+    x0, x1, y0, y1 = min(xs), max(xs), min(ys), max(ys)
+    xm, ym = (x0 + x1) / 2, (y0 + y1) / 2
+    services.zones.create("loading bay", [(x0, y0), (xm, y0), (xm, ym), (x0, ym)])
+    page = _open_at(browser, live_site, 1280, 800)
+    try:
+        page.wait_for_function("() => Object.keys(window.__viserMutable.nodeRefFromName)"
+                               ".some(k => k.startsWith('/zones/'))", timeout=30_000)  # fmt: skip
+        page.get_by_text("loading bay").first.wait_for(timeout=30_000)  # its label
+        wait_frames(page, 3)
+        canvas = page.locator("canvas").first
+        assert pixels_of_hue(rgb_of(canvas.screenshot()), ZONE_COLOR) > 200
+        target = min(lms, key=lambda lm: np.hypot(lm.x - x1, lm.y - y1))  # away from robots
+        x, y = screen_xy(page, f"/landmarks/{target.id}")
+        page.mouse.click(x, y)
+        page.get_by_text(f"Landmark {target.id}").first.wait_for(timeout=30_000)
+        page.get_by_role("button", name="Cells replaced").wait_for(timeout=10_000)
+        wait_frames(page, 3)
+        save_shot(page, "viewer-inspect.png", doc=True)
+        page.get_by_label("Yes, its cells are new").check()
+        page.get_by_role("button", name="Cells replaced").click()
+        note = page.get_by_text("battery estimate starts over").first
+        note.wait_for(timeout=60_000)
+        # the virtual landmark got its fresh cells: the supply read at once is a new pair's
+        assert re.search(r"reads 3\.\d\d V", note.inner_text()), note.inner_text()
+        assert services.log.last_event("cells_replaced", landmark_id=target.id) is not None
+        page.get_by_text("History playback").first.click()
+        page.get_by_label("Heatmap of every robot").check()
+        page.get_by_role("button", name="Show history").click()
+        page.wait_for_function("() => ['/playback/trail', '/playback/ghost', '/playback/heatmap']"
+                               ".every(k => !!window.__viserMutable.nodeRefFromName[k])",
+                               timeout=30_000)  # fmt: skip
+        summary = page.get_by_text("heatmap:").first
+        summary.wait_for(timeout=10_000)
+        summary.scroll_into_view_if_needed()
+        wait_frames(page, 5)
+        save_shot(page, "viewer-history.png", doc=True)
     finally:
         page.close()

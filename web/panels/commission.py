@@ -17,6 +17,7 @@ import viser
 from web.geometry import ray_plane_point
 from web.roles import Session
 from web.services import LandmarkState, ViewerSite
+from web.status_line import StatusLine
 
 
 def nearest_landmark(
@@ -64,6 +65,7 @@ class CommissionPanel:
             self.gui_unlock = gui.add_button("Unlock")
             self.gui_delete = gui.add_button("Delete landmark", color="red")
             self.gui_status = gui.add_markdown("")
+        self.status = StatusLine(self.gui_status)
         self.gui_add.on_click(lambda _: self._do(self.add))
         self.gui_move.on_click(lambda _: self._do(self.move))
         self.gui_lock.on_click(lambda _: self._do(lambda: self.set_locked(True)))
@@ -76,10 +78,10 @@ class CommissionPanel:
         try:
             text = action()
         except (KeyError, ValueError) as exc:
-            self.gui_status.content = f"**refused**: {exc}"
+            self.status.say(f"**refused**: {exc}")
             self.notify("Refused", str(exc))
             return
-        self.gui_status.content = text
+        self.status.say(text)
 
     def _landmark(self) -> LandmarkState:
         lid = int(self.gui_id.value)
@@ -137,15 +139,15 @@ class CommissionPanel:
     ) -> None:
         p = ray_plane_point(origin, direction, float(self.gui_z.value))
         if p is None:
-            self.gui_status.content = "that click does not reach the ceiling"
+            self.status.say("that click does not reach the ceiling")
             return
         lm = nearest_landmark(self.site.landmarks(), p, self.pick_radius_m)
         if lm is not None:
             self.gui_id.value = lm.id  # type: ignore[misc]
             self.gui_x.value, self.gui_y.value, self.gui_z.value = lm.x, lm.y, lm.z  # type: ignore[misc]
             self.gui_radio.value = lm.radio or ""  # type: ignore[misc]
-            self.gui_status.content = f"selected landmark {lm.id}"
+            self.status.say(f"selected landmark {lm.id}")
         else:
             self.gui_x.value = round(float(p[0]), 3)  # type: ignore[misc]
             self.gui_y.value = round(float(p[1]), 3)  # type: ignore[misc]
-            self.gui_status.content = f"ceiling point ({p[0]:.2f}, {p[1]:.2f}) m"
+            self.status.say(f"ceiling point ({p[0]:.2f}, {p[1]:.2f}) m")

@@ -20,6 +20,7 @@ from store.history import MapStep
 from store.landmarks import MapRepository, parse_map_csv, parse_map_json
 from store.models import LandmarkCreate
 from web.roles import Session
+from web.status_line import StatusLine
 
 if TYPE_CHECKING:  # viser 1.1 does not export the modal's handle type
     from viser._gui_handles import GuiModalHandle
@@ -68,6 +69,7 @@ class HistoryPanel:
                 "Nothing to redo", disabled=True, icon=viser.Icon.ARROW_FORWARD_UP
             )
             self.gui_status = gui.add_markdown("")
+        self.status = StatusLine(self.gui_status)
         with gui.add_folder("Whole map", expand_by_default=False):
             self.gui_import = gui.add_upload_button(
                 "Import map (map.json or CSV)", mime_type=".json,.csv,application/json,text/csv"
@@ -94,7 +96,7 @@ class HistoryPanel:
             self._shown = shown
 
     def _report(self, text: str, *, refused: bool = False) -> None:
-        self.gui_status.content = f"**refused**: {text}" if refused else text
+        self.status.say(f"**refused**: {text}" if refused else text)
         if refused:
             self.notify("Refused", text)
         self.refresh()
