@@ -10,6 +10,8 @@ import numpy as np
 import numpy.typing as npt
 import scipy.sparse as sp
 
+from survey.sparse_lm import GaussianPrior
+
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
 N_CAMERA = 10
@@ -78,6 +80,7 @@ class Fit:
     fun: FloatArray
     nfev: int
     converged: bool
+    prior: GaussianPrior | None = None  # earlier data, marginalised (`survey.marginal`)
 
     def landmarks(self) -> dict[int, FloatArray]:
         _, lms, _, _ = self.lay.split(self.x)
