@@ -134,3 +134,24 @@ def test_a_window_must_begin_at_its_kept_keyframe(driven: Driven, spot_drive: Sp
     wrong = dataclasses.replace(wrong, frame_t_ns=wrong.frame_t_ns + 1)
     with pytest.raises(ValueError, match="kept keyframe"):
         update(state, wrong, anchors, CFG, IncrementalConfig(lag_s=6.0))
+
+
+def test_after_a_restart_the_drive_goes_on_from_the_landmarks_alone(
+    driven: Driven, spot_drive: SpotDrive
+) -> None:
+    """A drive resumed after a gap in the wheels' record starts its window where it is: its
+    first pose is free (found from the landmarks the prior holds), the landmarks keep what
+    the drive before the gap said of them."""
+    state, _, _, anchors = driven
+    records = rough_records(spot_drive, anchors)
+    again = state.restarted()
+    later = window_of(upto(spot_drive, 40, records), 28 * NS)  # the robot seen again at 28 s
+    after = update(again, later, anchors, CFG, IncrementalConfig(lag_s=6.0))
+    assert after.prior is not None and after.prior.has_pose and after.result is not None
+    assert state.result is not None
+    truth = spot_drive.landmarks_true
+    for lid, e in after.result.landmarks.items():
+        if not e.anchor:
+            d = e.position - truth[lid]
+            assert math.hypot(d[0], d[1]) < 0.01, (lid, d)
+    assert set(after.result.landmarks) >= set(state.result.landmarks) - set(anchors)
