@@ -38,6 +38,7 @@ from localizer.events import Event
 from store.errors import ConflictError, NotFoundError, UnavailableError
 from survey.blinks import BlinkConfig
 from survey.bundle import BundleConfig
+from survey.incremental import IncrementalSurvey
 from survey.result import SurveyResult
 from survey.survey_map import SurveyLandmark
 
@@ -88,9 +89,8 @@ class LiveSurvey:
         self._drive: LiveDrive | None = None
         self._tap: tuple[str, Callable[[Event], None]] | None = None
         self._solver = SurveySolver()  # the solves, in a process of their own
-        self._saved = None
+        self._saved: IncrementalSurvey | None = None  # an interrupted drive's, to go on from
         self._running = RunningEstimate(data_dir, self._solver, self.live)
-        self._resume: SurveyResult | None = None  # an interrupted drive's, to go on from
         self._resumed = False
         saved = self._running.saved()
         if saved is not None:  # the server restarted while a survey drove: its estimate kept
