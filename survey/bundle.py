@@ -370,7 +370,7 @@ def _adjust(
     gauss = None if prior is None else prior.gaussian(lay)
     res = levenberg_marquardt(
         residuals, x0, S, lay.groups(), lay.steps(), huber_k=cfg.huber_scale,
-        max_iterations=budget, n_banded=lay.lm0, prior=gauss,
+        max_iterations=budget, n_banded=lay.lm0, prior=gauss, central_final=True,
     )  # fmt: skip
     px, valid = project(res.x)
     err = np.linalg.norm(px - o_px, axis=1)

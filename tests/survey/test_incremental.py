@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from localizer.robot import RobotGeometry
+from bench.bench_survey import truncated
 from sim.survey_floor import SpotDrive
 from survey.bundle import BundleConfig, solve_survey
 from survey.drive import SurveyDrive, survey_problem
@@ -20,7 +20,6 @@ from survey.incremental import IncrementalConfig, IncrementalSurvey, update, win
 from survey.incremental_file import load, save
 from survey.result import SurveyResult
 from survey.sparse_lm import GaussianPrior, levenberg_marquardt
-from survey.survey_map import parse_survey_map
 from tests.survey.conftest import NS, corner_anchors, rough_records
 
 CFG = BundleConfig(max_iterations=12, window_iterations=4)
@@ -28,14 +27,7 @@ Driven = tuple[IncrementalSurvey, list[int], SurveyResult, list[int]]
 
 
 def upto(drive: SpotDrive, seconds: float, records: dict[str, object]) -> SurveyDrive:
-    end = seconds * NS
-    nf = int(np.searchsorted(drive.frame_t_ns, end))
-    no = int(np.searchsorted(drive.odom_t_ns, end))
-    return SurveyDrive(
-        parse_survey_map(records, source="test map"), drive.camera,
-        RobotGeometry(drive.wheel_base_m), drive.frame_t_ns[:nf], drive.frame_spots[:nf],
-        drive.odom_t_ns[:no], drive.odom_v[:no], [c for c in drive.leds if c.t_ns <= end], 0,
-    )  # fmt: skip
+    return truncated(drive, seconds, records)
 
 
 @pytest.fixture(scope="module")
