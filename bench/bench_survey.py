@@ -107,7 +107,10 @@ def truncated(drive: SpotDrive, seconds: float, landmarks: dict[str, object]) ->
 
 
 def score(result: SurveyResult, truth: dict[int, np.ndarray]) -> dict[str, float]:
-    xy, z, inside, inside_z = [], [], [], []
+    """Errors against the truth and the sigmas' honesty: the share within 2 sigma and the
+    normalised squared error (x-y Mahalanobis^2, 2 on average when the covariance is
+    honest; above: over-confident, below: over-cautious)."""
+    xy, z, inside, inside_z, nees = [], [], [], [], []
     for lid, e in result.landmarks.items():
         if e.anchor:
             continue
@@ -117,13 +120,15 @@ def score(result: SurveyResult, truth: dict[int, np.ndarray]) -> dict[str, float
         # 2-sigma region of the horizontal error: Mahalanobis distance^2 <= 6.18 (2 dof,
         # the 95.4 % of 2 sigma in one dimension)
         c = e.covariance[:2, :2]
-        inside.append(float(d[:2] @ np.linalg.solve(c, d[:2])) <= 6.18)
+        nees.append(float(d[:2] @ np.linalg.solve(c, d[:2])))
+        inside.append(nees[-1] <= 6.18)
         inside_z.append(abs(d[2]) <= 2.0 * e.sigma_z_m)
     a, b = np.array(xy), np.array(z)
     return {
         "n": len(a), "xy_p95": float(np.percentile(a, 95)), "xy_max": float(a.max()),
         "z_p95": float(np.percentile(b, 95)), "z_max": float(b.max()),
         "inside_xy": float(np.sum(inside)), "inside_z": float(np.sum(inside_z)),
+        "nees_xy": float(np.sum(nees)),
     }  # fmt: skip
 
 
@@ -368,8 +373,11 @@ def main(argv: list[str] | None = None) -> int:
         if n:
             xy = sum(r["inside_xy"] for r in sel)
             z = sum(r["inside_z"] for r in sel)
+            nees = sum(r["nees_xy"] for r in sel) / n
             print(f"  {m:.0f} min: x-y {xy:.0f}/{n:.0f} ({100 * xy / n:.0f} %), "
-                  f"z {z:.0f}/{n:.0f} ({100 * z / n:.0f} %)")  # fmt: skip
+                  f"z {z:.0f}/{n:.0f} ({100 * z / n:.0f} %); x-y error^2 / covariance "
+                  f"{nees:.2f} on average (2: honest); sites with every landmark within: "
+                  f"{sum(r['inside_xy'] == r['n'] for r in sel)}/{len(sel)}")  # fmt: skip
             if args.lit:
                 e = np.array([r["xy_p95"] for r in sel]) * 1000
                 print(f"  {m:.0f} min: named wrongly {sum(r['wrong'] for r in sel):.0f}; "

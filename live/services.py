@@ -97,7 +97,9 @@ class SiteServices:
             max_total_bytes=None if max_gb is None else int(max_gb * 1024**3),
         )  # fmt: skip
         self.commissioning = Commissioning(self.map, self.robots, self.leds, self.submit)
-        self.survey = LiveSurvey(self.map, self.robots, self.leds, self.recordings)
+        self.survey = LiveSurvey(
+            self.map, self.robots, self.leds, self.recordings, data_dir=settings.data_dir
+        )
         self.upkeep = MapUpkeepService(self.map, self.robots, emit=self.events.emit)
         self.zones = ZoneStore(self.engine)
         self.pose_history = PoseHistory(self.engine)

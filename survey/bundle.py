@@ -26,6 +26,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 from threadpoolctl import threadpool_limits
@@ -37,6 +38,7 @@ from survey.association import name_by_association, unnamed_reasons
 from survey.estimates import survey_result
 from survey.initial import initial_guess
 from survey.layout import Fit, Layout, sparsity
+from survey.marginal import WindowPrior
 from survey.naming import name_by_geometry, outlier_tracks
 from survey.odometry_chain import between, relative_motions, segment_lengths, wheel_intervals
 from survey.problem import BundleConfig, SurveyProblem
@@ -46,7 +48,14 @@ from survey.sparse_lm import levenberg_marquardt
 _NS = 1e-9
 _OUT_OF_VIEW = 100.0
 
-__all__ = ["BundleConfig", "SurveyProblem", "select_keyframes", "solve_survey"]
+__all__ = [
+    "BundleConfig",
+    "FitSolution",
+    "SurveyProblem",
+    "select_keyframes",
+    "solve_fit",
+    "solve_survey",
+]
 
 
 def select_keyframes(frame_t_ns: IntArray, frames_seen: IntArray, period_s: float) -> IntArray:
@@ -61,11 +70,13 @@ def select_keyframes(frame_t_ns: IntArray, frames_seen: IntArray, period_s: floa
     return np.asarray(keep, dtype=np.int64)
 
 
-def _check(problem: SurveyProblem) -> None:
+def _check(problem: SurveyProblem, continued: bool = False) -> None:
     if len(problem.anchors) < 2:
         raise ValueError(f"survey: needs two or more anchor landmarks, got {len(problem.anchors)}")
     if len(problem.odom_t_ns) == 0:
         raise ValueError("survey: the recording has no odometry (odom0/data.csv is empty)")
+    if continued:  # the anchors are held by the prior: they need not be seen again
+        return
     seen = problem.observations.seen_ids()
     missing = sorted(set(problem.anchors) - seen)
     if missing:
@@ -101,11 +112,45 @@ def solve_survey(
             frame that sees two landmarks with a position.
     """
     cfg = config or BundleConfig()
-    _check(problem)
+    sol = solve_fit(problem, cfg, ceiling_z_m=ceiling_z_m, progress=progress)
+    result = survey_result(problem, cfg, sol.anchors, sol.fit, sol.labels, sol.rejected)
+    why = unnamed_reasons(problem, cfg, sol.fit, sol.labels, set(result.landmarks), sol.doubt)
+    return dataclasses.replace(result, unnamed=why)
+
+
+@dataclass(frozen=True, eq=False)
+class FitSolution:
+    """A solved drive (or window of one): the adjustment and the names it settled on.
+
+    Attributes:
+        fit: the last adjustment. labels: each observation's landmark (-1: unnamed).
+        rejected: spot tracks set aside. doubt: landmark -> neighbours it could not be
+            told from (`survey.association`). anchors: their surveyed positions.
+    """
+
+    fit: Fit
+    labels: IntArray
+    rejected: set[int]
+    doubt: dict[int, set[int]]
+    anchors: dict[int, FloatArray]
+
+
+def solve_fit(
+    problem: SurveyProblem,
+    cfg: BundleConfig,
+    *,
+    ceiling_z_m: float | None = None,
+    progress: Callable[[int, int], None] | None = None,
+    prior: WindowPrior | None = None,
+) -> FitSolution:
+    """`solve_survey`'s adjustment, names and all, without the result's bookkeeping; with
+    `prior`, a window continuing a drive whose earlier part is marginalised into it
+    (`survey.incremental`): its first frame is the prior's keyframe."""
+    _check(problem, continued=prior is not None)
     # the dense parts are small (a few hundred unknowns): one BLAS thread does them fastest,
     # and OpenBLAS's threads spinning on a busy machine made them fifty times slower
     with threadpool_limits(limits=1, user_api="blas"):
-        return _solve(problem, cfg, ceiling_z_m, progress)
+        return _solve(problem, cfg, ceiling_z_m, progress, prior)
 
 
 def _solve(
@@ -113,7 +158,8 @@ def _solve(
     cfg: BundleConfig,
     ceiling_z_m: float | None,
     progress: Callable[[int, int], None] | None,
-) -> SurveyResult:
+    prior: WindowPrior | None,
+) -> FitSolution:
     anchors = {int(k): np.asarray(v, dtype=np.float64) for k, v in problem.anchors.items()}
     zc = float(np.mean([p[2] for p in anchors.values()])) if ceiling_z_m is None else ceiling_z_m
     obs = problem.observations
@@ -139,8 +185,8 @@ def _solve(
         window = t_obs <= t_end
         for _ in range(max(cfg.naming_rounds if cfg.associate else 3, 1)):
             rows = np.flatnonzero((labels >= 0) & window)
-            fit = _adjust(problem, cfg, anchors, rows, labels, zc, fit, budget, window)
-            if float(np.median(fit.err)) > 2.0 * cfg.pixel_sigma_px:
+            fit = _adjust(problem, cfg, anchors, rows, labels, zc, fit, budget, window, prior)
+            if len(fit.err) and float(np.median(fit.err)) > 2.0 * cfg.pixel_sigma_px:
                 break  # not settled yet: judge no track against it
             bad = outlier_tracks(fit, cfg.outlier_track_px) - rejected
             rejected |= bad
@@ -155,9 +201,7 @@ def _solve(
         if progress is not None:
             progress(i + 1, len(ends))
     assert fit is not None
-    result = survey_result(problem, cfg, anchors, fit, labels, rejected)
-    why = unnamed_reasons(problem, cfg, fit, labels, set(result.landmarks), doubt)
-    return dataclasses.replace(result, unnamed=why)
+    return FitSolution(fit, labels, rejected, doubt, anchors)
 
 
 def _adjust(
@@ -170,6 +214,7 @@ def _adjust(
     previous: Fit | None,
     budget: int,
     window: BoolArray | None = None,
+    prior: WindowPrior | None = None,
 ) -> Fit:
     """One bundle adjustment over the observations `rows` (and the drive they span).
 
@@ -184,6 +229,10 @@ def _adjust(
     }
     key_frames = obs.frame[rows] if window is None else obs.frame[window]
     keys = select_keyframes(problem.frame_t_ns, key_frames, cfg.keyframe_period_s)
+    if prior is not None:  # the window starts at the prior's keyframe, seen or not
+        keys = np.concatenate([np.zeros(1, np.int64), keys[problem.frame_t_ns[keys] > prior.t_ns]])
+        if int(problem.frame_t_ns[0]) != prior.t_ns:
+            raise ValueError("survey: a window must begin at its prior's keyframe")
     key_of_frame = {int(f): k for k, f in enumerate(keys.tolist())}
     rows = rows[np.array([int(f) in key_of_frame for f in obs.frame[rows].tolist()], dtype=bool)]
     o_key = np.array([key_of_frame[int(f)] for f in obs.frame[rows].tolist()], dtype=np.int64)
@@ -193,6 +242,8 @@ def _adjust(
     wheels = wheel_intervals(problem.odom_t_ns, problem.odom_v, key_t)
     deltas0 = relative_motions(wheels, problem.wheel_base_m)
     prefix_poses, prefix_lms = None, None
+    if prior is not None:
+        prefix_poses, prefix_lms = prior.lead(key_t), prior.landmarks()
     if previous is not None:
         n = min(len(previous.key_t), len(key_t))
         same = np.flatnonzero(previous.key_t[:n] != key_t[:n])
@@ -213,6 +264,8 @@ def _adjust(
     for lid, i in lay.free_index.items():
         x0[lay.lm0 + 3 * i : lay.lm0 + 3 * i + 3] = est0[lid]
     x0[lay.wheel0 : lay.cam0] = 1.0
+    if prior is not None:
+        x0[lay.wheel0 : lay.n] = prior.calibration()
     if previous is not None:
         x0[lay.wheel0 : lay.n] = previous.x[previous.lay.wheel0 : previous.lay.n]
 
@@ -227,7 +280,10 @@ def _adjust(
     )
     held = {**{lid: (p, cfg.rough_sigma_m) for lid, p in rough.items()},
             **{lid: (p, cfg.anchor_sigma_m) for lid, p in anchors.items()}}  # fmt: skip
-    prior_ids = [lid for lid in free_ids if lid in held]
+    # what the prior holds already had its own priors in the window it came from
+    carried = set() if prior is None else set(prior.landmark_ids)
+    prior_ids = [lid for lid in free_ids if lid in held and lid not in carried]
+    calib_prior = 1.0 if prior is None else 0.0
     rough_rows = np.array([lay.free_index[lid] for lid in prior_ids], dtype=np.int64)
     rough_pos = np.array([held[lid][0] for lid in prior_ids]).reshape(-1, 3)
     rough_sig = np.array([held[lid][1] for lid in prior_ids]).reshape(-1, 1)
@@ -303,19 +359,20 @@ def _adjust(
         r_th = np.remainder(got[:, 2] - pred[:, 2] + math.pi, math.tau) - math.pi
         parts = [r_obs, r_xy, r_th / sig_th]
         parts.append(((lms[rough_rows] - rough_pos) / rough_sig).reshape(-1))
-        parts.append((w - 1.0) / cfg.wheel_scale_sigma)
+        parts.append(calib_prior * (w - 1.0) / cfg.wheel_scale_sigma)
         if lay.self_calibrate:
-            parts.append(c / cam_sig)
+            parts.append(calib_prior * c / cam_sig)
         return np.concatenate(parts)
 
     S = sparsity(lay, o_key, o_free, len(rough_rows), rough_rows)
+    gauss = None if prior is None else prior.gaussian(lay)
     res = levenberg_marquardt(
         residuals, x0, S, lay.groups(), lay.steps(), huber_k=cfg.huber_scale,
-        max_iterations=budget, n_banded=lay.lm0,
+        max_iterations=budget, n_banded=lay.lm0, prior=gauss, central_final=True,
     )  # fmt: skip
     px, valid = project(res.x)
     err = np.linalg.norm(px - o_px, axis=1)
     return Fit(
         lay, key_t, res.x, o_key, o_id, obs.track[rows], rows, err, valid,
-        res.jacobian, res.residuals, res.iterations, res.converged,
+        res.jacobian, res.residuals, res.iterations, res.converged, gauss,
     )  # fmt: skip

@@ -14,6 +14,7 @@ from survey.layout import Fit
 from survey.normal_equations import BandedSchur
 from survey.problem import BundleConfig, SurveyProblem
 from survey.result import LandmarkEstimate, SurveyResult
+from survey.tally import Tally, count_views, tallies
 
 
 def variance_factor(r: FloatArray, huber_k: float, redundancy: int) -> float:
@@ -28,9 +29,10 @@ def variance_factor(r: FloatArray, huber_k: float, redundancy: int) -> float:
     return float(np.sum(psi**2)) / max(redundancy, 1) / max(inside, 1e-3) ** 2
 
 
-def weighted_information(fit: Fit, huber_k: float) -> tuple[BandedSchur, float]:
-    """The information matrix J^T W J at the solution, factored (`BandedSchur`), and the
-    spots' a-posteriori standard deviation of unit weight (`marginal_covariances`)."""
+def weighted_hessian(fit: Fit, huber_k: float) -> tuple[sp.csc_matrix, float, float]:
+    """The information matrix J^T W J at the solution (plus the fit's prior), and the
+    variance factors of the spots and of the wheels' intervals it was weighted by
+    (`variance_factor`)."""
     lay = fit.lay
     r, J = fit.fun, sp.csr_matrix(fit.jac)
     n = J.shape[1]
@@ -45,9 +47,18 @@ def weighted_information(fit: Fit, huber_k: float) -> tuple[BandedSchur, float]:
     w[:n_pix] /= f_pix
     w[n_pix : n_pix + n_odo] /= f_odo
     H = (J.T @ sp.diags(w) @ J).tocsc()
+    if fit.prior is not None:
+        H = (H + fit.prior.hessian(n)).tocsc()
+    return H, f_pix, f_odo
+
+
+def weighted_information(fit: Fit, huber_k: float) -> tuple[BandedSchur, float]:
+    """The information matrix J^T W J at the solution, factored (`BandedSchur`), and the
+    spots' a-posteriori standard deviation of unit weight (`marginal_covariances`)."""
+    H, f_pix, _ = weighted_hessian(fit, huber_k)
     d = H.diagonal()
     H = H + sp.diags(1e-12 * np.where(d > 0, d, 1.0))
-    return BandedSchur(H, lay.lm0), math.sqrt(f_pix)
+    return BandedSchur(H, fit.lay.lm0), math.sqrt(f_pix)
 
 
 def marginal_covariances(fit: Fit, huber_k: float) -> tuple[FloatArray, float]:
@@ -69,12 +80,7 @@ def marginal_covariances(fit: Fit, huber_k: float) -> tuple[FloatArray, float]:
 
 def independent_views(positions: FloatArray, spacing_m: float) -> int:
     """Views (robot positions in time order) at least `spacing_m` from the last counted one."""
-    count, last = 0, None
-    for p in positions:
-        if last is None or float(np.hypot(*(p - last))) >= spacing_m:
-            count += 1
-            last = p
-    return count
+    return count_views(positions, spacing_m)[0]
 
 
 def survey_result(
@@ -84,19 +90,21 @@ def survey_result(
     fit: Fit,
     labels: IntArray,
     rejected: set[int],
+    carried: dict[int, Tally] | None = None,
 ) -> SurveyResult:
+    """The result of `fit`; `carried`: each landmark's evidence from the part of the drive
+    solved before it (an incremental survey's marginalised keyframes)."""
     lay = fit.lay
     poses, lms, w, c = lay.split(fit.x)
     cov_all, s0 = marginal_covariances(fit, cfg.huber_scale)
     rough = {int(k): np.asarray(v) for k, v in problem.given.items() if v is not None}
-    obs = problem.observations
+    spacing = cfg.independent_view_m
+    here = tallies(problem.observations, fit, labels, rejected, spacing)
     out: dict[int, LandmarkEstimate] = {}
     for lid in sorted(set(lay.free_ids) | set(anchors)):
-        rows = np.flatnonzero(fit.o_id == lid)
-        e = fit.err[rows][fit.valid[rows]]
-        views = independent_views(poses[fit.o_key[rows], :2], cfg.independent_view_m)
-        rms_px = float(math.sqrt(np.mean(e**2))) if len(e) else float("nan")
-        max_px = float(np.max(e)) if len(e) else float("nan")
+        t = here.get(lid, Tally())
+        if carried is not None and lid in carried:
+            t = carried[lid].plus(t, spacing)
         given = anchors.get(lid, rough.get(lid))
         if lid in anchors:
             pos, cov = anchors[lid], np.eye(3) * cfg.anchor_sigma_m**2  # as surveyed
@@ -105,32 +113,28 @@ def survey_result(
             pos = lms[i].copy()
             cov = cov_all[3 * i : 3 * i + 3, 3 * i : 3 * i + 3]
         flags: list[str] = []
-        if rms_px > cfg.flag_rms_px:
+        if t.rms_px > cfg.flag_rms_px:
             flags.append(
-                f"residuals {rms_px:.1f} px RMS: moved during the drive, or two landmarks "
+                f"residuals {t.rms_px:.1f} px RMS: moved during the drive, or two landmarks "
                 "answer to one address"
             )
-        all_rows = (obs.landmark_id == lid) | (labels == lid)
-        set_aside = int(
-            np.sum(all_rows & np.isin(obs.track, np.fromiter(rejected, dtype=np.int64)))
-        )
-        if set_aside > 0.3 * max(int(np.sum(all_rows)), 1):
+        if t.set_aside > 0.3 * max(t.sightings, 1):
             flags.append(
-                f"{set_aside} of its {int(np.sum(all_rows))} sightings disagree with the rest: "
+                f"{t.set_aside} of its {t.sightings} sightings disagree with the rest: "
                 "moved during the drive, or two landmarks answer to one address"
             )
         if given is not None and lid not in anchors:
             moved = float(np.linalg.norm(pos - given))
             if moved > cfg.flag_moved_m:
                 flags.append(f"{moved:.2f} m from its given position: moved, or radios swapped?")
-        if views < cfg.min_views and lid not in anchors:
+        if t.views < cfg.min_views and lid not in anchors:
             continue  # too little to place it: reported as not surveyed (`unseen`)
-        conflicts = obs.conflicts.get(lid, 0)
-        if conflicts:
-            flags.append(f"two spots named {lid} at once in {conflicts} frame(s)")
+        if t.conflicts:
+            flags.append(f"two spots named {lid} at once in {t.conflicts} frame(s)")
         out[lid] = LandmarkEstimate(
-            lid, np.asarray(pos, dtype=np.float64), cov, lid in anchors, len(rows), views,
-            rms_px, max_px, None if given is None else np.asarray(given), tuple(flags),
+            lid, np.asarray(pos, dtype=np.float64), cov, lid in anchors, t.observations,
+            t.views, t.rms_px, t.max_px, None if given is None else np.asarray(given),
+            tuple(flags),
         )  # fmt: skip
     unseen = tuple(sorted(set(problem.given) - set(out)))
     ok = fit.valid

@@ -10,6 +10,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from localizer.types import BoolArray, FloatArray, IntArray
+from survey.sparse_lm import GaussianPrior
 
 N_CAMERA = 10
 """The camera correction: focal scales - 1 (fu, fv), principal point (du, dv) px, mounting
@@ -77,6 +78,7 @@ class Fit:
     fun: FloatArray
     nfev: int
     converged: bool
+    prior: GaussianPrior | None = None  # earlier data, marginalised (`survey.marginal`)
 
     def landmarks(self) -> dict[int, FloatArray]:
         _, lms, _, _ = self.lay.split(self.x)

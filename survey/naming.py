@@ -95,6 +95,8 @@ def outlier_tracks(fit: Fit, limit_px: float) -> set[int]:
     """Tracks whose median reprojection error exceeds `limit_px` and five times the typical
     track's (a solution that has not settled yet explains nothing well: it rejects nothing).
     """
+    if len(fit.o_track) == 0:
+        return set()
     err = np.where(fit.valid, fit.err, np.inf)
     order = np.argsort(fit.o_track, kind="stable")
     tracks, starts = np.unique(fit.o_track[order], return_index=True)

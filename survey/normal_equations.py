@@ -65,6 +65,13 @@ class BandedSchur:
         xp = z - self._Y @ xr
         return np.concatenate([xp, xr])
 
+    def reduced_rhs(self, b: FloatArray) -> FloatArray:
+        """b_r - H_rp H_pp^-1 b_p: a right-hand side (a gradient) with the banded unknowns
+        eliminated, as the Schur complement eliminates them from H."""
+        n = self.n_banded
+        out: FloatArray = b[n:] - self._Y.T @ b[:n]
+        return out
+
     def reduced_covariance(self) -> FloatArray:
         """The inverse of H restricted to the unknowns after the banded block: their marginal
         covariance (for H an information matrix), shape (n - n_banded, n - n_banded)."""

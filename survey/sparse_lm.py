@@ -35,6 +35,33 @@ class LMResult:
     converged: bool
 
 
+@dataclass(frozen=True, eq=False)
+class GaussianPrior:
+    """A quadratic term (x[cols] - mean)^T information (x[cols] - mean) of the cost: what
+    data no longer in the problem said of the unknowns `cols`."""
+
+    cols: IntArray
+    mean: FloatArray
+    information: FloatArray
+
+    def cost(self, x: FloatArray) -> float:
+        d = x[self.cols] - self.mean
+        return float(d @ self.information @ d)
+
+    def gradient(self, x: FloatArray) -> FloatArray:
+        """Half the cost's gradient (the normal equations' right-hand side convention)."""
+        g = np.zeros(len(x))
+        g[self.cols] = self.information @ (x[self.cols] - self.mean)
+        return g
+
+    def hessian(self, n: int) -> sp.csc_matrix:
+        """The information placed in an n x n matrix (half the cost's Hessian)."""
+        c = np.asarray(self.cols)
+        rows = np.repeat(c, len(c))
+        cols = np.tile(c, len(c))
+        return sp.csc_matrix((self.information.reshape(-1), (rows, cols)), shape=(n, n))
+
+
 def huber_weights(r: FloatArray, k: float) -> FloatArray:
     """IRLS weights of the Huber loss with threshold k (residuals in sigmas)."""
     a = np.abs(r)
@@ -66,13 +93,27 @@ class GroupedJacobian:
         ]
 
     def __call__(
-        self, fun: Callable[[FloatArray], FloatArray], x: FloatArray, r: FloatArray
+        self,
+        fun: Callable[[FloatArray], FloatArray],
+        x: FloatArray,
+        r: FloatArray,
+        *,
+        central: bool = False,
     ) -> sp.csr_matrix:
+        """The Jacobian at x (r = fun(x)); `central`: by central differences, twice the
+        evaluations, an error of O(h^2) instead of O(h) (for the covariance, where the
+        forward differences' error is information the data do not have: along the map's
+        gauge, the rotation and scale only the anchors hold, it halved sigmas)."""
         data = np.empty(len(self.indices))
         for cols, nz in self.groups:
             xp = x.copy()
             xp[cols] += self.steps[cols]
-            diff = fun(xp) - r
+            if central:
+                xm = x.copy()
+                xm[cols] -= self.steps[cols]
+                diff = 0.5 * (fun(xp) - fun(xm))
+            else:
+                diff = fun(xp) - r
             data[nz] = diff[self.indices[nz]] * self.inv_step[nz]
         return sp.csc_matrix((data, self.indices, self.indptr), shape=self.shape).tocsr()
 
@@ -100,6 +141,8 @@ def levenberg_marquardt(
     max_iterations: int,
     rtol: float = 1e-7,
     n_banded: int = 0,
+    prior: GaussianPrior | None = None,
+    central_final: bool = False,
     progress: Callable[[int, float], None] | None = None,
 ) -> LMResult:
     """Minimise sum rho(fun(x)_i) (Huber, threshold `huber_k`) from x0.
@@ -114,13 +157,22 @@ def levenberg_marquardt(
         n_banded: the first this many unknowns form a banded block of the normal matrix
             (poses along a trajectory): each step is then solved by its Schur complement
             (`survey.normal_equations.BandedSchur`) instead of a sparse LU of the whole.
+        prior: a Gaussian prior on some unknowns (what earlier data said of them, their
+            other unknowns marginalised: `survey.marginal`), added to the cost, gradient and
+            normal matrix exactly (it is quadratic), not differenced.
+        central_final: the returned Jacobian by central differences (for a covariance).
         progress: called with (iteration, cost) after each step.
     """
     jacobian = GroupedJacobian(sparsity, groups, steps)
     x = np.array(x0, dtype=np.float64)
     r = fun(x)
     evaluations = 1
-    cost = huber_cost(r, huber_k)
+
+    def total(x: FloatArray, r: FloatArray) -> float:
+        return huber_cost(r, huber_k) + (0.0 if prior is None else prior.cost(x))
+
+    cost = total(x, r)
+    H_prior = None if prior is None else prior.hessian(len(x))
     lam = 1e-4
     converged = False
     J = jacobian(fun, x, r)
@@ -131,6 +183,9 @@ def levenberg_marquardt(
         Jw = sp.diags(w) @ J
         H = (J.T @ Jw).tocsc()
         g = J.T @ (w * r)
+        if prior is not None and H_prior is not None:
+            H = (H + H_prior).tocsc()
+            g = g + prior.gradient(x)
         d = H.diagonal()
         d = np.where(d > 0, d, 1.0)
         improved = False
@@ -144,7 +199,7 @@ def levenberg_marquardt(
             x_new = x + dx
             r_new = fun(x_new)
             evaluations += 1
-            cost_new = huber_cost(r_new, huber_k)
+            cost_new = total(x_new, r_new)
             if np.isfinite(cost_new) and cost_new < cost:
                 improved = True
                 rel = (cost - cost_new) / max(cost, 1e-300)
@@ -162,4 +217,7 @@ def levenberg_marquardt(
         if rel < rtol:
             converged = True
             break
+    if central_final:
+        J = jacobian(fun, x, r, central=True)
+        evaluations += 2 * len(jacobian.groups)
     return LMResult(x, r, J, it, evaluations, converged)

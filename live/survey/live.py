@@ -10,6 +10,7 @@ in a worker thread (`localizer.spots.detect_spots`), never on the robot's own th
 
 from __future__ import annotations
 
+import bisect
 import logging
 import threading
 from collections import deque
@@ -24,6 +25,7 @@ from localizer.robot import RobotGeometry
 from localizer.spots import DetectionConfig, detect_spots
 from localizer.types import FloatArray
 from survey.drive import SurveyDrive
+from survey.incremental import IncrementalConfig, window_of
 from survey.problem import BundleConfig
 from survey.result import LandmarkEstimate
 from survey.route import RouteConfig
@@ -52,6 +54,9 @@ class LiveSurveyConfig:
             one: it starts again a few seconds later anyway).
         route: the suggested route's tuning.
         site_margin_m: the route stays inside the landmarks' extent plus this, metres.
+        incremental: the running estimate's window (`survey.incremental`): what is older
+            than its lag is marginalised, so each update costs the same however long the
+            drive.
     """
 
     solve_every_s: float = 4.0
@@ -62,6 +67,7 @@ class LiveSurveyConfig:
     )
     route: RouteConfig = field(default_factory=RouteConfig)
     site_margin_m: float = 0.5
+    incremental: IncrementalConfig = field(default_factory=IncrementalConfig)
 
 
 def landmark_state(e: LandmarkEstimate, converged_sigma_m: float) -> LandmarkSurveyState:
@@ -172,15 +178,30 @@ class LiveDrive:
         with self._lock:
             return len(self._frame_t)
 
-    def snapshot(self) -> SurveyDrive:
-        """The drive so far (frames whose spots are known)."""
+    def snapshot(self, since_ns: int | None = None) -> SurveyDrive:
+        """The drive so far (frames whose spots are known), from `since_ns` on when given
+        (`survey.incremental.window_of`: the LED state in force then included)."""
         with self._lock:
-            return SurveyDrive(
+            drive = SurveyDrive(
                 self.landmarks, self.camera, self.robot,
                 np.asarray(self._frame_t, dtype=np.int64), list(self._spots),
                 np.asarray(self._odom_t, dtype=np.int64),
                 np.asarray(self._odom_v, dtype=np.float64).reshape(-1, 2), list(self._leds), 0,
             )  # fmt: skip
+        return window_of(drive, since_ns)
+
+    def forget_before(self, t_ns: int) -> None:
+        """Drop what the running estimate no longer needs (frames, wheels and LED changes
+        before `t_ns`, keeping the wheel sample and the LED state in force then): a long
+        drive's memory stays that of its window. The recording keeps everything."""
+        with self._lock:
+            f = bisect.bisect_left(self._frame_t, t_ns)
+            del self._frame_t[:f], self._spots[:f]
+            o = max(bisect.bisect_left(self._odom_t, t_ns) - 1, 0)
+            del self._odom_t[:o], self._odom_v[:o]
+            before = [i for i, c in enumerate(self._leds) if c.t_ns <= t_ns]
+            if before:
+                del self._leds[: before[-1]]
 
     def close(self) -> None:
         self._closed.set()

@@ -20,31 +20,26 @@ from __future__ import annotations
 
 import contextlib
 import logging
-import math
 import threading
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Literal
+from typing import TYPE_CHECKING
 
 import numpy as np
 
+from live.survey.accept import accepted_edits, check_choice
 from live.survey.blinks import BlinkDriver
-from live.survey.live import (
-    LandmarkSurveyState,
-    LiveDrive,
-    LiveSurveyConfig,
-    landmark_state,
-)
+from live.survey.estimator import RunningEstimate, route_over
+from live.survey.live import LiveDrive, LiveSurveyConfig, landmark_state
 from live.survey.solver import SolveCancelledError, SurveySolver
+from live.survey.status import Proposal, State, SurveyStatus, no_radio_text, proposal
 from localizer.events import Event
 from store.errors import ConflictError, NotFoundError, UnavailableError
-from store.models import LandmarkUpdate
 from survey.blinks import BlinkConfig
 from survey.bundle import BundleConfig
-from survey.result import LandmarkEstimate, SurveyResult
-from survey.route import suggest_route
+from survey.incremental import IncrementalSurvey
+from survey.result import SurveyResult
 from survey.survey_map import SurveyLandmark
 
 if TYPE_CHECKING:  # the facades are handed in (live.services); typing only
@@ -53,68 +48,7 @@ if TYPE_CHECKING:  # the facades are handed in (live.services); typing only
 
 log = logging.getLogger(__name__)
 
-State = Literal["idle", "driving", "solving", "done", "failed"]
-
-
-@dataclass(frozen=True)
-class Proposal:
-    """One landmark's surveyed position (metres, world frame) against the map's.
-
-    `ellipse`: the horizontal 1-sigma ellipse (major m, minor m, angle of the major axis rad);
-    `state`: anchor, converging, converged or flagged (`live.survey.live.landmark_state`).
-    """
-
-    landmark_id: int
-    x: float
-    y: float
-    z: float
-    sigma_m: float
-    moved_m: float
-    views: int
-    rms_px: float
-    anchor: bool
-    flags: tuple[str, ...]
-    ellipse: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    state: LandmarkSurveyState = "converging"
-
-
-@dataclass(frozen=True)
-class SurveyStatus:
-    """Where the survey is.
-
-    Attributes:
-        state: idle, driving (recording, blinking, estimating), solving, done (the final
-            proposals) or failed (`message` says why).
-        robot: the surveying robot; recording: its recording folder.
-        started_s: seconds since the drive started (None when idle).
-        blinks: dark windows requested so far.
-        proposals: the estimate, landmark by landmark: the live one while driving (and
-            solving), the final one when done.
-        accepted: landmarks whose proposal was written into the map.
-        unseen: landmarks of the map the estimate could not place (yet).
-        drive_s: robot time the estimate covers, seconds (0 before the first estimate).
-        estimates: live estimates made so far.
-        route: suggested waypoints ((x, y) metres) over what is still uncertain.
-        converged_sigma_m: the 1-sigma at or under which a landmark counts as converged.
-        no_radio: landmarks of the map left out of the survey because the radio cannot
-            switch them (no radio address): they cannot blink, so nothing names them, and
-            counted as dark they would make every blink ambiguous.
-    """
-
-    state: State
-    robot: str | None = None
-    recording: str | None = None
-    started_s: float | None = None
-    blinks: int = 0
-    message: str = ""
-    proposals: tuple[Proposal, ...] = ()
-    accepted: tuple[int, ...] = ()
-    unseen: tuple[int, ...] = field(default=())
-    drive_s: float = 0.0
-    estimates: int = 0
-    route: tuple[tuple[float, float], ...] = ()
-    converged_sigma_m: float = 0.005
-    no_radio: tuple[int, ...] = ()
+__all__ = ["LiveSurvey", "Proposal", "SurveyStatus"]
 
 
 class LiveSurvey:
@@ -131,6 +65,7 @@ class LiveSurvey:
         blinks: BlinkConfig | None = None,
         bundle: BundleConfig | None = None,
         live: LiveSurveyConfig | None = None,
+        data_dir: Path | None = None,
     ) -> None:
         self.map, self.robots, self.leds, self.recordings = map, robots, leds, recordings
         self.blinks = blinks or BlinkConfig()
@@ -154,6 +89,22 @@ class LiveSurvey:
         self._drive: LiveDrive | None = None
         self._tap: tuple[str, Callable[[Event], None]] | None = None
         self._solver = SurveySolver()  # the solves, in a process of their own
+        self._saved: IncrementalSurvey | None = None  # an interrupted drive's, to go on from
+        self._running = RunningEstimate(data_dir, self._solver, self.live)
+        self._resumed = False
+        saved = self._running.saved()
+        if saved is not None:  # the server restarted while a survey drove: its estimate kept
+            state, extra = saved
+            self._state, self._result = "interrupted", state.result
+            robot = extra.get("robot")
+            self._robot = robot if isinstance(robot, str) else None
+            self._estimates = state.updates
+            n = 0 if state.result is None else len(state.result.landmarks)
+            self._message = (
+                f"the server restarted during the drive: the live estimate is kept ({n} "
+                "landmarks placed); start again with a robot to go on from it, or cancel"
+            )
+            self._saved = state
 
     def anchors(self) -> list[int]:
         """The locked landmarks: they keep their surveyed positions and fix the map's frame."""
@@ -194,17 +145,22 @@ class LiveSurvey:
                 raise ConflictError(f"a survey is already {self._state} with robot {self._robot}")
             runner = self.robots.get(robot)
             self._recording = self.recordings.start(robot, trigger="survey")
+            resume = self._saved if self._state == "interrupted" else None
+            self._saved, self._resumed = None, resume is not None
+            self._running.begin(resume)
             given = [SurveyLandmark(lm.id, np.array([lm.x, lm.y, lm.z]), {}) for lm in lms]
             drive = LiveDrive(given, runner.camera, runner.geometry,
                               queue_frames=self.live.queue_frames)  # fmt: skip
             runner.add_tap(drive.add)
             self._drive, self._tap = drive, (robot, drive.add)
             self._state, self._robot, self._t0, self._count = "driving", robot, time.monotonic(), 0
-            self._message, self._result, self._accepted = "", None, []
-            self._drive_s, self._estimates, self._route = 0.0, 0, ()
+            self._message, self._accepted = "", []
+            self._result = None if resume is None else resume.result
+            self._drive_s, self._route = 0.0, ()
+            self._estimates = 0 if resume is None else resume.updates
             self._no_radio = no_radio
             if no_radio:
-                self._message = _no_radio_text(no_radio)
+                self._message = no_radio_text(no_radio)
             self._stop = stop = threading.Event()  # this drive's: an old thread keeps its own
             self._solver.start()
             blinker = BlinkDriver(
@@ -242,17 +198,15 @@ class LiveSurvey:
             self._count += 1
 
     def _estimate(self, drive: LiveDrive, anchors: list[int], stop: threading.Event) -> None:
-        """Solve the drive so far every `solve_every_s` (or, when a solve took longer, as
-        long after it ended as it took) until stopped."""
+        """Update the running estimate every `solve_every_s` (or, when an update took
+        longer, as long after it ended as it took) until stopped."""
         cfg = self.live
         wait_s = cfg.solve_every_s
+        extra: dict[str, object] = {"robot": self._robot, "anchors": anchors}
         while not stop.wait(wait_s):
             began = time.monotonic()
-            snap = drive.snapshot()
-            if len(snap.frame_t_ns) < 2 or len(snap.odom_t_ns) == 0:
-                continue
             try:
-                result = self._solver.drive(snap, anchors, cfg.bundle)
+                result = self._running.step(drive, anchors, extra)
             except SolveCancelledError:
                 return
             except ValueError as exc:  # e.g. an anchor not identified yet
@@ -260,49 +214,40 @@ class LiveSurvey:
                     if self._state == "driving" and not stop.is_set():
                         self._message = "estimating: " + str(exc).removeprefix("survey: ")
                         if self._no_radio:
-                            self._message += "; " + _no_radio_text(self._no_radio)
+                            self._message += "; " + no_radio_text(self._no_radio)
                 continue
             except Exception:  # never let the live estimate end the drive
                 log.exception("survey: a live estimate failed")
                 continue
+            if result is None:
+                continue
             route = self._suggest(result)
-            # at most half a core: the next solve waits at least as long as this one took
+            # at most half a core: the next update waits at least as long as this one took
             wait_s = max(cfg.solve_every_s, time.monotonic() - began)
             with self._lock:
                 if self._state != "driving" or stop.is_set():
                     return
                 self._result, self._route = result, route
-                self._drive_s = (int(snap.frame_t_ns[-1]) - int(snap.frame_t_ns[0])) / 1e9
+                t = result.trajectory_t_ns
+                self._drive_s = (int(t[-1]) - int(t[0])) / 1e9 if len(t) else 0.0
                 self._estimates += 1
                 self._message = (
                     f"estimate {self._estimates}: {len(result.landmarks)} landmarks placed "
-                    f"({time.monotonic() - began:.1f} s to solve)"
+                    f"({time.monotonic() - began:.1f} s to update)"
                 )
                 if drive.dropped:
                     self._message += f"; {drive.dropped} frames skipped (the server fell behind)"
                 if self._no_radio:
-                    self._message += "; " + _no_radio_text(self._no_radio)
+                    self._message += "; " + no_radio_text(self._no_radio)
 
     def _suggest(self, result: SurveyResult) -> tuple[tuple[float, float], ...]:
-        """Waypoints over what `result` leaves uncertain (`survey.route.suggest_route`)."""
+        """Waypoints over what `result` leaves uncertain (`live.survey.estimator.route_over`)."""
         robot = self._robot
         pose = None if robot is None else self.robots.latest(robot)
-        lms = self.map.list()
-        if pose is None or pose.x is None or pose.y is None or not lms:
+        if pose is None or pose.x is None or pose.y is None:
             return ()
-        xy, sig = [], []
-        for lm in lms:
-            e = result.landmarks.get(lm.id)
-            xy.append((lm.x, lm.y) if e is None else (float(e.position[0]), float(e.position[1])))
-            sig.append(math.nan if e is None else (0.0 if e.anchor else e.sigma_m))
-        pos = np.array(xy)
-        m = self.live.site_margin_m
-        lo, hi = pos.min(axis=0) - m, pos.max(axis=0) + m
-        route = suggest_route(
-            (pose.x, pose.y), pos, sig, (float(lo[0]), float(hi[0]), float(lo[1]), float(hi[1])),
-            visited_xy=result.trajectory[:, :2], config=self.live.route,
-        )  # fmt: skip
-        return tuple((float(x), float(y)) for x, y in route)
+        lms = {lm.id: (lm.x, lm.y) for lm in self.map.list()}
+        return route_over(result, (pose.x, pose.y), lms, self.live)
 
     def _end_drive(self) -> None:
         """Stop blinking, estimating and the tap (the caller set the state)."""
@@ -322,15 +267,31 @@ class LiveSurvey:
 
     # -- the end -----------------------------------------------------------------------------
     def stop(self, *, actor: str) -> SurveyStatus:
-        """End the drive and solve in a worker thread. ConflictError when not driving."""
+        """End the drive and solve in a worker thread. ConflictError when not driving.
+
+        A drive resumed after a restart ends with its running estimate (its recording holds
+        only the drive since the restart; the estimate holds all of it)."""
         with self._lock:
             if self._state != "driving" or self._robot is None:
                 raise ConflictError("no survey is driving")
-            robot = self._robot
+            robot, resumed = self._robot, self._resumed
             self._state, self._route = "solving", ()  # the live estimate stays on show
             self._message = "solving the whole drive"
         self._end_drive()
         path = self.recordings.stop(robot) or self._recording
+        if resumed:
+            self._running.discard()
+            with self._lock:
+                if self._state == "solving":
+                    n = 0 if self._result is None else len(self._result.landmarks)
+                    self._state = "done" if self._result is not None else "failed"
+                    self._message = (
+                        f"{n} landmarks surveyed (the running estimate: the drive was resumed "
+                        "after a restart)"
+                        if n
+                        else "no estimate was made"
+                    )
+            return self.status()
         threading.Thread(target=self._solve, args=(path,), name="survey-solve", daemon=True).start()
         log.info("survey stopped by %s: solving %s", actor, path)
         return self.status()
@@ -346,12 +307,14 @@ class LiveSurvey:
         except SolveCancelledError:
             return
         except ValueError as exc:
+            self._running.discard()
             with self._lock:
                 if self._state == "solving":  # not cancelled meanwhile
                     self._state, self._message = "failed", str(exc).removeprefix("survey: ")
                     self._result = None
             log.warning("survey failed: %s", exc)
             return
+        self._running.discard()  # the final result replaces the running estimate
         with self._lock:
             if self._state != "solving":  # cancelled meanwhile
                 return
@@ -367,8 +330,9 @@ class LiveSurvey:
             robot, driving = self._robot, self._state in ("driving", "solving")
             folder = self._recording
             self._state, self._result, self._route, self._message = "idle", None, (), ""
-            self._recording = None
+            self._recording, self._saved = None, None
         self._end_drive()
+        self._running.discard()
         if driving and robot is not None:
             with contextlib.suppress(KeyError):  # the robot went away
                 self.recordings.stop(robot)
@@ -386,7 +350,7 @@ class LiveSurvey:
             proposals: tuple[Proposal, ...] = ()
             if result is not None:
                 proposals = tuple(
-                    _proposal(e, landmark_state(e, cfg.converged_sigma_m))
+                    proposal(e, landmark_state(e, cfg.converged_sigma_m))
                     for e in sorted(result.landmarks.values(), key=lambda e: e.id)
                 )
             return SurveyStatus(
@@ -424,80 +388,9 @@ class LiveSurvey:
             chosen = sorted(lid for lid, e in free.items() if not e.flags)
         else:
             chosen = list(landmark_ids)
-        _check_choice(chosen, free, include_flagged, {lm.id for lm in self.map.list() if lm.locked})
-        edits = []
-        for lid in chosen:
-            e = free[lid]
-            x, y, z = (float(v) for v in e.position)
-            evidence = {
-                "source": "survey",
-                "views": e.views,
-                "observations": e.observations,
-                "rms_px": round(e.rms_px, 3),
-            }
-            edits.append(
-                (
-                    lid,
-                    LandmarkUpdate(
-                        x=x,
-                        y=y,
-                        z=z,
-                        sigma_m=e.sigma_m,
-                        covariance=e.covariance.tolist(),
-                        evidence=evidence,
-                    ),
-                )
-            )
+        check_choice(chosen, free, include_flagged, {lm.id for lm in self.map.list() if lm.locked})
+        edits = accepted_edits(chosen, free)
         self.map.update_many(edits, actor=f"{actor} (survey)")  # all or none
         with self._lock:
             self._accepted += [lid for lid in chosen if lid not in self._accepted]
         return self.status()
-
-
-def _no_radio_text(ids: tuple[int, ...]) -> str:
-    """The status line's note on the landmarks a survey leaves out."""
-    return (
-        f"not surveyed (no radio, cannot blink): {', '.join(map(str, ids))}; give them their "
-        "radio address to survey them"
-    )
-
-
-def _check_choice(
-    chosen: list[int],
-    free: dict[int, LandmarkEstimate],
-    include_flagged: bool,
-    locked: set[int],
-) -> None:
-    """ValueError naming every ID of `chosen` that cannot be accepted."""
-    twice = sorted({i for i in chosen if chosen.count(i) > 1})
-    if twice:
-        raise ValueError(f"landmarks: {', '.join(map(str, twice))} given more than once")
-    missing = sorted(set(chosen) - set(free))
-    if missing:
-        raise ValueError(
-            f"landmarks: {', '.join(map(str, missing))} not surveyed (or anchors); "
-            f"surveyed: {', '.join(map(str, sorted(free))) or 'none yet'}"
-        )
-    now_locked = sorted(set(chosen) & locked)
-    if now_locked:
-        raise ValueError(
-            f"landmarks: {', '.join(map(str, now_locked))} are locked in the map (anchors): "
-            "unlock them first to overwrite their surveyed positions"
-        )
-    flagged = [i for i in chosen if free[i].flags]
-    if flagged and not include_flagged:
-        names = "; ".join(f"{i}: {', '.join(free[i].flags)}" for i in flagged)
-        raise ValueError(
-            f"landmarks flagged by the survey ({names}): check them, or accept them anyway "
-            "with include_flagged"
-        )
-
-
-def _proposal(e: LandmarkEstimate, state: LandmarkSurveyState) -> Proposal:
-    moved = 0.0 if e.given is None else math.dist(e.position.tolist(), e.given.tolist())
-    x, y, z = (float(v) for v in e.position)
-    return Proposal(
-        e.id, x, y, z, 0.0 if e.anchor else e.sigma_m, moved, e.views,
-        e.rms_px if math.isfinite(e.rms_px) else 0.0, e.anchor, e.flags,
-        (0.0, 0.0, 0.0) if e.anchor else e.ellipse(), state,
-    )  # fmt: skip

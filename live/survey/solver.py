@@ -23,6 +23,8 @@ from pathlib import Path
 
 from survey.bundle import BundleConfig, solve_survey
 from survey.drive import SurveyDrive, read_survey_drive, survey_problem
+from survey.incremental import IncrementalConfig, IncrementalSurvey
+from survey.incremental import update as incremental_update
 from survey.result import SurveyResult
 
 _POLL_S = 0.1
@@ -66,7 +68,21 @@ class SurveySolver:
     ) -> SurveyResult:
         """`solve_drive` in the worker. Raises what the solve raises (ValueError: the drive
         cannot be solved yet), or SolveCancelledError."""
-        return self._run(solve_drive, drive, list(anchors), config)
+        return _result(self._run(solve_drive, drive, list(anchors), config))
+
+    def update(
+        self,
+        state: IncrementalSurvey,
+        window: SurveyDrive,
+        anchors: Iterable[int],
+        config: BundleConfig,
+        inc: IncrementalConfig,
+    ) -> IncrementalSurvey:
+        """`survey.incremental.update` in the worker (the live estimate); raises as `drive`."""
+        out = self._run(incremental_update, state, window, list(anchors), config, inc)
+        if not isinstance(out, IncrementalSurvey):
+            raise TypeError(f"survey worker returned {type(out).__name__}")
+        return out
 
     def recording(
         self,
@@ -77,7 +93,7 @@ class SurveySolver:
         leave_out: tuple[int, ...] = (),
     ) -> SurveyResult:
         """`solve_recording` in the worker; raises as `drive` does."""
-        return self._run(solve_recording, path, list(anchors), config, leave_out)
+        return _result(self._run(solve_recording, path, list(anchors), config, leave_out))
 
     def start(self) -> None:
         """Start the worker ahead of the first solve (it takes seconds to import what the
@@ -101,7 +117,7 @@ class SurveySolver:
             self._pool = multiprocessing.get_context("spawn").Pool(1)
         return self._pool
 
-    def _run(self, fn: Callable[..., SurveyResult], *args: object) -> SurveyResult:
+    def _run(self, fn: Callable[..., object], *args: object) -> object:
         with self._lock:
             pending, generation = self._ensure().apply_async(fn, args), self._generation
         while True:  # the worker's exceptions are raised here; a killed worker answers never
@@ -111,6 +127,10 @@ class SurveySolver:
                 if self._generation != generation:
                     raise SolveCancelledError from None
                 continue
-            if not isinstance(result, SurveyResult):
-                raise TypeError(f"survey worker returned {type(result).__name__}")
             return result
+
+
+def _result(out: object) -> SurveyResult:
+    if not isinstance(out, SurveyResult):
+        raise TypeError(f"survey worker returned {type(out).__name__}")
+    return out

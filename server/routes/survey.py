@@ -66,7 +66,12 @@ class ProposalPublic(BaseModel):
 class SurveyStatusPublic(BaseModel):
     """Where the survey is."""
 
-    state: str = Field(description="idle, driving, solving, done or failed")
+    state: str = Field(
+        description=(
+            "idle, driving, solving, done, failed or interrupted (the server restarted "
+            "during the drive: the live estimate is kept; start goes on from it)"
+        )
+    )
     robot: str | None = None
     recording: str | None = Field(default=None, description="the drive's recording folder")
     started_s: float | None = Field(default=None, description="seconds since the drive began")

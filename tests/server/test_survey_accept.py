@@ -178,3 +178,38 @@ def test_live_drive_keeps_spots_wheels_and_led_states_in_time_order() -> None:
         assert spots.snapshot().frame_t_ns.tolist() == [5]
     finally:
         spots.close()
+
+
+def test_a_restart_keeps_the_running_estimate_to_accept_or_go_on_from(api: Api) -> None:
+    """The running estimate is in the data directory after each update; a server started
+    on it shows it (interrupted), accepts from it, and cancel drops it with its file."""
+    from live.survey.estimator import STATE_FILE
+    from live.survey.service import LiveSurvey
+    from survey.incremental import IncrementalSurvey
+    from survey.incremental_file import save
+
+    solved(api)
+    svc = api.services.survey
+    path = api.services.settings.data_dir / STATE_FILE
+    assert svc._result is not None
+    save(IncrementalSurvey(result=svc._result, updates=7), path, {"robot": "r1"})
+    s = api.services
+    again = LiveSurvey(s.map, s.robots, s.leds, s.recordings, data_dir=path.parent)
+    st = again.status()
+    assert st.state == "interrupted" and st.robot == "r1" and st.estimates == 7
+    assert "restarted" in st.message and "start again" in st.message
+    assert {p.landmark_id: p.state for p in st.proposals} == {
+        1: "anchor",
+        2: "converged",
+        3: "flagged",
+    }
+    again.accept([2], actor="admin")
+    assert xyz(api, 2) == pytest.approx((2.05, 0.01, 2.51))
+    assert api.services.map.get(2).sigma_m == pytest.approx(0.004)
+    again.cancel(actor="admin")
+    assert again.status().state == "idle" and not path.exists()
+    path.write_bytes(b"garbage")  # a file that is no state: logged, the survey starts idle
+    assert (
+        LiveSurvey(s.map, s.robots, s.leds, s.recordings, data_dir=path.parent).status().state
+        == "idle"
+    )

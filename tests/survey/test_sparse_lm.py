@@ -58,3 +58,22 @@ def test_recovers_the_answer_despite_gross_outliers() -> None:
 def test_huber_cost_is_quadratic_inside_and_linear_outside() -> None:
     assert huber_cost(np.array([1.0, -2.0]), 3.0) == 5.0
     assert huber_cost(np.array([5.0]), 3.0) == 2 * 3 * 5 - 9
+
+
+def test_central_differences_are_exact_on_a_quadratic_where_forward_ones_are_not() -> None:
+    """The covariance's Jacobian: central differences carry no O(h) error (on a quadratic
+    none at all), the forward ones' O(h) error is information the data do not have."""
+    from survey.sparse_lm import GroupedJacobian
+
+    a = np.array([3.0, -2.0, 0.5])
+
+    def fun(x: np.ndarray) -> np.ndarray:
+        return a * x**2
+
+    x = np.array([1.0, 2.0, -1.0])
+    jac = GroupedJacobian(sp.eye(3, format="csr"), np.zeros(3, dtype=np.int64), np.full(3, 1e-3))
+    exact = np.diag(2 * a * x)
+    central = jac(fun, x, fun(x), central=True).toarray()
+    forward = jac(fun, x, fun(x)).toarray()
+    np.testing.assert_allclose(central, exact, atol=1e-9)
+    assert np.max(np.abs(forward - exact)) > 1e-4

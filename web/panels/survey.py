@@ -182,7 +182,7 @@ class SurveyPanel:
         self.gui_start.disabled = st.state in ("driving", "solving")
         self.gui_stop.disabled = not driving
         self.gui_cancel.disabled = st.state == "idle"
-        can_accept = bool(st.proposals) and st.state in ("driving", "done")
+        can_accept = bool(st.proposals) and st.state in ("driving", "done", "interrupted")
         self.gui_accept_one.disabled = not can_accept
         self.gui_accept_all.disabled = not can_accept
         self.gui_progress.content = progress_text(st, len(lms))
