@@ -22,8 +22,8 @@ import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
-import numpy.typing as npt
 
+from localizer.types import FloatArray, IntArray
 from survey.association import unnamed_reasons
 from survey.bundle import FitSolution, solve_fit
 from survey.drive import SurveyDrive, survey_problem
@@ -33,8 +33,6 @@ from survey.problem import BundleConfig, SurveyProblem
 from survey.result import SurveyResult
 from survey.tally import Tally, tallies
 
-FloatArray = npt.NDArray[np.float64]
-IntArray = npt.NDArray[np.int64]
 NS = 1_000_000_000
 
 

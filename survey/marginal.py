@@ -26,13 +26,11 @@ import numpy.typing as npt
 import scipy.sparse as sp
 from scipy.linalg import cho_factor, cho_solve
 
+from localizer.types import FloatArray
 from survey.estimates import weighted_hessian
 from survey.layout import Fit, Layout
 from survey.normal_equations import BandedSchur
 from survey.sparse_lm import GaussianPrior
-
-FloatArray = npt.NDArray[np.float64]
-IntArray = npt.NDArray[np.int64]
 
 
 @dataclass(frozen=True, eq=False)

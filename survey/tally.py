@@ -8,13 +8,10 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-import numpy.typing as npt
 
+from localizer.types import FloatArray, IntArray
 from survey.layout import Fit
 from survey.observations import LabelledObservations
-
-FloatArray = npt.NDArray[np.float64]
-IntArray = npt.NDArray[np.int64]
 
 
 @dataclass(frozen=True)
