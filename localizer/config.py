@@ -12,6 +12,7 @@ from localizer.identification_config import IdentificationConfig
 from localizer.imu_tilt import ImuTiltConfig
 from localizer.motion_model import MotionModelConfig
 from localizer.noise_model import PixelNoiseConfig
+from localizer.passive_config import PassiveConfig
 from localizer.pose_filter import FilterConfig
 from localizer.relocalization import RelocalizationConfig
 from localizer.self_calibration import SelfCalibrationConfig
@@ -121,3 +122,4 @@ class LocalizerConfig:
     fix_run: FixRunConfig = field(default_factory=FixRunConfig)
     motion: MotionModelConfig = field(default_factory=MotionModelConfig)
     imu: ImuTiltConfig = field(default_factory=ImuTiltConfig)
+    passive: PassiveConfig = field(default_factory=PassiveConfig)

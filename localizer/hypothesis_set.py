@@ -31,6 +31,7 @@ be resolved from the spots: then the set stays ambiguous and the localizer stays
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from typing import NamedTuple
 
 import numpy as np
@@ -58,6 +59,13 @@ FloatArray = npt.NDArray[np.float64]
 BoolArray = npt.NDArray[np.bool_]
 Pose = tuple[float, float, float]
 _NS = 1e-9
+
+
+Seeder = Callable[
+    [FrameView, Pose, FloatArray, RelocalizationConfig], tuple[FloatArray, FloatArray]
+]
+"""Hypotheses of a frame within a prior's gate: (poses (H, 3), squared Mahalanobis
+distances from the prior (H,)); `relocalization.seed_hypotheses` by default."""
 
 
 class Seed(NamedTuple):
@@ -117,6 +125,8 @@ class HypothesisSet:
 
     Args:
         config: the tuning (`RelocalizationConfig`, its "over frames" part).
+        seeder: how a frame seeds hypotheses (default `relocalization.seed_hypotheses`,
+            anchor pairs; `constellation` seeds by triangles for passive lights).
 
     Attributes:
         poses: the live hypotheses (x, y, theta), shape (H, 3).
@@ -130,8 +140,9 @@ class HypothesisSet:
         seeded: how many times the set was seeded afresh.
     """
 
-    def __init__(self, config: RelocalizationConfig) -> None:
+    def __init__(self, config: RelocalizationConfig, seeder: Seeder = seed_hypotheses) -> None:
         self.config = config
+        self.seeder = seeder
         self.seeded = 0
         self.clear()
 
@@ -264,7 +275,7 @@ class HypothesisSet:
         is retired (refuted)."""
         c = self.config
         first = not len(self.poses)
-        hyps, m2 = seed_hypotheses(seed.view, seed.prior, seed.prior_covariance, c)
+        hyps, m2 = self.seeder(seed.view, seed.prior, seed.prior_covariance, c)
         if len(hyps) and not first:
             new = ~np.isfinite(same_pose_min(hyps, self.poses, np.zeros(len(self.poses)), c))
             hyps, m2 = hyps[new], m2[new]

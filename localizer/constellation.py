@@ -1,0 +1,437 @@
+"""Identification by geometry: a frame's spots matched to the map as a constellation.
+
+Landmarks that cannot blink (a building's own ceiling lights, LEDs whose radio is out) can
+only be told apart by where they are. Seen from an upward camera, the lights of one frame
+are a rigidly moved copy of a patch of the map, so:
+
+1. every spot's ray meets the ceiling (the map's median height) in the body frame:
+   `q_s`, shape (S, 2) (`hypothesis_scoring.frame_view`);
+2. *invariants*: a triangle of spots has the same three side lengths as the triangle of
+   landmarks it shows (a rigid motion of the plane keeps distances; no mirror image: the
+   signed area keeps its sign). Spot triangles come from the spots nearest the image centre
+   (least distorted), sides at least `min_side_m` (`spot_triangles`); the map's triangles
+   with every side within the view (`map_triangles`) are indexed by their sorted sides;
+3. *hypotheses*: each spot triangle against each map triangle whose sorted sides agree
+   within the tolerance, in each of the three cyclic vertex orders that agree side by side,
+   gives a planar pose by 2D rigid registration (Kabsch) of the three points
+   (`triangle_hypotheses`); with a prior, those outside its gate are dropped;
+4. *verification by every spot*: each hypothesis carries every spot into the world, counts
+   the spots a landmark explains, refits to them, and counts against it every landmark it
+   predicts well inside the image where no spot is (`hypothesis_scoring.frame_log_lr`);
+5. *decision* (`match_constellation`): the best is accepted only when it explains the frame
+   and leads every distinct pose by `margin` (log-likelihood). A regular grid leaves poses
+   one spacing (or a quarter turn) apart scoring alike: that is reported as `ambiguous`,
+   with the tied poses, not guessed; a prior pose, the robot's motion over frames
+   (`passive_identification`) or an irregularity of the map coming into view decides.
+
+Tolerances come from the landmarks' own uncertainty (`landmark_sigma_m`: a panel's centroid
+scatters by centimetres where an LED's does not) and the ceiling points' (`ceiling_sigma_m`:
+the calibration, the ceiling's height, a tilt), in quadrature.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import itertools
+import math
+from dataclasses import dataclass
+from typing import Literal, NamedTuple
+
+import numpy as np
+import numpy.typing as npt
+from scipy.spatial import cKDTree
+
+from localizer.camera import CameraModel
+from localizer.hypothesis_scoring import (
+    FrameView,
+    frame_log_lr,
+    frame_view,
+    inlier_pairs,
+    inliers_needed,
+    refine_hypotheses,
+)
+from localizer.relocalization import (
+    RelocalizationConfig,
+    distinct_second,
+    prior_mahalanobis2,
+    unique_hypotheses,
+)
+
+FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.int64]
+MatchStatus = Literal["unique", "ambiguous", "no_match", "too_few_spots"]
+
+
+@dataclass(frozen=True)
+class ConstellationConfig:
+    """Tuning of the constellation match.
+
+    Attributes:
+        anchor_spots: spot triangles are formed from this many spots nearest the centre.
+        max_spot_triangles: at most this many spot triangles are tried (the largest first:
+            a long side turns a distance error into the least heading error).
+        min_side_m: a triangle's shortest side must be at least this, metres (a sliver
+            gives no heading).
+        ceiling_sigma_m: 1-sigma error of a spot's ceiling point (calibration, ceiling
+            height, tilt), metres.
+        tolerance_sigmas: sides and inliers agree within this many sigmas.
+        tolerance_frac: plus this fraction of the length (a wrong ceiling height scales).
+        max_map_triangles: at most this many map triangles are indexed (the nearest first:
+            a dense LED grid has millions within a wide view); beyond, the view's triangles
+            are cut to the shortest sides.
+        margin: the best must lead every distinct pose by this (log-likelihood; 9 is about
+            8000:1).
+        max_hypotheses: at most this many hypotheses are verified (nearest a prior, else in
+            the order found).
+    """
+
+    anchor_spots: int = 7
+    max_spot_triangles: int = 12
+    min_side_m: float = 0.3
+    ceiling_sigma_m: float = 0.03
+    tolerance_sigmas: float = 3.0
+    tolerance_frac: float = 0.02
+    max_map_triangles: int = 300_000
+    margin: float = 9.0
+    max_hypotheses: int = 4000
+
+    def __post_init__(self) -> None:
+        if self.anchor_spots < 3 or self.max_spot_triangles < 1 or self.max_hypotheses < 1:
+            raise ValueError(
+                "ConstellationConfig: anchor_spots >= 3, max_spot_triangles and max_hypotheses >= 1"
+            )
+        for name in ("min_side_m", "ceiling_sigma_m", "tolerance_sigmas", "margin"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"ConstellationConfig: {name} must be > 0")
+
+    def tolerance_m(self, landmark_sigma_m: float) -> float:
+        """How far a ceiling point may lie from its landmark: `tolerance_sigmas` x the
+        landmark's and the ceiling point's sigmas in quadrature, metres."""
+        return self.tolerance_sigmas * math.hypot(landmark_sigma_m, self.ceiling_sigma_m)
+
+
+class MapTriangles(NamedTuple):
+    """The map's triangles with every side at most `max_side_m`.
+
+    Attributes:
+        vertices: landmark rows, counter-clockwise, shape (T, 3).
+        sides: side lengths opposite each vertex, shape (T, 3), metres.
+        tree: k-d tree of each triangle's sorted sides (the invariant).
+        max_side_m: the longest side indexed, metres.
+    """
+
+    vertices: IntArray
+    sides: FloatArray
+    tree: cKDTree
+    max_side_m: float
+
+
+class ConstellationMatch(NamedTuple):
+    """The outcome of `match_constellation`.
+
+    Attributes:
+        status: "unique" (accepted), "ambiguous" (several distinct poses explain the frame
+            alike), "no_match" (none explains it), "too_few_spots".
+        reason: one sentence for a person: what was seen and why it was (not) accepted.
+        pose: the best pose (x, y, theta), None without any.
+        pairs: its (map row, spot index) inliers when accepted, else empty.
+        candidates: the distinct poses within `margin` of the best, best first, (K, 3)
+            (one row when unique).
+        score, second: the best's log-likelihood and the best distinct other's (-inf).
+        hypotheses: how many were verified.
+    """
+
+    status: MatchStatus
+    reason: str
+    pose: tuple[float, float, float] | None
+    pairs: list[tuple[int, int]]
+    candidates: FloatArray
+    score: float
+    second: float
+    hypotheses: int
+
+
+def scoring_config(
+    base: RelocalizationConfig, config: ConstellationConfig, landmark_sigma_m: float
+) -> RelocalizationConfig:
+    """The hypothesis scoring's tolerances widened to the landmarks' own uncertainty (a
+    panel's centroid is not an LED's point), never narrowed."""
+    tol = config.tolerance_m(landmark_sigma_m)
+    return dataclasses.replace(
+        base,
+        anchor_spots=max(base.anchor_spots, config.anchor_spots),
+        inlier_tolerance_m=max(base.inlier_tolerance_m, tol),
+        distance_tolerance_m=max(base.distance_tolerance_m, tol),
+        distinct_m=max(base.distinct_m, tol),
+        margin=config.margin,
+    )
+
+
+def sorted_sides(points: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Side lengths of triangles, the side opposite each vertex, and their sorted copy.
+
+    Args:
+        points: the triangles' corners (x, y), shape (T, 3, 2).
+
+    Returns:
+        (sides opposite vertex 0, 1, 2, shape (T, 3); sorted ascending, shape (T, 3)).
+    """
+    a = np.linalg.norm(points[:, 2] - points[:, 1], axis=1)
+    b = np.linalg.norm(points[:, 0] - points[:, 2], axis=1)
+    c = np.linalg.norm(points[:, 1] - points[:, 0], axis=1)
+    sides = np.column_stack([a, b, c])
+    return sides, np.sort(sides, axis=1)
+
+
+def counter_clockwise(points: FloatArray, vertices: IntArray) -> IntArray:
+    """The triangles' vertex rows reordered counter-clockwise (positive signed area).
+
+    Args:
+        points: (x, y), shape (N, 2); vertices: rows into `points`, shape (T, 3).
+    """
+    p = points[vertices]
+    cross = (p[:, 1, 0] - p[:, 0, 0]) * (p[:, 2, 1] - p[:, 0, 1]) - (p[:, 1, 1] - p[:, 0, 1]) * (
+        p[:, 2, 0] - p[:, 0, 0]
+    )
+    out = vertices.copy()
+    flip = cross < 0
+    out[flip, 1], out[flip, 2] = vertices[flip, 2], vertices[flip, 1]
+    return out
+
+
+def map_triangles(positions_xy: FloatArray, max_side_m: float, limit: int) -> MapTriangles:
+    """Every triangle of landmarks whose sides are all at most `max_side_m` (at most
+    `limit`: when there are more, the longest side allowed shrinks until they fit).
+
+    Args:
+        positions_xy: landmark positions (x, y), shape (N, 2).
+    """
+    tree = cKDTree(positions_xy)
+    side = max_side_m
+    while True:
+        pairs = tree.query_pairs(side, output_type="ndarray")
+        neighbours: list[list[int]] = [[] for _ in range(len(positions_xy))]
+        for i, j in pairs.tolist():
+            neighbours[min(i, j)].append(max(i, j))
+        count = sum(len(n) * (len(n) - 1) // 2 for n in neighbours)
+        if count <= limit or side < 0.05:
+            break
+        side *= math.sqrt(limit / count)
+    near = {(int(i), int(j)) for i, j in pairs.tolist()} | {
+        (int(j), int(i)) for i, j in pairs.tolist()
+    }
+    tris = [
+        (i, j, k)
+        for i, ns in enumerate(neighbours)
+        for a, j in enumerate(ns)
+        for k in ns[a + 1 :]
+        if (j, k) in near
+    ]
+    vertices = np.array(tris, dtype=np.int64).reshape(-1, 3)
+    if len(vertices):
+        vertices = counter_clockwise(positions_xy, vertices)
+    sides, key = sorted_sides(positions_xy[vertices].reshape(-1, 3, 2))
+    return MapTriangles(vertices, sides, cKDTree(key.reshape(-1, 3)), float(side))
+
+
+def spot_triangles(q: FloatArray, anchors: list[int], config: ConstellationConfig) -> IntArray:
+    """Counter-clockwise triangles of anchor spots (indices into `q`, shape (T, 3)) with
+    every side at least `min_side_m`, the largest (by shortest side) first, at most
+    `max_spot_triangles`.
+
+    Args:
+        q: the spots' ceiling points, body frame, shape (S, 2).
+        anchors: the spots to form them from.
+    """
+    a = np.array(anchors, dtype=np.int64)
+    if len(a) < 3:
+        return np.zeros((0, 3), dtype=np.int64)
+    tris = np.array(list(itertools.combinations(a.tolist(), 3)), dtype=np.int64)
+    _, key = sorted_sides(q[tris])
+    keep = key[:, 0] >= config.min_side_m
+    tris, key = tris[keep], key[keep]
+    order = np.argsort(-key[:, 0], kind="stable")[: config.max_spot_triangles]
+    return counter_clockwise(q, tris[order])
+
+
+def triangle_hypotheses(
+    q: FloatArray,
+    tris: IntArray,
+    positions_xy: FloatArray,
+    index: MapTriangles,
+    tolerance_m: float,
+    tolerance_frac: float,
+) -> FloatArray:
+    """Planar poses (x, y, theta), shape (H, 3): every spot triangle registered onto every
+    map triangle of the same sides, in each cyclic vertex order whose sides agree.
+
+    Args:
+        q: the spots' ceiling points, body frame, shape (S, 2).
+        tris: spot triangles (counter-clockwise indices into `q`), shape (T, 3).
+        positions_xy: landmarks (x, y), shape (N, 2); `index` their triangles.
+        tolerance_m: a side agrees within this (times sqrt 2: two points' errors), plus
+            `tolerance_frac` of its length.
+    """
+    if not len(tris) or not len(index.vertices):
+        return np.zeros((0, 3))
+    spot_sides, spot_key = sorted_sides(q[tris])
+    tol = math.sqrt(2.0) * tolerance_m + tolerance_frac * spot_key[:, 2]
+    found = index.tree.query_ball_point(spot_key, r=math.sqrt(3.0) * tol)
+    out = []
+    for t, rows in enumerate(found):
+        if not rows:
+            continue
+        m = np.asarray(rows, dtype=np.int64)
+        for shift in range(3):  # map vertex (v + shift) shows spot vertex v
+            order = (np.arange(3) + shift) % 3
+            agree = np.all(np.abs(index.sides[m][:, order] - spot_sides[t]) <= tol[t], axis=1)
+            if not np.any(agree):
+                continue
+            rows_v = index.vertices[m[agree]][:, order]  # (M, 3) landmark row per spot vertex
+            ones = np.ones((len(rows_v), 3), dtype=np.int64)
+            zeros = np.zeros((len(rows_v), 3))
+            out.append(refine_hypotheses(zeros, q[tris[t]], positions_xy, rows_v, ones))
+    return np.vstack(out) if out else np.zeros((0, 3))
+
+
+def view_side_m(q: FloatArray, anchors: list[int]) -> float:
+    """The longest distance between two anchor spots' ceiling points, metres: no spot
+    triangle has a longer side."""
+    p = q[anchors]
+    d = np.hypot(p[:, None, 0] - p[None, :, 0], p[:, None, 1] - p[None, :, 1])
+    return float(np.max(d)) if d.size else 0.0
+
+
+def constellation_hypotheses(
+    view: FrameView,
+    index: MapTriangles,
+    config: ConstellationConfig,
+    landmark_sigma_m: float,
+    prior: tuple[tuple[float, float, float], FloatArray] | None = None,
+    prior_gate_chi2: float = 25.0,
+) -> tuple[FloatArray, FloatArray]:
+    """The frame's hypotheses (steps 2-3), one per pose cell, within a prior's gate.
+
+    Returns:
+        (poses shape (H, 3), squared Mahalanobis distances from the prior (H,), zeros
+        without a prior), at most `max_hypotheses` (the nearest the prior first).
+    """
+    tris = spot_triangles(view.q, view.anchors, config)
+    hyps = triangle_hypotheses(
+        view.q, tris, view.positions[:, :2], index,
+        config.tolerance_m(landmark_sigma_m), config.tolerance_frac,
+    )  # fmt: skip
+    if prior is None:
+        m2 = np.zeros(len(hyps))
+    else:
+        m2 = prior_mahalanobis2(hyps, prior[0], prior[1])
+        hyps, m2 = hyps[m2 <= prior_gate_chi2], m2[m2 <= prior_gate_chi2]
+    cells = RelocalizationConfig(distinct_m=0.5 * config.tolerance_m(landmark_sigma_m) + 0.02)
+    keep = unique_hypotheses(hyps, -m2, cells)[: config.max_hypotheses]
+    return hyps[keep], m2[keep]
+
+
+def _pose_text(p: FloatArray) -> str:
+    return f"({p[0]:.2f}, {p[1]:.2f}, {math.degrees(p[2]):.0f} deg)"
+
+
+def match_constellation(
+    camera: CameraModel,
+    positions: FloatArray,
+    spot_pixels: FloatArray,
+    index: MapTriangles,
+    config: ConstellationConfig,
+    scoring: RelocalizationConfig,
+    *,
+    landmark_sigma_m: float,
+    prior: tuple[tuple[float, float, float], FloatArray] | None = None,
+    miss_weights: FloatArray | None = None,
+) -> ConstellationMatch:
+    """Identify one frame's spots by geometry alone (steps 1-5 of the module docstring).
+
+    Args:
+        positions: the landmarks, shape (N, 3) (rows of `index`).
+        spot_pixels: the frame's spots, shape (S, 2).
+        index: `map_triangles` of `positions[:, :2]`, sides up to the view's width.
+        scoring: the hypothesis scoring's tuning (`scoring_config`).
+        landmark_sigma_m: the landmarks' typical 1-sigma position error, metres.
+        prior: (pose, covariance (3, 3)) where the robot is believed to be; None: anywhere
+            (a cold start).
+        miss_weights: each landmark's weight when missing, (N,).
+
+    Returns:
+        The decision, with a reason a person can act on.
+    """
+    none = np.zeros((0, 3))
+    view = frame_view(camera, positions, spot_pixels, scoring, miss_weights)
+    if view is None or len(view.anchors) < 3:
+        n = len(spot_pixels)
+        return ConstellationMatch(
+            "too_few_spots", f"{n} spot(s) on the ceiling: a constellation needs 3 or more",
+            None, [], none, -math.inf, -math.inf, 0,
+        )  # fmt: skip
+    hyps, m2 = constellation_hypotheses(
+        view, index, config, landmark_sigma_m, prior, scoring.prior_gate_chi2
+    )
+    if not len(hyps):
+        where = "near the prior pose" if prior is not None else "anywhere in the map"
+        return ConstellationMatch(
+            "no_match",
+            f"no triangle of the {len(view.anchors)} central spots matches one of the map's "
+            f"{len(index.vertices)} {where} (tolerance "
+            f"{config.tolerance_m(landmark_sigma_m) * 100:.0f} cm)",
+            None, [], none, -math.inf, -math.inf, 0,
+        )  # fmt: skip
+    offset = None if prior is None else -0.5 * m2
+    hyps, score, counts, done = frame_log_lr(
+        camera, view, hyps, scoring, offset=offset, cutoff=config.margin
+    )
+    score = np.where(done, score, -math.inf)
+    best = int(np.argmax(score))
+    second = distinct_second(hyps, score, best, scoring)
+    pose = (float(hyps[best, 0]), float(hyps[best, 1]), float(hyps[best, 2]))
+    need = inliers_needed(view, scoring)
+    if counts[best] < need:
+        return ConstellationMatch(
+            "no_match",
+            f"the best pose {_pose_text(hyps[best])} explains {int(counts[best])} of "
+            f"{len(view.sub)} spots (needs {math.ceil(need)})",
+            pose, [], hyps[best : best + 1], float(score[best]), second, len(hyps),
+        )  # fmt: skip
+    tied = score >= score[best] - config.margin
+    cand = hyps[tied][unique_hypotheses(hyps[tied], score[tied], scoring)]  # best first
+    if score[best] - second < config.margin:
+        far = np.hypot(cand[1:, 0] - cand[0, 0], cand[1:, 1] - cand[0, 1])
+        return ConstellationMatch(
+            "ambiguous",
+            f"{len(cand)} distinct poses explain the {len(view.sub)} spots alike "
+            f"(best {_pose_text(cand[0])}, next {_pose_text(cand[1])}, "
+            f"{float(far[0]) if len(far) else 0.0:.2f} m apart): a regular layout; "
+            "give a start pose or drive until the map's edge or an irregularity is in view",
+            pose, [], cand, float(score[best]), second, len(hyps),
+        )  # fmt: skip
+    pairs = inlier_pairs(view, hyps[best], scoring)
+    return ConstellationMatch(
+        "unique",
+        f"{len(pairs)} of {len(view.sub)} spots identified; the next distinct pose scores "
+        f"{score[best] - second:.0f} lower" if math.isfinite(second) else
+        f"{len(pairs)} of {len(view.sub)} spots identified; no other pose explains them",
+        pose, pairs, hyps[best : best + 1], float(score[best]), second, len(hyps),
+    )  # fmt: skip
+
+
+__all__ = [
+    "ConstellationConfig",
+    "ConstellationMatch",
+    "MapTriangles",
+    "MatchStatus",
+    "constellation_hypotheses",
+    "counter_clockwise",
+    "map_triangles",
+    "match_constellation",
+    "scoring_config",
+    "sorted_sides",
+    "spot_triangles",
+    "triangle_hypotheses",
+    "view_side_m",
+]
