@@ -28,6 +28,7 @@ import numpy.typing as npt
 from localizer.camera import CameraModel
 from localizer.candidate_order import ViewOrdering, order_by_view
 from localizer.config import LocalizerConfig
+from localizer.constellation import ConstellationMatch
 from localizer.events import (
     Event,
     FrameObserved,
@@ -151,6 +152,13 @@ class Localizer:
     def latest(self) -> PoseEstimate | None:
         """The last pose estimate output, if any."""
         return self._latest
+
+    @property
+    def passive_status(self) -> ConstellationMatch | None:
+        """Passive lights: the last decision of the identification by geometry and its
+        reason ("ambiguous: ... a regular layout"); None when none was made (or the map's
+        landmarks blink)."""
+        return self._passive.status if self._passive.active else None
 
     def set_map(self, landmark_map: LandmarkMap) -> None:
         """Use a new map. The pose is kept and tracking goes on with the new map (if the
