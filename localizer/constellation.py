@@ -83,6 +83,10 @@ class ConstellationConfig:
             8000:1).
         max_hypotheses: at most this many hypotheses are verified (nearest a prior, else in
             the order found).
+        birth_every_s: over frames, new hypotheses are seeded at most this often, seconds
+            (the first frame seeds every pose the map allows; later ones add what it missed).
+        reseed_after_frames: over frames, the set is seeded afresh after this many scored
+            frames in a row that its best does not explain.
     """
 
     anchor_spots: int = 7
@@ -94,6 +98,8 @@ class ConstellationConfig:
     max_map_triangles: int = 300_000
     margin: float = 9.0
     max_hypotheses: int = 4000
+    birth_every_s: float = 4.0
+    reseed_after_frames: int = 10
 
     def __post_init__(self) -> None:
         if self.anchor_spots < 3 or self.max_spot_triangles < 1 or self.max_hypotheses < 1:
@@ -155,10 +161,20 @@ def scoring_config(
     base: RelocalizationConfig, config: ConstellationConfig, landmark_sigma_m: float
 ) -> RelocalizationConfig:
     """The hypothesis scoring's tolerances widened to the landmarks' own uncertainty (a
-    panel's centroid is not an LED's point), never narrowed."""
+    panel's centroid is not an LED's point), never narrowed; three inliers explain a frame
+    (a view of lights metres apart holds few: a set that needed four died on every frame
+    that showed three, and its evidence with it); new hypotheses born over frames at most
+    every `birth_every_s` (`hypothesis_set`: a newborn ties with the best, and on a nearly
+    regular ceiling one was born every second, so the lead the map's few irregularities
+    give never built up), and the set re-seeded only after `reseed_after_frames` frames it
+    does not explain (under a missing light, where the evidence is, fewer lights are in
+    view)."""
     tol = config.tolerance_m(landmark_sigma_m)
     return dataclasses.replace(
         base,
+        min_inliers=min(base.min_inliers, 3),
+        birth_every_s=max(base.birth_every_s, config.birth_every_s),
+        reseed_after_frames=max(base.reseed_after_frames, config.reseed_after_frames),
         anchor_spots=max(base.anchor_spots, config.anchor_spots),
         inlier_tolerance_m=max(base.inlier_tolerance_m, tol),
         distance_tolerance_m=max(base.distance_tolerance_m, tol),
