@@ -66,7 +66,9 @@ def passive_settings(
     config: LocalizerConfig, camera: CameraModel, landmark_map: LandmarkMap
 ) -> LocalizerConfig:
     """The settings widened for the map's lights where they are larger than LED spots: the
-    detector's largest blob (the light straight above, 1.5 x) and elongation, the tracking
+    detector's largest blob (the light straight above, 1.5 x), smallest (0.5 % of it: a
+    light's fragment at the edge of the view, or a speck, is no light) and elongation, the
+    tracking
     windows' smallest half size (a window must hold the whole blob, or its centroid is cut)
     and the pose's pixel noise floor. Never narrowed; unchanged for a map of points."""
     r = light_radius_px(camera, landmark_map)
@@ -79,8 +81,10 @@ def passive_settings(
         detection=dataclasses.replace(
             det,
             max_area_px=max(det.max_area_px, area),
+            min_area_px=max(det.min_area_px, round(0.005 * math.pi * r * r)),
             max_elongation=max(det.max_elongation, config.passive.max_elongation),
             centroid_margin_px=max(det.centroid_margin_px, 3),
+            drop_border_blobs=True,
         ),
         tracking=dataclasses.replace(
             trk,
