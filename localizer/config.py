@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+from localizer.constellation import ConstellationConfig
 from localizer.fix_run import FixRunConfig
 from localizer.floor_plane import FloorPlaneConfig
 from localizer.handoff import HandoffConfig
@@ -123,3 +124,4 @@ class LocalizerConfig:
     motion: MotionModelConfig = field(default_factory=MotionModelConfig)
     imu: ImuTiltConfig = field(default_factory=ImuTiltConfig)
     passive: PassiveConfig = field(default_factory=PassiveConfig)
+    constellation: ConstellationConfig = field(default_factory=ConstellationConfig)

@@ -124,7 +124,9 @@ class Localizer:
             tuple[frozenset[int] | None, frozenset[int], LandmarkMap, npt.NDArray[np.int64]] | None
         ) = None
         self._tracker = LandmarkTracker(camera, robot, self.config, landmark_map)
-        self._passive = PassiveIdentifier(self.config.passive, self.config.relocalization)
+        self._passive = PassiveIdentifier(
+            self.config.passive, self.config.constellation, self.config.relocalization
+        )
         # speed and turn rate for frames without odometry (constant velocity and turn)
         self._motion = ConstantVelocity(
             self.config.motion,

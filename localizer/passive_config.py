@@ -2,12 +2,11 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
 
-from localizer.constellation import ConstellationConfig
 from localizer.landmark_map import LandmarkMap
 
 PassiveMode = Literal["off", "auto", "all"]
@@ -29,7 +28,8 @@ class PassiveConfig:
         max_elongation: the detector keeps blobs up to this elongation (a strip light
             seen obliquely).
         outlier_sigma: a verified fix's pairs reproject within this many pixel sigmas.
-        constellation: the matcher's tuning.
+
+    The matcher's own tuning is `LocalizerConfig.constellation`.
     """
 
     mode: PassiveMode = "auto"
@@ -38,7 +38,6 @@ class PassiveConfig:
     view_side_m: float = 12.0
     max_elongation: float = 5.0
     outlier_sigma: float = 4.0
-    constellation: ConstellationConfig = field(default_factory=ConstellationConfig)
 
     def __post_init__(self) -> None:
         if self.mode not in ("off", "auto", "all"):

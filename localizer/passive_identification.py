@@ -34,6 +34,7 @@ import numpy.typing as npt
 from localizer.camera import CameraModel
 from localizer.config import LocalizerConfig
 from localizer.constellation import (
+    ConstellationConfig,
     ConstellationMatch,
     MapTriangles,
     constellation_hypotheses,
@@ -142,16 +143,23 @@ class PassiveIdentifier:
 
     Args:
         config: `PassiveConfig`.
-        relocalization: the hypothesis scoring's tuning, widened to the lights'
-            uncertainty (`constellation.scoring_config`).
+        constellation: the matcher's tuning.
+        relocalization: the hypothesis scoring's tuning (widened to the lights'
+            uncertainty by `constellation.scoring_config`).
 
     Attributes:
         active: whether the current map is identified by geometry.
         status: the last one-frame decision (None before any).
     """
 
-    def __init__(self, config: PassiveConfig, relocalization: RelocalizationConfig) -> None:
+    def __init__(
+        self,
+        config: PassiveConfig,
+        constellation: ConstellationConfig,
+        relocalization: RelocalizationConfig,
+    ) -> None:
         self.config = config
+        self.constellation = constellation
         self._base = relocalization
         self.active = False
         self.status: ConstellationMatch | None = None
@@ -168,7 +176,7 @@ class PassiveIdentifier:
         self._map = landmark_map
         self.active = self.config.applies_to(landmark_map)
         self._sigma = landmark_sigma_m(landmark_map, self.config)
-        self.scoring = scoring_config(self._base, self.config.constellation, self._sigma)
+        self.scoring = scoring_config(self._base, self.constellation, self._sigma)
         self._index = None
         self._set = HypothesisSet(self.scoring, seeder=self._seed)
         self.clear()
@@ -215,7 +223,7 @@ class PassiveIdentifier:
             return None
         self._t_matched = t_ns
         self.status = match_constellation(
-            camera, lm.positions, spot_pixels, index, self.config.constellation, self.scoring,
+            camera, lm.positions, spot_pixels, index, self.constellation, self.scoring,
             landmark_sigma_m=self._sigma, prior=prior,
         )  # fmt: skip
         if self.status.pose is None or not self.status.pairs:
@@ -227,7 +235,7 @@ class PassiveIdentifier:
         if self._index is None:
             self._index = map_triangles(
                 lm.positions[:, :2], self.config.view_side_m,
-                self.config.constellation.max_map_triangles,
+                self.constellation.max_map_triangles,
             )  # fmt: skip
         return self._index
 
@@ -239,7 +247,7 @@ class PassiveIdentifier:
         if self._index is None:
             return np.zeros((0, 3)), np.zeros(0)
         return constellation_hypotheses(
-            view, self._index, self.config.constellation, self._sigma, self._prior,
+            view, self._index, self.constellation, self._sigma, self._prior,
             c.prior_gate_chi2,
         )  # fmt: skip
 
