@@ -36,9 +36,7 @@ from localizer.config import LocalizerConfig
 from localizer.constellation import (
     ConstellationConfig,
     ConstellationMatch,
-    MapTriangles,
     constellation_hypotheses,
-    map_triangles,
     match_constellation,
     scoring_config,
 )
@@ -48,6 +46,7 @@ from localizer.landmark_map import LandmarkMap
 from localizer.passive_config import PassiveConfig
 from localizer.pose import PoseFix, solve_pose
 from localizer.relocalization import RelocalizationConfig
+from localizer.triangles import MapTriangles, map_triangles
 
 FloatArray = npt.NDArray[np.float64]
 Pose = tuple[float, float, float]

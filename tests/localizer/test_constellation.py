@@ -8,17 +8,10 @@ import numpy as np
 import pytest
 
 from localizer.camera import T_body_camera_upward, predict_pixels
-from localizer.constellation import (
-    ConstellationConfig,
-    map_triangles,
-    match_constellation,
-    scoring_config,
-    sorted_sides,
-    spot_triangles,
-    triangle_hypotheses,
-)
+from localizer.constellation import ConstellationConfig, match_constellation, scoring_config
 from localizer.geometry import T_world_body_from_pose
 from localizer.relocalization import RelocalizationConfig
+from localizer.triangles import map_triangles, sorted_sides, spot_triangles, triangle_hypotheses
 from tests.localizer.cases import fisheye_camera, irregular_positions
 
 CAM = fisheye_camera(T_body_camera_upward(height=0.3))
@@ -60,7 +53,7 @@ def test_triangle_invariant_recovers_a_rigid_motion_exactly() -> None:
     x, y, th = 1.3, -0.4, 2.5
     R = np.array([[math.cos(th), -math.sin(th)], [math.sin(th), math.cos(th)]])
     q = (P - [x, y]) @ R  # body points: P = R q + t
-    tris = spot_triangles(q, list(range(6)), CFG)
+    tris = spot_triangles(q, list(range(6)), CFG.min_side_m, CFG.max_spot_triangles)
     index = map_triangles(P, 20.0, 10_000)
     hyps = triangle_hypotheses(q, tris[:1], P, index, 1e-6, 0.0)
     assert len(hyps) == 1  # a mirror image or another order would not agree side by side
