@@ -150,13 +150,15 @@ def scoring_config(
     regular ceiling one was born every second, so the lead the map's few irregularities
     give never built up), and the set re-seeded only after `reseed_after_frames` frames it
     does not explain (under a missing light, where the evidence is, fewer lights are in
-    view)."""
+    view); retired poses keep their gap to the best (their frozen sums outscored a best whose
+    own sum had sunk on the frames newborns led: a lead of 25 read as 8.9)."""
     tol = config.tolerance_m(landmark_sigma_m)
     return dataclasses.replace(
         base,
         min_inliers=min(base.min_inliers, 3),
         birth_every_s=max(base.birth_every_s, config.birth_every_s),
         reseed_after_frames=max(base.reseed_after_frames, config.reseed_after_frames),
+        retired_as_gap=True,
         anchor_spots=max(base.anchor_spots, config.anchor_spots),
         inlier_tolerance_m=max(base.inlier_tolerance_m, tol),
         distance_tolerance_m=max(base.distance_tolerance_m, tol),

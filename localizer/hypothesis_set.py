@@ -263,7 +263,7 @@ class HypothesisSet:
         (one dropped beyond `max_live` keeps its score: the lead must be earned on it too)."""
         c = self.config
         poses = np.vstack([self.poses, self.retired])
-        log_lr = np.concatenate([self.log_lr, self.retired_lr])
+        log_lr = np.concatenate([self.log_lr, self._retired_now()])
         return distinct_second(poses, log_lr, best, c)
 
     def _births(
@@ -294,7 +294,8 @@ class HypothesisSet:
         else:
             # before this frame: the best's sum (this frame's increment taken out again)
             L_before = float(np.max(self.log_lr - np.clip(frame - f_live, -clip, 0.0)))
-            L_base = np.minimum(L_before, same_pose_min(hyps, self.retired, self.retired_lr, c))
+            retired = self._retired_now()
+            L_base = np.minimum(L_before, same_pose_min(hyps, self.retired, retired, c))
             # this frame against the best of all, the newborns included
             self.log_lr = (
                 self.log_lr
@@ -316,10 +317,22 @@ class HypothesisSet:
         """Retire poses: one record per pose, the strongest evidence against it."""
         if not len(poses):
             return
+        if self.config.retired_as_gap and len(self.log_lr):
+            log_lr = log_lr - float(np.max(self.log_lr))  # kept as the gap to the best
         R = np.vstack([poses, self.retired])
         L = np.concatenate([log_lr, self.retired_lr])
         keep = unique_hypotheses(R, -L, self.config)[: self.config.max_retired]
         self.retired, self.retired_lr = R[keep], L[keep]
+
+    def _retired_now(self) -> FloatArray:
+        """The retired poses' log-likelihood ratios on the live ones' scale: as they were
+        when retired, or (`retired_as_gap`) the best's now less their gap to the best then
+        (the best's own sum sinks on frames a newborn leads; a frozen sum would then look
+        better than the pose ever was)."""
+        if not self.config.retired_as_gap or not len(self.log_lr):
+            return self.retired_lr
+        out: FloatArray = self.retired_lr + float(np.max(self.log_lr))
+        return out
 
     def _prune(self) -> None:
         c = self.config
