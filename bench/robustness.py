@@ -122,7 +122,11 @@ def load_matrix(path: Path, *, held_out: bool) -> list[Run]:
 
 def site_truth(world: World, rig: RobotRig) -> SiteTruth:
     """The truth the scorer checks identifications against (see `SiteTruth`)."""
-    lms = [lm for lm in sorted(world.landmarks.values(), key=lambda lm: lm.id) if not lm.led_dead]
+    lms = [
+        lm
+        for lm in sorted(world.landmarks.values(), key=lambda lm: lm.id)
+        if not lm.led_dead or lm.panel_size_m > 0  # (a passive panel has no LED but shines)
+    ]
     sources = [lm.p_true for lm in lms] + [np.asarray(g.p_world, float) for g in world.glints]
     ids = [lm.id for lm in lms] + [-1] * len(world.glints)
     return SiteTruth(

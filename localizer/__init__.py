@@ -2,6 +2,7 @@
 
 from localizer.camera import CameraModel, camera_from_sensor, predict_pixels
 from localizer.config import FusionConfig, LocalizerConfig
+from localizer.constellation import ConstellationConfig, ConstellationMatch, match_constellation
 from localizer.events import (
     MODES,
     Event,
@@ -21,6 +22,7 @@ from localizer.handoff import HandoffConfig
 from localizer.identification import IdentificationConfig, Identifier
 from localizer.landmark_map import LandmarkMap
 from localizer.localizer import Localizer
+from localizer.passive_config import PassiveConfig
 from localizer.pose import PoseFix, pose_from_landmark_pair, solve_pose
 from localizer.pose_filter import PoseFilter
 from localizer.robot import RobotGeometry
@@ -31,6 +33,8 @@ from localizer.tracking import TrackingConfig, bottleneck_assignment
 __all__ = [
     "MODES",
     "CameraModel",
+    "ConstellationConfig",
+    "ConstellationMatch",
     "DetectionConfig",
     "Event",
     "FilterConfig",
@@ -48,6 +52,7 @@ __all__ = [
     "NoPose",
     "OdometryMeasured",
     "Output",
+    "PassiveConfig",
     "PoseEstimate",
     "PoseFilter",
     "PoseFix",
@@ -60,6 +65,7 @@ __all__ = [
     "camera_from_sensor",
     "detect_spots",
     "detect_spots_in_windows",
+    "match_constellation",
     "pose_from_landmark_pair",
     "predict_pixels",
     "solve_pose",

@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+from localizer.constellation import ConstellationConfig
 from localizer.filter_config import FilterConfig
 from localizer.fix_run import FixRunConfig
 from localizer.floor_plane import FloorPlaneConfig
@@ -13,6 +14,7 @@ from localizer.identification_config import IdentificationConfig
 from localizer.imu_tilt import ImuTiltConfig
 from localizer.motion_model import MotionModelConfig
 from localizer.noise_model import PixelNoiseConfig
+from localizer.passive_config import PassiveConfig
 from localizer.relocalization import RelocalizationConfig
 from localizer.self_calibration import SelfCalibrationConfig
 from localizer.spots import DetectionConfig
@@ -121,3 +123,5 @@ class LocalizerConfig:
     fix_run: FixRunConfig = field(default_factory=FixRunConfig)
     motion: MotionModelConfig = field(default_factory=MotionModelConfig)
     imu: ImuTiltConfig = field(default_factory=ImuTiltConfig)
+    passive: PassiveConfig = field(default_factory=PassiveConfig)
+    constellation: ConstellationConfig = field(default_factory=ConstellationConfig)

@@ -31,6 +31,7 @@ be resolved from the spots: then the set stays ambiguous and the localizer stays
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from typing import NamedTuple
 
 import numpy as np
@@ -55,6 +56,13 @@ from localizer.relocalization import (
 from localizer.types import FloatArray, Pose
 
 _NS = 1e-9
+
+
+Seeder = Callable[
+    [FrameView, Pose, FloatArray, RelocalizationConfig], tuple[FloatArray, FloatArray]
+]
+"""Hypotheses of a frame within a prior's gate: (poses (H, 3), squared Mahalanobis
+distances from the prior (H,)); `relocalization.seed_hypotheses` by default."""
 
 
 class Seed(NamedTuple):
@@ -114,6 +122,8 @@ class HypothesisSet:
 
     Args:
         config: the tuning (`RelocalizationConfig`, its "over frames" part).
+        seeder: how a frame seeds hypotheses (default `relocalization.seed_hypotheses`,
+            anchor pairs; `constellation` seeds by triangles for passive lights).
 
     Attributes:
         poses: the live hypotheses (x, y, theta), shape (H, 3).
@@ -127,8 +137,9 @@ class HypothesisSet:
         seeded: how many times the set was seeded afresh.
     """
 
-    def __init__(self, config: RelocalizationConfig) -> None:
+    def __init__(self, config: RelocalizationConfig, seeder: Seeder = seed_hypotheses) -> None:
         self.config = config
+        self.seeder = seeder
         self.seeded = 0
         self.clear()
 
@@ -249,7 +260,7 @@ class HypothesisSet:
         (one dropped beyond `max_live` keeps its score: the lead must be earned on it too)."""
         c = self.config
         poses = np.vstack([self.poses, self.retired])
-        log_lr = np.concatenate([self.log_lr, self.retired_lr])
+        log_lr = np.concatenate([self.log_lr, self._retired_now()])
         return distinct_second(poses, log_lr, best, c)
 
     def _births(
@@ -261,7 +272,7 @@ class HypothesisSet:
         is retired (refuted)."""
         c = self.config
         first = not len(self.poses)
-        hyps, m2 = seed_hypotheses(seed.view, seed.prior, seed.prior_covariance, c)
+        hyps, m2 = self.seeder(seed.view, seed.prior, seed.prior_covariance, c)
         if len(hyps) and not first:
             new = ~np.isfinite(same_pose_min(hyps, self.poses, np.zeros(len(self.poses)), c))
             hyps, m2 = hyps[new], m2[new]
@@ -280,7 +291,8 @@ class HypothesisSet:
         else:
             # before this frame: the best's sum (this frame's increment taken out again)
             L_before = float(np.max(self.log_lr - np.clip(frame - f_live, -clip, 0.0)))
-            L_base = np.minimum(L_before, same_pose_min(hyps, self.retired, self.retired_lr, c))
+            retired = self._retired_now()
+            L_base = np.minimum(L_before, same_pose_min(hyps, self.retired, retired, c))
             # this frame against the best of all, the newborns included
             self.log_lr = (
                 self.log_lr
@@ -302,10 +314,22 @@ class HypothesisSet:
         """Retire poses: one record per pose, the strongest evidence against it."""
         if not len(poses):
             return
+        if self.config.retired_as_gap and len(self.log_lr):
+            log_lr = log_lr - float(np.max(self.log_lr))  # kept as the gap to the best
         R = np.vstack([poses, self.retired])
         L = np.concatenate([log_lr, self.retired_lr])
         keep = unique_hypotheses(R, -L, self.config)[: self.config.max_retired]
         self.retired, self.retired_lr = R[keep], L[keep]
+
+    def _retired_now(self) -> FloatArray:
+        """The retired poses' log-likelihood ratios on the live ones' scale: as they were
+        when retired, or (`retired_as_gap`) the best's now less their gap to the best then
+        (the best's own sum sinks on frames a newborn leads; a frozen sum would then look
+        better than the pose ever was)."""
+        if not self.config.retired_as_gap or not len(self.log_lr):
+            return self.retired_lr
+        out: FloatArray = self.retired_lr + float(np.max(self.log_lr))
+        return out
 
     def _prune(self) -> None:
         c = self.config

@@ -28,6 +28,7 @@ import numpy.typing as npt
 from localizer.camera import CameraModel
 from localizer.candidate_order import ViewOrdering, order_by_view
 from localizer.config import LocalizerConfig
+from localizer.constellation import ConstellationMatch
 from localizer.events import (
     Event,
     FrameObserved,
@@ -56,6 +57,7 @@ from localizer.motion_model import ConstantVelocity
 from localizer.odometry import integrate_arc
 from localizer.odometry_track import OdometryTrack
 from localizer.online_calibration import OnlineCalibration
+from localizer.passive_identification import PassiveIdentifier, fix_from_pairs, passive_settings
 from localizer.pose import PoseFix, solve_pose
 from localizer.pose_filter import PoseFilter
 from localizer.robot import RobotGeometry
@@ -85,7 +87,8 @@ class Localizer:
     ) -> None:
         self.camera = camera
         self.robot = robot
-        self.config = config or LocalizerConfig()
+        # (passive lights larger than LED spots widen the detector and the windows)
+        self.config = passive_settings(config or LocalizerConfig(), camera, landmark_map)
         self._filter: PoseFilter | None = None
         self._mode: Mode = "identifying"
         self._latest: PoseEstimate | None = None
@@ -121,6 +124,9 @@ class Localizer:
             tuple[frozenset[int] | None, frozenset[int], LandmarkMap, npt.NDArray[np.int64]] | None
         ) = None
         self._tracker = LandmarkTracker(camera, robot, self.config, landmark_map)
+        self._passive = PassiveIdentifier(
+            self.config.passive, self.config.constellation, self.config.relocalization
+        )
         # speed and turn rate for frames without odometry (constant velocity and turn)
         self._motion = ConstantVelocity(
             self.config.motion,
@@ -149,6 +155,13 @@ class Localizer:
         """The last pose estimate output, if any."""
         return self._latest
 
+    @property
+    def passive_status(self) -> ConstellationMatch | None:
+        """Passive lights: the last decision of the identification by geometry and its
+        reason ("ambiguous: ... a regular layout"); None when none was made (or the map's
+        landmarks blink)."""
+        return self._passive.status if self._passive.active else None
+
     def set_map(self, landmark_map: LandmarkMap) -> None:
         """Use a new map. The pose is kept and tracking goes on with the new map (if the
         observations disagree with it the localizer gets lost and re-identifies); without a
@@ -175,6 +188,7 @@ class Localizer:
             motion_px=self._motion_bound_px,
             odometry_at=self._odometry.pose_at,
         )
+        self._passive.set_map(landmark_map)
         self._start_identification()
         if self._filter is not None and self._mode != "lost":
             self._sweeping = False  # keep tracking with the new map; lost if it disagrees
@@ -388,13 +402,17 @@ class Localizer:
         self._expected = ()
         if self._filter is None or self._mode in ("identifying", "lost"):
             spots = self._tracker.full_spots(e)
-            self._identifier.observe(t, self._lit_for_evidence(t), spots.pixels, spots.intensities)
-            fix = self._fix_from_sightings(t)
+            if self._passive.active:  # lights that cannot blink: by geometry
+                fix = self._passive_fix(t, spots)
+            else:
+                lit = self._lit_for_evidence(t)
+                self._identifier.observe(t, lit, spots.pixels, spots.intensities)
+                fix = self._fix_from_sightings(t)
             if fix is not None:
                 self._reset_filter(fix.x, fix.y, fix.theta, fix.covariance, t)
                 self._mode = "landmark"
                 used = fix.landmark_ids
-            elif self._filter is not None:
+            elif self._filter is not None and not self._passive.active:
                 # With a prior (lost, or an initial pose) also try a map-consistent hand-off.
                 used = self._track(e, dt_frame, spots=spots, reacquire=True)
                 if not used:
@@ -596,6 +614,26 @@ class Localizer:
         self._tracker.camera = update.camera
         self._tracker.set_map(self.map)  # scale, reach and the noise model of the new lens
 
+    def _passive_fix(self, t_ns: int, spots: Spots) -> PoseFix | None:
+        """Passive landmarks identified by geometry (`PassiveIdentifier`: around the
+        filter's pose when there is one, a start pose or where it got lost; else anywhere),
+        solved and verified by reprojection."""
+        prior = None if self._filter is None else (self._filter.pose, self._filter.covariance)
+        odo = self._odometry.pose
+        found = self._passive.identify(t_ns, self.camera, spots.pixels, odo, prior)
+        if found is None:
+            return None
+        pose, pairs = found
+        px, noise = spots.pixels, self._tracker.noise
+        sigma = [
+            noise.sigma_px(float(px[s, 0]), float(px[s, 1]), self.map.sigma_at(r)) for r, s in pairs
+        ]
+        fix = fix_from_pairs(self.camera, self.map, spots.pixels, pairs, sigma, pose,
+                             outlier_sigma=self.config.passive.outlier_sigma)  # fmt: skip
+        if fix is not None:
+            self._passive.clear()
+        return fix
+
     def _fix_from_sightings(self, t_ns: int) -> PoseFix | None:
         """First fix from identified landmarks, each carried by odometry to the frame time."""
         sightings = list(self._identifier.sightings.values())
@@ -720,7 +758,7 @@ class Localizer:
         self._identifier.restart(ids)
         self._view.reset()
         self._last_request = None
-        self._sweeping = True
+        self._sweeping = not self._passive.active  # passive lights are never switched
 
     def _requests(self, t_ns: int) -> list[Output]:
         """LED requests of an identification in progress (the last one lights all)."""

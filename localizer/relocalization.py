@@ -112,6 +112,9 @@ class RelocalizationConfig:
             seeded afresh from the next frame.
         birth_every_s: this often new hypotheses are seeded from the current frame and
             join the set `margin` below the best (they must earn their lead), seconds.
+        retired_as_gap: a retired pose keeps its gap to the best when it was retired,
+            rather than its log-likelihood ratio then (on for passive lights,
+            `constellation.scoring_config`).
     """
 
     every_s: float = 0.2
@@ -144,6 +147,7 @@ class RelocalizationConfig:
     sustain_frames: int = 3
     reseed_after_frames: int = 3
     birth_every_s: float = 1.0
+    retired_as_gap: bool = False
 
     @property
     def miss_log_lr(self) -> float:

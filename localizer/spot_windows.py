@@ -90,7 +90,8 @@ def spot_rows_in_windows(
         _, peak, _, loc = cv2.minMaxLoc(region)
         if peak <= thr:
             continue
-        cut = (c0 > 0, r0 > 0, c1 < W, r1 < H)
+        edge = config.drop_border_blobs  # the image's border cuts too
+        cut = (c0 > 0 or edge, r0 > 0 or edge, c1 < W or edge, r1 < H or edge)
         if not _single_spot(region, loc, peak, (c0, r0), bg, thr, config, rows, cut):
             spots_in_region(region, (c0, r0), bg, thr, config, rows, cut_sides=cut)
     return brightest(rows, config.max_spots)

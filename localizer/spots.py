@@ -22,6 +22,7 @@ import numpy as np
 
 from localizer.types import BoolArray, FloatArray, ImageU8
 
+_NO_CUT = (False, False, False, False)
 SpotRow = tuple[float, float, float, float]
 """One spot as (col, row, intensity, area), the fields of `Spots`."""
 
@@ -42,6 +43,9 @@ class DetectionConfig:
         min_peak_contrast_counts: brightest pixel must exceed the background by this.
         centroid_margin_px: the centroid patch extends the component's box by this, pixels.
         max_spots: keep at most this many spots (the brightest), a guard on pathological frames.
+        drop_border_blobs: drop components that touch the image border (a light cut by the
+            border has its centroid pulled inwards; on by default for passive lights, whose
+            blobs are tens of pixels across, `passive_identification.passive_settings`).
     """
 
     threshold_counts: float | None = None
@@ -55,6 +59,7 @@ class DetectionConfig:
     min_peak_contrast_counts: float = 20.0
     centroid_margin_px: int = 2
     max_spots: int = 64
+    drop_border_blobs: bool = False
 
     def __post_init__(self) -> None:
         if self.threshold_counts is not None and not 0 <= self.threshold_counts < 255:
@@ -272,7 +277,8 @@ def detect_spots(
     H, W = image.shape
     rows: list[SpotRow] = []
     for c0, r0, c1, r1 in window_boxes(boxes[:, :2], boxes[:, 2:], W, H):
-        spots_in_region(image[r0:r1, c0:c1], (c0, r0), bg, thr, config, rows)
+        cut = (c0 == 0, r0 == 0, c1 == W, r1 == H) if config.drop_border_blobs else _NO_CUT
+        spots_in_region(image[r0:r1, c0:c1], (c0, r0), bg, thr, config, rows, cut_sides=cut)
     return Spots.from_lists(brightest(rows, config.max_spots))
 
 

@@ -50,12 +50,15 @@ class Localized:
             odometry's, from `Localizer.skip_frame`).
         cpu_s: CPU time of this thread in the localizer for this frame (the odometry and
             LED events since the previous frame included), seconds.
+        why_not: while identifying passive lights by geometry, the last decision and its
+            reason ("ambiguous: 82 distinct poses ..."); empty otherwise.
     """
 
     entry: FrameEntry
     estimate: PoseEstimate | NoPose
     image: ImageU8 | None
     cpu_s: float
+    why_not: str = ""
 
 
 def decode_threads() -> int:
@@ -149,7 +152,9 @@ def _run(
             outs = loc.handle(FrameObserved(item.t_ns, image))
             est = next(o for o in outs if isinstance(o, PoseEstimate | NoPose))
         cpu_ns += time.thread_time_ns() - t0
-        yield Localized(item, est, image, cpu_ns * 1e-9)
+        status = loc.passive_status if est.mode in ("identifying", "lost") else None
+        why = "" if status is None else f"{status.status}: {status.reason}"
+        yield Localized(item, est, image, cpu_ns * 1e-9, why)
         cpu_ns = 0
 
 

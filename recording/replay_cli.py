@@ -79,7 +79,12 @@ def replay(
     out.write(HEADER + "\n")
     written = skipped = 0
     prior = rec.start_pose if start_pose == "recording" else start_pose
+    said = ""  # the passive identification's last decision, said when it changes
     for done in localize(rec, config=config, threads=threads, start_pose=prior):
+        if done.why_not.split(":")[0] != said.split(":")[0]:
+            if done.why_not:
+                warn(f"frame {done.entry.t_ns}: no pose yet, {done.why_not}")
+            said = done.why_not
         if done.image is None:
             skipped += 1
             warn(

@@ -41,21 +41,27 @@ class RobotRig:
 def build_world(scenario: Scenario, rng: np.random.Generator) -> World:
     """The world of a scenario; `rng` draws the survey errors."""
     landmarks: dict[int, SimLandmark] = {}
+    panel = scenario.panels
+    extended = []
     for spec in scenario.landmarks:
         p_true = np.array([spec.x, spec.y, spec.z])
         p_surveyed = p_true + rng.normal(0.0, scenario.survey_sigma_m, 3)
+        passive = panel is not None  # a ceiling light: no LED to switch, no radio
         landmarks[spec.id] = SimLandmark(
             spec.id,
             p_true,
             p_surveyed,
             (spec.address or default_address(spec.id)).upper(),
             Battery(BatteryConfig(capacity_mah=spec.capacity_mah), charge=spec.charge),
-            radio_dead=spec.radio_dead,
-            led_on=not spec.radio_dead,
-            led_dead=spec.led_dead,
-            floor=spec.floor,
-        )
-    extended = []
+            radio_dead=spec.radio_dead or passive, led_on=not spec.radio_dead,
+            led_dead=spec.led_dead or passive, floor=spec.floor,
+            panel_size_m=0.0 if panel is None else max(panel.width_m, panel.length_m),
+            map_sigma_m=None if panel is None else panel.map_sigma_m,
+        )  # fmt: skip
+        if panel is not None:
+            corners = panel.outline_xy(spec.x, spec.y)
+            outline = np.column_stack([corners, np.full(len(corners), spec.z)])
+            extended.append(ExtendedSource(outline, panel.brightness, f"panel {spec.id}"))
     for e in scenario.extended:
         if e.kind == "lamp":
             outline = disc_outline([*e.outline_xy[0], e.z], e.radius_m)

@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from localizer.types import FloatArray
 from sim.cameras import LENSES, CalibrationError, Lens
 from sim.fields import Node
 from sim.render import RenderConfig
@@ -72,6 +73,26 @@ class ExtendedSpec:
 
 
 @dataclass(frozen=True)
+class PanelSpec:
+    """Every landmark is a passive ceiling light: a rectangular panel (never switched, no
+    radio), surveyed at its centre with `map_sigma_m` stated in the map."""
+
+    width_m: float
+    length_m: float
+    angle_deg: float
+    brightness: float
+    map_sigma_m: float
+
+    def outline_xy(self, x: float, y: float) -> FloatArray:
+        """The panel's corners around its centre (x, y), metres, shape (4, 2)."""
+        a = math.radians(self.angle_deg)
+        u = np.array([math.cos(a), math.sin(a)]) * 0.5 * self.length_m
+        v = np.array([-math.sin(a), math.cos(a)]) * 0.5 * self.width_m
+        c = np.array([x, y])
+        return np.array([c - u - v, c + u - v, c + u + v, c - u + v])
+
+
+@dataclass(frozen=True)
 class GlintSpec:
     x: float
     y: float
@@ -108,6 +129,7 @@ class Scenario:
     render: RenderConfig
     slips: tuple[SlipPatch, ...] = ()
     floors: tuple[FloorSpec, ...] = (FloorSpec("0", "Floor 0", 0, 0.0),)
+    panels: PanelSpec | None = None
 
     def with_lens(self, lens: Lens) -> Scenario:
         """The same scenario with every robot's camera on `lens`."""
@@ -128,6 +150,7 @@ class Scenario:
 
 
 _TOP = (
+    "panels",
     "name",
     "description",
     "seed",
@@ -378,6 +401,23 @@ def scenario_from_dict(data: object, *, source: str) -> Scenario:
         radio_loss=radio.number("loss", 0.02, low=0, high=0.9),
         render=render_cfg,
         slips=_slips(doc),
+        panels=_panels(doc),
+    )
+
+
+def _panels(doc: Node) -> PanelSpec | None:
+    """`panels:`: every landmark a passive light panel (docs/sim.md)."""
+    if not doc.has("panels"):
+        return None
+    n = doc.child("panels").mapping(
+        ("width_m", "length_m", "angle_deg", "brightness", "map_sigma_m")
+    )
+    return PanelSpec(
+        n.number("width_m", 0.6, low=0.05, high=5),
+        n.number("length_m", 0.6, low=0.05, high=5),
+        n.number("angle_deg", 0.0),
+        n.number("brightness", 300.0, low=1),
+        n.number("map_sigma_m", 0.05, low=0.001, high=1),
     )
 
 

@@ -36,6 +36,9 @@ class SimLandmark:
         radio_dead: the radio never answers (a broken landmark).
         led_on: the LED pin is high.
         led_dead: the LED never lights although the radio answers (a burnt-out LED).
+        panel_size_m: a passive ceiling light's size (rendered as an extended source;
+            map.json flags it `passive`), metres; 0: an LED.
+        map_sigma_m: the position sigma map.json states for it, metres (None: none).
     """
 
     id: int
@@ -47,6 +50,8 @@ class SimLandmark:
     led_on: bool = True
     led_dead: bool = False
     floor: str = "0"
+    panel_size_m: float = 0.0
+    map_sigma_m: float | None = None
 
     @property
     def node_id(self) -> str:
@@ -269,8 +274,9 @@ class World:
 
     def landmark_records(self) -> list[dict[str, object]]:
         """The surveyed map (map.json's `landmarks`), with each landmark's `radio` address."""
-        return [
-            {
+        out: list[dict[str, object]] = []
+        for lm in sorted(self.landmarks.values(), key=lambda lm: lm.id):
+            rec: dict[str, object] = {
                 "id": lm.id,
                 "x": float(lm.p_surveyed[0]),
                 "y": float(lm.p_surveyed[1]),
@@ -278,5 +284,9 @@ class World:
                 "radio": lm.address,
                 "floor": lm.floor,
             }
-            for lm in sorted(self.landmarks.values(), key=lambda lm: lm.id)
-        ]
+            if lm.panel_size_m > 0:
+                rec.update(passive=True, size_m=lm.panel_size_m)
+            if lm.map_sigma_m is not None:
+                rec["sigma_m"] = lm.map_sigma_m
+            out.append(rec)
+        return out

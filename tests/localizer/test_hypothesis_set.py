@@ -271,3 +271,21 @@ def test_a_robot_put_down_one_spacing_away_on_a_regular_grid_is_never_taken_for_
     assert max(e for _, mode, e in out if mode == "landmark") < 0.03
     after = [mode for t, mode, _ in out if t > 2.0]
     assert after and all(mode == "lost" for mode in after)
+
+
+def test_a_retired_pose_keeps_its_gap_to_the_best_when_asked() -> None:
+    """The best's own sum sinks on frames a newborn leads (-6 here); a pose retired 15
+    below the best stays 15 below it (`retired_as_gap`), not 9 (its frozen sum)."""
+    cfg = RelocalizationConfig(retired_as_gap=True)
+    hs = HypothesisSet(cfg)
+    hs.poses = np.array([[0.0, 0.0, 0.0], [5.0, 0.0, 0.0]])
+    hs.log_lr = np.array([0.0, -15.0])
+    hs._retire(hs.poses[1:], hs.log_lr[1:])
+    hs.poses, hs.log_lr = hs.poses[:1], np.array([-6.0])  # the best sank since
+    assert hs._second(0) == -21.0
+    frozen = HypothesisSet(RelocalizationConfig())
+    frozen.poses = np.array([[0.0, 0.0, 0.0], [5.0, 0.0, 0.0]])
+    frozen.log_lr = np.array([0.0, -15.0])
+    frozen._retire(frozen.poses[1:], frozen.log_lr[1:])
+    frozen.poses, frozen.log_lr = frozen.poses[:1], np.array([-6.0])
+    assert frozen._second(0) == -15.0  # the default: the sum as it was

@@ -158,3 +158,23 @@ def test_bad_start_pose_is_a_clear_error(
 ) -> None:  # fmt: skip
     assert main([str(lit_recording), "--out", str(tmp_path / "p.csv"), "--start-pose", text]) == 2
     assert message in capsys.readouterr().err
+
+
+def test_passive_lights_on_a_symmetric_bed_say_why_and_a_start_pose_decides(
+    lit_recording: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The paper's bed treated as passive lights (`passive: {mode: all}`): an equilateral
+    triangle looks the same turned by 120 deg, so from a cold start no frame can decide."""
+    settings = tmp_path / "passive.yaml"
+    settings.write_text("passive: {mode: all}\n", encoding="utf-8")
+    out = tmp_path / "poses.csv"
+    assert main([str(lit_recording), "--out", str(out), "--config", str(settings),
+                 "--no-truth"]) == 0  # fmt: skip
+    assert {r["mode"] for r in _rows(out)} == {"identifying"}  # no guess
+    err = capsys.readouterr().err
+    assert "no pose yet, ambiguous: 3 distinct poses explain the 3 spots alike" in err
+    started = tmp_path / "started.csv"
+    argv = [str(lit_recording), "--out", str(started), "--quiet", "--config", str(settings)]
+    assert main([*argv, "--start-pose", "0.65,0.25,0.1,0.3"]) == 0
+    errs = _errors_cm(_rows(started))
+    assert len(errs) >= 0.9 * len(_rows(started)) and max(errs) < 1.0

@@ -110,3 +110,35 @@ def test_world_is_seeded_and_survey_differs_from_truth() -> None:
     err = np.linalg.norm(lm.p_true - lm.p_surveyed)
     assert 0 < err < 0.03
     assert ra[0]["radio"] == default_address(100) == "0013A20041000064"
+
+
+def test_panels_make_every_landmark_a_passive_light_rendered_as_a_blob() -> None:
+    from localizer.camera import T_body_camera_upward, predict_pixels
+    from localizer.geometry import T_world_body_from_pose
+    from localizer.landmark_map import LandmarkMap
+    from localizer.spots import DetectionConfig, detect_spots
+    from sim.render import render_frame
+    from tests.localizer.cases import fisheye_camera
+
+    doc = copy.deepcopy(BASE)
+    doc["panels"] = {"width_m": 0.6, "length_m": 1.2, "angle_deg": 90, "map_sigma_m": 0.04}
+    sc = scenario_from_dict(doc, source="t.yaml")
+    assert sc.panels is not None and sc.panels.brightness == 300.0
+    world = build_world(sc, np.random.default_rng(0))
+    recs = world.landmark_records()
+    assert all(r["passive"] and r["size_m"] == 1.2 and r["sigma_m"] == 0.04 for r in recs)
+    lmap = LandmarkMap.from_records(recs)
+    assert lmap.passive is not None and bool(np.all(lmap.passive))
+    # no LED point source: the panels are extended sources, one per landmark
+    assert len(world.point_sources(np.zeros(3))[0]) == 0 and len(world.extended) == 2
+    cam = fisheye_camera(T_body_camera_upward(height=0.3))
+    img = render_frame(cam, T_world_body_from_pose(0.6, 0.0, 0.0), [], [], rng=None,
+                       extended=world.extended)  # fmt: skip
+    spots = detect_spots(img, DetectionConfig(max_area_px=40_000, max_elongation=5))
+    assert len(spots) == 2 and np.all(spots.areas > 1000)  # two panels, 0.6 m either side
+    centres = np.array([lm.p_true for lm in world.landmarks.values()])
+    px, _ = predict_pixels(cam, T_world_body_from_pose(0.6, 0.0, 0.0), centres)
+    d = np.hypot(*(spots.pixels[:, None, :] - px[None, :, :]).transpose(2, 0, 1)).min(axis=1)
+    assert np.all(d < 5.0)  # where its centre projects, but for the perspective (3.5 px here)
+    with pytest.raises(ValueError, match="panels"):
+        scenario_from_dict({**doc, "panels": {"width_m": 0.0}}, source="t.yaml")
