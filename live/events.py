@@ -38,6 +38,7 @@ EventKind = Literal[
     "recording_stopped",
     "site_thread_restarted",
     "fleet_intrusion",
+    "black_box_saved",
 ]
 """What an event is about (the API's enumerated type)."""
 EVENT_KINDS: tuple[str, ...] = get_args(EventKind)

@@ -13,6 +13,7 @@ from localizer.imu_tilt import ImuTiltConfig
 from localizer.motion_model import MotionModelConfig
 from localizer.noise_model import PixelNoiseConfig
 from localizer.pose_filter import FilterConfig
+from localizer.pose_quality import QualityConfig
 from localizer.relocalization import RelocalizationConfig
 from localizer.self_calibration import SelfCalibrationConfig
 from localizer.spots import DetectionConfig
@@ -121,3 +122,4 @@ class LocalizerConfig:
     fix_run: FixRunConfig = field(default_factory=FixRunConfig)
     motion: MotionModelConfig = field(default_factory=MotionModelConfig)
     imu: ImuTiltConfig = field(default_factory=ImuTiltConfig)
+    quality: QualityConfig = field(default_factory=QualityConfig)

@@ -88,4 +88,8 @@ def test_encode_batch_is_a_json_array_of_the_pose_texts() -> None:
         "computed_wall_ns": poses[1].computed_wall_ns,
         "floor": "0",
         "map_version": 0,
+        "quality": None,
+        "deviation_m": None,
+        "reason": None,
+        "reason_text": "",
     }
