@@ -41,6 +41,8 @@ _K95 = np.array([
 ])  # fmt: skip
 """r / sd_major of the 95 % circle at sd_minor / sd_major = `_RHO` (roots of
 `circle_probability` = 0.95; tests/localizer/test_pose_quality.py checks them)."""
+_STEPS = len(_RHO) - 1
+_K95_LIST: list[float] = _K95.tolist()  # read per pose: plain floats
 
 
 def _per_mode(landmark: float, dead_reckoning: float, lost: float) -> dict[str, float]:
@@ -107,15 +109,20 @@ def published_covariance(
         raise ValueError(f"published_covariance: covariance must be (3, 3), got {P.shape}")
     s_xy = config.position_scale.get(mode, 1.0)
     s_th = config.heading_scale.get(mode, 1.0)
-    S = np.array([s_xy, s_xy, s_th])
-    out: FloatArray = P * np.outer(S, S)
     f_xy = config.position_floor_m.get(mode, 0.0)
     f_th = config.heading_floor_rad.get(mode, 0.0)
-    out += np.diag([f_xy * f_xy, f_xy * f_xy, f_th * f_th])
-    if config.output_offset:
-        o = np.asarray(output_offset, dtype=np.float64)
-        out += np.outer(o, o)
-    return 0.5 * (out + out.T)
+    S = (s_xy, s_xy, s_th)
+    F = (f_xy * f_xy, f_xy * f_xy, f_th * f_th)
+    o = output_offset if config.output_offset else (0.0, 0.0, 0.0)
+    rows = P.tolist()  # nine floats: plain arithmetic is cheaper than numpy at this size
+    out = [
+        [
+            0.5 * (rows[i][j] + rows[j][i]) * S[i] * S[j] + o[i] * o[j] + (F[i] if i == j else 0.0)
+            for j in range(3)
+        ]
+        for i in range(3)
+    ]
+    return np.array(out, dtype=np.float64)
 
 
 def circle_probability(r: float, sd_major: float, sd_minor: float) -> float:
@@ -141,16 +148,18 @@ def deviation_radius_m(covariance_xy: FloatArray) -> float:
         sqrt(-2 ln 0.05)); k is tabulated from `circle_probability` (linear interpolation,
         within 0.03 % of the root).
     """
-    P = np.asarray(covariance_xy, dtype=np.float64)[:2, :2]
-    if not np.all(np.isfinite(P)):
+    P = np.asarray(covariance_xy, dtype=np.float64)
+    (a, b1), (b2, c) = (row[:2] for row in P[:2].tolist())
+    if not all(math.isfinite(v) for v in (a, b1, b2, c)):
         raise ValueError("deviation_radius_m: the covariance has a non-finite entry")
-    a, b, c = float(P[0, 0]), 0.5 * float(P[0, 1] + P[1, 0]), float(P[1, 1])
-    mid, half = 0.5 * (a + c), math.hypot(0.5 * (a - c), b)
+    mid, half = 0.5 * (a + c), math.hypot(0.5 * (a - c), 0.5 * (b1 + b2))
     sd_major = math.sqrt(max(mid + half, 0.0))
     if sd_major == 0.0:
         return 0.0
-    rho = math.sqrt(max(mid - half, 0.0)) / sd_major
-    return float(np.interp(rho, _RHO, _K95)) * sd_major
+    rho = min(math.sqrt(max(mid - half, 0.0)) / sd_major, 1.0)
+    k = min(int(rho * _STEPS), _STEPS - 1)  # _RHO is evenly spaced: interpolate in cell k
+    w = rho * _STEPS - k
+    return ((1.0 - w) * _K95_LIST[k] + w * _K95_LIST[k + 1]) * sd_major
 
 
 def heading_deviation_rad(covariance: FloatArray) -> float:
