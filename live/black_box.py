@@ -28,6 +28,7 @@ from typing import Any, Literal
 import numpy as np
 import yaml
 
+from live.led_filter import only_landmarks
 from localizer.camera import CameraModel
 from localizer.events import (
     Event,
@@ -282,16 +283,19 @@ def write_black_box(
     """Write events and poses as a recording folder (the LED state in force first, the
     first pose as `start_pose.yaml`)."""
     first_t = min((e.t_ns for e in events), default=0)
-    with RecordingWriter(root, camera, geometry, landmark_records) as rec:
+    records = list(landmark_records)
+    ids = frozenset(int(r["id"]) for r in records)  # a landmark removed since is no more
+    with RecordingWriter(root, camera, geometry, records) as rec:
         if leds_before is not None:
-            rec.add_leds(LedsChanged(first_t, leds_before.lit, leds_before.all_lit))
+            before = only_landmarks(leds_before, ids)
+            rec.add_leds(LedsChanged(first_t, before.lit, before.all_lit))
         for e in events:
             if isinstance(e, FrameObserved):
                 rec.add_frame(e.t_ns, np.ascontiguousarray(e.image))
             elif isinstance(e, OdometryMeasured):
                 rec.add_odometry(e.t_ns, e.v_left, e.v_right)
             elif isinstance(e, LedsChanged):
-                rec.add_leds(e)
+                rec.add_leds(only_landmarks(e, ids))
         for p in poses:
             rec.add_pose(p)
     start = next((p for p in poses if isinstance(p, PoseEstimate)), None)

@@ -22,7 +22,8 @@ from dataclasses import dataclass
 
 from live.events import EventHub
 from live.floors import SiteFloors
-from live.robots import LocalizerLike, RobotRunner, make_localizer, only_landmarks
+from live.led_filter import only_landmarks
+from live.robots import LocalizerLike, RobotRunner, make_localizer
 from localizer.config import LocalizerConfig
 from localizer.events import Event, LedRequest, LedsChanged, PoseEstimate, RelocalizeRequested
 from store.errors import NotFoundError

@@ -12,6 +12,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from live.black_box import BlackBox
+from live.led_filter import only_landmarks
 from live.pose_reasons import ReasonTally
 from live.poses import PoseUpdate
 from live.recording_queue import QueuedRecording, RecordingLimits, check_free_space
@@ -56,13 +57,6 @@ def make_localizer(
 ) -> LocalizerLike:
     """The project's localizer for one robot (`config`: None for the defaults)."""
     return Localizer(camera, landmark_map, robot, config)
-
-
-def only_landmarks(event: LedsChanged, ids: frozenset[int]) -> LedsChanged:
-    """An LED state restricted to the landmarks `ids` (one floor's map)."""
-    if event.all_lit:
-        return LedsChanged(event.t_ns, frozenset(), True, event.changing & ids)
-    return LedsChanged(event.t_ns, event.lit & ids, False, event.changing & ids)
 
 
 class RobotRunner:
