@@ -342,10 +342,9 @@ class AgentCore:
             ).model_copy(update={"floor": self.map_floor, "map_version": self.map_version})
             self._log_truth(o, t_site)
         else:
-            msg = PoseMessage(
-                seq=seq, t_ns=t_site, wall_ns=wall, mode=o.mode,
-                floor=self.map_floor, map_version=self.map_version,
-            )  # fmt: skip
+            msg = PoseMessage.from_no_pose(seq, o, t_site, wall).model_copy(
+                update={"floor": self.map_floor, "map_version": self.map_version}
+            )
         out.append(Outgoing("pose", msg.encode()))
         if mode_changed or (now_mono - self._last_vis_mono) * cfg.visualization_rate_hz >= 0.8 * NS:
             self._last_vis_mono = now_mono
@@ -398,6 +397,8 @@ class AgentCore:
             mode=msg.mode,
             pose=pose,
             covariance=msg.covariance(),
+            quality=msg.quality,
+            deviation_m=msg.deviation_m,
         )
         return json.dumps(vis, separators=(",", ":")).encode()
 

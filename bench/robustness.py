@@ -29,6 +29,8 @@ import hashlib
 import json
 import math
 import multiprocessing
+import os
+import shutil
 import sys
 import tempfile
 import time
@@ -149,17 +151,42 @@ def _cache_key(run: Run, duration_s: float) -> str:
     return h.hexdigest()[:16]
 
 
-def _replay_run(run: Run, sc: Scenario, work: Path, duration_s: float, fresh: bool) -> Score:
+def recording_for(
+    run: Run, sc: Scenario, work: Path, duration_s: float, fresh: bool = False
+) -> tuple[Path, list[tuple[int, int]]]:
+    """The run's simulated recording in the work folder (simulated unless cached) and its
+    kidnaps, (picked up, put down) times in ns. Simulated into a folder of its own and then
+    renamed, so that two benchmarks sharing the work folder never read a half-written one
+    (the one that loses the race waits for the other's)."""
     rec = work / f"{run.name}-{_cache_key(run, duration_s)}"
     meta = rec / "robustness.json"
-    if fresh or not meta.is_file():
-        summary = simulate_recording(sc, rec, seed=run.seed, duration_s=duration_s, robot=run.robot)
-        meta.write_text(json.dumps({"kidnaps": summary.kidnaps}))
+    if fresh:
+        shutil.rmtree(rec, ignore_errors=True)
+    if not meta.is_file() and not rec.exists():
+        tmp = work / f".{rec.name}.{os.getpid()}.part"
+        shutil.rmtree(tmp, ignore_errors=True)
+        summary = simulate_recording(sc, tmp, seed=run.seed, duration_s=duration_s, robot=run.robot)
+        (tmp / meta.name).write_text(json.dumps({"kidnaps": summary.kidnaps}))
+        try:
+            tmp.rename(rec)
+        except OSError:  # another process got there first
+            shutil.rmtree(tmp, ignore_errors=True)
+    deadline = time.monotonic() + 3600.0
+    while not meta.is_file():  # another process is simulating it
+        if time.monotonic() > deadline:
+            raise TimeoutError(f"{rec}: no {meta.name} after an hour")
+        time.sleep(2.0)
     kidnaps = [(int(a), int(b)) for a, b in json.loads(meta.read_text())["kidnaps"]]
-    poses = rec.parent / f"{rec.name}.poses.csv"
+    return rec, kidnaps
+
+
+def _replay_run(run: Run, sc: Scenario, work: Path, duration_s: float, fresh: bool) -> Score:
+    rec, kidnaps = recording_for(run, sc, work, duration_s, fresh)
+    poses = rec.parent / f".{rec.name}.{os.getpid()}.poses.csv"  # this process's own
     with poses.open("w", encoding="utf-8", newline="\n") as f:
         replay(rec, f, threads=1)
     results = [_row(line) for line in poses.read_text().splitlines()[1:]]
+    poses.unlink()
     t_gt, gt = read_groundtruth(rec)
     index = {int(t): k for k, t in enumerate(t_gt.tolist())}
     unwrapped = np.unwrap(gt[:, 2])
@@ -178,7 +205,7 @@ def _replay_run(run: Run, sc: Scenario, work: Path, duration_s: float, fresh: bo
 
 def _row(line: str) -> FrameResult:
     """One row of poses.csv (see `recording.replay_cli`)."""
-    t, x, y, th, mode, _, _, _, ids = line.split(",")
+    t, x, y, th, mode, _, _, _, ids = line.split(",")[:9]
     pose = (float(x), float(y), float(th)) if x else None
     return FrameResult(int(t), pose, mode, tuple(int(i) for i in ids.split()))
 

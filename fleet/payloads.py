@@ -14,7 +14,8 @@ from typing import Literal, TypeVar
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
-from localizer.events import LedRequest, LedsChanged, Mode, PoseEstimate
+from localizer.events import LedRequest, LedsChanged, Mode, NoPose, PoseEstimate
+from localizer.pose_quality import ReasonCode
 from localizer.types import FloatArray
 
 M = TypeVar("M", bound=BaseModel)
@@ -164,6 +165,8 @@ class PoseMessage(_Msg):
         ex: the lit landmarks the localizer expected in view (sent with `spots`).
         spots: the frame's spot centres (col, row) in pixels, for map upkeep: sent with a
             confident frame now and then (`AgentConfig.spots_period_s`), else absent.
+        quality: 0-1 (docs/quality.md); deviation_m: the 95 % radius, metres.
+        reason, reason_text: why this is no landmark fix (absent when it is one).
     """
 
     seq: int = Field(ge=0)
@@ -180,6 +183,15 @@ class PoseMessage(_Msg):
     floor_unknown: bool | None = None
     ex: list[int] | None = None
     spots: list[tuple[float, float]] | None = Field(default=None, max_length=MAX_SPOTS)
+    quality: float | None = Field(default=None, ge=0.0, le=1.0)
+    deviation_m: float | None = Field(default=None, ge=0.0, allow_inf_nan=False)
+    reason: ReasonCode | None = None
+    reason_text: str | None = Field(default=None, max_length=300)
+
+    @classmethod
+    def from_no_pose(cls, seq: int, out: NoPose, t_ns: int, wall_ns: int) -> PoseMessage:
+        return cls(seq=seq, t_ns=t_ns, wall_ns=wall_ns, mode=out.mode, quality=out.quality,
+                   reason=out.reason, reason_text=out.reason_text or None)  # fmt: skip
 
     @field_validator("spots")
     @classmethod
@@ -213,6 +225,10 @@ class PoseMessage(_Msg):
             spots=None
             if spots is None
             else [(round(float(u), 2), round(float(v), 2)) for u, v in spots[:MAX_SPOTS]],
+            quality=None if est.quality is None else round(est.quality, 3),
+            deviation_m=None if est.deviation_m is None else _sig(est.deviation_m),
+            reason=est.reason,
+            reason_text=est.reason_text or None,
         )
 
     def covariance(self) -> FloatArray | None:

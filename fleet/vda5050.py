@@ -4,15 +4,15 @@ OFFLINE, and the last will CONNECTIONBROKEN).
 Mapping of a pose: `agvPosition.x/y/theta` are the pose (metres, radians, REP-103, world
 frame = `mapId`); `positionInitialized` is true once the localizer has a pose it keeps up
 (landmark or dead-reckoning mode); `deviationRange` is the radius holding the position with
-95 % probability, from the covariance, metres. `velocity` is left out (the localizer
-estimates the pose, not the speed). Messages are dicts ready for `json.dumps`; the official
-JSON schemas validate them (tests/fleet/test_vda5050.py).
+95 % probability (the pose's `deviation_m`, or from its covariance), metres;
+`localizationScore` is the pose's 0-1 quality (docs/quality.md). `velocity` is left out
+(the localizer estimates the pose, not the speed). Messages are dicts ready for
+`json.dumps`; the official JSON schemas validate them (tests/fleet/test_vda5050.py).
 """
 
 from __future__ import annotations
 
 import datetime as dt
-import math
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
@@ -20,18 +20,16 @@ import numpy as np
 import numpy.typing as npt
 
 from localizer.events import Mode
+from localizer.pose_quality import deviation_radius_m
 
 VDA5050_VERSION = "2.1.0"
-CHI2_2DOF_95 = 5.991
-"""95 % point of chi-square with 2 degrees of freedom."""
 ConnectionState = Literal["ONLINE", "OFFLINE", "CONNECTIONBROKEN"]
 
 
 def deviation_range_m(covariance: npt.ArrayLike) -> float:
-    """Radius of the circle holding the position with 95 % probability (bounded by the
-    major axis of the error ellipse), metres; covariance of (x, y, theta), shape (3, 3)."""
-    major = float(np.linalg.eigvalsh(np.asarray(covariance, float)[:2, :2])[-1])
-    return math.sqrt(CHI2_2DOF_95 * max(major, 0.0))
+    """Radius of the circle holding the position with 95 % probability, metres;
+    covariance of (x, y, theta), shape (3, 3) (`pose_quality.deviation_radius_m`)."""
+    return deviation_radius_m(np.asarray(covariance, dtype=np.float64))
 
 
 def iso8601_utc(wall_ns: int) -> str:
@@ -78,8 +76,12 @@ def visualization_message(
     mode: Mode,
     pose: tuple[float, float, float] | None,
     covariance: npt.ArrayLike | None = None,
+    quality: float | None = None,
+    deviation_m: float | None = None,
 ) -> dict[str, Any]:
-    """A `visualization` message; `agvPosition` only when there is a pose (x, y, theta)."""
+    """A `visualization` message; `agvPosition` only when there is a pose (x, y, theta);
+    `deviationRange` from `deviation_m` (else the covariance), `localizationScore` from
+    `quality` (0-1)."""
     msg = header(header_id, wall_ns, manufacturer, serial_number)
     if pose is not None:
         x, y, theta = pose
@@ -90,8 +92,12 @@ def visualization_message(
             "mapId": map_id,
             "positionInitialized": position_initialized(mode),
         }
-        if covariance is not None:
-            position["deviationRange"] = float(f"{deviation_range_m(covariance):.4g}")
+        if deviation_m is None and covariance is not None:
+            deviation_m = deviation_range_m(covariance)
+        if deviation_m is not None:
+            position["deviationRange"] = float(f"{deviation_m:.4g}")
+        if quality is not None:
+            position["localizationScore"] = round(min(max(quality, 0.0), 1.0), 3)
         msg["agvPosition"] = position
     return msg
 

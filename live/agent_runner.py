@@ -117,7 +117,12 @@ class AgentRunner(RobotRunner):
             floor=msg.floor if msg.floor is not None else self.floor,
             map_version=msg.map_version if msg.map_version is not None else self.map_version,
             floor_unknown=withheld or bool(msg.floor_unknown),
+            quality=msg.quality,
+            deviation_m=msg.deviation_m,
+            reason=msg.reason,
+            reason_text=msg.reason_text or "",
         )
+        self.reasons.note(upd)
         if msg.spots is not None:  # a confident frame's spots: map upkeep takes them
             px = np.array(msg.spots, dtype=np.float64).reshape(-1, 2)
             n = len(px)

@@ -41,6 +41,7 @@ EventKind = Literal[
     "alert_raised",
     "alert_resolved",
     "cells_replaced",
+    "black_box_saved",
 ]
 """What an event is about (the API's enumerated type). A new kind is added here: every
 emitter is typed with it (`EventHub.emit`, `EmitEvent`), so mypy refuses a kind not listed."""

@@ -22,6 +22,7 @@ from typing import Any
 
 import numpy as np
 
+from live.black_box import BlackBoxRecording, list_black_boxes, read_black_box
 from live.leds.coordinator import LedCoordinator
 from live.leds.runtime import LedScheduler
 from live.poses import PoseUpdate
@@ -33,7 +34,7 @@ from rf_gateway.errors import RadioTimeout
 from rf_gateway.gateway import Gateway
 from rf_gateway.transport import DiscoveredRadio, normalize_address
 from store import EventLog, MapRepository, RobotStore
-from store.errors import NotFoundError, UnavailableError
+from store.errors import ConflictError, NotFoundError, UnavailableError
 from store.models import RobotCreate, RobotPublic
 from store.recording_catalog import RecordingCatalog, write_meta
 
@@ -306,6 +307,15 @@ class LedsAndRadio:
         return BatteryStatus(landmark_id, mv, pct, left, hist)
 
 
+def map_records(map: MapRepository, floor: str) -> list[dict[str, Any]]:
+    """The landmarks of `floor` as a recording's `map.json` records (the frame a robot on
+    that floor has its poses in)."""
+    return [
+        lm.model_dump(mode="json", exclude={"created_at", "updated_at", "note", "floor"})
+        for lm in map.on_floor(floor)
+    ]
+
+
 class Recordings:
     """Record robots to `<recordings_dir>/<name>-<UTC time>/` (EuRoC-style, docs/recording.md);
     `catalog` lists, zips and deletes them and keeps them within the retention bounds."""
@@ -337,13 +347,27 @@ class Recordings:
         runner = self.robots.get(name)
         now = datetime.now(UTC)
         root = self.root / f"{name}-{now.strftime('%Y%m%dT%H%M%S')}"
-        records = [  # the map of the robot's floor: the frame its poses are in
-            lm.model_dump(mode="json", exclude={"created_at", "updated_at", "note", "floor"})
-            for lm in self.map.on_floor(runner.floor)
-        ]
-        runner.start_recording(root, records)
+        runner.start_recording(root, map_records(self.map, runner.floor))
         write_meta(root, name, trigger, now)
         return root
+
+    def save_black_box(self, name: str) -> BlackBoxRecording:
+        """Save a robot's black box now (an operator's request) and return it.
+
+        Raises:
+            NotFoundError: no such robot running; ConflictError: it keeps no black box.
+        """
+        box = self.robots.get(name).black_box
+        if box is None:
+            raise ConflictError(f"robot {name!r} keeps no black box (black_box_seconds is 0)")
+        saved = read_black_box(box.save_now("operator"))
+        if saved is None:
+            raise ConflictError(f"robot {name!r}: the black box could not be saved (see the log)")
+        return saved
+
+    def black_boxes(self, name: str) -> list[BlackBoxRecording]:
+        """A robot's saved black boxes, oldest first."""
+        return list_black_boxes(self.root, name)
 
     def stop(self, name: str) -> Path | None:
         """Stop a robot's recording; its folder, or None when it was not recording. The

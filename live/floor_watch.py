@@ -26,7 +26,8 @@ from dataclasses import dataclass, field
 from fleet.floor_fit import FloorFit, FloorFitConfig
 from live.events import EventHub
 from live.floors import Near, SiteFloors
-from live.robots import LocalizerLike, RobotRunner, make_localizer, only_landmarks
+from live.led_filter import only_landmarks
+from live.robots import LocalizerLike, RobotRunner, make_localizer
 from localizer.config import LocalizerConfig
 from localizer.events import (
     Event,

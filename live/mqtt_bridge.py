@@ -58,6 +58,7 @@ from live.agent_runner import AgentRunner
 from live.alerts import Notification
 from live.events import EventKind
 from live.fleet_guard import FleetGuard
+from live.pose_reasons import ReasonTally, mode_change_event
 from localizer.events import LedsChanged, Mode
 from store.models import LandmarkPublic
 
@@ -433,7 +434,7 @@ class MqttBridge:
                 send_command=self._send_command,
                 site_from_wall=self.site_from_wall,
             )
-            runner.on_mode_change = self._on_mode_change
+            runner.on_mode_change = functools.partial(self._on_mode_change, runner.reasons)
             floor = self.agent_floors.start_floor(status, robot)
             runner.floor = floor
             runner.map_version = self.services.map_versions.version(floor)
@@ -468,11 +469,11 @@ class MqttBridge:
                 data={"offset_ns": est.offset_ns, "error_ns": est.error_ns},
             )
 
-    def _on_mode_change(self, robot: str, old: Mode, new: Mode) -> None:
-        if new == "lost":
-            self._emit("robot_lost", f"robot {robot} is lost", robot=robot)
-        elif new == "landmark" and old in ("lost", "identifying"):
-            self._emit("robot_localized", f"robot {robot} localized", robot=robot)
+    def _on_mode_change(self, reasons: ReasonTally, robot: str, old: Mode, new: Mode) -> None:
+        event = mode_change_event(robot, old, new, reasons)
+        if event is not None:
+            kind, message, data = event
+            self._emit(kind, message, robot=robot, data=data or None)
 
     def _on_led_request(self, robot: str, msg: LedRequestMessage) -> None:
         """An admitted, connected agent's LED request goes to the coordinator; others are

@@ -12,7 +12,8 @@ import numpy as np
 import numpy.typing as npt
 from pydantic import BaseModel, Field
 
-from localizer.events import Mode, PoseEstimate
+from localizer.events import Mode, NoPose, PoseEstimate
+from localizer.pose_quality import ReasonCode
 from store.models import DEFAULT_FLOOR
 
 
@@ -36,6 +37,10 @@ class PoseUpdate:
         floor_unknown: the robot's view does not fit its floor's map (it changed floors
             untold, or rides a lift): its pose is withheld (x, y, theta None) until it is
             told its floor or fits its map again (`fleet.floor_fit`).
+        quality: 0-1 (docs/quality.md); None: not known (a pose from an older agent).
+        deviation_m: the radius holding the true position with 95 % probability, metres.
+        reason: why this is no landmark fix (a `pose_quality.ReasonCode`), None when it is.
+        reason_text: the same for people.
     """
 
     robot: str
@@ -51,6 +56,10 @@ class PoseUpdate:
     floor: str = DEFAULT_FLOOR
     map_version: int = 0
     floor_unknown: bool = False
+    quality: float | None = None
+    deviation_m: float | None = None
+    reason: ReasonCode | None = None
+    reason_text: str = ""
 
     @classmethod
     def from_estimate(
@@ -68,7 +77,19 @@ class PoseUpdate:
             expected_ids=tuple(est.expected_ids),
             floor=floor,
             map_version=map_version,
+            quality=est.quality,
+            deviation_m=est.deviation_m,
+            reason=est.reason,
+            reason_text=est.reason_text,
         )
+
+    @classmethod
+    def from_no_pose(
+        cls, robot: str, out: NoPose, *, floor: str = DEFAULT_FLOOR, map_version: int = 0
+    ) -> PoseUpdate:
+        return cls(robot, out.t_ns, out.mode, quality=out.quality, reason=out.reason,
+                   reason_text=out.reason_text, floor=floor,
+                   map_version=map_version)  # fmt: skip
 
     def estimate(self) -> PoseEstimate | None:
         """This update as the localizer's estimate; None when it carries no pose."""
@@ -77,7 +98,8 @@ class PoseUpdate:
         cov = np.zeros((3, 3)) if self.covariance is None else self.covariance
         return PoseEstimate(
             self.t_ns, self.x, self.y, self.theta, cov, self.mode, self.landmark_ids,
-            self.expected_ids,
+            self.expected_ids, quality=self.quality, deviation_m=self.deviation_m,
+            reason=self.reason, reason_text=self.reason_text,
         )  # fmt: skip
 
     def to_dict(self) -> dict[str, Any]:
@@ -95,6 +117,10 @@ class PoseUpdate:
             "floor": self.floor,
             "map_version": self.map_version,
             "floor_unknown": self.floor_unknown,
+            "quality": self.quality,
+            "deviation_m": self.deviation_m,
+            "reason": self.reason,
+            "reason_text": self.reason_text,
         }
 
     @cached_property
@@ -114,38 +140,49 @@ def pose_json(
     *,
     floor: str = DEFAULT_FLOOR,
     map_version: int = 0,
+    now: PoseUpdate | None = None,
 ) -> str:
     """`PosePublic` as JSON text, built without a model round trip (the hot endpoint);
-    `floor` and `map_version` are the robot's now (used when it has no pose yet).
+    `floor` and `map_version` are the robot's now (used when it has no pose yet), `now` its
+    latest update with a pose or without (its quality and reason are the current ones).
 
     While the robot identifies again (after a relocalize) or is lost, its last pose is not
     served as if current: x, y, theta, covariance are null and `stale` is true (`t_ns` and
-    `age_s` still say when the last pose was computed)."""
+    `age_s` still say when the last pose was computed), and the quality and reason are those
+    of the latest update (why there is no pose)."""
+    stale = mode in NO_POSE_MODES
     if upd is None:
-        return json.dumps(
-            {
-                "robot": robot,
-                "mode": mode,
-                "t_ns": None,
-                "x": None,
-                "y": None,
-                "theta": None,
-                "covariance": None,
-                "landmark_ids": [],
-                "age_s": None,
-                "stale": mode in NO_POSE_MODES,
-                "floor": floor,
-                "map_version": map_version,
-                "floor_unknown": False,
-            }
-        )
-    d = upd.to_dict()
-    d.pop("computed_wall_ns")
-    d["mode"] = mode
-    d["age_s"] = max(0.0, (time.time_ns() - upd.computed_wall_ns) / 1e9)
-    d["stale"] = stale = mode in NO_POSE_MODES or upd.floor_unknown
-    if stale:
-        d.update(x=None, y=None, theta=None, covariance=None, landmark_ids=[])
+        d: dict[str, Any] = {
+            "robot": robot,
+            "mode": mode,
+            "t_ns": None,
+            "x": None,
+            "y": None,
+            "theta": None,
+            "covariance": None,
+            "landmark_ids": [],
+            "age_s": None,
+            "stale": stale,
+            "floor": floor,
+            "map_version": map_version,
+            "quality": 0.0,
+            "deviation_m": None,
+            "reason": None,
+            "reason_text": "",
+            "floor_unknown": False,
+        }
+    else:
+        d = upd.to_dict()
+        d.pop("computed_wall_ns")
+        d["mode"] = mode
+        d["age_s"] = max(0.0, (time.time_ns() - upd.computed_wall_ns) / 1e9)
+        d["stale"] = stale = stale or upd.floor_unknown
+        if stale:
+            d.update(x=None, y=None, theta=None, covariance=None, landmark_ids=[])
+            d.update(quality=0.0, deviation_m=None)
+    if (stale or upd is None) and now is not None:
+        d.update(quality=now.quality if now.quality is not None else 0.0, reason=now.reason,
+                 reason_text=now.reason_text)  # fmt: skip
     return json.dumps(d, separators=(",", ":"))
 
 
@@ -185,3 +222,13 @@ class PosePublic(BaseModel):
         "floors untold, or rides a lift): x, y, theta and covariance are then null and "
         "stale is true until it is told its floor or fits its map again",
     )
+    quality: float | None = Field(
+        default=None, description="0-1 from deviation_m (docs/quality.md); null: not known"
+    )
+    deviation_m: float | None = Field(
+        default=None, description="radius holding the true position with 95 % probability, m"
+    )
+    reason: ReasonCode | None = Field(
+        default=None, description="why this is no landmark fix (docs/quality.md); null: it is"
+    )
+    reason_text: str = ""

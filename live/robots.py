@@ -12,6 +12,9 @@ from typing import Any, Protocol
 import numpy as np
 
 from fleet.floor_fit import FloorFit
+from live.black_box import BlackBox
+from live.led_filter import only_landmarks
+from live.pose_reasons import ReasonTally
 from live.poses import PoseUpdate
 from live.recording_queue import QueuedRecording, RecordingLimits, check_free_space
 from localizer.camera import CameraModel
@@ -57,13 +60,6 @@ def make_localizer(
     return Localizer(camera, landmark_map, robot, config)
 
 
-def only_landmarks(event: LedsChanged, ids: frozenset[int]) -> LedsChanged:
-    """An LED state restricted to the landmarks `ids` (one floor's map)."""
-    if event.all_lit:
-        return LedsChanged(event.t_ns, frozenset(), True, event.changing & ids)
-    return LedsChanged(event.t_ns, event.lit & ids, False, event.changing & ids)
-
-
 class RobotRunner:
     """Feed one robot's localizer and route what comes out (thread-safe).
 
@@ -99,6 +95,8 @@ class RobotRunner:
         self._request_leds = request_leds
         self._lock = threading.RLock()
         self.latest: PoseUpdate | None = None
+        self.reasons = ReasonTally()  # why there is no fix now, and poses per reason
+        self.black_box: BlackBox | None = None  # the last seconds, saved when it goes wrong
         self.last_fix_t_ns: int | None = None
         self.last_frame: FrameObserved | None = None
         self.recent: deque[FrameObserved | SpotsObserved] = deque(maxlen=recent_frames)
@@ -147,10 +145,13 @@ class RobotRunner:
             if isinstance(event, FrameObserved | SpotsObserved):
                 self.recent.append(event)
             self._record(event)
+            own = self._own(event)
+            if self.black_box is not None:
+                self.black_box.add_event(own)
             for tap in self._taps:
                 tap(event)
             try:
-                outputs = self.localizer.handle(self._own(event))
+                outputs = self.localizer.handle(own)
             except Exception:
                 self.errors += 1
                 log.exception(
@@ -192,16 +193,21 @@ class RobotRunner:
                 self.name, out, floor=self.floor, map_version=self.map_version
             )
             self.latest = upd
+            self.reasons.note(upd)
+            if self.black_box is not None:
+                self.black_box.add_pose(out)
             self.poses += 1
             if out.mode == "landmark":
                 self.last_fix_t_ns = out.t_ns
             self._publish(upd)
         elif isinstance(out, NoPose):
-            self._publish(
-                PoseUpdate(
-                    self.name, out.t_ns, out.mode, floor=self.floor, map_version=self.map_version
-                )
+            none = PoseUpdate.from_no_pose(
+                self.name, out, floor=self.floor, map_version=self.map_version
             )
+            self.reasons.note(none)
+            if self.black_box is not None:
+                self.black_box.add_pose(out)
+            self._publish(none)
         elif isinstance(out, LedRequest):
             self._request_leds(self.name, out)
 

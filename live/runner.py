@@ -15,10 +15,13 @@ import contextlib
 import dataclasses
 import logging
 from collections.abc import Callable, Iterable
+from functools import partial
 from pathlib import Path
 from typing import Protocol
 
+from live.black_box import BlackBox, BlackBoxConfig, BlackBoxRecording
 from live.events import EventHub
+from live.facades import map_records
 from live.floor_watch import FloorWatch
 from live.floors import SiteFloors
 from live.leds import LedScheduler
@@ -30,6 +33,7 @@ from live.leds.wiring import (
     radio_sleep,
     xbee_config,
 )
+from live.pose_reasons import ReasonTally, mode_change_event
 from live.poses import PoseUpdate
 from live.recording_queue import MIB, RecordingLimits
 from live.robots import RobotRunner, make_localizer
@@ -189,7 +193,7 @@ class LiveSiteRunner:
             request_leds=self._request_leds,
             source=robot.source,
         )
-        runner.on_mode_change = self._on_mode_change
+        runner.on_mode_change = partial(self._on_mode_change, runner.reasons)
         if self.floors is not None:
             self.floors.place(runner, self.floors.initial(robot.name))
         runner.on_recording_stopped = self._on_recording_stopped
@@ -198,6 +202,7 @@ class LiveSiteRunner:
             max_s=self.settings.recording_max_s,
             min_free_bytes=self.settings.recording_min_free_mb * MIB,
         )
+        runner.black_box = self._black_box(runner)
         self.robots.add(runner)
         if robot.source == "camera" and robot.device:
             cam = CameraSource(robot.name, robot.device, self.clock_ns)
@@ -228,6 +233,34 @@ class LiveSiteRunner:
         runner = self.robots.remove(name)
         if runner is not None:
             runner.stop_recording()
+            if runner.black_box is not None:
+                runner.black_box.close()
+
+    def _black_box(self, runner: RobotRunner) -> BlackBox | None:
+        """A robot's black box (`live.black_box`; None when `black_box_seconds` is 0); its
+        recordings hold the map of the floor the robot is on at the save."""
+        s = self.settings
+        if s.black_box_seconds <= 0:
+            return None
+        config = BlackBoxConfig(
+            seconds=s.black_box_seconds,
+            quality_below=s.black_box_quality_below,
+            max_bytes=int(s.black_box_max_mb * 1e6),
+        )
+        box = BlackBox(runner.name, runner.camera, runner.geometry,
+                       lambda: map_records(self.map, runner.floor), s.recordings_dir,
+                       config)  # fmt: skip
+        box.on_saved = self._on_black_box
+        return box
+
+    def _on_black_box(self, saved: BlackBoxRecording) -> None:
+        reason = f" ({saved.reason})" if saved.reason else ""
+        self.events.emit(
+            "black_box_saved",
+            f"robot {saved.robot}: black box saved on {saved.trigger}{reason}",
+            robot=saved.robot,
+            data={"trigger": saved.trigger, "reason": saved.reason, "path": str(saved.path)},
+        )
 
     def _build_sim(self) -> LiveSite:
         from sim.scenario import load_scenario
@@ -338,18 +371,11 @@ class LiveSiteRunner:
             data={"folder": root.name, "reason": reason},
         )
 
-    def _on_mode_change(self, robot: str, old: Mode, new: Mode) -> None:
-        if new == "lost":
-            self.events.emit("robot_lost", f"robot {robot} is lost", robot=robot)
-        elif new == "landmark" and old in ("lost", "identifying"):
-            self.events.emit("robot_localized", f"robot {robot} localized", robot=robot)
-        elif new == "identifying" and old in ("landmark", "dead_reckoning"):
-            # after a relocalize: until its landmarks are named again it has no pose
-            self.events.emit(
-                "robot_identifying",
-                f"robot {robot} identifies its landmarks again (no pose until it has)",
-                robot=robot,
-            )
+    def _on_mode_change(self, reasons: ReasonTally, robot: str, old: Mode, new: Mode) -> None:
+        event = mode_change_event(robot, old, new, reasons)
+        if event is not None:
+            kind, message, data = event
+            self.events.emit(kind, message, robot=robot, data=data or None)
 
     async def _gateway_events(self) -> None:
         assert self.gateway is not None

@@ -119,6 +119,12 @@ class Settings(BaseSettings):
             passes this size (MB) or duration (s).
         recording_min_free_mb: a recording does not start (507), and stops, when the disk
             has less free space than this (MB).
+        black_box_seconds: each robot keeps this many seconds of frames, odometry, LED
+            states and poses in memory, saved as a recording on a loss, a suspected kidnap,
+            a quality drop or an operator's request (docs/quality.md); 0: no black box.
+        black_box_quality_below: a pose's quality falling below this saves the black box.
+        black_box_max_mb: the black boxes on disk are kept under this many megabytes
+            (the oldest removed first); other recordings are never removed.
     """
 
     model_config = SettingsConfigDict(env_prefix="IRLOC_", extra="ignore")
@@ -177,6 +183,9 @@ class Settings(BaseSettings):
     recordings_keep_days: float | None = Field(default=30.0, gt=0)
     recordings_max_gb: float | None = Field(default=20.0, gt=0)
     history_keep_days: float = Field(default=30.0, gt=0)
+    black_box_seconds: float = Field(default=20.0, ge=0.0, le=300.0)
+    black_box_quality_below: float = Field(default=0.2, ge=0.0, le=1.0)
+    black_box_max_mb: float = Field(default=2000.0, ge=0.0)
 
     @field_validator("radio")
     @classmethod

@@ -64,6 +64,8 @@ class VisualizationEncoder:
             mode=update.mode,
             pose=pose,
             covariance=update.covariance,
+            quality=update.quality,
+            deviation_m=update.deviation_m,
         )
 
 

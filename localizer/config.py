@@ -15,6 +15,7 @@ from localizer.imu_tilt import ImuTiltConfig
 from localizer.motion_model import MotionModelConfig
 from localizer.noise_model import PixelNoiseConfig
 from localizer.passive_config import PassiveConfig
+from localizer.pose_quality import QualityConfig
 from localizer.relocalization import RelocalizationConfig
 from localizer.self_calibration import SelfCalibrationConfig
 from localizer.spots import DetectionConfig
@@ -125,3 +126,4 @@ class LocalizerConfig:
     imu: ImuTiltConfig = field(default_factory=ImuTiltConfig)
     passive: PassiveConfig = field(default_factory=PassiveConfig)
     constellation: ConstellationConfig = field(default_factory=ConstellationConfig)
+    quality: QualityConfig = field(default_factory=QualityConfig)

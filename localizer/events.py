@@ -14,6 +14,8 @@ from typing import Literal
 import numpy as np
 import numpy.typing as npt
 
+from localizer.pose_quality import ReasonCode
+
 Mode = Literal["identifying", "landmark", "dead_reckoning", "lost"]
 MODES: tuple[Mode, ...] = ("identifying", "landmark", "dead_reckoning", "lost")
 
@@ -142,6 +144,12 @@ class PoseEstimate:
             the ones surely lit (not being switched), sorted. Empty when it predicted none
             (identifying, lost without a prior). Expected but not in `landmark_ids`: looked
             for and not found, or found and not used (doubt detection reads this).
+        quality: 0-1 from `deviation_m` (`pose_quality.quality_from_deviation`); None:
+            not computed (an estimate not made by the localizer, e.g. read from a file).
+        deviation_m: the radius around (x, y) holding the true position with probability
+            0.95 under `covariance`, metres (VDA 5050's `deviationRange`).
+        reason: why this is not a landmark fix (None: it is one), `pose_quality.ReasonCode`.
+        reason_text: the same as a sentence for people ("" with no reason).
     """
 
     t_ns: int
@@ -152,14 +160,28 @@ class PoseEstimate:
     mode: Mode
     landmark_ids: tuple[int, ...] = ()
     expected_ids: tuple[int, ...] = ()
+    quality: float | None = None
+    deviation_m: float | None = None
+    reason: ReasonCode | None = None
+    reason_text: str = ""
 
 
 @dataclass(frozen=True)
 class NoPose:
-    """A frame for which there is no pose yet (identifying, or lost with no prior)."""
+    """A frame for which there is no pose yet (identifying, or lost with no prior).
+
+    Attributes:
+        reason: why (`pose_quality.ReasonCode`; None: not computed).
+        reason_text: the same as a sentence for people.
+        quality: always 0; deviation_m: always None (no position).
+    """
 
     t_ns: int
     mode: Mode
+    reason: ReasonCode | None = None
+    reason_text: str = ""
+    quality: float = 0.0
+    deviation_m: float | None = None
 
 
 @dataclass(frozen=True)

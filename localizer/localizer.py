@@ -46,7 +46,7 @@ from localizer.events import (
 from localizer.first_fix import first_fix
 from localizer.fix_run import FixRun
 from localizer.geometry import wrap_angle
-from localizer.handoff import position_sigma_m
+from localizer.handoff import position_sigma_m, visible_radius_m
 from localizer.hypothesis_set import HypothesisSet
 from localizer.identification import Identifier
 from localizer.imu_tilt import GravityTilt
@@ -60,6 +60,15 @@ from localizer.online_calibration import OnlineCalibration
 from localizer.passive_identification import PassiveIdentifier, fix_from_pairs, passive_settings
 from localizer.pose import PoseFix, solve_pose
 from localizer.pose_filter import PoseFilter
+from localizer.pose_quality import (
+    FrameFacts,
+    deviation_radius_m,
+    landmarks_in_view,
+    published_covariance,
+    quality_from_deviation,
+    reason_for,
+    reason_text,
+)
 from localizer.robot import RobotGeometry
 from localizer.spots import Spots
 from localizer.types import FloatArray
@@ -135,6 +144,11 @@ class Localizer:
         )
         self._gravity = GravityTilt(self.config.imu)  # the body's tilt from an IMU
         self._reseeded = False  # this frame's filter was re-seeded from a run of fixes
+        # what explains a frame without a fix (`pose_quality.FrameFacts`)
+        self._facts: dict[str, bool | int | float] = {}
+        self._typical_gap_s = 0.0  # the usual frame interval (smoothed)
+        self._t_requested: int | None = None  # the last LED request not yet confirmed
+        self._lost_by_disagreement = False  # lost: the spots disagreed (not sigma's growth)
         sc = self.config.self_calibration
         self.calibration = OnlineCalibration(camera, sc) if sc.enabled else None
         self.set_map(landmark_map)
@@ -229,6 +243,7 @@ class Localizer:
         self._expected = ()
         if self._filter is not None and self._mode == "landmark":
             self._mode = "dead_reckoning"
+        self._facts = {"skipped": True}
         out = self._output(t_ns, ())
         self._settle(t_ns, base)
         return out
@@ -245,6 +260,7 @@ class Localizer:
                 self._frames_since_leds = 0
             self._lit = lit
             self._changing = frozenset(event.changing)
+            self._t_requested = None
             self._identifier.led_confirmed(event.t_ns, self._known_lit())
             return self._requests(event.t_ns)
         if isinstance(event, RelocalizeRequested):
@@ -396,6 +412,10 @@ class Localizer:
         dt_frame = min((t - self._t_frame) * _NS, 1.0) if self._t_frame is not None else 0.0
         if dt_frame > 0:
             self._frame_interval_s = dt_frame
+        self._facts = {"gap_s": dt_frame, "typical_gap_s": self._typical_gap_s}
+        if 0 < dt_frame < 1.0:
+            g = self._typical_gap_s
+            self._typical_gap_s = dt_frame if g == 0 else min(g + 0.1 * (dt_frame - g), dt_frame)
         self._t_frame = t
         self._odometry.mark(t)
         used: tuple[int, ...] = ()
@@ -473,6 +493,8 @@ class Localizer:
         )
         self._expected = result.expected
         self._reseeded = False
+        self._facts["unexplained"] = result.unexplained
+        self._facts["rejected_fix"] = result.rejected is not None
         if result.used:
             self._fix_run.fused(e.t_ns, self._filter.pose, self._filter.covariance, result.used)
         elif not reacquire and result.rejected is not None:
@@ -732,6 +754,7 @@ class Localizer:
                 self.calibration.break_track()
             self._start_identification()
             self._commit = True
+            self._lost_by_disagreement = sigma <= fc.lost_sigma_m
             if sigma < fc.lost_sigma_m or self._rejections > 0:
                 # The observations disagree with the pose (a kidnapped robot, put down
                 # anywhere, facing anywhere): widen its uncertainty so that a map-consistent
@@ -765,6 +788,7 @@ class Localizer:
         if self._want_all:
             self._want_all = False
             if self._lit is not None:
+                self._t_requested = t_ns
                 return [LedRequest(all_lit=True)]
         if not self._sweeping:
             return []
@@ -773,23 +797,93 @@ class Localizer:
         if req is None or req == self._last_request:
             return []
         self._last_request = req
+        self._t_requested = t_ns
         if req.all_lit and not req.dark and self._identifier.done:
             self._sweeping = False
         return [req]
 
     def _output(self, t_ns: int, used: tuple[int, ...]) -> PoseEstimate | NoPose:
         if self._filter is None:
-            return NoPose(t_ns, self._mode)
+            facts = self._frame_facts(t_ns, None, used)
+            code = reason_for(facts)
+            text = "" if code is None else reason_text(code, facts)
+            return NoPose(t_ns, self._mode, reason=code, reason_text=text)
         x, y, theta = self._filter.output_pose
+        sx, sy, sth = self._filter.pose
+        offset = (x - sx, y - sy, float(wrap_angle(theta - sth)))
+        qc = self.config.quality
+        cov = published_covariance(self._filter.covariance, self._mode, offset, qc)
+        deviation = deviation_radius_m(cov)
+        facts = self._frame_facts(t_ns, (x, y, theta), used)
+        code = reason_for(facts)
         est = PoseEstimate(
             t_ns=t_ns,
             x=x,
             y=y,
             theta=theta,
-            covariance=self._filter.covariance,
+            covariance=cov,
             mode=self._mode,
             landmark_ids=used,
             expected_ids=self._expected,
+            quality=quality_from_deviation(deviation, qc),
+            deviation_m=deviation,
+            reason=code,
+            reason_text="" if code is None else reason_text(code, facts),
         )
         self._latest = est
         return est
+
+    def _frame_facts(
+        self, t_ns: int, pose: tuple[float, float, float] | None, used: tuple[int, ...]
+    ) -> FrameFacts:
+        """What explains this frame's lack of a fix (`pose_quality.reason_for`); the ceiling
+        in view is worked out only for a pose without a fix."""
+        f = self._facts
+        track = self._odometry
+        age = math.inf if track.t_sample_ns is None else (t_ns - track.t_sample_ns) * _NS
+        ic = self.config.identification
+        awaiting = self._t_requested is not None and (
+            (t_ns - self._t_requested) * _NS <= ic.led_timeout_s
+        )
+        in_view = lit = switching = 0
+        dark: tuple[int, ...] = ()
+        dead: tuple[int, ...] = ()
+        if pose is not None and not used and self._mode in ("landmark", "dead_reckoning"):
+            heights = self.map.positions[:, 2] - float(self.camera.T_body_camera[2, 3])
+            reach = visible_radius_m(self.camera, float(np.max(heights, initial=0.0)))
+            rows = np.flatnonzero(landmarks_in_view(self.camera, pose, self.map.positions, reach))
+            ids = [int(self.map.ids[r]) for r in rows]
+            in_view = len(ids)
+            switching = sum(1 for i in ids if i in self._changing)
+            dark = tuple(
+                i for i in ids
+                if self._lit is not None and i not in self._lit and i not in self._changing
+            )  # fmt: skip
+            lit_rows = [
+                r for r, i in zip(rows, ids, strict=True)
+                if i not in self._changing and i not in dark
+            ]  # fmt: skip
+            lit = len(lit_rows)
+            live = self._liveness
+            dead = tuple(
+                int(self.map.ids[r]) for r in lit_rows if not live.lit[r] and live.unseen[r] >= 3
+            )
+        return FrameFacts(
+            mode=self._mode,
+            fused=bool(used),
+            lost_by_disagreement=self._lost_by_disagreement,
+            in_view=in_view,
+            lit_in_view=lit,
+            switching_in_view=switching,
+            dark_ids=dark,
+            dead_ids=dead,
+            unexplained=bool(f.get("unexplained", False)),
+            rejected_fix=bool(f.get("rejected_fix", False)),
+            rejections=self._rejections,
+            gap_s=float(f.get("gap_s", 0.0)),
+            typical_gap_s=float(f.get("typical_gap_s", 0.0)),
+            skipped=bool(f.get("skipped", False)),
+            odometry_age_s=age,
+            odometry_stale_s=self.config.fusion.odometry_stale_s,
+            awaiting_leds=awaiting,
+        )

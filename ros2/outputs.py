@@ -1,14 +1,16 @@
 """What irloc publishes on a robot's ROS 2 graph, from the localizer's outputs:
 
 - `/irloc/pose` (`geometry_msgs/PoseWithCovarianceStamped` in `map`), stamped at the
-  frame's exposure, with the localizer's own covariance (x, y, yaw; z, roll and pitch
-  flagged unknown);
+  frame's exposure, with the published covariance (x, y, yaw; z, roll and pitch flagged
+  unknown): the one REST, MQTT and VDA 5050 carry, about 95 % of errors inside its 2-sigma
+  ellipse (docs/quality.md);
 - `/tf` `map -> odom`: the pose composed with the robot's own `odom -> base_link` at that
   same stamp (REP-105), stamped `transform_tolerance_s` later as AMCL does; a pose whose
   `odom -> base_link` does not arrive within `max_wait_transform_s` gives no transform and
   a diagnostic (never a transform built from the wrong odometry);
 - `/diagnostics` (`diagnostic_msgs/DiagnosticArray`, 1/s and at each mode change): the
-  mode, the landmarks in use and expected, why there is no fix, each input problem;
+  mode, the pose's `quality`, `deviation_m` (95 % radius) and `reason` code, the landmarks
+  in use and expected, why there is no fix (the reason's sentence), each input problem;
 - the landmark map (`visualization_msgs/MarkerArray`, transient local: RViz opened later
   still gets it), at each new map.
 """
@@ -94,6 +96,7 @@ class Ros2Outputs:
         self.mode: Mode | None = None
         self.has_map = False
         self.last: PoseEstimate | None = None
+        self.last_output: PoseEstimate | NoPose | None = None  # with a pose or without
         self.poses = 0
         self.transforms = 0
         self._waiting: deque[tuple[int, PoseEstimate]] = deque()
@@ -122,8 +125,9 @@ class Ros2Outputs:
         self.marker_pub.publish(self.markers(landmark_map))
 
     def on_pose(self, output: PoseEstimate | NoPose) -> None:
-        changed = output.mode != self.mode
+        changed = output.mode != self.mode  # a new reason waits for the 1/s status
         self.mode = output.mode
+        self.last_output = output
         if isinstance(output, PoseEstimate) and output.mode in self.settings.publish_modes:
             stamp = self.ros_stamp(output.t_ns)
             self.last = output
@@ -181,6 +185,11 @@ class Ros2Outputs:
         """The level, message and key-values of this robot's diagnostic status."""
         problems = self.health.problems()
         values: list[tuple[str, str]] = [("mode", self.mode or "starting")]
+        out = self.last_output
+        if out is not None:
+            dev = "" if out.deviation_m is None else f"{out.deviation_m:.4f}"
+            quality = "" if out.quality is None else f"{out.quality:.3f}"
+            values += [("quality", quality), ("deviation_m", dev), ("reason", out.reason or "")]
         last = self.last
         if last is not None and last.mode == self.mode:
             values += [
@@ -197,6 +206,8 @@ class Ros2Outputs:
         if self.mode is None:
             return "warn", "no camera frame localized yet", values
         why = WHY_NO_FIX[self.mode]
+        if out is not None and out.reason_text and self.mode != "landmark":
+            why = out.reason_text + (" (send /initialpose)" if self.mode == "lost" else "")
         if why:
             return "warn", why, values
         if problems:

@@ -37,11 +37,19 @@ class SiteCollector(Collector):
         errs = CounterMetricFamily(
             "irloc_localizer_errors", "localizer exceptions", labels=["robot"]
         )
+        reasons = CounterMetricFamily(
+            "irloc_pose_reasons",
+            "poses per reason they are no landmark fix (landmark_fix: those that are)",
+            labels=["robot", "reason"],
+        )
         for r in s.robots.runners():
             poses.add_metric([r.name], r.poses)
             frames.add_metric([r.name], r.frames)
             errs.add_metric([r.name], r.errors)
+            for reason, n in sorted(r.reasons.counts().items()):
+                reasons.add_metric([r.name, reason], n)
         yield poses
+        yield reasons
         yield frames
         yield errs
         yield CounterMetricFamily(

@@ -136,7 +136,8 @@ class SiteAdapter:
             pose = None if upd is None else upd.estimate()
             out.append(
                 RobotState(runner.name, runner.camera, pose, str(runner.mode),
-                           runner.last_fix_t_ns, now)
+                           runner.last_fix_t_ns, now, runner.reasons.reason_text,
+                           runner.reasons.quality)
             )  # fmt: skip
         return out
 

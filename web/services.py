@@ -89,6 +89,8 @@ class RobotState:
         mode: the localizer's mode now.
         last_fix_t_ns: time of the latest landmark fix, None before one.
         now_ns: the site clock when this snapshot was taken.
+        reason_text: why its latest pose is no landmark fix ("" when it is one).
+        quality: the latest pose's 0-1 quality (None: not known).
     """
 
     name: str
@@ -97,6 +99,8 @@ class RobotState:
     mode: str
     last_fix_t_ns: int | None
     now_ns: int
+    reason_text: str = ""
+    quality: float | None = None
 
 
 @dataclass(frozen=True)

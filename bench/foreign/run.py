@@ -37,7 +37,8 @@ from recording.scoring import error_stats, errors, track_from_estimates
 HERE = Path(__file__).resolve().parent
 
 
-def run_case(name: str, work: Path, seconds: float | None, seed: int) -> dict[str, float]:
+def recording_for_case(name: str, work: Path, seconds: float | None, seed: int) -> Path:
+    """The case's recording in the work folder (generated unless cached)."""
     case = CASES[name]
     dur = seconds or case.seconds
     code = hashlib.sha256(
@@ -50,6 +51,12 @@ def run_case(name: str, work: Path, seconds: float | None, seed: int) -> dict[st
         shutil.rmtree(tmp, ignore_errors=True)
         generate(case, tmp, dur, seed)
         tmp.rename(rec)
+    return rec
+
+
+def run_case(name: str, work: Path, seconds: float | None, seed: int) -> dict[str, float]:
+    case = CASES[name]
+    rec = recording_for_case(name, work, seconds, seed)
     estimates: list[PoseEstimate | NoPose] = []
     t0 = time.perf_counter()
     replay(rec, io.StringIO(), estimates=estimates)

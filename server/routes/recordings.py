@@ -42,7 +42,8 @@ class RecordingPublic(BaseModel):
     started: datetime = Field(description="when it began, UTC")
     trigger: str = Field(
         description="why it was made: 'manual' (API or viewer), 'survey' (a live survey's "
-        "drive); other kinds may be added"
+        "drive), 'black_box_<trigger>' (a robot's black box saved on 'lost', 'kidnap', "
+        "'quality' or 'operator', docs/quality.md); other kinds may be added"
     )
     live: bool = Field(description="a robot is still writing it (no download or delete yet)")
     size_bytes: int

@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+from typing import Literal
+
 from fastapi import APIRouter, Response, status
 from pydantic import BaseModel, Field
 
 from live.agent_runner import AgentRunner, agent_fields
+from live.black_box import BlackBoxRecording
 from live.floor_watch import FloorProposal, FloorWatch
 from live.poses import PosePublic, pose_json
 from live.vda5050 import init_positions
@@ -54,6 +57,24 @@ class RecordingStatus(BaseModel):
     )
 
 
+class BlackBoxPublic(BaseModel):
+    """A saved black box: an ordinary recording (`irloc replay PATH`) of the seconds around
+    a failure (docs/quality.md)."""
+
+    robot: str
+    trigger: Literal["lost", "kidnap", "quality", "operator"]
+    reason: str | None = Field(description="the pose's reason code when it was triggered")
+    t_ns: int = Field(description="site time of the trigger (and its aftermath), ns")
+    saved_at: str
+    bytes: int
+    path: str
+
+    @classmethod
+    def of(cls, b: BlackBoxRecording) -> BlackBoxPublic:
+        return cls(robot=b.robot, trigger=b.trigger, reason=b.reason, t_ns=b.t_ns,
+                   saved_at=b.saved_at, bytes=b.bytes, path=str(b.path))  # fmt: skip
+
+
 def _status(services: ServicesDep, name: str) -> RobotStatus:
     r = services.robots.get(name)
     agent = agent_fields(r) if isinstance(r, AgentRunner) else {}
@@ -87,7 +108,12 @@ async def get_pose(name: RobotName, services: ServicesDep, _: Viewer) -> Respons
     """The latest pose: x, y, theta, covariance, mode, landmarks used, timestamp, age."""
     runner = services.robots.get(name)
     text = pose_json(
-        name, runner.mode, runner.latest, floor=runner.floor, map_version=runner.map_version
+        name,
+        runner.mode,
+        runner.latest,
+        floor=runner.floor,
+        map_version=runner.map_version,
+        now=runner.reasons.last,
     )
     return Response(text, media_type="application/json")
 
@@ -292,3 +318,17 @@ def stop_recording(name: RobotName, services: ServicesDep, _: Operator) -> Recor
         path=None if path is None else str(path),
         name=None if path is None else path.name,
     )
+
+
+@router.post("/{name}/black-box", status_code=status.HTTP_201_CREATED)
+def save_black_box(name: RobotName, services: ServicesDep, _: Operator) -> BlackBoxPublic:
+    """Save the robot's black box now (its last seconds of frames, odometry, LED states and
+    poses) as a recording, with trigger `operator`."""
+    return BlackBoxPublic.of(services.recordings.save_black_box(name))
+
+
+@router.get("/{name}/black-boxes")
+def list_black_boxes(name: RobotName, services: ServicesDep, _: Viewer) -> list[BlackBoxPublic]:
+    """The robot's saved black boxes, oldest first, each with its trigger."""
+    services.robots.get(name)  # 404 for an unknown robot
+    return [BlackBoxPublic.of(b) for b in services.recordings.black_boxes(name)]

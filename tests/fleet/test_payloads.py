@@ -15,7 +15,7 @@ from fleet.payloads import (
     decode,
 )
 from fleet.topics import SiteTopics, vda_serial_of, vda_topic
-from localizer.events import LedRequest, LedsChanged, PoseEstimate
+from localizer.events import LedRequest, LedsChanged, NoPose, PoseEstimate
 
 
 def test_topics_of_a_site_and_what_they_name() -> None:
@@ -50,6 +50,24 @@ def test_a_pose_round_trips_within_its_rounding_and_stays_small() -> None:
     assert (back.seq, back.mode, back.lm) == (7, "landmark", [101, 102])
     assert back.x == pytest.approx(1.23457, abs=1e-9)
     np.testing.assert_allclose(back.covariance(), cov, rtol=1e-3)
+
+
+def test_quality_and_reason_travel_with_a_pose_and_a_no_pose() -> None:
+    cov = np.diag([4e-4, 9e-4, 1e-5])
+    est = PoseEstimate(5, 1.0, 2.0, 0.5, cov, "dead_reckoning", quality=0.61234,
+                       deviation_m=0.0712345, reason="landmarks_dark",
+                       reason_text="the 2 landmark(s) in view are switched off")  # fmt: skip
+    back = decode(PoseMessage, "t", PoseMessage.from_estimate(1, est, 5, 6).encode())
+    assert (back.quality, back.deviation_m, back.reason) == (0.612, 0.07123, "landmarks_dark")
+    assert back.reason_text == est.reason_text
+    fixed = PoseEstimate(5, 1.0, 2.0, 0.5, cov, "landmark", quality=1.0, deviation_m=0.01)
+    wire = PoseMessage.from_estimate(2, fixed, 5, 6).encode()
+    assert b"reason" not in wire
+    none = NoPose(5, "identifying", reason="waiting_for_radio", reason_text="waiting")
+    back = decode(PoseMessage, "t", PoseMessage.from_no_pose(3, none, 5, 6).encode())
+    assert (back.x, back.quality, back.reason) == (None, 0.0, "waiting_for_radio")
+    with pytest.raises(PayloadError, match="reason"):
+        decode(PoseMessage, "t", b'{"seq":1,"t_ns":1,"wall_ns":1,"mode":"lost","reason":"x"}')
 
 
 def test_led_states_and_requests_round_trip() -> None:

@@ -21,6 +21,7 @@ def test_visualization_validates_in_every_mode(mode: str) -> None:
     msg = visualization_message(
         3, WALL, "irloc", "r1", map_id="hall", mode=mode, pose=pose,  # type: ignore[arg-type]
         covariance=np.diag([4e-4, 1e-4, 1e-5]) if pose else None,
+        quality=0.42 if pose else None,
     )  # fmt: skip
     validate_vda("visualization", msg)
     assert msg["version"] == "2.1.0" and msg["timestamp"] == "2023-11-14T22:13:20.123Z"
@@ -29,7 +30,19 @@ def test_visualization_validates_in_every_mode(mode: str) -> None:
     else:
         pos = msg["agvPosition"]
         assert pos["positionInitialized"] is (mode in ("landmark", "dead_reckoning"))
-        assert pos["deviationRange"] == pytest.approx(0.02 * math.sqrt(5.991), rel=1e-3)
+        # the 95 % circle of sigmas (2, 1) cm: 2.0358 x the major sigma (pose_quality)
+        assert pos["deviationRange"] == pytest.approx(0.02 * 2.035793, rel=1e-3)
+        assert pos["localizationScore"] == 0.42
+
+
+def test_the_pose_s_own_radius_and_a_clipped_score() -> None:
+    msg = visualization_message(
+        0, WALL, "irloc", "r1", map_id="m", mode="dead_reckoning", pose=(0, 0, 0),
+        covariance=np.eye(3), quality=1.0000001, deviation_m=0.1234567,
+    )  # fmt: skip
+    validate_vda("visualization", msg)
+    assert msg["agvPosition"]["deviationRange"] == 0.1235
+    assert msg["agvPosition"]["localizationScore"] == 1.0
 
 
 @pytest.mark.parametrize("state", ["ONLINE", "OFFLINE", "CONNECTIONBROKEN"])

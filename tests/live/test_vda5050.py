@@ -33,8 +33,13 @@ def test_message_carries_the_pose_and_counts_headers_per_robot() -> None:
     pos = msg["agvPosition"]
     assert (pos["x"], pos["y"], pos["theta"], pos["mapId"]) == (1.5, -2.0, math.pi / 2, "0")
     assert pos["positionInitialized"] is True
-    # 95 % radius of the major axis: sqrt(5.991) * 2 cm
-    assert pos["deviationRange"] == pytest.approx(0.02 * math.sqrt(5.991), rel=1e-3)
+    # the 95 % circle of sigmas (2, 1) cm: 2.0358 x the major sigma (pose_quality)
+    assert pos["deviationRange"] == pytest.approx(0.02 * 2.035793, rel=1e-3)
+    assert "localizationScore" not in pos  # an update without a quality
+    scored = enc.encode(PoseUpdate("r1", 7, "dead_reckoning", 0.0, 0.0, 0.0, cov, quality=0.5,
+                                   deviation_m=0.3, reason="no_landmark_in_view"))  # fmt: skip
+    assert scored["agvPosition"]["localizationScore"] == 0.5
+    assert scored["agvPosition"]["deviationRange"] == 0.3
     json.dumps(msg)  # plain JSON types only
 
 

@@ -92,6 +92,13 @@ def test_replay_writes_one_accurate_row_per_frame(recording: Path, tmp_path: Pat
     assert {r["mode"] for r in posed} <= {"landmark", "dead_reckoning"}
     assert posed[-1]["landmarks"] == "1 2 3"
     assert float(posed[-1]["cov_xx"]) > 0
+    # quality, the 95 % radius and the reason (docs/quality.md)
+    assert rows[0]["reason"] in ("identifying", "waiting_for_radio")
+    assert rows[0]["quality"] == "0.000" and rows[0]["deviation_m"] == ""
+    fixed = [r for r in posed if r["mode"] == "landmark"]
+    assert fixed and all(r["reason"] == "" for r in fixed)
+    assert all(0.0245 < float(r["deviation_m"]) < 0.04 for r in fixed[5:])
+    assert all(0.9 < float(r["quality"]) <= 1.0 for r in fixed[5:])
 
 
 def test_unreadable_frames_are_skipped_counted_and_still_get_a_row(
@@ -113,6 +120,7 @@ def test_unreadable_frames_are_skipped_counted_and_still_get_a_row(
     rows = _rows(out)
     assert len(rows) == len(frames)
     assert rows[30]["x"] != "" and rows[30]["mode"] == "dead_reckoning"
+    assert rows[30]["reason"] == rows[31]["reason"] == "frames_dropped"
 
 
 def test_a_recording_whose_every_frame_is_unreadable_is_a_failure(

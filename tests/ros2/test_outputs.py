@@ -1,6 +1,6 @@
 """What the agent publishes: the pose at the frame's stamp, map -> odom composed with the
 robot's own odom -> base_link at that stamp, nothing while lost, a diagnostic when the
-transform is missing."""
+transform is missing, the pose's quality and reason in the diagnostics."""
 
 from __future__ import annotations
 
@@ -110,3 +110,32 @@ def test_nothing_is_published_while_lost(node: Ros2Participant) -> None:
     level, message, values = out.status()
     assert level == "warn" and "send /initialpose" in message and ("mode", "lost") in values
     assert out.poses == 0
+
+
+def test_the_diagnostics_carry_the_quality_the_radius_and_the_reason(
+    node: Ros2Participant,
+) -> None:
+    out, _, poses, _ = outputs(node, "a4")
+    out.has_map = True
+    t = time.time_ns()
+    cov = np.diag([2.5e-3, 1.6e-3, 3e-4])  # the published covariance: what /irloc/pose sends
+    est = PoseEstimate(t, 1.0, 2.0, 0.5, cov, "dead_reckoning", quality=0.42,
+                       deviation_m=0.117, reason="one_landmark_only",
+                       reason_text="only one landmark in view; a fix needs two")  # fmt: skip
+    out.on_pose(est)
+    (pose,) = poses.wait(1)
+    np.testing.assert_allclose(covariance3(pose.pose.covariance), cov)
+    level, message, values = out.status()
+    assert level == "warn" and message == "only one landmark in view; a fix needs two"
+    assert {
+        ("quality", "0.420"),
+        ("deviation_m", "0.1170"),
+        ("reason", "one_landmark_only"),
+    } <= set(values)
+    out.on_pose(NoPose(t + 1, "lost", reason="kidnapped_suspected", reason_text="lost: moved?"))
+    level, message, values = out.status()
+    assert (
+        message == "lost: moved? (send /initialpose)"
+        and ("reason", "kidnapped_suspected") in values
+    )
+    assert ("quality", "0.000") in values and ("deviation_m", "") in values

@@ -89,4 +89,8 @@ def test_encode_batch_is_a_json_array_of_the_pose_texts() -> None:
         "floor": "0",
         "map_version": 0,
         "floor_unknown": False,
+        "quality": None,
+        "deviation_m": None,
+        "reason": None,
+        "reason_text": "",
     }

@@ -112,5 +112,8 @@ def test_the_viewer_panel_records_lists_and_deletes_only_when_ticked(live: Api) 
         assert (live.services.settings.recordings_dir / name).is_dir()
         panel.gui_sure.value = True  # type: ignore[misc]
         assert panel.delete() and not (live.services.settings.recordings_dir / name).exists()
+        box = panel.save_black_box()  # the viewer's button, as POST /robots/r3/black-box
+        assert box is not None and box.startswith("r3-") and box.endswith("blackbox-operator")
+        assert f"`{box}` black_box_operator" in panel.gui_list.content
     finally:
         server.stop()

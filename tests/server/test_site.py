@@ -106,6 +106,25 @@ def test_a_recording_does_not_start_on_a_nearly_full_disk(site: Api) -> None:
     assert runner.recorder is None
 
 
+def test_an_operator_saves_a_black_box_listed_with_its_trigger(site: Api) -> None:
+    c, h = site.client, site.h("operator")
+    assert _wait(lambda: site.services.robots.get("r2").frames > 20, 30)
+    r = c.post("/api/v1/robots/r2/black-box", headers=h)
+    assert r.status_code == 201, r.text
+    saved = r.json()
+    assert (saved["robot"], saved["trigger"]) == ("r2", "operator") and saved["bytes"] > 0
+    rec = read_recording(Path(saved["path"]))  # an ordinary recording: irloc replay reads it
+    assert len(rec.frames) >= 10 and len(rec.landmark_map) == len(site.services.map.list())
+    listed = c.get("/api/v1/robots/r2/black-boxes", headers=site.h("viewer")).json()
+    assert saved in listed
+    among = c.get("/api/v1/recordings?robot=r2", headers=site.h("viewer")).json()
+    assert {"name": Path(saved["path"]).name, "trigger": "black_box_operator"} in [
+        {k: r[k] for k in ("name", "trigger")} for r in among
+    ]  # among the robot's recordings, with its trigger
+    assert c.get("/api/v1/robots/r9/black-boxes", headers=site.h("viewer")).status_code == 404
+    assert c.post("/api/v1/robots/r2/black-box", headers=site.h("viewer")).status_code == 403
+
+
 def test_every_robot_localizes_near_the_truth_and_never_far_from_it(site: Api) -> None:
     """End to end: virtual cameras -> localizers sharing the LEDs -> pose bus -> API. Every
     robot gets a fix within a few centimetres of the truth at its frame's time, and no pose
@@ -134,6 +153,8 @@ def test_every_robot_localizes_near_the_truth_and_never_far_from_it(site: Api) -
     assert upd is not None and pose["t_ns"] >= upd.t_ns
     assert pose["mode"] in ("landmark", "dead_reckoning", "lost", "identifying")
     assert pose["age_s"] >= 0 and len(pose["covariance"]) == 3
+    assert 0.0 <= pose["quality"] <= 1.0 and pose["deviation_m"] > 0
+    assert (pose["reason"] is None) == (pose["mode"] == "landmark")
 
 
 def test_relocalize_sends_the_robot_back_to_identifying(site: Api) -> None:

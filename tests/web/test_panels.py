@@ -1,5 +1,6 @@
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import replace
 
 import numpy as np
@@ -37,9 +38,17 @@ def test_robots_table_shows_mode_error_and_fix_age() -> None:
     assert sigma == pytest.approx(np.sqrt(5e-4))
     assert fix_age_s(robots[0]) == pytest.approx(0.0)
     table = robots_table(robots)
-    assert "| r1 | landmarks | 2.2 cm | 0.0 s ago |" in table
-    assert table.startswith("| robot | mode | error (1 sigma) | last fix |")
+    assert "| r1 | landmarks | 2.2 cm | - | 0.0 s ago | - |" in table
+    assert table.startswith("| robot | mode | error (1 sigma) | quality | last fix | why no fix |")
     assert table.count("\n") == 3
+    dark = dataclasses.replace(
+        robots[0], mode="dead_reckoning", quality=0.61,
+        reason_text="the 2 landmark(s) in view are switched off by the LED schedule",
+    )  # fmt: skip
+    assert robots_table([dark]).splitlines()[2] == (
+        "| r1 | dead reckoning | 2.2 cm | 0.61 | 0.0 s ago | the 2 landmark(s) in view are "
+        "switched off by the LED schedule |"
+    )
 
 
 def test_batteries_low_first_unknown_last_with_the_schedule_and_the_model() -> None:

@@ -54,13 +54,20 @@ def error_text(robot: RobotState) -> str:
 
 
 def robots_table(robots: Sequence[RobotState]) -> str:
-    """Markdown table: robot, mode, error estimate, age of the last fix."""
-    rows = ["| robot | mode | error (1 sigma) | last fix |", "|---|---|---|---|"]
+    """Markdown table: robot, mode, error estimate, quality, age of the last fix, and why
+    it has no fix (the pose's reason, docs/quality.md)."""
+    rows = [
+        "| robot | mode | error (1 sigma) | quality | last fix | why no fix |",
+        "|---|---|---|---|---|---|",
+    ]
     for rb in robots:
         age = fix_age_s(rb)
         err = error_text(rb)
         fix = "never" if age is None else f"{age:.1f} s ago"
-        rows.append(f"| {rb.name} | {MODE_TEXT.get(rb.mode, rb.mode)} | {err} | {fix} |")
+        quality = "-" if rb.quality is None else f"{rb.quality:.2f}"
+        why = rb.reason_text.replace("|", "/") or "-"
+        mode = MODE_TEXT.get(rb.mode, rb.mode)
+        rows.append(f"| {rb.name} | {mode} | {err} | {quality} | {fix} | {why} |")
     return "\n".join(rows)
 
 

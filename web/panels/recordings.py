@@ -1,8 +1,9 @@
-"""Recordings: start and stop a robot's recording, list the newest with a download link, and
-delete one (admins, after ticking the confirmation). A thin client of the server's
-`Recordings` and its catalog, as `/api/v1/robots/{name}/recording/*` and `/api/v1/recordings`
-are; the download link is the viewer's own `/viewer/recordings/<name>.zip` (the browser's
-key is a cookie of `/viewer`). Operators and admins.
+"""Recordings: start and stop a robot's recording, save its black box (its last seconds, as
+`POST /api/v1/robots/{name}/black-box`), list the newest with a download link, and delete one
+(admins, after ticking the confirmation). A thin client of the server's `Recordings` and its
+catalog, as `/api/v1/robots/{name}/recording/*` and `/api/v1/recordings` are; the download
+link is the viewer's own `/viewer/recordings/<name>.zip` (the browser's key is a cookie of
+`/viewer`). Operators and admins.
 """
 
 from __future__ import annotations
@@ -54,6 +55,7 @@ class RecordingsPanel:
         with gui.add_folder("Recordings", expand_by_default=False):
             self.gui_start = gui.add_button("Start recording (robot above)")
             self.gui_stop = gui.add_button("Stop recording")
+            self.gui_black_box = gui.add_button("Save black box (its last seconds)")
             self.gui_list = gui.add_markdown("")
             self.gui_name = self.gui_sure = self.gui_delete = None
             if session.can_commission:
@@ -63,6 +65,7 @@ class RecordingsPanel:
                 self.gui_delete.on_click(lambda _: _ignore(self.delete()))
         self.gui_start.on_click(lambda _: _ignore(self.start()))
         self.gui_stop.on_click(lambda _: _ignore(self.stop()))
+        self.gui_black_box.on_click(lambda _: _ignore(self.save_black_box()))
         self._text = ""
         self._next = 0.0
         self.refresh()
@@ -99,6 +102,18 @@ class RecordingsPanel:
                                                  f"{path.name} saved"))  # fmt: skip
         self.refresh(every_s=0.0)
         return None if path is None else path.name
+
+    def save_black_box(self) -> str | None:
+        """Save the robot's black box now (trigger `operator`); the recording's name."""
+        name = self.robot()
+        try:
+            saved = self.recordings.save_black_box(name)
+        except (NotFoundError, ConflictError) as exc:
+            self.notify("Black box not saved", str(exc))
+            return None
+        self.notify("Black box", f"{name}: saved as {saved.path.name} ({saved.bytes / 1e6:.1f} MB)")
+        self.refresh(every_s=0.0)
+        return saved.path.name
 
     def delete(self) -> bool:
         if self.gui_name is None or self.gui_sure is None:
