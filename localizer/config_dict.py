@@ -55,6 +55,8 @@ def config_to_dict(config: object) -> dict[str, Any]:
             out[f.name] = config_to_dict(v)
         elif isinstance(v, tuple):
             out[f.name] = list(v)
+        elif isinstance(v, dict):
+            out[f.name] = dict(v)
         else:
             out[f.name] = v
     return out
@@ -107,6 +109,14 @@ def _coerce(kind: object, value: object, where: str) -> object:
             raise ConfigError(where, f"expected a list of {len(args)} values, got {value!r}")
         pairs = enumerate(zip(args, value, strict=True))
         return tuple(_coerce(a, v, f"{where}[{i}]") for i, (a, v) in pairs)
+    if origin is dict:
+        key_kind, value_kind = get_args(kind)
+        if not isinstance(value, Mapping):
+            raise ConfigError(where, f"expected a mapping, got {value!r}")
+        return {
+            _coerce(key_kind, k, f"{where}.{k}"): _coerce(value_kind, v, f"{where}.{k}")
+            for k, v in value.items()
+        }
     if kind is bool:
         if isinstance(value, bool):
             return value

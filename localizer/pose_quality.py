@@ -51,6 +51,10 @@ def _per_mode(landmark: float, dead_reckoning: float, lost: float) -> dict[str, 
             "identifying": dead_reckoning, "lost": lost}  # fmt: skip
 
 
+MODES = tuple(_per_mode(0.0, 0.0, 0.0))
+"""The localizer's modes (`localizer.events.Mode`, which imports this module's reasons)."""
+
+
 @dataclass(frozen=True)
 class QualityConfig:
     """The 0-1 quality's scale, and how the filter's covariance is made honest per mode
@@ -87,6 +91,11 @@ class QualityConfig:
             )
         for name in ("position_scale", "heading_scale", "position_floor_m", "heading_floor_rad"):
             for mode, v in getattr(self, name).items():
+                if mode not in MODES:
+                    raise ValueError(
+                        f"QualityConfig: {name} has an unknown mode {mode!r} "
+                        f"(the modes: {', '.join(MODES)})"
+                    )
                 low_ok = v > 0 if name.endswith("scale") else v >= 0
                 if not (math.isfinite(v) and low_ok):
                     raise ValueError(f"QualityConfig: {name}[{mode!r}] out of range: {v!r}")

@@ -55,3 +55,18 @@ def test_bad_settings_name_the_key(data: dict[str, object], key: str, what: str)
     assert info.value.key == key
     assert str(info.value).startswith(f"{key}: ")
     assert what in str(info.value)
+
+
+def test_per_mode_settings_are_read_and_an_unknown_mode_is_named() -> None:
+    cfg = config_from_dict({"quality": {"heading_scale": {"landmark": 1.2}}})
+    assert cfg.quality.heading_scale == {"landmark": 1.2}
+    with pytest.raises(ConfigError, match="quality.*unknown mode 'landmrk'"):
+        config_from_dict({"quality": {"heading_scale": {"landmrk": 1.2}}})
+    with pytest.raises(ConfigError, match="quality.heading_scale.landmark: expected a number"):
+        config_from_dict({"quality": {"heading_scale": {"landmark": "big"}}})
+
+
+def test_the_quality_modes_are_the_localizers() -> None:
+    from localizer import events, pose_quality
+
+    assert set(pose_quality.MODES) == set(events.MODES)
