@@ -47,7 +47,7 @@ def main() -> None:
             for lid, why in doubted(site).items():
                 if lid not in first:
                     first[lid] = time.monotonic() - start
-                    bright = services.sim.world.landmarks[lid].battery.led_brightness()
+                    bright = services.virtual_site.world.landmarks[lid].battery.led_brightness()
                     print(f"t={first[lid]:5.1f} s landmark {lid} doubted: {why} "
                           f"(true LED brightness {bright:.2f})")  # fmt: skip
         print(f"seed {args.seed}: {args.seconds:.0f} s, {len(first)} landmarks doubted")

@@ -66,7 +66,7 @@ async def run(duration_s: float, seed: int) -> list[Ride]:
     )
     services = SiteServices(settings)
     await services.start()
-    sim, live = services.sim, services.live
+    sim, live = services.virtual_site, services.runner
     assert sim is not None and live is not None
     sub = services.robots.subscribe_poses(maxsize=100_000)
     events = services.events.bus.subscribe()

@@ -29,7 +29,7 @@ async def run(duration_s: float, seed: int = 0) -> None:
     settings = Settings(data_dir=Path(tempfile.mkdtemp()), viewer_enabled=False, seed=seed)
     services = SiteServices(settings)
     await services.start()
-    sim = services.sim
+    sim = services.virtual_site
     assert sim is not None
     sub = services.robots.subscribe_poses(maxsize=100_000)
     updates: list[PoseUpdate] = []

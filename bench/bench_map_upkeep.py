@@ -26,8 +26,8 @@ import numpy as np
 from localizer.events import LedRequest, LedsChanged, OdometryMeasured, PoseEstimate, SpotsObserved
 from localizer.landmark_map import LandmarkMap
 from localizer.localizer import Localizer
-from sim.live import LiveSite
 from sim.scenario import load_scenario
+from sim.virtual_site import VirtualSite
 from survey.upkeep import MapUpkeep, UpkeepConfig
 
 NS = 1_000_000_000
@@ -58,7 +58,7 @@ class Errors:
 
 
 def patrol(
-    site: LiveSite,
+    site: VirtualSite,
     positions: dict[int, np.ndarray],
     seconds: float,
     on_frame: Callable[[str, PoseEstimate, np.ndarray, float], None],
@@ -106,7 +106,7 @@ def patrol(
     return err
 
 
-def _carry_out(site: LiveSite, requests: dict[str, LedRequest]) -> frozenset[int]:
+def _carry_out(site: VirtualSite, requests: dict[str, LedRequest]) -> frozenset[int]:
     """The robots' LED requests, at once and all of them (a radio without latency): one that
     lights only some LEDs wins, else every LED but those any robot wants dark."""
     ids = set(site.world.landmarks)
@@ -127,7 +127,7 @@ def main() -> None:
     ap.add_argument("--landmark", type=int, default=114)
     args = ap.parse_args()
     sc = dataclasses.replace(load_scenario("demo"), survey_sigma_m=args.survey_mm / 1000)
-    site = LiveSite(sc, seed=args.seed, observe="spots")
+    site = VirtualSite(sc, seed=args.seed, observe="spots")
     moved = site.world.landmarks[args.landmark]
     direction = np.array([0.8, 0.6, 0.0])
     moved.p_true = moved.p_true + direction * args.move_mm / 1000
@@ -175,7 +175,7 @@ def main() -> None:
     print(f"before (surveyed map): {before.line()}")
     for label, positions in (("after accepting", refined), ("true map (reference)", truth),
                              ("surveyed map again", surveyed)):  # fmt: skip
-        site2 = LiveSite(sc, seed=args.seed + 1, observe="spots")
+        site2 = VirtualSite(sc, seed=args.seed + 1, observe="spots")
         site2.world.landmarks[args.landmark].p_true = truth[args.landmark].copy()
         e = patrol(site2, positions, args.after_minutes * 60, lambda *a: None)
         print(f"{label}: {e.line()}")

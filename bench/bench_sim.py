@@ -22,9 +22,9 @@ import numpy as np
 from irloc.simulated_recording import simulate_recording
 from localizer.geometry import T_world_body_from_pose
 from sim.cameras import LENSES, wide_angle_camera
-from sim.live import LiveSite
 from sim.render import RenderConfig, render_frame
 from sim.scenario import load_scenario
+from sim.virtual_site import VirtualSite
 
 
 def bench_render(lens: str, frames: int = 300) -> float:
@@ -53,7 +53,7 @@ def bench_copy(frames: int = 300) -> float:
 
 def bench_live(seconds: float) -> tuple[float, int]:
     """(CPU share of one core, frames produced) of the demo site stepped in real time."""
-    site = LiveSite("demo")
+    site = VirtualSite("demo")
     site.step(time.monotonic_ns())
     time.sleep(0.05)
     site.step(time.monotonic_ns())  # first frames: builds the noise pool, not timed

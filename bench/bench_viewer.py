@@ -31,7 +31,7 @@ import numpy as np
 from localizer.events import PoseEstimate
 from sim.cameras import wide_angle_camera
 from web.services import CameraView, Candidate, EventLine, LandmarkState, RobotState
-from web.viewer import SiteViewer
+from web.viewer import Viewer
 
 CHROMIUM = "/usr/bin/chromium"
 
@@ -128,7 +128,7 @@ def _browsers(port: int, n: int, seconds: float) -> None:
 
 
 def measure(
-    viewer: SiteViewer, n_clients: int, seconds: float, *, browsers: bool = False
+    viewer: Viewer, n_clients: int, seconds: float, *, browsers: bool = False
 ) -> dict[str, float]:
     proc = None
     if n_clients:
@@ -167,7 +167,7 @@ def main(argv: list[str] | None = None) -> int:
     ns = p.parse_args(args)
     if ns.browsers and not os.path.exists(CHROMIUM):
         p.error(f"--browsers needs Debian's chromium at {CHROMIUM} (apt-get install chromium)")
-    viewer = SiteViewer(SyntheticSite())
+    viewer = Viewer(SyntheticSite())
     viewer.start()
     try:
         time.sleep(2.0)

@@ -1,8 +1,8 @@
 """The live site loop with LED control, run offline faster than real time.
 
 The same parts as `irloc serve` on its simulated site, without HTTP and threads: the
-`sim.live.LiveSite` (robots, world, `SimRadio`), the RF gateway on the simulated transport
-(`rf_gateway.Gateway` + `SimTransport`), the server's `LedCoordinator` that applies the
+`sim.virtual_site.VirtualSite` (robots, world, `SimRadio`), the RF gateway on the simulated
+transport (`rf_gateway.Gateway` + `SimTransport`), the server's `LedCoordinator` that applies the
 localizer's `LedRequest`s and forwards every confirmed `LedsChanged`, and one `Localizer`.
 They run on an asyncio loop whose clock is *virtual*: whenever nothing is ready, the loop
 jumps to its next timer instead of sleeping (radio latencies, timeouts and retries keep
@@ -35,8 +35,8 @@ from rf_gateway.battery import BatteryMonitorConfig
 from rf_gateway.config import GatewayConfig
 from rf_gateway.gateway import Gateway
 from rf_gateway.sim_transport import SimTransport
-from sim.live import LiveSite
 from sim.scenario import Scenario
+from sim.virtual_site import VirtualSite
 
 NS = 1_000_000_000
 
@@ -110,12 +110,12 @@ class LiveRun:
     truth: dict[int, tuple[float, float, float]]
     kidnaps: list[tuple[int, int]]
     t_start_ns: int
-    site: LiveSite
+    site: VirtualSite
     led_requests: int
 
 
 async def _run(
-    site: LiveSite, name: str, clock: _Clock, duration_s: float, step_s: float,
+    site: VirtualSite, name: str, clock: _Clock, duration_s: float, step_s: float,
     config: LocalizerConfig | None,
 ) -> LiveRun:  # fmt: skip
     records = site.landmark_records()
@@ -192,7 +192,7 @@ def run_live(
         )
     loop, clock = virtual_time_loop()
     try:
-        site = LiveSite(sc, seed=seed, clock_ns=clock.ns)
+        site = VirtualSite(sc, seed=seed, clock_ns=clock.ns)
         return loop.run_until_complete(_run(site, name, clock, duration_s, step_s, config))
     finally:
         loop.close()

@@ -36,9 +36,9 @@ from localizer.landmark_map import LandmarkMap
 from localizer.localizer import Localizer
 from rf_gateway.gateway import Gateway
 from rf_gateway.sim_transport import SimTransport
-from sim.live import LiveSite
 from sim.routes import Route, Wait
 from sim.scenario import Scenario, load_scenario
+from sim.virtual_site import VirtualSite
 
 T = TypeVar("T")
 STEP_S = 0.01
@@ -120,7 +120,7 @@ async def run_site(
     seed: int | None = None,
     measure_from_s: float = 0.0,
     known_poses: bool = False,
-    on_step: Callable[[float, LiveSite], None] | None = None,
+    on_step: Callable[[float, VirtualSite], None] | None = None,
     routes: bool = True,
     until_fixed: bool = False,
 ) -> SiteRun:
@@ -137,7 +137,7 @@ async def run_site(
     def clock_ns() -> int:
         return round(loop.time() * 1e9)
 
-    site = LiveSite(sc, seed=seed, clock_ns=clock_ns, radio_sleep=radio_sleep(settings),
+    site = VirtualSite(sc, seed=seed, clock_ns=clock_ns, radio_sleep=radio_sleep(settings),
                     observe="spots", max_frame_lag_s=10.0)  # fmt: skip
     records = site.landmark_records()
     lmap = LandmarkMap.from_records(records)

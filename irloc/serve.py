@@ -1,7 +1,7 @@
 """`irloc serve`: the server with the viewer handed in (the one place that wires both).
 
 `server.cli.main` parses the options and runs the API; this module adds the viewer
-(`web.viewer.SiteViewer`), since the server itself never imports `web`.
+(`web.viewer.Viewer`), since the server itself never imports `web`.
 
 `irloc serve --ros2 --mqtt URL`: the demo as ROS 2 robots (docs/ros2.md). The site runs
 its world and radio but not its robots (`--no-sim-robots`); beside it one `irloc agent
@@ -29,9 +29,9 @@ def make_viewer(settings: Settings) -> ViewerApp | None:
     """The viewer for `settings` (None when `viewer_enabled` is off), on a loopback port."""
     if not settings.viewer_enabled:
         return None
-    from web.viewer import SiteViewer
+    from web.viewer import Viewer
 
-    return SiteViewer(host="127.0.0.1", port=settings.viewer_port)
+    return Viewer(host="127.0.0.1", port=settings.viewer_port)
 
 
 def make_viewer_with_ros2_site(settings: Settings) -> ViewerApp | None:

@@ -48,7 +48,7 @@ async def replace_cells(services: SiteServices, landmark_id: int, *, actor: str)
         landmark_id=landmark_id, data={"actor": actor},
     )  # fmt: skip
     services.events.flush()  # stored before the status below reads past it
-    sim = services.sim
+    sim = services.virtual_site
     if sim is not None and landmark_id in sim.world.landmarks:
         # the virtual site has no technician: its landmark gets the fresh cells here
         sim.world.replace_cells(landmark_id)

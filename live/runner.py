@@ -57,8 +57,8 @@ from sensors.remote import RemoteSource
 from sensors.serial_wheels import SerialWheelSource
 from sensors.sim_source import SimSource
 from sensors.sources import FrameSource
-from sim.live import LiveSite
 from sim.robot import FloorArrival
+from sim.virtual_site import VirtualSite
 from store import MapRepository, RobotStore
 from store.landmarks import parse_map_json
 from store.models import LandmarkPublic, RobotCreate, RobotPublic
@@ -97,7 +97,7 @@ class LedHost(Protocol):
     ) -> None: ...
 
 
-class LiveSiteRunner:
+class SiteRunner:
     """Start and stop everything live.
 
     Args:
@@ -126,7 +126,7 @@ class LiveSiteRunner:
         self.floors = floors
         self.map, self.robot_store, self.robots = map, robot_store, robots
         self.led_facade, self.events, self.clock_ns = leds, events, clock_ns
-        self.sim: LiveSite | None = None
+        self.sim: VirtualSite | None = None
         self.sim_source: SimSource | None = None
         self.gateway: Gateway | None = None
         self.leds: LedCoordinator | None = None
@@ -262,13 +262,13 @@ class LiveSiteRunner:
             data={"trigger": saved.trigger, "reason": saved.reason, "path": str(saved.path)},
         )
 
-    def _build_sim(self) -> LiveSite:
+    def _build_sim(self) -> VirtualSite:
         from sim.scenario import load_scenario
 
         scenario = load_scenario(self.settings.scenario)
         if not self.settings.sim_robots:  # the same world; its robots run as agents
             scenario = dataclasses.replace(scenario, robots=())
-        return LiveSite(
+        return VirtualSite(
             scenario,
             seed=self.settings.seed,
             clock_ns=self.clock_ns,
@@ -287,7 +287,7 @@ class LiveSiteRunner:
     def _sim_names(self) -> list[str]:
         return list(self.sim.robot_names) if self.sim is not None else []
 
-    def _adopt_sim(self, sim: LiveSite) -> None:
+    def _adopt_sim(self, sim: VirtualSite) -> None:
         """First start on a virtual site: take its floors, its surveyed map and its robots."""
         if self.floors is not None:
             self.floors.adopt([(f.id, f.name, f.level, f.height_m) for f in sim.floors])

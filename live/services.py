@@ -25,7 +25,7 @@ from live.facades import LedsAndRadio, Recordings, Robots
 from live.floors import SiteFloors
 from live.leds.status import EnergyStatus, site_energy
 from live.poses import PoseUpdate
-from live.runner import LiveSiteRunner
+from live.runner import SiteRunner
 from live.settings import Settings
 from live.survey.service import LiveSurvey
 from live.upkeep_service import MapUpkeepService
@@ -43,7 +43,7 @@ from store.models import LandmarkPublic
 from store.zones import PoseHistory, ZoneStore
 
 if TYPE_CHECKING:
-    from sim.live import LiveSite
+    from sim.virtual_site import VirtualSite
 
 log = logging.getLogger(__name__)
 T = TypeVar("T")
@@ -66,7 +66,7 @@ class SiteServices:
         commissioning (Commissioning); survey (LiveSurvey); upkeep (MapUpkeepService, the
         map's proposals from the robots' views); alerts (SiteAlerts, docs/alerts.md); poses
         (Bus[PoseUpdate]); events (EventHub, whose `bus` is a Bus[SiteEvent]); live (the
-        LiveSiteRunner, None when stopped or disabled); clock_ns (the site clock);
+        SiteRunner, None when stopped or disabled); clock_ns (the site clock);
         initial_admin_key (str once, on first start).
     """
 
@@ -108,14 +108,14 @@ class SiteServices:
             HistoryConfig(keep_days=settings.history_keep_days),
         )  # fmt: skip
         self.alerts = SiteAlerts(settings, self.robots.runners, self.leds, self.events)
-        self.live: LiveSiteRunner | None = None
+        self.runner: SiteRunner | None = None
         self.loop: asyncio.AbstractEventLoop | None = None
         self.map.add_listener(self._on_map_changed)
 
     @property
-    def sim(self) -> LiveSite | None:
+    def virtual_site(self) -> VirtualSite | None:
         """The virtual site, when the live site runs on one."""
-        return None if self.live is None else self.live.sim
+        return None if self.runner is None else self.runner.sim
 
     # -- clock and loop --------------------------------------------------------------------
     def clock_ns(self) -> int:
@@ -142,7 +142,7 @@ class SiteServices:
             items = parse_map_json(json.loads(path.read_text(encoding="utf-8")), source=str(path))
             self.map.replace_all(items, actor=f"--map {path}")
         if self.settings.site_enabled:
-            self.live = LiveSiteRunner(
+            self.runner = SiteRunner(
                 self.settings,
                 map=self.map,
                 robot_store=self.robot_store,
@@ -152,7 +152,7 @@ class SiteServices:
                 clock_ns=self.clock_ns,
                 floors=self.site_floors,
             )
-            await self.live.start()
+            await self.runner.start()
         self.commissioning.start()
         self.upkeep.start()
         self.whereabouts.start()
@@ -165,9 +165,9 @@ class SiteServices:
         await self.upkeep.stop()
         await self.whereabouts.stop()
         self.survey.cancel()
-        if self.live is not None:
-            await self.live.stop()
-            self.live = None
+        if self.runner is not None:
+            await self.runner.stop()
+            self.runner = None
         self.map.remove_listener(self._on_map_changed)
         self.map_versions.close()
         self.keys.close()  # pending last-use writes
@@ -180,8 +180,8 @@ class SiteServices:
             f"map changed: {len(landmarks)} landmarks",
             data={"count": len(landmarks)},
         )
-        if self.live is not None:
-            self.live.on_map_changed(landmarks)
+        if self.runner is not None:
+            self.runner.on_map_changed(landmarks)
 
     def energy(self) -> EnergyStatus:
         """Each landmark's lit state and reason, duty and modelled days left; the site's lit

@@ -1,4 +1,4 @@
-"""`SimSource`: the virtual site (`sim.live.LiveSite`) as a `FrameSource` for its robots.
+"""`SimSource`: the virtual site (`sim.virtual_site.VirtualSite`) as a `FrameSource` for its robots.
 
 One thread steps the site at `step_hz` on the site clock (frames are rendered with the LEDs
 lit at the call, so a short period keeps a frame's picture true to its timestamp); another
@@ -19,8 +19,8 @@ from collections.abc import Callable, Sequence
 
 from localizer.events import FrameObserved
 from sensors.sources import SensorEvent, SensorSink
-from sim.live import LiveSite, SensorSample
 from sim.robot import FloorArrival
+from sim.virtual_site import SensorSample, VirtualSite
 
 log = logging.getLogger(__name__)
 ERROR_LOG_EVERY_S = 10.0
@@ -41,7 +41,7 @@ class SimSource:
 
     def __init__(
         self,
-        site: LiveSite,
+        site: VirtualSite,
         clock_ns: Callable[[], int],
         *,
         step_hz: float = 100.0,

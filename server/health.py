@@ -31,8 +31,8 @@ class Health(BaseModel):
 def site_problems(s: SiteServices) -> list[str]:
     """What the live site and the event writer report wrong (no database query)."""
     out: list[str] = []
-    if s.live is not None:
-        out += s.live.supervisor.problems()
+    if s.runner is not None:
+        out += s.runner.supervisor.problems()
     if s.events.writer.problem is not None:
         out.append(s.events.writer.problem)
     return out

@@ -87,7 +87,7 @@ class SiteCollector(Collector):
             yield GaugeMetricFamily(
                 "irloc_landmarks_unreachable", "unreachable landmarks", value=len(gw.unreachable)
             )
-        site = s.live
+        site = s.runner
         wheel_lines = CounterMetricFamily(
             "irloc_wheel_lines", "serial wheel-speed lines fed to robots", labels=["robot"]
         )

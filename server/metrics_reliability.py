@@ -93,7 +93,7 @@ def storage_metrics(s: SiteServices) -> Iterator[Metric]:
 
 def site_metrics(s: SiteServices, state: State | None) -> Iterator[Metric]:
     """The supervisor, the fleet link, the alerts."""
-    site = s.live
+    site = s.runner
     yield _counter("irloc_site_thread_restarts", "site threads started again by the supervisor",
                    0 if site is None else site.supervisor.restarts)  # fmt: skip
     yield _gauge("irloc_site_problems", "problems the live site reports now (/healthz)",

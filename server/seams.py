@@ -22,7 +22,7 @@ Authenticate = Callable[[HTTPConnection], Principal | None]
 
 
 class ViewerApp(Protocol):
-    """A viewer served by the API (web.viewer.SiteViewer).
+    """A viewer served by the API (web.viewer.Viewer).
 
     The app includes `router(authenticate)` when it is built, calls `start(services)` in its
     lifespan once the services run (from a worker thread: it may block), and `stop()` at

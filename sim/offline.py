@@ -28,9 +28,9 @@ from localizer.types import ImageU8
 from sim.build import RobotRig, build_robot, build_world, seed_generators
 from sim.cameras import Lens
 from sim.imu import SimImu
-from sim.live import render_view
 from sim.robot import FramePose
 from sim.scenario import Scenario
+from sim.virtual_site import render_view
 from sim.world import World
 
 NS = 1_000_000_000

@@ -1,7 +1,7 @@
 """The virtual building: landmarks (true and surveyed positions, LEDs, batteries, radios),
 other IR sources (lamps, sunlight, glints) and people walking under the landmarks.
 
-The world is advanced by its owner (`LiveSite` or the offline simulator) with `advance(t_ns)`;
+The world is advanced by its owner (`VirtualSite` or the offline simulator) with `advance(t_ns)`;
 the simulated radio switches LEDs from another thread, so LED state sits behind a lock.
 """
 

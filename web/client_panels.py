@@ -35,13 +35,13 @@ from web.roles import Session
 from web.services import EventLine, LandmarkState, RobotState
 
 if TYPE_CHECKING:
-    from web.viewer import SiteViewer
+    from web.viewer import Viewer
 
 
 class ClientPanels:
     """The panels of one browser (built on connect, refreshed by the viewer's loop)."""
 
-    def __init__(self, viewer: SiteViewer, client: viser.ClientHandle, session: Session) -> None:
+    def __init__(self, viewer: Viewer, client: viser.ClientHandle, session: Session) -> None:
 
         def notify(title: str, body: str) -> None:
             client.add_notification(title, body, auto_close_seconds=6.0)
@@ -63,7 +63,7 @@ class ClientPanels:
 
     def _build(
         self,
-        viewer: SiteViewer,
+        viewer: Viewer,
         client: viser.ClientHandle,
         session: Session,
         notify: Callable[[str, str], None],
@@ -106,7 +106,7 @@ class ClientPanels:
             self._monitoring(viewer, client, session, notify)
 
     @staticmethod
-    def _plan_of(viewer: SiteViewer) -> Callable[[], FloorPlanStore]:
+    def _plan_of(viewer: Viewer) -> Callable[[], FloorPlanStore]:
         """The plan store of the floor shown (the floor selector changes it)."""
 
         def store() -> FloorPlanStore:
@@ -119,7 +119,7 @@ class ClientPanels:
 
     def _monitoring(
         self,
-        viewer: SiteViewer,
+        viewer: Viewer,
         client: viser.ClientHandle,
         session: Session,
         notify: Callable[[str, str], None],

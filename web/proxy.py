@@ -74,7 +74,7 @@ def _with_bearer(conn: HTTPConnection, key: str) -> HTTPConnection:
 
 
 class TicketIssuer(Protocol):
-    """The running viewer as the proxy needs it (`web.viewer.SiteViewer`)."""
+    """The running viewer as the proxy needs it (`web.viewer.Viewer`)."""
 
     @property
     def port(self) -> int: ...
@@ -126,7 +126,7 @@ def viewer_router(
     """Routes serving the viewer under `/viewer/`.
 
     Args:
-        get_viewer: returns the running `web.viewer.SiteViewer` (None when disabled).
+        get_viewer: returns the running `web.viewer.Viewer` (None when disabled).
         authenticate: `server.auth.authenticate`: a connection -> principal with `role` and
             `actor`, or None for a missing or invalid key.
     """

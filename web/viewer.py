@@ -1,4 +1,4 @@
-"""`SiteViewer`: the viser app of a site, run inside the server process on its services.
+"""`Viewer`: the viser app of a site, run inside the server process on its services.
 
 It starts a viser server on a loopback port (viser has no login of its own: browsers reach
 it through `web.proxy.viewer_router`, which checks the API key and hands the viewer a
@@ -49,7 +49,7 @@ if TYPE_CHECKING:
     from live.services import SiteServices
 
 log = logging.getLogger(__name__)
-__all__ = ["TICKET_PARAM", "SiteViewer", "ViewerConfig"]
+__all__ = ["TICKET_PARAM", "Viewer", "ViewerConfig"]
 
 
 @dataclass(frozen=True)
@@ -73,7 +73,7 @@ class ViewerConfig:
     margin_m: float = 2.0
 
 
-class SiteViewer:
+class Viewer:
     """The site's 3D viewer.
 
     A `server.seams.ViewerApp`: `irloc serve` builds it and hands it to `create_app`, which

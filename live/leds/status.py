@@ -153,7 +153,7 @@ def site_energy(
 ) -> EnergyStatus:
     """The energy status of a running site (its scheduler, gateway and battery log;
     `supply_mv` replaces the battery log's latest reading, e.g. by a cached one)."""
-    live = services.live
+    live = services.runner
     gw = services.leds.gateway
 
     def supply(landmark_id: int) -> int | None:

@@ -44,7 +44,7 @@ class SchedulePublic(BaseModel):
 
 
 def _scheduler(services: ServicesDep) -> LedScheduler:
-    live = services.live
+    live = services.runner
     scheduler = None if live is None else live.scheduler
     if scheduler is None:
         raise ConflictError(
@@ -61,7 +61,7 @@ def _pins(scheduler: LedScheduler) -> list[PinPublic]:
 @router.get("/schedule")
 def schedule(services: ServicesDep, _: Viewer) -> SchedulePublic:
     """What the schedule lights and why (empty lists with `all_lit`)."""
-    live = services.live
+    live = services.runner
     scheduler = None if live is None else live.scheduler
     if scheduler is None:
         return SchedulePublic(

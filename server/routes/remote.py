@@ -165,7 +165,7 @@ async def remote_robot(ws: WebSocket, name: str) -> None:
     except NotFoundError as exc:
         await refuse_websocket(ws, str(exc))
         return
-    source = None if services.live is None else services.live.remote(name)
+    source = None if services.runner is None else services.runner.remote(name)
     if runner.source != "remote" or source is None:
         await refuse_websocket(ws, f"robot {name!r} has source {runner.source!r}, not 'remote'")
         return

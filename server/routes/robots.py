@@ -226,7 +226,7 @@ class FloorProposalPublic(BaseModel):
 
 
 def _watch(services: ServicesDep) -> FloorWatch:
-    live = services.live
+    live = services.runner
     if live is None or live.floor_watch is None:
         raise UnavailableError("floor proposals need the live site and its radio")
     return live.floor_watch

@@ -34,7 +34,7 @@ def test_the_two_floor_site_has_its_floors_and_each_landmark_its_floor(site: Api
 
 
 def test_a_robot_told_its_floor_is_localized_there_within_3_s(site: Api) -> None:
-    sim = site.services.sim
+    sim = site.services.virtual_site
     assert sim is not None
     told_at: float | None = None  # wall time the site was told r2 is on floor 1
     fixed_after_s: float | None = None
@@ -90,7 +90,7 @@ def test_a_robot_not_told_its_floor_is_proposed_the_right_one_and_moved_on_accep
     unknown (no pose of floor 1's map goes out) and floor 0 is proposed (an event and the
     API), never taken on its own; accepting it moves r3 there, where it is localized near
     the truth."""
-    sim = site.services.sim
+    sim = site.services.virtual_site
     assert sim is not None
     c, h = site.client, site.h("operator")
     proposed = None

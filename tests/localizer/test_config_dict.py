@@ -60,9 +60,9 @@ def test_bad_settings_name_the_key(data: dict[str, object], key: str, what: str)
 def test_per_mode_settings_are_read_and_an_unknown_mode_is_named() -> None:
     cfg = config_from_dict({"quality": {"heading_scale": {"landmark": 1.2}}})
     assert cfg.quality.heading_scale == {"landmark": 1.2}
-    with pytest.raises(ConfigError, match="quality.*unknown mode 'landmrk'"):
+    with pytest.raises(ConfigError, match=r"quality.*unknown mode 'landmrk'"):
         config_from_dict({"quality": {"heading_scale": {"landmrk": 1.2}}})
-    with pytest.raises(ConfigError, match="quality.heading_scale.landmark: expected a number"):
+    with pytest.raises(ConfigError, match=r"quality\.heading_scale\.landmark: expected a number"):
         config_from_dict({"quality": {"heading_scale": {"landmark": "big"}}})
 
 

@@ -122,14 +122,14 @@ def test_robot_configured_with_a_wheel_port_reads_it(tmp_path: Path) -> None:
     master = _pty(link)
     try:
         for api in start_api(tmp_path / "site", scenario="paper_testbed"):
-            sim_name = api.services.sim.robot_names[0]
+            sim_name = api.services.virtual_site.robot_names[0]
             conf = api.client.get(f"/api/v1/robots/{sim_name}/config", headers=api.h("viewer"))
             body = {**conf.json(), "source": "camera", "device": None}
             body |= {"wheel_port": str(link), "wheel_baud": 57600}
             r = api.client.put("/api/v1/robots/cam1/config", json=body, headers=api.h("admin"))
             assert r.status_code == 200, r.text
             assert (r.json()["wheel_port"], r.json()["wheel_baud"]) == (str(link), 57600)
-            source = api.services.live.wheels["cam1"]
+            source = api.services.runner.wheels["cam1"]
             _wait(lambda s=source: s.connected)  # type: ignore[misc]
             os.write(master, wheel_line(0.3, 0.31).encode() + b"$IRODO,,1,1*00\r\n")
             _wait(lambda s=source: s.lines == 1 and s.bad_lines == 1)  # type: ignore[misc]

@@ -74,7 +74,7 @@ def test_bad_input_is_named(api: Api) -> None:
 
 def _ahead(api: Api, robot: str, distance_m: float) -> tuple[float, float]:
     """Where `robot` will truly be once it drove `distance_m` on along its route."""
-    sim = api.services.sim
+    sim = api.services.virtual_site
     assert sim is not None
     x, y, _ = sim.true_pose(robot)
     for wx, wy in sim.planned_route(robot):
@@ -90,7 +90,7 @@ def _passed_under(api: Api, robot: str) -> int:
     """The bright landmark `robot` will pass under while the wizard measures (the nearest to
     where it will be 1.5 m on along its route, 2.5 s): measured while the robot drives,
     whichever test ran before."""
-    sim = api.services.sim
+    sim = api.services.virtual_site
     assert sim is not None
     x, y = _ahead(api, robot, 1.5)
     lms = [
@@ -114,7 +114,7 @@ def test_identification_on_the_live_site_keeps_the_other_robots_tracking(live: A
         if all(live.services.robots.mode(n) == "landmark" for n in live.services.robots.names()):
             break
         time.sleep(0.2)
-    sim = live.services.sim
+    sim = live.services.virtual_site
     assert sim is not None
     used = live.services.robots.latest("r1")
     deadline = time.monotonic() + 30.0  # r1 may be between landmarks (dead reckoning) now
@@ -165,7 +165,7 @@ def test_a_radio_deleted_from_the_map_is_found_measured_and_saved_back(live: Api
     (every landmark stays lit) and the robot's frames place it; confirmed, it is a landmark
     again, with its address, where the simulator has it."""
     c, h = live.client, live.h("admin")
-    sim = live.services.sim
+    sim = live.services.virtual_site
     assert sim is not None
     used = live.services.robots.latest("r1")
     deadline = time.monotonic() + 30.0  # r1 may be between landmarks (dead reckoning) now

@@ -24,9 +24,11 @@ def live(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Api]:
 @pytest.mark.slow
 def test_a_landmark_wrong_in_the_map_is_proposed_where_it_hangs(live: Api) -> None:
     services = live.services
-    assert services.sim is not None
-    for name in services.sim.robot_names:  # an operator's hint: no identification to wait for
-        x, y, th = services.sim.true_pose(name)
+    assert services.virtual_site is not None
+    for (
+        name
+    ) in services.virtual_site.robot_names:  # an operator's hint: no identification to wait for
+        x, y, th = services.virtual_site.true_pose(name)
         hint = {"x": x, "y": y, "theta": th}
         r = live.client.post(
             f"/api/v1/robots/{name}/relocalize", json=hint, headers=live.h("operator")
@@ -36,7 +38,7 @@ def test_a_landmark_wrong_in_the_map_is_proposed_where_it_hangs(live: Api) -> No
     # position, and points back at once
     live.wait_for(P, lambda st: st["frames"] >= 15, 90.0, role="viewer", every_s=0.5)
     lid = landmark_always_in_view(services, "r2")
-    truth = services.sim.world.landmarks[lid].p_true
+    truth = services.virtual_site.world.landmarks[lid].p_true
     lm = services.map.get(lid)
     services.map.update(lid, LandmarkUpdate(x=lm.x + 0.04, y=lm.y - 0.03), actor="test")
 

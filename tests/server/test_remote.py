@@ -29,7 +29,7 @@ def site(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Api]:
     """The live virtual site (its simulated robot patrolling and localizing too: both ask
     for LEDs) plus a robot `rem` of source `remote` with the simulated robot's camera."""
     for api in start_api(tmp_path_factory.mktemp("remote"), scenario="paper_floor"):
-        sim_name = api.services.sim.robot_names[0]
+        sim_name = api.services.virtual_site.robot_names[0]
         conf = api.client.get(f"/api/v1/robots/{sim_name}/config", headers=api.h("viewer"))
         body = {**conf.json(), "name": "rem", "source": "remote"}
         r = api.client.put("/api/v1/robots/rem/config", json=body, headers=api.h("admin"))
@@ -49,9 +49,9 @@ def _frame(t_ns: int, image: np.ndarray, raw: bool = False) -> bytes:
 
 def test_remote_robot_converges_near_the_truth_and_survives_a_disconnect(site: Api) -> None:
     s = site.services
-    sim_name = s.sim.robot_names[0]
+    sim_name = s.virtual_site.robot_names[0]
     wheel_base = s.robots.get("rem").geometry.wheel_base
-    x0, y0, th0 = s.sim.true_pose(sim_name)
+    x0, y0, th0 = s.virtual_site.true_pose(sim_name)
     v_left, v_right = 0.04, 0.05
     t0 = s.clock_ns()
     errors: list[float] = []
@@ -66,7 +66,7 @@ def test_remote_robot_converges_near_the_truth_and_survives_a_disconnect(site: A
             )
             ws.send_text(json.dumps({"type": "odometry", "v_left": v_left, "v_right": v_right,
                                      "t_ns": t}))  # fmt: skip
-            image = s.sim.render(sim_name, T_world_body_from_pose(x, y, th))
+            image = s.virtual_site.render(sim_name, T_world_body_from_pose(x, y, th))
             ws.send_bytes(_frame(t, image, raw=len(modes) % 2 == 1))  # PNG and raw in turn
             answer = json.loads(ws.receive_text())
             assert answer["robot"] == "rem" and answer["t_ns"] == t
@@ -138,14 +138,14 @@ def test_refused_connections_name_the_reason(site: Api, path: str, role: str, re
 def test_a_simulated_robot_refuses_remote_frames(site: Api) -> None:
     from starlette.websockets import WebSocketDisconnect
 
-    name = site.services.sim.robot_names[0]
-    site.services.live.start_robot(site.services.robot_store.get(name))
+    name = site.services.virtual_site.robot_names[0]
+    site.services.runner.start_robot(site.services.robot_store.get(name))
     with (
         pytest.raises(WebSocketDisconnect) as exc,
         site.client.websocket_connect(f"/api/v1/robots/{name}/ws", headers=site.h("admin")) as ws,
     ):
         ws.receive_text()
-    site.services.live.stop_robot(name)
+    site.services.runner.stop_robot(name)
     assert "has source 'sim', not 'remote'" in (exc.value.reason or "")
 
 

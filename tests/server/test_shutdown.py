@@ -13,7 +13,7 @@ pytestmark = pytest.mark.slow
 
 def test_shutdown_leaves_every_led_on_and_closes_the_database(tmp_path: Path) -> None:
     for api in start_api(tmp_path, scenario="paper_testbed"):
-        world = api.services.sim.world
+        world = api.services.virtual_site.world
         ids = sorted(world.landmarks)
         r = api.client.post(f"/api/v1/landmarks/{ids[0]}/led", json={"on": False},
                             headers=api.h("operator"))  # fmt: skip

@@ -34,7 +34,7 @@ def test_demo_site_has_its_robots_and_surveyed_map(site: Api) -> None:
     robots = site.client.get("/api/v1/robots", headers=site.h("viewer")).json()
     assert [r["name"] for r in robots] == ["r1", "r2", "r3"]
     assert all(r["source"] == "sim" for r in robots)
-    truth = {int(r["id"]): r for r in site.services.sim.landmark_records()}
+    truth = {int(r["id"]): r for r in site.services.virtual_site.landmark_records()}
     lms = site.client.get("/api/v1/landmarks", headers=site.h("viewer")).json()
     assert {lm["id"] for lm in lms} == set(truth)
     for lm in lms:
@@ -44,7 +44,7 @@ def test_demo_site_has_its_robots_and_surveyed_map(site: Api) -> None:
 
 def test_led_command_switches_the_virtual_landmark(site: Api) -> None:
     c, h = site.client, site.h("operator")
-    world = site.services.sim.world
+    world = site.services.virtual_site.world
     r = c.post("/api/v1/landmarks/105/led", json={"on": False}, headers=h)
     assert r.status_code == 200, r.text
     assert 105 not in r.json()["lit"] or r.json()["all_lit"] is False
@@ -129,7 +129,7 @@ def test_every_robot_localizes_near_the_truth_and_never_far_from_it(site: Api) -
     """End to end: virtual cameras -> localizers sharing the LEDs -> pose bus -> API. Every
     robot gets a fix within a few centimetres of the truth at its frame's time, and no pose
     in landmark mode is ever far from it (a misidentified landmark would show here)."""
-    sim = site.services.sim
+    sim = site.services.virtual_site
     names = set(sim.robot_names)
     good: set[str] = set()
     worst = 0.0
@@ -174,7 +174,7 @@ def test_relocalize_sends_the_robot_back_to_identifying(site: Api) -> None:
             break
         time.sleep(0.1)
     assert any(e["kind"] == "robot_identifying" and e["robot"] == "r1" for e in events), events
-    x, y, theta = site.services.sim.true_pose("r1")
+    x, y, theta = site.services.virtual_site.true_pose("r1")
     r = site.client.post(
         "/api/v1/robots/r1/relocalize",
         json={"x": x, "y": y, "theta": theta},

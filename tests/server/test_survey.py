@@ -93,7 +93,7 @@ def test_a_live_survey_places_the_grid_and_keeps_the_fleet_tracking(live: Api) -
     assert st["state"] == "done", st
     modes = [p.mode for p in poses if p.robot == "r2"]  # one landmark dark at a time
     assert len(modes) > 100 and modes.count("landmark") / len(modes) >= 0.9, "r2"
-    sim = live.services.sim
+    sim = live.services.virtual_site
     assert sim is not None
     truth = {lm.id: lm.p_true for lm in sim.world.landmarks.values()}
     props = {p["landmark_id"]: p for p in st["proposals"]}

@@ -22,7 +22,7 @@ DOC_IMAGES = REPO / "docs" / "img"
 
 
 @dataclass
-class LiveSite:
+class ServedSite:
     base: str
     app: Any
     services: Any
@@ -74,14 +74,14 @@ def server() -> Iterator[viser.ViserServer]:
 
 
 @pytest.fixture(scope="module")
-def live_site(tmp_path_factory: pytest.TempPathFactory) -> Iterator[LiveSite]:
+def live_site(tmp_path_factory: pytest.TempPathFactory) -> Iterator[ServedSite]:
     with running_site(tmp_path_factory.mktemp("irloc-data")) as (app, port):
         services = app.state.services
         keys = {
             role: services.keys.create(role, f"test-{role}")[0]
             for role in ("admin", "operator", "viewer")
         }
-        yield LiveSite(
+        yield ServedSite(
             f"http://127.0.0.1:{port}",
             app,
             services,
@@ -94,15 +94,15 @@ def live_site(tmp_path_factory: pytest.TempPathFactory) -> Iterator[LiveSite]:
 def nearest_landmarks(services: Any, robot: str, n: int) -> list[int]:
     """The `n` reachable landmarks nearest the robot's true position now (the truth only
     picks which landmarks a test works on)."""
-    x, y, _ = services.sim.true_pose(robot)
-    lms = [lm for lm in services.sim.world.landmarks.values() if lm.reachable]
+    x, y, _ = services.virtual_site.true_pose(robot)
+    lms = [lm for lm in services.virtual_site.world.landmarks.values() if lm.reachable]
     lms.sort(key=lambda lm: np.hypot(lm.p_true[0] - x, lm.p_true[1] - y))
     return [int(lm.id) for lm in lms[:n]]
 
 
 def patrol_route(services: Any, robot: str) -> np.ndarray:
     """Points (N, 2) along a simulated robot's patrol loop, metres."""
-    spec = next(r for r in services.sim.scenario.robots if r.name == robot)
+    spec = next(r for r in services.virtual_site.scenario.robots if r.name == robot)
     corners = [(float(spec.start[0]), float(spec.start[1]))]
     corners += [(float(st.x), float(st.y)) for st in spec.route.steps if hasattr(st, "x")]
     return np.vstack(
@@ -115,7 +115,7 @@ def landmark_always_in_view(services: Any, robot: str) -> int:
     horizontal distance from the route is the smallest): in its camera's view wherever it
     is when a slow step (a browser click) finally measures it."""
     route = patrol_route(services, robot)
-    lms = [lm for lm in services.sim.world.landmarks.values() if lm.reachable]
+    lms = [lm for lm in services.virtual_site.world.landmarks.values() if lm.reachable]
 
     def worst(lm: Any) -> float:
         return float(np.max(np.hypot(route[:, 0] - lm.p_true[0], route[:, 1] - lm.p_true[1])))
@@ -138,7 +138,7 @@ def wait_localized(
     err = None
     while time.monotonic() < deadline:
         rb = next(r for r in site.robots() if r.name == robot)
-        truth = None if rb.pose is None else services.sim.true_pose_at(robot, rb.pose.t_ns)
+        truth = None if rb.pose is None else services.virtual_site.true_pose_at(robot, rb.pose.t_ns)
         if rb.mode == "landmark" and rb.pose is not None and truth is not None:
             err = float(np.hypot(rb.pose.x - truth[0], rb.pose.y - truth[1]))
             now = time.monotonic()

@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from tests.web.conftest import ARTIFACTS, DOC_IMAGES, LiveSite
+from tests.web.conftest import ARTIFACTS, DOC_IMAGES, ServedSite
 
 CHROMIUM = Path("/usr/bin/chromium")
 ARGS = [
@@ -89,7 +89,7 @@ def browser(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Any]:
             ctx.close()
 
 
-def open_viewer(browser: Any, site: LiveSite, key: str) -> Any:
+def open_viewer(browser: Any, site: ServedSite, key: str) -> Any:
     page = browser.new_page()
     page.set_default_timeout(90_000)  # software WebGL on a busy 2-core machine
     page.goto(f"{site.base}/viewer/?token={key}")
@@ -129,7 +129,7 @@ def save_shot(page: Any, name: str, *, doc: bool = False) -> None:
         shutil.copy(path, DOC_IMAGES / name)
 
 
-def test_scene_renders_with_every_landmark_of_the_map(browser: Any, live_site: LiveSite) -> None:
+def test_scene_renders_with_every_landmark_of_the_map(browser: Any, live_site: ServedSite) -> None:
     page = open_viewer(browser, live_site, live_site.admin_key)
     try:
         n_map = len(live_site.services.map.list())
@@ -147,7 +147,7 @@ def test_scene_renders_with_every_landmark_of_the_map(browser: Any, live_site: L
         page.close()
 
 
-def test_viewer_key_sees_but_cannot_edit(browser: Any, live_site: LiveSite) -> None:
+def test_viewer_key_sees_but_cannot_edit(browser: Any, live_site: ServedSite) -> None:
     page = open_viewer(browser, live_site, live_site.viewer_key)
     try:
         page.get_by_text("signed in as viewer").wait_for(timeout=20_000)
@@ -166,7 +166,7 @@ def test_viewer_key_sees_but_cannot_edit(browser: Any, live_site: LiveSite) -> N
 
 
 def test_wizard_keeps_the_fleet_tracking_and_a_far_measurement_needs_accept_far(
-    browser: Any, live_site: LiveSite, monkeypatch: pytest.MonkeyPatch
+    browser: Any, live_site: ServedSite, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """Through the browser's buttons, on the live site: the landmark's map position is 4.2 m
     off; the wizard darkens it alone against the lit ceiling, the other robots stay in
@@ -189,7 +189,7 @@ def test_wizard_keeps_the_fleet_tracking_and_a_far_measurement_needs_accept_far(
         ask(who, req)
 
     monkeypatch.setattr(coordinator, "request", spy)
-    world = services.sim.world
+    world = services.virtual_site.world
     viewer = live_site.app.state.viewer
     robot = "r2"
     page = open_viewer(browser, live_site, live_site.admin_key)
@@ -290,7 +290,7 @@ def wall_pixels(png: bytes) -> int:
     return int(np.sum((b > 130) & (b < 210) & (b - r > 80) & (g < 100) & (r < 80)))
 
 
-def test_top_view_renders_the_floor_plan_under_the_map(browser: Any, live_site: LiveSite) -> None:
+def test_top_view_renders_the_floor_plan_under_the_map(browser: Any, live_site: ServedSite) -> None:
     import httpx
 
     viewer = live_site.app.state.viewer
@@ -331,7 +331,7 @@ def test_top_view_renders_the_floor_plan_under_the_map(browser: Any, live_site: 
 
 
 def test_undo_and_redo_never_empty_the_map_without_a_confirmation(
-    browser: Any, live_site: LiveSite
+    browser: Any, live_site: ServedSite
 ) -> None:
     """The reported failure: the third undo reverted the start-up import (0 of 39 left).
     Now each undo names its step, stops at this user's own edits, and a whole-map step
@@ -387,7 +387,7 @@ def test_undo_and_redo_never_empty_the_map_without_a_confirmation(
         api.close()
 
 
-def test_api_docs_render_with_the_network_cut_off(browser: Any, live_site: LiveSite) -> None:
+def test_api_docs_render_with_the_network_cut_off(browser: Any, live_site: ServedSite) -> None:
     """Swagger UI and ReDoc come from the package: every request leaving the machine is
     blocked; Swagger UI tries none, ReDoc only its own decorative footer logo."""
     from urllib.parse import urlsplit
@@ -436,7 +436,7 @@ def live_api_wait(api: Any, until: Any, timeout_s: float) -> dict[str, Any]:
 
 @pytest.mark.timeout(600)  # a live survey on a loaded 2-core machine: minutes
 def test_live_survey_from_the_panel_shows_estimates_and_accepts_one_landmark(
-    browser: Any, live_site: LiveSite
+    browser: Any, live_site: ServedSite
 ) -> None:
     """Through the survey panel's buttons on the live site: start with r1, the estimates
     appear on the ceiling (the scene's /survey nodes), one landmark is accepted and the map
@@ -484,7 +484,7 @@ def test_live_survey_from_the_panel_shows_estimates_and_accepts_one_landmark(
         # farthest from the other robots' routes (the survey never darkens what another
         # robot's fix uses, and needs both anchors identified: on the demo, two corners of
         # the grid), locked as surveyed ones would be
-        world = services.sim.world
+        world = services.virtual_site.world
 
         def distance(lid: int, name: str) -> float:
             d = patrol_route(services, name) - world.landmarks[lid].p_true[:2]
@@ -543,7 +543,7 @@ def test_live_survey_from_the_panel_shows_estimates_and_accepts_one_landmark(
             raise AssertionError(f"every accept was refused: {refusals}")
         after = api.get(f"/landmarks/{pick['landmark_id']}").json()
         assert (after["x"], after["y"]) != (before["x"], before["y"])
-        truth = services.sim.world.landmarks[pick["landmark_id"]].p_true
+        truth = services.virtual_site.world.landmarks[pick["landmark_id"]].p_true
         err = np.hypot(after["x"] - truth[0], after["y"] - truth[1])
         # the live survey's bound (tests/server/test_survey.py: converged grid landmarks within
         # 2 cm; the demo's anchors carry the map's 4 mm survey error, the solve assumes 1 mm)

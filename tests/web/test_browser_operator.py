@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from tests.web.conftest import LiveSite
+from tests.web.conftest import ServedSite
 from tests.web.test_browser import (  # noqa: F401  (the module's browser fixture)
     CHROMIUM,
     browser,
@@ -63,7 +63,7 @@ def pixels_near(img: np.ndarray, rgb: tuple[int, int, int], tol: int = 24) -> in
 
 def test_uncertainty_curve_trails_in_each_robots_colour_and_no_share_button(
     browser: Any,  # noqa: F811
-    live_site: LiveSite,
+    live_site: ServedSite,
 ) -> None:
     page = open_viewer(browser, live_site, live_site.viewer_key)
     try:
@@ -98,7 +98,7 @@ def test_uncertainty_curve_trails_in_each_robots_colour_and_no_share_button(
         page.close()
 
 
-def _open_at(ctx: Any, site: LiveSite, width: int, height: int) -> Any:
+def _open_at(ctx: Any, site: ServedSite, width: int, height: int) -> Any:
     page = ctx.new_page()
     page.set_default_timeout(90_000)
     page.set_viewport_size({"width": width, "height": height})
@@ -113,7 +113,7 @@ def _open_at(ctx: Any, site: LiveSite, width: int, height: int) -> Any:
 @pytest.mark.timeout(600)  # three pages, software WebGL on a loaded machine
 def test_phone_shows_the_hall_and_a_wide_screen_a_wide_panel(
     browser: Any,  # noqa: F811
-    live_site: LiveSite,
+    live_site: ServedSite,
 ) -> None:
     """At 390x844 the panels start folded and the whole hall is in view (the panel once
     covered it); at 1920x1080 the panel is wide enough for the tables (it stayed 240 px and
@@ -174,7 +174,7 @@ def screen_xy(page: Any, node: str) -> tuple[float, float]:
 @pytest.mark.timeout(300)
 def test_zones_click_to_inspect_and_history_playback(
     browser: Any,  # noqa: F811
-    live_site: LiveSite,
+    live_site: ServedSite,
 ) -> None:
     """A zone made through the API is drawn on the floor in its colour; a landmark clicked in
     the view is described in the Selected panel, and Cells replaced (ticked) starts its

@@ -11,7 +11,7 @@ import numpy as np
 from store.floorplan import Placement
 from store.models import FloorCreate, LandmarkCreate
 from tests.server.conftest import start_api
-from web.viewer import SiteViewer
+from web.viewer import Viewer
 
 
 def _png(w: int, h: int) -> bytes:
@@ -32,7 +32,7 @@ def test_switching_floors_switches_extent_ceiling_plan_and_zones(tmp_path: Path)
         assert services.floorplans.of("0").info() is None  # each floor its own plan
         services.zones.create("lab", [(20, 0), (25, 0), (25, 5)], floor="1")
         services.zones.create("lobby", [(0, 0), (1, 0), (1, 1)], floor="0")
-        viewer = SiteViewer()
+        viewer = Viewer()
         viewer.start(services)
         viewer._stop.set()  # this test ticks itself, not the update thread meanwhile
         assert viewer._thread is not None

@@ -10,13 +10,13 @@ import pytest
 import websockets
 from websockets.typing import Subprotocol
 
-from tests.web.conftest import LiveSite
+from tests.web.conftest import ServedSite
 
 pytestmark = pytest.mark.slow
 VISER = Subprotocol("viser-v1.1.1")
 
 
-def test_page_needs_a_key_and_moves_it_to_a_cookie(live_site: LiveSite) -> None:
+def test_page_needs_a_key_and_moves_it_to_a_cookie(live_site: ServedSite) -> None:
     with httpx.Client(base_url=live_site.base) as http:
         r = http.get("/viewer/")
         assert r.status_code == 401
@@ -33,7 +33,7 @@ def test_page_needs_a_key_and_moves_it_to_a_cookie(live_site: LiveSite) -> None:
         assert bearer.status_code == 200
 
 
-def test_websocket_relays_viser_only_with_a_key(live_site: LiveSite) -> None:
+def test_websocket_relays_viser_only_with_a_key(live_site: ServedSite) -> None:
     url = live_site.base.replace("http", "ws") + "/viewer"
 
     async def run() -> None:
@@ -54,17 +54,17 @@ def test_websocket_relays_viser_only_with_a_key(live_site: LiveSite) -> None:
     asyncio.run(run())
 
 
-def test_viser_itself_listens_on_loopback_only(live_site: LiveSite) -> None:
-    from web.viewer import SiteViewer
+def test_viser_itself_listens_on_loopback_only(live_site: ServedSite) -> None:
+    from web.viewer import Viewer
 
     assert live_site.services.settings.viewer_enabled
 
     with pytest.raises(ValueError, match="no login"):
-        SiteViewer(live_site.services, host="0.0.0.0")
+        Viewer(live_site.services, host="0.0.0.0")
 
 
 def test_a_crafted_share_request_opens_no_tunnel(
-    live_site: LiveSite, monkeypatch: pytest.MonkeyPatch
+    live_site: ServedSite, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """viser's Share button is hidden; a client that sends viser's share request anyway
     (here a plain WebSocket through the keyed proxy, an admin's key) is refused: no tunnel
@@ -109,7 +109,7 @@ def test_a_crafted_share_request_opens_no_tunnel(
     assert viewer.server.request_share_url.__name__ == "no_share"
 
 
-def test_the_viewer_download_link_needs_an_operator(live_site: LiveSite) -> None:
+def test_the_viewer_download_link_needs_an_operator(live_site: ServedSite) -> None:
     import io
     import time
     import zipfile

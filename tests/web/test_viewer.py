@@ -10,13 +10,13 @@ import pytest
 
 from server.loopback import is_loopback
 from tests.web.memsite import MemSite, grid_site
-from web.viewer import SiteViewer, ViewerConfig
+from web.viewer import Viewer, ViewerConfig
 
 
 @pytest.fixture
-def site_viewer() -> Iterator[tuple[MemSite, SiteViewer]]:
+def site_viewer() -> Iterator[tuple[MemSite, Viewer]]:
     site = grid_site()
-    viewer = SiteViewer(site, config=ViewerConfig(rate_hz=50.0, landmark_rate_hz=20.0))
+    viewer = Viewer(site, config=ViewerConfig(rate_hz=50.0, landmark_rate_hz=20.0))
     viewer.start()
     try:
         yield site, viewer
@@ -32,7 +32,7 @@ def wait_for(cond: Callable[[], bool], timeout_s: float = 5.0) -> None:
         time.sleep(0.02)
 
 
-def node(viewer: SiteViewer, name: str) -> Any:
+def node(viewer: Viewer, name: str) -> Any:
     assert viewer.server is not None
     h = viewer.server.scene.get_handle_by_name(name)
     assert h is not None, name
@@ -43,10 +43,10 @@ def test_refuses_a_public_viser_port() -> None:
     assert is_loopback("127.0.0.1") and is_loopback("::1") and is_loopback("localhost")
     assert not is_loopback("0.0.0.0")
     with pytest.raises(ValueError, match="no login"):
-        SiteViewer(grid_site(), host="0.0.0.0")
+        Viewer(grid_site(), host="0.0.0.0")
 
 
-def test_scene_holds_every_landmark_and_robot(site_viewer: tuple[MemSite, SiteViewer]) -> None:
+def test_scene_holds_every_landmark_and_robot(site_viewer: tuple[MemSite, Viewer]) -> None:
     site, viewer = site_viewer
     assert viewer.port > 0
     wait_for(lambda: viewer.ticks > 3)
@@ -84,7 +84,7 @@ def test_scene_holds_every_landmark_and_robot(site_viewer: tuple[MemSite, SiteVi
     )
 
 
-def test_map_edits_and_leds_reach_the_scene(site_viewer: tuple[MemSite, SiteViewer]) -> None:
+def test_map_edits_and_leds_reach_the_scene(site_viewer: tuple[MemSite, Viewer]) -> None:
     site, viewer = site_viewer
     scene = viewer.scene
     assert scene is not None
@@ -97,7 +97,7 @@ def test_map_edits_and_leds_reach_the_scene(site_viewer: tuple[MemSite, SiteView
     np.testing.assert_allclose(h.position, [4.0, 4.0, 2.6])
 
 
-def test_tickets_are_single_use(site_viewer: tuple[MemSite, SiteViewer]) -> None:
+def test_tickets_are_single_use(site_viewer: tuple[MemSite, Viewer]) -> None:
     from web.roles import Session
 
     _, viewer = site_viewer

@@ -15,7 +15,7 @@ from websockets.typing import Subprotocol
 
 from tests.web.memsite import grid_site
 from web.roles import Session
-from web.viewer import TICKET_PARAM, SiteViewer
+from web.viewer import TICKET_PARAM, Viewer
 from web.viser_compat import ViserCompatError, check_viser, request_path
 
 SUBPROTOCOL = Subprotocol(f"viser-v{viser.__version__}")
@@ -76,7 +76,7 @@ def test_a_viser_without_the_connection_table_is_a_clear_error() -> None:
 
 
 def test_the_ticket_in_the_websocket_url_gives_the_browser_its_role() -> None:
-    viewer = SiteViewer(grid_site())
+    viewer = Viewer(grid_site())
     viewer.start()
     try:
         admin = Session("admin", "viewer:key:7")
@@ -122,7 +122,7 @@ def refused(port: int, path: str, origin: str | None = None) -> tuple[int, str, 
 
 
 def test_viser_own_port_refuses_everyone_but_the_proxy() -> None:
-    viewer = SiteViewer(grid_site())
+    viewer = Viewer(grid_site())
     viewer.start()
     try:
         # another process on the host, no ticket: refused before any scene is sent

@@ -56,7 +56,7 @@ class SensorSample:
     event: FrameObserved | SpotsObserved | OdometryMeasured | FloorArrival
 
 
-class LiveSite:
+class VirtualSite:
     """The simulated site: world, radio and robots, advanced by `step`.
 
     Args:

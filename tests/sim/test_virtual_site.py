@@ -7,12 +7,12 @@ import pytest
 
 from localizer.camera import predict_pixels
 from localizer.events import FrameObserved, OdometryMeasured
-from sim.live import LiveSite
+from sim.virtual_site import VirtualSite
 
 T0 = 5_000_000_000_000
 
 
-def _run(site: LiveSite, seconds: float, step_ms: int = 20, start: int = T0) -> list:
+def _run(site: VirtualSite, seconds: float, step_ms: int = 20, start: int = T0) -> list:
     out = []
     for k in range(1, round(seconds * 1000 / step_ms) + 1):
         out += site.step(start + k * step_ms * 1_000_000)
@@ -20,7 +20,7 @@ def _run(site: LiveSite, seconds: float, step_ms: int = 20, start: int = T0) -> 
 
 
 def test_live_site_streams_frames_and_odometry_per_robot() -> None:
-    site = LiveSite("demo")
+    site = VirtualSite("demo")
     assert site.step(T0) == []
     samples = _run(site, 1.0)
     assert site.robot_names == ["r1", "r2", "r3"]
@@ -41,7 +41,7 @@ def test_live_site_streams_frames_and_odometry_per_robot() -> None:
 
 
 def test_cameras_see_the_leds_the_radio_switches() -> None:
-    site = LiveSite("demo", seed=11)
+    site = VirtualSite("demo", seed=11)
     site.step(T0)
     frame = next(
         s.event for s in _run(site, 0.2) if s.robot == "r2" and isinstance(s.event, FrameObserved)
@@ -63,7 +63,7 @@ def test_cameras_see_the_leds_the_radio_switches() -> None:
 
 
 def test_rendered_spots_match_the_nominal_camera_within_calibration_error() -> None:
-    site = LiveSite("demo", seed=3)
+    site = VirtualSite("demo", seed=3)
     site.step(T0)
     frame = next(
         s.event for s in _run(site, 0.1) if s.robot == "r1" and isinstance(s.event, FrameObserved)
@@ -82,7 +82,7 @@ def test_rendered_spots_match_the_nominal_camera_within_calibration_error() -> N
 
 
 def test_same_seed_same_samples() -> None:
-    a, b = LiveSite("hostile", seed=2), LiveSite("hostile", seed=2)
+    a, b = VirtualSite("hostile", seed=2), VirtualSite("hostile", seed=2)
     a.step(0), b.step(0)
     sa, sb = _run(a, 0.3, start=0), _run(b, 0.3, start=0)
     fa = [s.event.image for s in sa if isinstance(s.event, FrameObserved)]
@@ -95,4 +95,4 @@ def test_same_seed_same_samples() -> None:
 
 def test_unknown_robot_is_named() -> None:
     with pytest.raises(KeyError, match="unknown robot 'zz'"):
-        LiveSite("paper_testbed").camera("zz")
+        VirtualSite("paper_testbed").camera("zz")
