@@ -12,17 +12,18 @@
    (3 mm per axis) rotates it against the truth by a fraction of a degree, which no
    localizer that uses the map can see (the truth comes from the simulator, for this
    printout only).
-2. Per-frame processing time (median, p99; pinned to one core, the thread's CPU time, each
-   frame's fastest of 3 identical runs, so that other processes on a shared machine count as
-   little as possible) at 640x480 and 1280x960: the whole localizer step while tracking (a
-   frame plus the odometry samples of its interval), and full-frame spot detection, beside
-   a plain memory copy of the same frame.
+2. Per-frame processing time (`bench/frame_timing.py`; median, p99; pinned to one core,
+   the thread's CPU time, each frame's fastest of 3 identical runs, so that other processes
+   on a shared machine count as little as possible) at 640x480 and 1280x960 on a slow drive
+   past three landmarks while tracking: a frame in to its pose out, and the frame's interval
+   in all (its odometry samples too); full-frame spot detection and a plain memory copy of
+   the same frame beside them.
 3. `irloc replay` wall time against merely decoding the same PNG frames on one thread
    (target <= 1.25x); the replay decodes ahead on one thread per core while the localizer
    runs. Three replays interleaved with four decode passes; the ratio of the medians.
 4. With `--compare-with DIR` (another checkout, e.g. `git worktree add /tmp/old REV`): the
-   640x480 tracking timing of this tree and of DIR, alternately in fresh processes
-   (`--rounds` each), so that both see the same machine load; medians and their ratio.
+   640x480 timing of this tree's localizer and of DIR's, alternately in fresh processes
+   (`--rounds` each), by the same timing code on the same frames; medians and their ratio.
 
     .venv/bin/python bench/bench_localizer.py [--duration 180] [--frames 300]
         [--compare-with DIR [--rounds 5]]
@@ -32,10 +33,8 @@ from __future__ import annotations
 
 import argparse
 import io
-import json
 import math
 import os
-import subprocess
 import sys
 import tempfile
 import time
@@ -48,19 +47,12 @@ ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
+from bench.frame_timing import alternate, render_drive, time_localizer  # noqa: E402
 from irloc.simulate_cli import main as simulate_main  # noqa: E402
-from localizer.events import FrameObserved, OdometryMeasured  # noqa: E402
-from localizer.geometry import T_world_body_from_pose  # noqa: E402
-from localizer.landmark_map import LandmarkMap  # noqa: E402
-from localizer.localizer import Localizer  # noqa: E402
-from localizer.robot import RobotGeometry  # noqa: E402
-from localizer.spots import DetectionConfig, detect_spots  # noqa: E402
 from recording.reader import read_groundtruth, read_recording  # noqa: E402
 from recording.replay_cli import decode_threads, replay  # noqa: E402
 from recording.scoring import PAPER, SEC_V_LABELS, SETTLE_S, read_poses, sec_v  # noqa: E402
 from sim.build import build_robot, build_world, seed_generators  # noqa: E402
-from sim.cameras import wide_angle_camera  # noqa: E402
-from sim.render import render_frame  # noqa: E402
 from sim.scenario import load_scenario  # noqa: E402
 
 TARGET = {"mean_cm": 1.0, "max_cm": 2.0, "heading_deg": 0.05, "jitter_cm": 0.1}
@@ -102,96 +94,6 @@ def accuracy(
     result = sec_v(read_poses(poses), t_gt, gt, sweep_end_ns=sweep_end, settle_s=settle_s,
                    frame=frame)  # fmt: skip
     return result.figures | {"startup_cm": result.startup_cm, "sweep_end_s": result.sweep_end_s}
-
-
-def timing(width: int, height: int, frames: int, runs: int = 3) -> dict[str, float]:
-    """Per-frame times (microseconds) on pre-rendered frames of a slow drive: each frame's
-    fastest of `runs` identical runs (a fresh localizer each; the localizer is
-    deterministic, so every run does the same work), then median and p99 over the frames."""
-    cam = wide_angle_camera("pinhole", width=width, height=height)
-    lm = LandmarkMap(
-        np.array([1, 2, 3]), np.array([[0.0, 0.0, 2.5], [1.2, 0.0, 2.5], [0.6, 1.0392, 2.5]])
-    )
-    rng = np.random.default_rng(0)
-    radius, w = 0.3, 0.5  # a circle at 0.15 m/s
-
-    def pose(t: float) -> tuple[float, float, float]:
-        return 0.6 + radius * math.sin(w * t), 0.3 - radius * math.cos(w * t), w * t
-
-    v = radius * w
-    vl, vr = v - w * 0.18, v + w * 0.18
-    images = [
-        render_frame(cam, T_world_body_from_pose(*pose(k / 30)), lm.positions, np.ones(3), rng=rng)
-        for k in range(frames)
-    ]
-    step = np.full((runs, frames), np.inf)
-    full, copy = np.full((runs, frames), np.inf), np.full((runs, frames), np.inf)
-    cfg = DetectionConfig()
-    for run in range(runs):
-        loc = Localizer(cam, lm, RobotGeometry(0.36, 1.0))
-        loc.set_initial_pose(0.6, 0.0, 0.0, 0)  # all LEDs lit, no sweep: start from a prior
-        for k, img in enumerate(images):
-            t_ns = int(k * 1e9 / 30)
-            odo = [OdometryMeasured(t_ns - int(j * 1e7), vl, vr) for j in (2, 1, 0)]
-            t0 = time.thread_time_ns()
-            for o in odo:
-                loc.handle(o)
-            loc.handle(FrameObserved(t_ns, img))
-            t1 = time.thread_time_ns()
-            detect_spots(img, cfg)
-            t2 = time.thread_time_ns()
-            img.copy()
-            t3 = time.thread_time_ns()
-            if loc.mode == "landmark":
-                step[run, k] = t1 - t0
-            full[run, k], copy[run, k] = t2 - t1, t3 - t2
-    tracked = np.all(np.isfinite(step), axis=0)  # frames tracked in every run
-
-    def q(a: np.ndarray, p: float) -> float:
-        return float(np.percentile(a.min(axis=0), p)) / 1000
-
-    return {
-        "track_med_us": q(step[:, tracked], 50), "track_p99_us": q(step[:, tracked], 99),
-        "full_med_us": q(full, 50), "full_p99_us": q(full, 99),
-        "copy_med_us": q(copy, 50), "copy_p99_us": q(copy, 99),
-        "tracked_frames": float(np.count_nonzero(tracked)),
-    }  # fmt: skip
-
-
-_TIMING_CHILD = """
-import json, os, sys
-sys.path.insert(0, sys.argv[1])
-import cv2
-cv2.setNumThreads(1)
-from bench.bench_localizer import timing
-print(json.dumps(timing(int(sys.argv[2]), int(sys.argv[3]), int(sys.argv[4]))))
-"""
-
-
-def timing_alternating(
-    other: Path, width: int, height: int, frames: int, rounds: int
-) -> tuple[list[float], list[float]]:
-    """Median tracking times (microseconds) of this tree and of the checkout `other`, each
-    measured `rounds` times by `timing` in a fresh process, alternating (this, other, ...).
-
-    Returns:
-        (this tree's medians, the other's medians), one per round.
-    """
-    mine: list[float] = []
-    theirs: list[float] = []
-    for _ in range(rounds):
-        for root, out in ((ROOT, mine), (other, theirs)):
-            args = [str(root), str(width), str(height), str(frames)]
-            run = subprocess.run(
-                [sys.executable, "-c", _TIMING_CHILD, *args],
-                capture_output=True,
-                text=True,
-                check=False,
-            )
-            if run.returncode != 0:
-                raise RuntimeError(f"timing in {root} failed:\n{run.stderr}")
-            out.append(float(json.loads(run.stdout.splitlines()[-1])["track_med_us"]))
-    return mine, theirs
 
 
 def replay_vs_decode(
@@ -278,23 +180,41 @@ def main(argv: list[str] | None = None) -> int:
             f"({acc['sweep_end_s']:.2f} s); jitter counts from then on"
         )
         print("\nPer-frame time, one core, CPU time of the thread (microseconds)")
-        print(f"  {'resolution':<12}{'track med':>11}{'p99':>9}{'full med':>10}{'p99':>9}"
-              f"{'copy med':>10}{'p99':>8}")  # fmt: skip
+        print(
+            f"  {'resolution':<12}{'frame med':>10}{'p99':>8}{'interval med':>14}{'p99':>8}"
+            f"{'full med':>10}{'p99':>8}{'copy med':>10}{'p99':>8}"
+        )
         for w, h in ((640, 480), (1280, 960)):
-            s = timing(w, h, args.frames)
-            print(f"  {f'{w}x{h}':<12}{s['track_med_us']:>11.0f}{s['track_p99_us']:>9.0f}"
-                  f"{s['full_med_us']:>10.0f}{s['full_p99_us']:>9.0f}"
-                  f"{s['copy_med_us']:>10.1f}{s['copy_p99_us']:>8.1f}")  # fmt: skip
-        print("  (target while tracking at 640x480: median <= 300 us)")
+            s = time_localizer(render_drive(w, h, args.frames))
+            print(
+                f"  {f'{w}x{h}':<12}{s['frame_med_us']:>10.0f}{s['frame_p99_us']:>8.0f}"
+                f"{s['interval_med_us']:>14.0f}{s['interval_p99_us']:>8.0f}"
+                f"{s['full_med_us']:>10.0f}{s['full_p99_us']:>8.0f}"
+                f"{s['copy_med_us']:>10.1f}{s['copy_p99_us']:>8.1f}"
+            )
+        print(
+            "  (frame: a frame in to its pose out, the latency the camera loop waits for;\n"
+            "   interval: the frame's interval in all, its odometry samples and the learning a\n"
+            "   fused frame leaves for after its pose is out; target at 640x480: frame median\n"
+            "   <= 300 us, p99 <= 3x the median)"
+        )
         if args.compare_with is not None:
-            mine, theirs = timing_alternating(args.compare_with, 640, 480, args.frames, args.rounds)
-            m, t = float(np.median(mine)), float(np.median(theirs))
+            images = render_drive(640, 480, args.frames)
+            mine, theirs = alternate(ROOT, args.compare_with, images, args.rounds)
             print(
                 f"  alternating with {args.compare_with} ({args.rounds} rounds, fresh processes, "
-                f"640x480 track median):\n    this tree {m:.0f} us "
-                f"({', '.join(f'{v:.0f}' for v in mine)}), other {t:.0f} us "
-                f"({', '.join(f'{v:.0f}' for v in theirs)}): {m / t:.2f}x"
+                f"the same 640x480 frames and timing code; medians over the rounds):"
             )
+            for key, label in (("frame", "frame"), ("interval", "interval")):
+                m = float(np.median([r[f"{key}_med_us"] for r in mine]))
+                t = float(np.median([r[f"{key}_med_us"] for r in theirs]))
+                mp = float(np.median([r[f"{key}_p99_us"] for r in mine]))
+                tp = float(np.median([r[f"{key}_p99_us"] for r in theirs]))
+                print(
+                    f"    {label:<9} this tree median {m:.0f} us, p99 {mp:.0f} "
+                    f"({mp / m:.1f}x its median); other median {t:.0f} us, p99 {tp:.0f}: "
+                    f"median ratio {m / t:.2f}x"
+                )
         if cores:
             os.sched_setaffinity(0, cores)  # replay may overlap decoding on a second core
         replays, decodes, replay_cpu, decode_cpu = replay_vs_decode(rec)

@@ -21,6 +21,7 @@ bound or the observations keep disagreeing with the map (then it re-identifies).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 import numpy.typing as npt
@@ -151,6 +152,8 @@ class Localizer:
         self._lost_by_disagreement = False  # lost: the spots disagreed (not sigma's growth)
         sc = self.config.self_calibration
         self.calibration = OnlineCalibration(camera, sc) if sc.enabled else None
+        # a fused frame's learning (liveness, self-calibration), done after its pose is out
+        self._after_frame: list[Callable[[], None]] = []
         self.set_map(landmark_map)
 
     # -- public API ----------------------------------------------------------------------------
@@ -180,6 +183,7 @@ class Localizer:
         """Use a new map. The pose is kept and tracking goes on with the new map (if the
         observations disagree with it the localizer gets lost and re-identifies); without a
         pose, identification starts over."""
+        self._catch_up()
         self.map = landmark_map
         self._tracker.set_map(landmark_map)
         # fixes the odometry disagrees with, and the last fused one they must link to
@@ -225,6 +229,7 @@ class Localizer:
                 `FusionConfig.initial_sigma_m`.
             sigma_rad: heading standard deviation; None: `FusionConfig.initial_sigma_rad`.
         """
+        self._catch_up()
         f = self.config.fusion
         for name, v in (("x", x), ("y", y), ("theta", theta)):
             if not math.isfinite(v):
@@ -239,6 +244,7 @@ class Localizer:
 
     def skip_frame(self, t_ns: int) -> PoseEstimate | NoPose:
         """A frame that could not be read: the pose at `t_ns` from odometry alone."""
+        self._catch_up()
         base = self._advance(t_ns, *self._odometry.speeds)
         self._expected = ()
         if self._filter is not None and self._mode == "landmark":
@@ -250,6 +256,7 @@ class Localizer:
 
     def handle(self, event: Event) -> list[Output]:
         """Process one event; returns the outputs (see the module docstring)."""
+        self._catch_up()
         if isinstance(event, OdometryMeasured):
             self._on_odometry(event)
             return []
@@ -279,6 +286,15 @@ class Localizer:
             out: list[Output] = [self._on_frame(event)]
             return out + self._requests(event.t_ns)
         raise TypeError(f"Localizer.handle: unknown event {type(event).__name__}")
+
+    def _catch_up(self) -> None:
+        """Do what the last fused frame left to learn (`_learn_liveness`, `_self_calibrate`)
+        before anything else: after its pose was output, on the next event (an odometry
+        or IMU sample between frames, or the next frame), so that the pose's latency does
+        not carry it. Any later event sees the same state as if it had been done with the
+        frame; only that frame's own output precedes a calibration update it completed."""
+        while self._after_frame:
+            self._after_frame.pop(0)()
 
     # -- odometry and the filter ---------------------------------------------------------------
     def _reset_filter(self, x: float, y: float, theta: float, cov: FloatArray, t_ns: int) -> None:
@@ -576,7 +592,8 @@ class Localizer:
 
     def _learn_liveness(self, t_ns: int) -> None:
         """A fused frame (at most every `score_every_s`): which landmarks predicted well in
-        view were detected (`LandmarkLiveness.observe_frame`)."""
+        view were detected (`LandmarkLiveness.observe_frame`); learnt after the frame's
+        pose is out (`_catch_up`)."""
         every = self.config.relocalization.score_every_s
         fused = self._tracker.last_fused
         if fused is None or self._filter is None:
@@ -584,14 +601,22 @@ class Localizer:
         if self._t_liveness is not None and (t_ns - self._t_liveness) * _NS < every:
             return
         self._t_liveness = t_ns
-        index = self.map.index_of
-        predicted = np.array([index(i) for i in self._expected], dtype=np.int64)
         x, y, th = (float(v) for v in self._filter.state)
-        rows, px, _ = fused
-        self._liveness.observe_frame(
-            self.camera, (x, y, th), self.map.positions, predicted,
-            np.asarray(rows, dtype=np.int64), np.asarray(px, dtype=np.float64).reshape(-1, 2),
-        )  # fmt: skip
+        camera, positions, expected = self.camera, self.map.positions, self._expected
+        index, liveness = self.map.index_of, self._liveness
+
+        def learn() -> None:
+            rows, px, _ = fused
+            liveness.observe_frame(
+                camera,
+                (x, y, th),
+                positions,
+                np.array([index(i) for i in expected], dtype=np.int64),
+                np.asarray(rows, dtype=np.int64),
+                np.asarray(px, dtype=np.float64).reshape(-1, 2),
+            )
+
+        self._after_frame.append(learn)
 
     def _miss_weights(self) -> FloatArray:
         """What each landmark's absence weighs against a hypothesis (`LandmarkLiveness`),
@@ -599,12 +624,25 @@ class Localizer:
         return self._liveness.miss_log_lr()
 
     def _self_calibrate(self, t_ns: int) -> None:
-        """Feed the fused fix to the online self-calibration; when it hands back a corrected
-        camera, use it from now on, and move the pose to where this frame's spots put it
-        through the corrected camera (the filter's belief stays, read through the better
-        lens)."""
+        """Feed the fused fix to the online self-calibration (`_calibrate`), after the
+        frame's pose is out (`_catch_up`)."""
         fused = self._tracker.last_fused
         if self.calibration is None or fused is None or self._filter is None:
+            return
+        odometry = self._odometry.pose_at(t_ns)
+        self._after_frame.append(lambda: self._calibrate(t_ns, fused, odometry))
+
+    def _calibrate(
+        self,
+        t_ns: int,
+        fused: tuple[list[int], list[list[float]], PoseFix],
+        odometry: tuple[float, float, float],
+    ) -> None:
+        """One fused fix to the online self-calibration; when it hands back a corrected
+        camera, use it from now on, and move the pose to where the fix's spots put it
+        through the corrected camera (the filter's belief stays, read through the better
+        lens)."""
+        if self.calibration is None or self._filter is None:
             return
         rows, px, fix = fused
         completed = self.calibration.wants(t_ns, len(rows)) and self.calibration.observe(
@@ -612,7 +650,7 @@ class Localizer:
             px,
             self.map.positions[rows],
             (fix.x, fix.y, fix.theta),
-            self._odometry.pose_at(t_ns),
+            odometry,
             fix.floor,
         )
         if not completed:  # a completed window's work goes on a step a frame, not all at once
@@ -814,8 +852,12 @@ class Localizer:
         qc = self.config.quality
         cov = published_covariance(self._filter.covariance, self._mode, offset, qc)
         deviation = deviation_radius_m(cov)
-        facts = self._frame_facts(t_ns, (x, y, theta), used)
-        code = reason_for(facts)
+        if used and self._mode == "landmark":  # a landmark fix: no reason to give
+            code, text = None, ""
+        else:
+            facts = self._frame_facts(t_ns, (x, y, theta), used)
+            code = reason_for(facts)
+            text = "" if code is None else reason_text(code, facts)
         est = PoseEstimate(
             t_ns=t_ns,
             x=x,
@@ -828,7 +870,7 @@ class Localizer:
             quality=quality_from_deviation(deviation, qc),
             deviation_m=deviation,
             reason=code,
-            reason_text="" if code is None else reason_text(code, facts),
+            reason_text=text,
         )
         self._latest = est
         return est
