@@ -212,19 +212,26 @@ class _RobotNodes:
         at = f"{root}/position"
         self.at = scene.add_frame(at, show_axes=False, visible=False)
         self.body = scene.add_box(
-            f"{at}/body", color=UNKNOWN_COLOR, dimensions=(0.45, 0.35, 0.25),
+            f"{at}/body",
+            color=UNKNOWN_COLOR,
+            dimensions=(0.45, 0.35, 0.25),
             position=(0.0, 0.0, BODY_Z_M),
-        )  # fmt: skip
+        )
         self.nose = scene.add_box(
-            f"{at}/body/nose", color=(30, 30, 30), dimensions=(0.15, 0.08, 0.05),
+            f"{at}/body/nose",
+            color=(30, 30, 30),
+            dimensions=(0.15, 0.08, 0.05),
             position=(0.25, 0.0, 0.1),
-        )  # fmt: skip
+        )
         # on the (unturned) position frame, beside the box and above the landmark labels'
         # side, and named as a robot: a bare "r3" over landmark "201" read "r301"
         self.label = scene.add_label(
-            f"{at}/label", robot_label(name), position=(0.3, 0.3, 0.35), anchor="bottom-left",
+            f"{at}/label",
+            robot_label(name),
+            position=(0.3, 0.3, 0.35),
+            anchor="bottom-left",
             font_screen_scale=1.1,
-        )  # fmt: skip
+        )
         empty = np.zeros((0, 2, 3))
         scene.add_frame(f"{root}/trail", show_axes=False)
         self.color = color
@@ -280,10 +287,18 @@ class SiteScene:
         self.bounds = (cx - w / 2.0, cx + w / 2.0, cy - h / 2.0, cy + h / 2.0)
         scene = self.server.scene
         scene.add_grid(
-            "/floor", w, h, plane="xy", position=(cx, cy, 0.0), cell_size=1.0,
-            section_size=5.0, cell_color=(215, 215, 215), section_color=(160, 160, 160),
-            fade_distance=1e4, shadow_opacity=0.0,
-        )  # fmt: skip
+            "/floor",
+            w,
+            h,
+            plane="xy",
+            position=(cx, cy, 0.0),
+            cell_size=1.0,
+            section_size=5.0,
+            cell_color=(215, 215, 215),
+            section_color=(160, 160, 160),
+            fade_distance=1e4,
+            shadow_opacity=0.0,
+        )
         bx0, bx1, by0, by1 = self.bounds
         corners = np.array(
             [[bx0, by0], [bx1, by0], [bx1, by1], [bx0, by1], [bx0, by0]], dtype=np.float64
@@ -325,13 +340,21 @@ class SiteScene:
             name = f"/landmarks/{lm.id}"
             sphere = scene.add_icosphere(name, r, color, position=pos, subdivisions=2)
             label = scene.add_label(
-                f"{name}/label", landmark_label(lm), position=(0.0, 0.0, -2.0 * r),
-                anchor="top-center", font_screen_scale=0.8,
-            )  # fmt: skip
+                f"{name}/label",
+                landmark_label(lm),
+                position=(0.0, 0.0, -2.0 * r),
+                anchor="top-center",
+                font_screen_scale=0.8,
+            )
             glow = scene.add_icosphere(
-                f"{name}/glow", 2.2 * r, LIT_COLOR, opacity=0.45, subdivisions=2,
-                visible=lm.id in lit, cast_shadow=False,
-            )  # fmt: skip
+                f"{name}/glow",
+                2.2 * r,
+                LIT_COLOR,
+                opacity=0.45,
+                subdivisions=2,
+                visible=lm.id in lit,
+                cast_shadow=False,
+            )
             self._spheres[lm.id] = (sphere, label, glow)
             self._landmarks[lm.id] = state
             for node in (sphere, glow):  # the glow (larger) is what a click hits while lit
@@ -397,8 +420,11 @@ class SiteScene:
         nodes.trail.append(pose.x, pose.y, pose.t_ns * 1e-9)
         cov = np.asarray(pose.covariance, dtype=np.float64)[:2, :2]
         old = nodes.cov
-        if mode_changed or old is None or not np.allclose(cov, old, rtol=cfg.ellipse_rtol,
-                                                          atol=1e-8):  # fmt: skip
+        if (
+            mode_changed
+            or old is None
+            or not np.allclose(cov, old, rtol=cfg.ellipse_rtol, atol=1e-8)
+        ):
             nodes.cov = cov
             c = 0.5 * (cov + cov.T) + np.eye(2) * (cfg.ellipse_min_m / cfg.ellipse_sigma) ** 2
             ring = ellipse_points((0.0, 0.0), c, n_sigma=cfg.ellipse_sigma, n_points=24)
@@ -408,10 +434,17 @@ class SiteScene:
         self._update_footprint(nodes, rb, pose.x, pose.y, pose.theta, due=rays_due)
         if not rays_due:
             return
-        cam_world = np.array([pose.x, pose.y, 0.0]) + np.array(
-            [[math.cos(pose.theta), -math.sin(pose.theta), 0.0],
-             [math.sin(pose.theta), math.cos(pose.theta), 0.0], [0.0, 0.0, 1.0]]
-        ) @ rb.camera.T_body_camera[:3, 3]  # fmt: skip
+        cam_world = (
+            np.array([pose.x, pose.y, 0.0])
+            + np.array(
+                [
+                    [math.cos(pose.theta), -math.sin(pose.theta), 0.0],
+                    [math.sin(pose.theta), math.cos(pose.theta), 0.0],
+                    [0.0, 0.0, 1.0],
+                ]
+            )
+            @ rb.camera.T_body_camera[:3, 3]
+        )
         used = [self._positions[i] for i in pose.landmark_ids if i in self._positions]
         rays = np.stack([np.stack([cam_world, p]) for p in used]) if used else np.zeros((0, 2, 3))
         set_segments(nodes.rays, rays, RAY_COLOR)
@@ -424,9 +457,10 @@ class SiteScene:
         first = nodes.footprint_body is None
         if nodes.footprint_body is None:
             foot = usable_footprint_body(
-                rb.camera, self.ceiling_z,
+                rb.camera,
+                self.ceiling_z,
                 max_off_axis_rad=self.config.footprint_max_off_axis_rad,
-            )  # fmt: skip
+            )
             foot[:, 2] -= BODY_Z_M
             nodes.footprint_body = foot
         if not (first or due):
@@ -477,9 +511,13 @@ def draw_coverage(
     scene.add_frame("/coverage", show_axes=False)
     step = float(coverage.xs[1] - coverage.xs[0]) if len(coverage.xs) > 1 else 0.25
     scene.add_point_cloud(
-        "/coverage/floor", pts, colors, point_size=0.9 * step, point_shape="square",
+        "/coverage/floor",
+        pts,
+        colors,
+        point_size=0.9 * step,
+        point_shape="square",
         point_shading="flat",
-    )  # fmt: skip
+    )
     segs = [
         (positions[f.a], positions[f.b]) for f in flags if f.a in positions and f.b in positions
     ]

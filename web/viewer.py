@@ -283,8 +283,9 @@ class Viewer:
         self.share_refusals += 1
         log.warning(
             "viewer: refused viser's share tunnel requested by client %s (%s)",
-            client_id, self.session_of(client_id) or "no session",
-        )  # fmt: skip
+            client_id,
+            self.session_of(client_id) or "no session",
+        )
 
     def session_of(self, client_id: int) -> Session | None:
         """The session of a connected browser."""
