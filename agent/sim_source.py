@@ -136,9 +136,14 @@ class SimRobotSource:
         sources, intensities = self.world.point_sources(p_cam, t_ns=item.t_ns, floor=on)
         if not self.light:
             image = render_frame(
-                cam, item.T_world_body, sources, intensities, rng=self._rng,
-                config=self.scenario.render, extended=self.world.extended,
-            )  # fmt: skip
+                cam,
+                item.T_world_body,
+                sources,
+                intensities,
+                rng=self._rng,
+                config=self.scenario.render,
+                extended=self.world.extended,
+            )
             return FrameObserved(t_ns, image)
         return self._spots(item, t_ns, sources, intensities, p_cam)
 
