@@ -99,8 +99,9 @@ def accuracy(
     """
     t_gt, gt = read_groundtruth(rec)
     sweep_end = next((e.t_ns for e in read_recording(rec).leds if e.all_lit), 0)
-    result = sec_v(read_poses(poses), t_gt, gt, sweep_end_ns=sweep_end, settle_s=settle_s,
-                   frame=frame)  # fmt: skip
+    result = sec_v(
+        read_poses(poses), t_gt, gt, sweep_end_ns=sweep_end, settle_s=settle_s, frame=frame
+    )
     return result.figures | {"startup_cm": result.startup_cm, "sweep_end_s": result.sweep_end_s}
 
 
@@ -151,11 +152,14 @@ def timing(width: int, height: int, frames: int, runs: int = 3) -> dict[str, flo
         return float(np.percentile(a.min(axis=0), p)) / 1000
 
     return {
-        "track_med_us": q(step[:, tracked], 50), "track_p99_us": q(step[:, tracked], 99),
-        "full_med_us": q(full, 50), "full_p99_us": q(full, 99),
-        "copy_med_us": q(copy, 50), "copy_p99_us": q(copy, 99),
+        "track_med_us": q(step[:, tracked], 50),
+        "track_p99_us": q(step[:, tracked], 99),
+        "full_med_us": q(full, 50),
+        "full_p99_us": q(full, 99),
+        "copy_med_us": q(copy, 50),
+        "copy_p99_us": q(copy, 99),
         "tracked_frames": float(np.count_nonzero(tracked)),
-    }  # fmt: skip
+    }
 
 
 _TIMING_CHILD = """
@@ -278,13 +282,17 @@ def main(argv: list[str] | None = None) -> int:
             f"({acc['sweep_end_s']:.2f} s); jitter counts from then on"
         )
         print("\nPer-frame time, one core, CPU time of the thread (microseconds)")
-        print(f"  {'resolution':<12}{'track med':>11}{'p99':>9}{'full med':>10}{'p99':>9}"
-              f"{'copy med':>10}{'p99':>8}")  # fmt: skip
+        print(
+            f"  {'resolution':<12}{'track med':>11}{'p99':>9}{'full med':>10}{'p99':>9}"
+            f"{'copy med':>10}{'p99':>8}"
+        )
         for w, h in ((640, 480), (1280, 960)):
             s = timing(w, h, args.frames)
-            print(f"  {f'{w}x{h}':<12}{s['track_med_us']:>11.0f}{s['track_p99_us']:>9.0f}"
-                  f"{s['full_med_us']:>10.0f}{s['full_p99_us']:>9.0f}"
-                  f"{s['copy_med_us']:>10.1f}{s['copy_p99_us']:>8.1f}")  # fmt: skip
+            print(
+                f"  {f'{w}x{h}':<12}{s['track_med_us']:>11.0f}{s['track_p99_us']:>9.0f}"
+                f"{s['full_med_us']:>10.0f}{s['full_p99_us']:>9.0f}"
+                f"{s['copy_med_us']:>10.1f}{s['copy_p99_us']:>8.1f}"
+            )
         print("  (target while tracking at 640x480: median <= 300 us)")
         if args.compare_with is not None:
             mine, theirs = timing_alternating(args.compare_with, 640, 480, args.frames, args.rounds)
