@@ -26,6 +26,7 @@ from live.agent_runner import AgentRunner
 from live.alerts import ALERT_KINDS
 
 if TYPE_CHECKING:
+    from live.mqtt_bridge import MqttBridge
     from live.services import SiteServices
 
 
@@ -119,8 +120,9 @@ def site_metrics(s: SiteServices, state: State | None) -> Iterator[Metric]:
         "problems the live site reports now (/healthz)",
         0 if site is None else len(site.supervisor.problems()),
     )
-    bridge = getattr(state, "mqtt_bridge", None)
+    bridge: MqttBridge | None = getattr(state, "mqtt_bridge", None)
     if bridge is not None:
+        guard = bridge.guard
         for name, doc, value in (
             ("irloc_mqtt_connects", "connections to the broker", bridge.connects),
             ("irloc_mqtt_received", "MQTT messages received", bridge.received),
@@ -128,22 +130,22 @@ def site_metrics(s: SiteServices, state: State | None) -> Iterator[Metric]:
             (
                 "irloc_mqtt_led_requests_refused",
                 "agents' LED requests not served",
-                bridge.led_requests_refused,
+                guard.led_requests_refused,
             ),
             (
                 "irloc_mqtt_foreign_maps",
                 "maps on the map topic not published here",
-                bridge.foreign_maps,
+                guard.foreign_maps,
             ),
             (
                 "irloc_mqtt_poses_outside",
                 "agents' poses outside the site, dropped",
-                bridge.poses_outside,
+                guard.poses_outside,
             ),
         ):
             yield _counter(name, doc, value)
         yield _gauge(
-            "irloc_mqtt_agents_refused", "agents refused a place", len(bridge.refused_agents)
+            "irloc_mqtt_agents_refused", "agents refused a place", len(guard.refused_agents)
         )
     lost = sum(r.lost_messages for r in s.robots.runners() if isinstance(r, AgentRunner))
     yield _counter(
