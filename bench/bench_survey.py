@@ -112,6 +112,18 @@ def truncated(drive: SpotDrive, seconds: float, landmarks: dict[str, object]) ->
     )
 
 
+def error_figures(xy: list[float], z: list[float]) -> dict[str, float]:
+    """Count, p95 and max of the horizontal and vertical errors, metres."""
+    a, b = np.array(xy), np.array(z)
+    return {
+        "n": len(a),
+        "xy_p95": float(np.percentile(a, 95)),
+        "xy_max": float(a.max()),
+        "z_p95": float(np.percentile(b, 95)),
+        "z_max": float(b.max()),
+    }
+
+
 def score(result: SurveyResult, truth: dict[int, np.ndarray]) -> dict[str, float]:
     """Errors against the truth and the sigmas' honesty: the share within 2 sigma and the
     normalised squared error (x-y Mahalanobis^2, 2 on average when the covariance is
@@ -129,13 +141,7 @@ def score(result: SurveyResult, truth: dict[int, np.ndarray]) -> dict[str, float
         nees.append(float(d[:2] @ np.linalg.solve(c, d[:2])))
         inside.append(nees[-1] <= 6.18)
         inside_z.append(abs(d[2]) <= 2.0 * e.sigma_z_m)
-    a, b = np.array(xy), np.array(z)
-    return {
-        "n": len(a),
-        "xy_p95": float(np.percentile(a, 95)),
-        "xy_max": float(a.max()),
-        "z_p95": float(np.percentile(b, 95)),
-        "z_max": float(b.max()),
+    return error_figures(xy, z) | {
         "inside_xy": float(np.sum(inside)),
         "inside_z": float(np.sum(inside_z)),
         "nees_xy": float(np.sum(nees)),
@@ -171,14 +177,7 @@ def wizard(drive: SpotDrive, anchors: list[int], rng: np.random.Generator) -> di
             d = np.median(np.array(samples), axis=0) - p
             xy.append(math.hypot(d[0], d[1]))
             z.append(abs(d[2]))
-    a, b = np.array(xy), np.array(z)
-    return {
-        "n": len(a),
-        "xy_p95": float(np.percentile(a, 95)),
-        "xy_max": float(a.max()),
-        "z_p95": float(np.percentile(b, 95)),
-        "z_max": float(b.max()),
-    }
+    return error_figures(xy, z)
 
 
 def wizard_in(minutes: float, w: dict[str, float], per_landmark_s: float = 20.0) -> str:
