@@ -347,8 +347,10 @@ class Viewer:
             self.floorplan.refresh()
         with self._lock:
             following = [p.view for p in self._panels.values()]
+        names = [r.name for r in robots]
         for view in following:
             try:
+                view.set_robots(names)  # robots that joined since the panel was built
                 view.follow(robots, time.monotonic())
             except Exception:  # its browser went away mid-update
                 log.debug("viewer: follow failed", exc_info=True)
