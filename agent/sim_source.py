@@ -18,10 +18,10 @@ from localizer.camera import CameraModel
 from localizer.events import Event, FrameObserved, OdometryMeasured, SpotsObserved
 from localizer.robot import RobotGeometry
 from sim.build import build_robot, build_world, seed_generators
-from sim.render import render_frame
 from sim.robot import FloorArrival, FramePose
 from sim.scenario import Scenario
 from sim.spot_view import observe_spots
+from sim.virtual_site import render_view
 from sim.world import IN_LIFT
 
 
@@ -133,15 +133,13 @@ class SimRobotSource:
                 led_t_ns=item.t_ns,
                 floor=on,
             )
-        p_cam = (item.T_world_body @ cam.T_body_camera)[:3, 3]
-        sources, intensities = self.world.point_sources(p_cam, t_ns=item.t_ns, floor=on)
-        image = render_frame(
+        image = render_view(
+            self.world,
             cam,
             item.T_world_body,
-            sources,
-            intensities,
-            rng=self._rng,
-            config=self.scenario.render,
-            extended=self.world.extended,
+            self._rng,
+            self.scenario.render,
+            led_t_ns=item.t_ns,
+            floor=on,
         )
         return FrameObserved(t_ns, image)
