@@ -19,7 +19,7 @@ from live.survey.service import Proposal, SurveyStatus
 from localizer.types import FloatArray
 from web.colors import RGB, ROUTE_COLOR, SURVEY_STATE_COLORS
 from web.roles import Session
-from web.scene import polyline_segments
+from web.segments import polyline_segments
 from web.services import LandmarkState, ViewerSite
 
 MIN_RING_M = 0.15
