@@ -47,10 +47,10 @@ from bench.foreign.run import recording_for_case  # noqa: E402
 from bench.robustness import MATRIX_FILES, load_matrix, recording_for  # noqa: E402
 from localizer.events import MODES, NoPose, PoseEstimate  # noqa: E402
 from localizer.geometry import wrap_angle  # noqa: E402
+from localizer.types import FloatArray  # noqa: E402
 from recording.reader import read_groundtruth  # noqa: E402
 from recording.replay_cli import replay  # noqa: E402
 
-FloatArray = npt.NDArray[np.float64]
 CHI2_2DOF_95 = 5.991
 """The 95 % point of chi-square with 2 degrees of freedom."""
 GROUPS = ("matrix", "held_out", "foreign")
