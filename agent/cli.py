@@ -99,9 +99,11 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--ros2", action="store_true", help="inputs and outputs on ROS 2 (DDS)")
     p.add_argument("--ros2-namespace", help="the robot's ROS 2 namespace (default none)")
     p.add_argument(
-        "--ros2-param", action="append", metavar="KEY=VALUE",
+        "--ros2-param",
+        action="append",
+        metavar="KEY=VALUE",
         help="a ROS 2 setting (topic, frame, QoS; docs/ros2.md), repeatable",
-    )  # fmt: skip
+    )
     p.add_argument(
         "--clock-skew", type=float, default=0.0, help="add this to the wall clock, s (tests)"
     )

@@ -260,8 +260,14 @@ class AgentCore:
         for observer in self.observers:
             observer.on_map(lmap)
         self.map_floor, self.map_version = msg.floor, msg.version
-        log.info("%s: map %s of floor %s, version %d (%d landmarks)", self.config.name,
-                 msg.map_id, msg.floor, msg.version, len(msg.landmarks))  # fmt: skip
+        log.info(
+            "%s: map %s of floor %s, version %d (%d landmarks)",
+            self.config.name,
+            msg.map_id,
+            msg.floor,
+            msg.version,
+            len(msg.landmarks),
+        )
 
     def _start_prior(self, localizer: Localizer) -> None:
         """The dock prior (`start_known`), stamped at the first sample it holds for, and
@@ -276,8 +282,9 @@ class AgentCore:
             log.warning(
                 "%s: the map came after more than %d motion samples: the dock prior is "
                 "stale and not used (the robot identifies landmarks instead)",
-                self.config.name, PREMAP_MOTION_EVENTS,
-            )  # fmt: skip
+                self.config.name,
+                PREMAP_MOTION_EVENTS,
+            )
             return
         localizer.set_initial_pose(*start, self._first_t_ns or self._fed_t_ns)
         for event in motion:
@@ -329,12 +336,19 @@ class AgentCore:
         seq = next(self._seq)
         out: list[Outgoing] = []
         if self.floors.waiting(self.map_floor):  # no pose on the old floor's map
-            msg = PoseMessage(seq=seq, t_ns=t_site, wall_ns=wall, mode="identifying",
-                              floor=self.floors.wanted)  # fmt: skip
+            msg = PoseMessage(
+                seq=seq, t_ns=t_site, wall_ns=wall, mode="identifying", floor=self.floors.wanted
+            )
         elif unknown:  # its view does not fit its floor's map: no pose on it
-            msg = PoseMessage(seq=seq, t_ns=t_site, wall_ns=wall, mode=o.mode,
-                              floor=self.map_floor, map_version=self.map_version,
-                              floor_unknown=True)  # fmt: skip
+            msg = PoseMessage(
+                seq=seq,
+                t_ns=t_site,
+                wall_ns=wall,
+                mode=o.mode,
+                floor=self.map_floor,
+                map_version=self.map_version,
+                floor_unknown=True,
+            )
         elif isinstance(o, PoseEstimate):
             self.poses += 1
             msg = PoseMessage.from_estimate(
@@ -385,9 +399,11 @@ class AgentCore:
 
     def visualization(self, msg: PoseMessage) -> bytes:
         """The VDA 5050 visualization message of a pose message."""
-        pose = None if msg.x is None or msg.y is None or msg.theta is None else (
-            msg.x, msg.y, msg.theta
-        )  # fmt: skip
+        pose = (
+            None
+            if msg.x is None or msg.y is None or msg.theta is None
+            else (msg.x, msg.y, msg.theta)
+        )
         vis = visualization_message(
             self._headers.take(self.config.name, "visualization"),
             msg.wall_ns,

@@ -98,10 +98,11 @@ class Ros2SensorSource:
                 self.late += 1
                 kind = "image" if isinstance(e, FrameObserved) else "odom"
                 self.health.report(
-                    kind, "warn",
+                    kind,
+                    "warn",
                     f"arrived {(self._released_ns - e.t_ns) / 1e6:.0f} ms after the agent passed "
                     "its time (raise --hold above the transport latency): dropped",
-                )  # fmt: skip
+                )
                 continue
             due.append(e)
         self._released_ns = max(self._released_ns, t_ns)
@@ -193,11 +194,14 @@ def build_ros2(args: argparse.Namespace, scenario: Scenario | None) -> list[Ros2
             raise ValueError("--ros2 needs the robot's --wheel-base M (in (0, 10])")
         camera = load_sensor(args.sensor) if args.sensor is not None else None
         config = AgentConfig(
-            name=check_name("--name", args.name), manufacturer=manufacturer, source="camera",
-            reorder_hold_s=hold, pose_rate_hz=args.pose_rate,
+            name=check_name("--name", args.name),
+            manufacturer=manufacturer,
+            source="camera",
+            reorder_hold_s=hold,
+            pose_rate_hz=args.pose_rate,
             visualization_rate_hz=args.visualization_rate,
             floor=args.floor and check_name("--floor", args.floor),
-        )  # fmt: skip
+        )
         geometry = RobotGeometry(args.wheel_base, args.max_speed)
         return [ros2_robot(node, config, base, geometry, camera=camera)]
     names = [r.name for r in scenario.robots]
@@ -209,16 +213,22 @@ def build_ros2(args: argparse.Namespace, scenario: Scenario | None) -> list[Ros2
         check_name("--name", name)
         sim_robot = args.robot or (name if name in names else names[0])
         sim = SimRobotSource(scenario, sim_robot, seed=args.seed)
-        settings = base if args.name != "all" and args.ros2_namespace is not None else (
-            Ros2Settings(namespace=name).with_overrides(args.ros2_param or [])
-        )  # fmt: skip
+        settings = (
+            base
+            if args.name != "all" and args.ros2_namespace is not None
+            else (Ros2Settings(namespace=name).with_overrides(args.ros2_param or []))
+        )
         config = AgentConfig(
-            name=name, manufacturer=manufacturer, source="sim", reorder_hold_s=hold,
-            pose_rate_hz=args.pose_rate, visualization_rate_hz=args.visualization_rate,
+            name=name,
+            manufacturer=manufacturer,
+            source="sim",
+            reorder_hold_s=hold,
+            pose_rate_hz=args.pose_rate,
+            visualization_rate_hz=args.visualization_rate,
             start_known=args.start_known,
             floor=check_name("--floor", args.floor or sim.start_floor),
-        )  # fmt: skip
-        robots.append(ros2_robot(
-            node, config, settings, sim.geometry, camera=sim.camera, driver_source=sim
-        ))  # fmt: skip
+        )
+        robots.append(
+            ros2_robot(node, config, settings, sim.geometry, camera=sim.camera, driver_source=sim)
+        )
     return robots

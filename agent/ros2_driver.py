@@ -136,25 +136,42 @@ class SimRos2Driver:
             pose=pose_msg(self.odom_pose),
             covariance=covariance6([[1e-4, 0, 0], [0, 1e-4, 0], [0, 0, 1e-4]]),  # type: ignore[arg-type]
         )
-        self.odom_pub.publish(new(
-            "nav_msgs/msg/Odometry", header=header(stamp, s.odom), child_frame_id=s.base,
-            pose=pose, twist=twist,
-        ))  # fmt: skip
+        self.odom_pub.publish(
+            new(
+                "nav_msgs/msg/Odometry",
+                header=header(stamp, s.odom),
+                child_frame_id=s.base,
+                pose=pose,
+                twist=twist,
+            )
+        )
         tf = transform_stamped(stamp, s.odom, s.base, self.odom_pose)
         self.tf_pub.publish(new("tf2_msgs/msg/TFMessage", transforms=[tf]))
 
     def _frame(self, e: FrameObserved, stamp: int) -> None:
         s = self.settings
         h, w = e.image.shape
-        self.image_pub.publish(new(
-            "sensor_msgs/msg/Image", header=header(stamp, self.camera_frame), height=h, width=w,
-            encoding="mono8", is_bigendian=0, step=w, data=e.image.tobytes(),
-        ))  # fmt: skip
+        self.image_pub.publish(
+            new(
+                "sensor_msgs/msg/Image",
+                header=header(stamp, self.camera_frame),
+                height=h,
+                width=w,
+                encoding="mono8",
+                is_bigendian=0,
+                step=w,
+                data=e.image.tobytes(),
+            )
+        )
         self.info_pub.publish(camera_info_of(self.source.camera, stamp, self.camera_frame))
         truth = self.source.true_pose_at(e.t_ns)
         if truth is not None:
-            self.truth_pub.publish(new(
-                "nav_msgs/msg/Odometry", header=header(stamp, s.map_frame), child_frame_id=s.base,
-                pose=new("geometry_msgs/msg/PoseWithCovariance", pose=pose_msg(truth)),
-            ))  # fmt: skip
+            self.truth_pub.publish(
+                new(
+                    "nav_msgs/msg/Odometry",
+                    header=header(stamp, s.map_frame),
+                    child_frame_id=s.base,
+                    pose=new("geometry_msgs/msg/PoseWithCovariance", pose=pose_msg(truth)),
+                )
+            )
         self.frames += 1

@@ -1,7 +1,7 @@
 """One simulated robot of a scenario, simulated on the agent: its odometry, and either
-rendered frames (`light=False`, what a camera would give) or, in the light mode, the LED
-spots projected straight into the image (spot-level simulation, no rendering and no spot
-detection: a hundred agents fit on one machine).
+rendered frames (`light=False`, what a camera would give) or, in the light mode, the spots a
+detection would find (`sim.spot_view.observe_spots`, the virtual site's spot-level camera: no
+rendering and no spot detection, so a hundred agents fit on one machine).
 
 The site's LEDs are switched by the site server's radio; the agent hears of each confirmed
 state over MQTT and switches its copy of the world's LEDs at the state's own time
@@ -14,19 +14,15 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 
-import numpy as np
-
-from localizer.camera import CameraModel, predict_pixels
+from localizer.camera import CameraModel
 from localizer.events import Event, FrameObserved, OdometryMeasured, SpotsObserved
 from localizer.robot import RobotGeometry
 from sim.build import build_robot, build_world, seed_generators
-from sim.render import render_frame
 from sim.robot import FloorArrival, FramePose
 from sim.scenario import Scenario
+from sim.spot_view import observe_spots
+from sim.virtual_site import render_view
 from sim.world import IN_LIFT
-
-SPOT_AREA_PX = 9.0
-"""Pixel count of a projected spot (light mode)."""
 
 
 class SimRobotSource:
@@ -37,10 +33,8 @@ class SimRobotSource:
         scenario: the site's scenario.
         robot: which of its robots this agent is.
         seed: the site's seed (`irloc serve --seed`).
-        light: spot-level simulation instead of rendered frames.
-        pixel_sigma_px: centroid noise of a projected spot per axis, pixels (light mode).
-        min_intensity: projected spots fainter than this (1.0 = a nominal LED on the
-            optical axis at 2.5 m) are not detected (light mode).
+        light: spot-level simulation instead of rendered frames (`sim.spot_view`, the
+            virtual site's spot-level camera).
     """
 
     def __init__(
@@ -50,8 +44,6 @@ class SimRobotSource:
         *,
         seed: int | None = None,
         light: bool = False,
-        pixel_sigma_px: float = 0.15,
-        min_intensity: float = 0.05,
     ) -> None:
         names = [r.name for r in scenario.robots]
         if robot not in names:
@@ -62,8 +54,6 @@ class SimRobotSource:
         self.world = build_world(scenario, gens[0])
         self.rig = build_robot(scenario.robots[index], scenario, gens[3 + index], index=index)
         self.light = light
-        self.pixel_sigma_px = pixel_sigma_px
-        self.min_intensity = min_intensity
         self._rng = gens[2]
         self._t0_ns: int | None = None
         self._t_local_ns = 0
@@ -131,37 +121,25 @@ class SimRobotSource:
 
     def _frame(self, item: FramePose, t_ns: int) -> FrameObserved | SpotsObserved:
         cam = self.rig.camera_true
-        p_cam = (item.T_world_body @ cam.T_body_camera)[:3, 3]
         on = IN_LIFT if item.in_lift else item.floor  # the ceiling of its floor, none in the lift
-        sources, intensities = self.world.point_sources(p_cam, t_ns=item.t_ns, floor=on)
-        if not self.light:
-            image = render_frame(
-                cam, item.T_world_body, sources, intensities, rng=self._rng,
-                config=self.scenario.render, extended=self.world.extended,
-            )  # fmt: skip
-            return FrameObserved(t_ns, image)
-        return self._spots(item, t_ns, sources, intensities, p_cam)
-
-    def _spots(
-        self,
-        item: FramePose,
-        t_ns: int,
-        sources: np.ndarray,
-        intensities: np.ndarray,
-        p_cam: np.ndarray,
-    ) -> SpotsObserved:
-        """Project the lit sources: brightness falls with the square of the distance
-        (1.0 at the render's nominal distance)."""
-        if len(sources) == 0:
-            empty = np.zeros((0, 2))
-            return SpotsObserved(t_ns, empty, np.zeros(0), np.zeros(0))
-        pixels, valid = predict_pixels(self.rig.camera_true, item.T_world_body, sources)
-        d = np.linalg.norm(sources - p_cam, axis=1)
-        nominal = self.scenario.render.nominal_distance_m
-        brightness = intensities * (nominal / np.maximum(d, 1e-3)) ** 2
-        keep = valid & (brightness >= self.min_intensity)
-        px = pixels[keep] + self._rng.normal(0.0, self.pixel_sigma_px, (int(keep.sum()), 2))
-        peak = 255.0 * SPOT_AREA_PX
-        return SpotsObserved(
-            t_ns, px, np.minimum(brightness[keep], 4.0) * peak, np.full(len(px), SPOT_AREA_PX)
+        if self.light:
+            return observe_spots(
+                self.world,
+                cam,
+                item.T_world_body,
+                t_ns,
+                self._rng,
+                self.scenario.render,
+                led_t_ns=item.t_ns,
+                floor=on,
+            )
+        image = render_view(
+            self.world,
+            cam,
+            item.T_world_body,
+            self._rng,
+            self.scenario.render,
+            led_t_ns=item.t_ns,
+            floor=on,
         )
+        return FrameObserved(t_ns, image)

@@ -216,9 +216,24 @@ def main(argv: list[str] | None = None) -> int:
     with tempfile.TemporaryDirectory() as tmp:
         work = args.keep or Path(tmp)
         work.mkdir(parents=True, exist_ok=True)
-        cols = ("frames", "posed", "first_fix_s", "mean_cm", "p50_cm", "p95_cm", "max_cm",
-                "heading_mean_deg", "heading_max_deg", "landmark", "dead_reckoning", "lost",
-                "fix_max_cm", "checked_frames", "misid_frames", "replay_s")  # fmt: skip
+        cols = (
+            "frames",
+            "posed",
+            "first_fix_s",
+            "mean_cm",
+            "p50_cm",
+            "p95_cm",
+            "max_cm",
+            "heading_mean_deg",
+            "heading_max_deg",
+            "landmark",
+            "dead_reckoning",
+            "lost",
+            "fix_max_cm",
+            "checked_frames",
+            "misid_frames",
+            "replay_s",
+        )
         print(f"{'scenario':<16}" + "".join(f"{c:>17}" for c in cols))
         for name in args.scenarios:
             s = run(name, work, args.duration, args.seed, reuse=args.reuse)

@@ -118,10 +118,13 @@ def breakdown(run: SiteRun) -> dict[int, dict[str, float]]:
         e = run.energy.get(lid, LandmarkEnergy())
         t_h = max(e.time_s, 1e-9) / 3600.0
         out[lid] = {
-            "led": e.led_mah / t_h, "idle": e.idle_mah / t_h, "wake": e.wake_mah / t_h,
-            "message": e.message_mah / t_h, "awake": e.awake_s / max(e.time_s, 1e-9),
+            "led": e.led_mah / t_h,
+            "idle": e.idle_mah / t_h,
+            "wake": e.wake_mah / t_h,
+            "message": e.message_mah / t_h,
+            "awake": e.awake_s / max(e.time_s, 1e-9),
             "tx": e.tx_s / max(e.time_s, 1e-9),
-        }  # fmt: skip
+        }
     return out
 
 
@@ -163,11 +166,17 @@ def measure(site: str, config: str, args: argparse.Namespace) -> Row:
     seed0 = args.seeds[0]
     shifts = [
         run_virtual(
-            run_site(site, settings, args.warmup_s + args.shift_s, seed=seed,
-                     measure_from_s=args.warmup_s, known_poses=True)
+            run_site(
+                site,
+                settings,
+                args.warmup_s + args.shift_s,
+                seed=seed,
+                measure_from_s=args.warmup_s,
+                known_poses=True,
+            )
         )
         for seed in args.seeds
-    ]  # fmt: skip
+    ]
     shift = shifts[0]
     colds = [
         run_virtual(run_site(site, settings, args.cold_s, seed=seed0 + k, until_fixed=True))
@@ -175,9 +184,15 @@ def measure(site: str, config: str, args: argparse.Namespace) -> Row:
     ]
     idle_sc = parked(load_scenario(site), args.idle_s + 10.0)
     idle = run_virtual(
-        run_site(idle_sc, settings, args.idle_s, seed=seed0, known_poses=True,
-                 measure_from_s=args.idle_s - args.idle_measure_s)
-    )  # fmt: skip
+        run_site(
+            idle_sc,
+            settings,
+            args.idle_s,
+            seed=seed0,
+            known_poses=True,
+            measure_from_s=args.idle_s - args.idle_measure_s,
+        )
+    )
     wall = time.perf_counter() - t0
     d_shifts, d_idle = [duties(s) for s in shifts], duties(idle)
     sleep = None if sleep_s is None else RadioSleep(sleep_s)
@@ -203,14 +218,20 @@ def measure(site: str, config: str, args: argparse.Namespace) -> Row:
         stats["first_fix_s"] = float(np.median(fixes)) if fixes else math.nan
         stats["first_fix_max_s"] = max(fixes, default=math.nan)
     return Row(
-        site, config,
-        float(np.median(lives)), float(np.min(lives)),
+        site,
+        config,
+        float(np.median(lives)),
+        float(np.min(lives)),
         float(np.mean([np.mean(s.lit_samples) for s in shifts])) / n,
         float(np.mean(idle.lit_samples)) / n,
         sum(s.commands for s in shifts) / sum(s.seconds for s in shifts),
-        robots, wall, args.warmup_s,
-        day_breakdown(shift, idle, counted), day_breakdown(shift, idle, [worst_id]), worst_id,
-    )  # fmt: skip
+        robots,
+        wall,
+        args.warmup_s,
+        day_breakdown(shift, idle, counted),
+        day_breakdown(shift, idle, [worst_id]),
+        worst_id,
+    )
 
 
 def cold_starts(site: str, config: str, args: argparse.Namespace) -> dict[str, list[float]]:
@@ -220,9 +241,10 @@ def cold_starts(site: str, config: str, args: argparse.Namespace) -> dict[str, l
     worst_cm: dict[str, float] = {}
     for k in range(args.cold_runs):
         cold = run_virtual(
-            run_site(site, _settings(config, args), args.cold_s, seed=args.seeds[0] + k,
-                     until_fixed=True)
-        )  # fmt: skip
+            run_site(
+                site, _settings(config, args), args.cold_s, seed=args.seeds[0] + k, until_fixed=True
+            )
+        )
         for name in sorted(cold.poses):
             fix = robot_stats(cold, name)["first_fix_s"]
             out.setdefault(name, []).append(fix if math.isfinite(fix) else math.inf)
@@ -235,8 +257,10 @@ def cold_starts(site: str, config: str, args: argparse.Namespace) -> dict[str, l
         line = ", ".join(f"{n} {v[-1]:.2f}" for n, v in out.items())
         print(f"  {site} {config} seed {args.seeds[0] + k}: first fix s: {line}", flush=True)
     for name, fixes in out.items():
-        print(f"{site} {config} {name}: median {np.median(fixes):.2f} s, worst "
-              f"{max(fixes):.2f} s, error up to {worst_cm[name]:.1f} cm")  # fmt: skip
+        print(
+            f"{site} {config} {name}: median {np.median(fixes):.2f} s, worst "
+            f"{max(fixes):.2f} s, error up to {worst_cm[name]:.1f} cm"
+        )
     return out
 
 
@@ -272,8 +296,10 @@ def print_rows(rows: list[Row]) -> None:
         "mean landmark, and the worst one): LED | radio asleep / listening | cyclic wake-ups "
         "| commands + awake after them | total (radio awake %, transmitting %)"
     )
-    print("\n| site | config | landmarks | LED | asleep/idle | wake-ups | commands | total "
-          "| awake % | tx % |")  # fmt: skip
+    print(
+        "\n| site | config | landmarks | LED | asleep/idle | wake-ups | commands | total "
+        "| awake % | tx % |"
+    )
     print("|---|---|---|---|---|---|---|---|---|---|")
     for r in rows:
         for label, m in (("mean", r.mean_ma), (f"worst ({r.worst_id})", r.worst_ma)):
@@ -354,29 +380,43 @@ def check_targets(rows: list[Row]) -> bool:
                 demo.lit_fraction <= 0.35,
                 f"{100 * demo.lit_fraction:.1f} %",
             )
-    return ok  # fmt: skip
+    return ok
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--sites", nargs="+", default=["demo", "floor50"])
-    parser.add_argument("--configs", nargs="+",
-                        default=["all_lit", "scheduled", "scheduled+sleep"])  # fmt: skip
+    parser.add_argument("--configs", nargs="+", default=["all_lit", "scheduled", "scheduled+sleep"])
     parser.add_argument("--shift-s", type=float, default=240.0, help="shift window, s")
     parser.add_argument("--warmup-s", type=float, default=15.0, help="not counted, s")
-    parser.add_argument("--cold-s", type=float, default=60.0,
-                        help="longest cold start run for the first fix, s")  # fmt: skip
-    parser.add_argument("--cold-runs", type=int, default=5,
-                        help="cold starts (seeds) whose median first fix is reported")  # fmt: skip
+    parser.add_argument(
+        "--cold-s", type=float, default=60.0, help="longest cold start run for the first fix, s"
+    )
+    parser.add_argument(
+        "--cold-runs",
+        type=int,
+        default=5,
+        help="cold starts (seeds) whose median first fix is reported",
+    )
     parser.add_argument("--idle-s", type=float, default=60.0, help="idle window, s")
-    parser.add_argument("--idle-measure-s", type=float, default=30.0,
-                        help="idle duty counted over the end of the idle window, s")  # fmt: skip
+    parser.add_argument(
+        "--idle-measure-s",
+        type=float,
+        default=30.0,
+        help="idle duty counted over the end of the idle window, s",
+    )
     parser.add_argument("--sleep-period", type=float, default=0.5, help="XBee SP, s")
-    parser.add_argument("--seeds", type=int, nargs="+", default=[0],
-                        help="a shift window per seed (the robots' figures pooled over them); "
-                             "the idle window and the first cold start take the first")  # fmt: skip
-    parser.add_argument("--cold-only", action="store_true",
-                        help="only the cold starts' first fixes, per robot")  # fmt: skip
+    parser.add_argument(
+        "--seeds",
+        type=int,
+        nargs="+",
+        default=[0],
+        help="a shift window per seed (the robots' figures pooled over them); "
+        "the idle window and the first cold start take the first",
+    )
+    parser.add_argument(
+        "--cold-only", action="store_true", help="only the cold starts' first fixes, per robot"
+    )
     args = parser.parse_args(argv)
     if args.cold_only:
         for site in args.sites:
@@ -390,9 +430,12 @@ def main(argv: list[str] | None = None) -> int:
         for config in args.configs:
             row = measure(site, config, args)
             rows.append(row)
-            print(f"{site} {config}: median {row.median_days:.1f} d, worst "
-                  f"{row.worst_days:.1f} d, lit {100 * row.lit_fraction:.1f} %, "
-                  f"{row.wall_s:.0f} s wall", flush=True)  # fmt: skip
+            print(
+                f"{site} {config}: median {row.median_days:.1f} d, worst "
+                f"{row.worst_days:.1f} d, lit {100 * row.lit_fraction:.1f} %, "
+                f"{row.wall_s:.0f} s wall",
+                flush=True,
+            )
     print_rows(rows)
     if len(args.seeds) > 1:
         print_seeds(rows, args.seeds)

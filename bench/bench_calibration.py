@@ -62,13 +62,17 @@ def bench_synthetic_fisheye() -> None:
     photos = [
         renderer.render(
             board_pose_facing(
-                camera, board, p, 0.33 + 0.04 * (k % 3),
-                tilt_xy_rad=(0.45 * np.sin(2 * k), 0.45 * np.cos(1.3 * k)), roll_rad=0.25 * k,
+                camera,
+                board,
+                p,
+                0.33 + 0.04 * (k % 3),
+                tilt_xy_rad=(0.45 * np.sin(2 * k), 0.45 * np.cos(1.3 * k)),
+                roll_rad=0.25 * k,
             ),
             rng=rng,
         )
         for k, p in enumerate(PIXELS)
-    ]  # fmt: skip
+    ]
     t_render = time.perf_counter() - t0
     result = calibrate_lens(photos, model="fisheye", board=board)
     got = result.camera

@@ -48,8 +48,10 @@ def main() -> None:
                 if lid not in first:
                     first[lid] = time.monotonic() - start
                     bright = services.virtual_site.world.landmarks[lid].battery.led_brightness()
-                    print(f"t={first[lid]:5.1f} s landmark {lid} doubted: {why} "
-                          f"(true LED brightness {bright:.2f})")  # fmt: skip
+                    print(
+                        f"t={first[lid]:5.1f} s landmark {lid} doubted: {why} "
+                        f"(true LED brightness {bright:.2f})"
+                    )
         print(f"seed {args.seed}: {args.seconds:.0f} s, {len(first)} landmarks doubted")
         if args.move_m <= 0:
             return
@@ -60,11 +62,15 @@ def main() -> None:
         while time.monotonic() - moved < args.timeout:
             time.sleep(0.5)
             if lid in doubted(site):
-                print(f"landmark {lid} moved {args.move_m} m in the map: doubted after "
-                      f"{time.monotonic() - moved:.1f} s")  # fmt: skip
+                print(
+                    f"landmark {lid} moved {args.move_m} m in the map: doubted after "
+                    f"{time.monotonic() - moved:.1f} s"
+                )
                 return
-        print(f"landmark {lid} moved {args.move_m} m: not doubted in {args.timeout} s "
-              f"({site.doubt(lid)})")  # fmt: skip
+        print(
+            f"landmark {lid} moved {args.move_m} m: not doubted in {args.timeout} s "
+            f"({site.doubt(lid)})"
+        )
 
 
 if __name__ == "__main__":

@@ -163,9 +163,22 @@ def frame_sizes(camera_rate: float) -> tuple[int, int, float]:
 
 def start_server(broker: Mosquitto, data_dir: Path) -> tuple[subprocess.Popen[str], int, str]:
     port = free_port()
-    cmd = [sys.executable, "-m", "irloc", "serve", "--port", str(port), "--mqtt", broker.url,
-           "--no-viewer", "--no-sim-robots", "--data-dir", str(data_dir), "--log-level",
-           "warning"]  # fmt: skip
+    cmd = [
+        sys.executable,
+        "-m",
+        "irloc",
+        "serve",
+        "--port",
+        str(port),
+        "--mqtt",
+        broker.url,
+        "--no-viewer",
+        "--no-sim-robots",
+        "--data-dir",
+        str(data_dir),
+        "--log-level",
+        "warning",
+    ]
     env = {**ENV, "IRLOC_MQTT_AGENTS": '["*"]'}  # the benchmark's agents, on an open broker
     proc = subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, text=True, cwd=ROOT)
     assert proc.stdout is not None
@@ -207,8 +220,9 @@ class ReplayCore(AgentCore):
         self.mode = "landmark"
         a = 0.15 * now_mono_ns * 1e-9 + hash(self.config.name) % 628 / 100
         cov = np.diag([2e-5, 2e-5, 1e-5])
-        est = PoseEstimate(now_mono_ns, 5 + 2 * np.cos(a), 3 + 2 * np.sin(a), a % 3.1, cov,
-                           "landmark", (101, 102))  # fmt: skip
+        est = PoseEstimate(
+            now_mono_ns, 5 + 2 * np.cos(a), 3 + 2 * np.sin(a), a % 3.1, cov, "landmark", (101, 102)
+        )
         return self._pose_out(est, now_mono_ns)
 
 
@@ -241,12 +255,34 @@ def _agents(
 ) -> subprocess.Popen[bytes]:
     """One process of `count` agents: real (light) ones up to `--real` robots, else replay."""
     if n > args.real:
-        cmd = [sys.executable, str(Path(__file__).resolve()), "--replay-worker", broker.url,
-               name, str(count)]  # fmt: skip
+        cmd = [
+            sys.executable,
+            str(Path(__file__).resolve()),
+            "--replay-worker",
+            broker.url,
+            name,
+            str(count),
+        ]
     else:
-        cmd = [sys.executable, "-m", "irloc", "agent", "--mqtt", broker.url, "--name", name,
-               "--count", str(count), "--sim", "--light", "--camera-rate", str(args.camera_rate),
-               "--start-known", "--log-level", "warning"]  # fmt: skip
+        cmd = [
+            sys.executable,
+            "-m",
+            "irloc",
+            "agent",
+            "--mqtt",
+            broker.url,
+            "--name",
+            name,
+            "--count",
+            str(count),
+            "--sim",
+            "--light",
+            "--camera-rate",
+            str(args.camera_rate),
+            "--start-known",
+            "--log-level",
+            "warning",
+        ]
         if args.odometry_rate is not None:
             cmd += ["--odometry-rate", str(args.odometry_rate)]
         if count == 1:
@@ -270,9 +306,15 @@ def _pct(a: np.ndarray, q: float) -> float:
 
 
 def run_round(
-    n: int, args: argparse.Namespace, broker: Mosquitto, server: subprocess.Popen[str],
-    port: int, key: str, counter: ByteCounter, idle_core: float,
-) -> dict[str, Any]:  # fmt: skip
+    n: int,
+    args: argparse.Namespace,
+    broker: Mosquitto,
+    server: subprocess.Popen[str],
+    port: int,
+    key: str,
+    counter: ByteCounter,
+    idle_core: float,
+) -> dict[str, Any]:
     prefix = f"n{n}"
     procs = []
     for k, start in enumerate(range(0, n, args.per_process)):
@@ -377,10 +419,12 @@ def main(argv: list[str] | None = None) -> int:
             server.send_signal(signal.SIGTERM)
             server.wait(20)
     print()
-    print("| robots (agents) | localized | poses/s (all robots) | latency p50 / p99 / max (ms) | "
-          "to "
-          "broker subscriber p50 / p99 (ms) | server CPU (% core) | server per robot (% core) | "
-          "agent CPU per robot (% core) | B/s per robot from / to agent |")  # fmt: skip
+    print(
+        "| robots (agents) | localized | poses/s (all robots) | latency p50 / p99 / max (ms) | "
+        "to "
+        "broker subscriber p50 / p99 (ms) | server CPU (% core) | server per robot (% core) | "
+        "agent CPU per robot (% core) | B/s per robot from / to agent |"
+    )
     print("|---|---|---|---|---|---|---|---|---|")
     for r in rows:
         print(

@@ -71,10 +71,17 @@ def spawn(url: str, prefix: str, n: int, per_process: int) -> list[subprocess.Po
     procs = []
     for k, start in enumerate(range(0, n, per_process)):
         count = min(per_process, n - start)
-        cmd = [sys.executable, str(FLEET_BENCH), "--replay-worker", url, f"{prefix}p{k}",
-               str(count)]  # fmt: skip
-        procs.append(subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.DEVNULL,
-                                      stderr=subprocess.DEVNULL))  # fmt: skip
+        cmd = [
+            sys.executable,
+            str(FLEET_BENCH),
+            "--replay-worker",
+            url,
+            f"{prefix}p{k}",
+            str(count),
+        ]
+        procs.append(
+            subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        )
     return procs
 
 
@@ -126,9 +133,14 @@ async def bench(args: argparse.Namespace) -> list[dict[str, Any]]:
     rows = []
     with Mosquitto() as broker, tempfile.TemporaryDirectory() as tmp:
         settings = Settings(
-            data_dir=Path(tmp), viewer_enabled=False, sim_robots=False, mqtt_url=broker.url,
-            mqtt_agents=["*"], battery_interval_s=None, log_format="text",
-        )  # fmt: skip
+            data_dir=Path(tmp),
+            viewer_enabled=False,
+            sim_robots=False,
+            mqtt_url=broker.url,
+            mqtt_agents=["*"],
+            battery_interval_s=None,
+            log_format="text",
+        )
         services = SiteServices(settings)
         await services.start()
         receipts = Receipts(services)
@@ -170,8 +182,10 @@ def main(argv: list[str] | None = None) -> int:
     print(f"load average {' '.join(load)} on {len(os.sched_getaffinity(0))} cores")
     rows = asyncio.run(bench(args))
     print()
-    print("| agents | sending | poses/s received (nominal) | pose -> site p50 / p99 / max (ms) "
-          "| site CPU (% of a core) |")  # fmt: skip
+    print(
+        "| agents | sending | poses/s received (nominal) | pose -> site p50 / p99 / max (ms) "
+        "| site CPU (% of a core) |"
+    )
     print("|---|---|---|---|---|")
     for r in rows:
         print(

@@ -34,11 +34,18 @@ def fill(history: PoseHistory, robots: int, days: float) -> int:
             xy = np.cumsum(rng.normal(0.0, 0.3, size=(n, 2)), axis=0) % 40.0
             for a in range(0, n, 50_000):
                 rows = [
-                    {"robot": f"r{r + 1}", "t": t0 + timedelta(seconds=k), "t_ns": k * 10**9,
-                     "x": float(xy[k, 0]), "y": float(xy[k, 1]), "theta": 0.0, "sigma_m": 0.01,
-                     "mode": "landmark"}
+                    {
+                        "robot": f"r{r + 1}",
+                        "t": t0 + timedelta(seconds=k),
+                        "t_ns": k * 10**9,
+                        "x": float(xy[k, 0]),
+                        "y": float(xy[k, 1]),
+                        "theta": 0.0,
+                        "sigma_m": 0.01,
+                        "mode": "landmark",
+                    }
                     for k in range(a, min(n, a + 50_000))
-                ]  # fmt: skip
+                ]
                 conn.execute(insert(PoseRecord), rows)
     return n * robots
 
@@ -70,9 +77,11 @@ def main() -> None:
         (cells, counted), cell_s = timed(lambda: history.cell_counts(0.5))
         print(f"heatmap: {counted} poses in {len(cells)} cells of 0.5 m: {cell_s:.2f} s")
         every, all_s = timed(lambda: history.query(robot="r1", limit=10**7))
-        print(f"every pose of r1 read whole: {len(every)} rows, {all_s:.2f} s "
-              f"(thinned: {all_s / max(thin_s, 1e-9):.1f}x faster, "
-              f"{len(every) / max(len(thin), 1):.0f}x fewer points to the browser)")  # fmt: skip
+        print(
+            f"every pose of r1 read whole: {len(every)} rows, {all_s:.2f} s "
+            f"(thinned: {all_s / max(thin_s, 1e-9):.1f}x faster, "
+            f"{len(every) / max(len(thin), 1):.0f}x fewer points to the browser)"
+        )
         engine.dispose()
 
 

@@ -52,9 +52,11 @@ class Errors:
     def _stats(self, keep: np.ndarray) -> str:
         h = np.degrees(np.abs(np.asarray(self.heading)[keep]))
         p = np.asarray(self.position)[keep] * 1000
-        return (f"heading |err| mean {h.mean():.3f} deg, p95 {np.percentile(h, 95):.3f} deg; "
-                f"position mean {p.mean():.1f} mm, p95 {np.percentile(p, 95):.1f} mm "
-                f"({len(h)} frames)")  # fmt: skip
+        return (
+            f"heading |err| mean {h.mean():.3f} deg, p95 {np.percentile(h, 95):.3f} deg; "
+            f"position mean {p.mean():.1f} mm, p95 {np.percentile(p, 95):.1f} mm "
+            f"({len(h)} frames)"
+        )
 
 
 def patrol(
@@ -150,21 +152,30 @@ def main() -> None:
                 first[p.landmark_id] = (t_s, p.views, p.statistic)
                 err = np.linalg.norm(np.array(p.proposed) - truth[p.landmark_id]) * 1000
                 tag = "the moved one" if p.landmark_id == args.landmark else "FALSE"
-                print(f"t={t_s:6.1f} s landmark {p.landmark_id} proposed moved ({tag}): "
-                      f"{p.views} views, chi2 {p.statistic:.0f}, shift {p.shift_m*1000:.1f} mm, "
-                      f"sigma {p.sigma_m*1000:.1f} mm, {err:.1f} mm from the truth",
-                      flush=True)  # fmt: skip
+                print(
+                    f"t={t_s:6.1f} s landmark {p.landmark_id} proposed moved ({tag}): "
+                    f"{p.views} views, chi2 {p.statistic:.0f}, shift {p.shift_m * 1000:.1f} mm, "
+                    f"sigma {p.sigma_m * 1000:.1f} mm, {err:.1f} mm from the truth",
+                    flush=True,
+                )
 
     before = patrol(site, surveyed, args.minutes * 60, on_frame)
     sim_s = args.minutes * 60
-    print(f"{sim_s:.0f} s simulated in {time.perf_counter() - wall:.0f} s wall, "
-          f"{time.process_time() - cpu:.0f} s CPU; "
-          f"{upkeep.frames} frames counted")  # fmt: skip
+    print(
+        f"{sim_s:.0f} s simulated in {time.perf_counter() - wall:.0f} s wall, "
+        f"{time.process_time() - cpu:.0f} s CPU; "
+        f"{upkeep.frames} frames counted"
+    )
     false = [lid for lid in first if lid != args.landmark]
-    print(f"moved landmark {args.landmark}: "
-          + (f"proposed after {first[args.landmark][0]:.0f} s, {first[args.landmark][1]} views"
-             if args.landmark in first else "NOT proposed")
-          + f"; false 'moved' proposals: {len(false)} {false}")  # fmt: skip
+    print(
+        f"moved landmark {args.landmark}: "
+        + (
+            f"proposed after {first[args.landmark][0]:.0f} s, {first[args.landmark][1]} views"
+            if args.landmark in first
+            else "NOT proposed"
+        )
+        + f"; false 'moved' proposals: {len(false)} {false}"
+    )
     props = upkeep.proposals()
     report_map("surveyed map", surveyed, truth)
     refined = dict(surveyed)
@@ -173,8 +184,11 @@ def main() -> None:
     n_ref = sum(p.kind == "refined" for p in props)
     report_map(f"after accepting {len(props)} proposals ({n_ref} refined)", refined, truth)
     print(f"before (surveyed map): {before.line()}")
-    for label, positions in (("after accepting", refined), ("true map (reference)", truth),
-                             ("surveyed map again", surveyed)):  # fmt: skip
+    for label, positions in (
+        ("after accepting", refined),
+        ("true map (reference)", truth),
+        ("surveyed map again", surveyed),
+    ):
         site2 = VirtualSite(sc, seed=args.seed + 1, observe="spots")
         site2.world.landmarks[args.landmark].p_true = truth[args.landmark].copy()
         e = patrol(site2, positions, args.after_minutes * 60, lambda *a: None)
@@ -184,9 +198,11 @@ def main() -> None:
 def report_map(label: str, positions: dict[int, np.ndarray], truth: dict[int, np.ndarray]) -> None:
     err = np.array([np.linalg.norm(positions[i][:2] - truth[i][:2]) for i in sorted(truth)])
     ez = np.array([abs(positions[i][2] - truth[i][2]) for i in sorted(truth)])
-    print(f"{label}: x-y error vs truth median {np.median(err)*1000:.2f} mm, "
-          f"p95 {np.percentile(err, 95)*1000:.2f} mm, max {err.max()*1000:.1f} mm; "
-          f"z median {np.median(ez)*1000:.2f} mm")  # fmt: skip
+    print(
+        f"{label}: x-y error vs truth median {np.median(err) * 1000:.2f} mm, "
+        f"p95 {np.percentile(err, 95) * 1000:.2f} mm, max {err.max() * 1000:.1f} mm; "
+        f"z median {np.median(ez) * 1000:.2f} mm"
+    )
 
 
 if __name__ == "__main__":

@@ -138,10 +138,17 @@ def run_agent(args: argparse.Namespace) -> None:
     modes = core.mode
     for e in extra:
         e.stop()
-    print(json.dumps({
-        "cpu_pct": 100 * cpu / wall, "frames_s": (core.frames - mark[2]) / wall,
-        "poses_s": (core.poses - mark[3]) / wall, "mode": modes,
-    }), flush=True)  # fmt: skip
+    print(
+        json.dumps(
+            {
+                "cpu_pct": 100 * cpu / wall,
+                "frames_s": (core.frames - mark[2]) / wall,
+                "poses_s": (core.poses - mark[3]) / wall,
+                "mode": modes,
+            }
+        ),
+        flush=True,
+    )
 
 
 # -- the robot's camera driver and the pose listener (this process) --------------------------
@@ -175,16 +182,26 @@ def publish_and_listen(tmp: Path, seconds: float, agent: subprocess.Popen[str]) 
     while time.monotonic() - start < seconds and agent.poll() is None:
         stamp = time.time_ns()
         msg = new(
-            "sensor_msgs/msg/Image", header=header(stamp, "r1/camera_optical_frame"), height=h,
-            width=w, encoding="mono8", step=w, data=frames[i % len(frames)].tobytes(),
-        )  # fmt: skip
+            "sensor_msgs/msg/Image",
+            header=header(stamp, "r1/camera_optical_frame"),
+            height=h,
+            width=w,
+            encoding="mono8",
+            step=w,
+            data=frames[i % len(frames)].tobytes(),
+        )
         with lock:
             sent[stamp] = time.monotonic_ns()
         # the robot's odom -> base_link (standing still), as a driver publishes it with odometry
-        tf_pub.publish(new("tf2_msgs/msg/TFMessage", transforms=[
-            transform_stamped(stamp + d, "r1/odom", "r1/base_link", (0.0, 0.0, 0.0))
-            for d in (-1_000_000, 1_000_000)
-        ]))  # fmt: skip
+        tf_pub.publish(
+            new(
+                "tf2_msgs/msg/TFMessage",
+                transforms=[
+                    transform_stamped(stamp + d, "r1/odom", "r1/base_link", (0.0, 0.0, 0.0))
+                    for d in (-1_000_000, 1_000_000)
+                ],
+            )
+        )
         pub.publish(msg)
         if time.monotonic() - start < WARMUP_S:
             latencies.clear()
@@ -197,8 +214,20 @@ def publish_and_listen(tmp: Path, seconds: float, agent: subprocess.Popen[str]) 
 
 def measure(tmp: Path, source: str, hold: float, seconds: float) -> dict[str, Any]:
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
-    cmd = [sys.executable, __file__, "--role", "agent", "--source", source, "--hold", str(hold),
-           "--data", str(tmp), "--seconds", str(seconds + 1.0)]  # fmt: skip
+    cmd = [
+        sys.executable,
+        __file__,
+        "--role",
+        "agent",
+        "--source",
+        source,
+        "--hold",
+        str(hold),
+        "--data",
+        str(tmp),
+        "--seconds",
+        str(seconds + 1.0),
+    ]
     agent = subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, text=True)
     assert agent.stdout is not None
     assert agent.stdout.readline().strip() == "ready"
@@ -243,8 +272,10 @@ def main() -> None:
     for name, r in rows:
         lat = f"{r['p50_ms']:.1f} / {r['p99_ms']:.1f}" if "p50_ms" in r else "-"
         per_frame = 10 * r["cpu_pct"] / max(r["frames_s"], 1e-9)
-        print(f"| {name} | {r['frames_s']:.1f} | {r['poses_s']:.1f} | {r['mode']} | "
-              f"{r['cpu_pct']:.1f} | {per_frame:.2f} | {lat} |")  # fmt: skip
+        print(
+            f"| {name} | {r['frames_s']:.1f} | {r['poses_s']:.1f} | {r['mode']} | "
+            f"{r['cpu_pct']:.1f} | {per_frame:.2f} | {lat} |"
+        )
 
 
 if __name__ == "__main__":

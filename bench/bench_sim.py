@@ -82,9 +82,11 @@ def main() -> None:
     rows.append(("copy 640x480 uint8 (reference)", f"{bench_copy():.0f} frames/s"))
     share, frames = bench_live(args.seconds)
     rows.append(
-        (f"live demo site, 3 robots x 30 Hz, {args.seconds:.0f} s",
-         f"{100 * share:.1f} % of one core ({frames} frames; goal < 25 %)")
-    )  # fmt: skip
+        (
+            f"live demo site, 3 robots x 30 Hz, {args.seconds:.0f} s",
+            f"{100 * share:.1f} % of one core ({frames} frames; goal < 25 %)",
+        )
+    )
     rows.append(("irloc simulate paper_testbed", f"{bench_offline(5.0):.2f} sim s per CPU s"))
     width = max(len(r[0]) for r in rows)
     print(f"{'benchmark':<{width}}  result")

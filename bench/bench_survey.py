@@ -100,10 +100,28 @@ def truncated(drive: SpotDrive, seconds: float, landmarks: dict[str, object]) ->
     from localizer.robot import RobotGeometry
 
     return SurveyDrive(
-        parse_survey_map(landmarks, source="bench map"), drive.camera,
-        RobotGeometry(drive.wheel_base_m), drive.frame_t_ns[:nf], drive.frame_spots[:nf],
-        drive.odom_t_ns[:no], drive.odom_v[:no], [c for c in drive.leds if c.t_ns <= end], 0,
-    )  # fmt: skip
+        parse_survey_map(landmarks, source="bench map"),
+        drive.camera,
+        RobotGeometry(drive.wheel_base_m),
+        drive.frame_t_ns[:nf],
+        drive.frame_spots[:nf],
+        drive.odom_t_ns[:no],
+        drive.odom_v[:no],
+        [c for c in drive.leds if c.t_ns <= end],
+        0,
+    )
+
+
+def error_figures(xy: list[float], z: list[float]) -> dict[str, float]:
+    """Count, p95 and max of the horizontal and vertical errors, metres."""
+    a, b = np.array(xy), np.array(z)
+    return {
+        "n": len(a),
+        "xy_p95": float(np.percentile(a, 95)),
+        "xy_max": float(a.max()),
+        "z_p95": float(np.percentile(b, 95)),
+        "z_max": float(b.max()),
+    }
 
 
 def score(result: SurveyResult, truth: dict[int, np.ndarray]) -> dict[str, float]:
@@ -123,13 +141,11 @@ def score(result: SurveyResult, truth: dict[int, np.ndarray]) -> dict[str, float
         nees.append(float(d[:2] @ np.linalg.solve(c, d[:2])))
         inside.append(nees[-1] <= 6.18)
         inside_z.append(abs(d[2]) <= 2.0 * e.sigma_z_m)
-    a, b = np.array(xy), np.array(z)
-    return {
-        "n": len(a), "xy_p95": float(np.percentile(a, 95)), "xy_max": float(a.max()),
-        "z_p95": float(np.percentile(b, 95)), "z_max": float(b.max()),
-        "inside_xy": float(np.sum(inside)), "inside_z": float(np.sum(inside_z)),
+    return error_figures(xy, z) | {
+        "inside_xy": float(np.sum(inside)),
+        "inside_z": float(np.sum(inside_z)),
         "nees_xy": float(np.sum(nees)),
-    }  # fmt: skip
+    }
 
 
 def wizard(drive: SpotDrive, anchors: list[int], rng: np.random.Generator) -> dict[str, float]:
@@ -161,9 +177,7 @@ def wizard(drive: SpotDrive, anchors: list[int], rng: np.random.Generator) -> di
             d = np.median(np.array(samples), axis=0) - p
             xy.append(math.hypot(d[0], d[1]))
             z.append(abs(d[2]))
-    a, b = np.array(xy), np.array(z)
-    return {"n": len(a), "xy_p95": float(np.percentile(a, 95)), "xy_max": float(a.max()),
-            "z_p95": float(np.percentile(b, 95)), "z_max": float(b.max())}  # fmt: skip
+    return error_figures(xy, z)
 
 
 def wizard_in(minutes: float, w: dict[str, float], per_landmark_s: float = 20.0) -> str:
@@ -195,9 +209,12 @@ def in_view_along(
         pose = drive.truth[f] + rng.normal(0.0, [0.02, 0.02, math.radians(0.5)])
         px, ok = predict_pixels(cam, T_world_body_from_pose(*pose), pos)
         inside = (
-            ok & (px[:, 0] >= margin_px) & (px[:, 0] <= cam.width - 1 - margin_px)
-            & (px[:, 1] >= margin_px) & (px[:, 1] <= cam.height - 1 - margin_px)
-        )  # fmt: skip
+            ok
+            & (px[:, 0] >= margin_px)
+            & (px[:, 0] <= cam.width - 1 - margin_px)
+            & (px[:, 1] >= margin_px)
+            & (px[:, 1] <= cam.height - 1 - margin_px)
+        )
         order = np.argsort(np.linalg.norm(px - centre, axis=1))
         return [int(ids[i]) for i in order if inside[i]]
 
@@ -234,14 +251,18 @@ def survey_seed(
         see = in_view_along(drive, landmarks, np.random.default_rng(seed + 1000))
         route = drive.truth
         drive = simulate_survey_spots(
-            scenario, end_s,
-            lambda t: blink_schedule_in_view(ids, t, end_ns, BlinkConfig(), see), seed=seed,
-        )  # fmt: skip
+            scenario,
+            end_s,
+            lambda t: blink_schedule_in_view(ids, t, end_ns, BlinkConfig(), see),
+            seed=seed,
+        )
         if not np.array_equal(route, drive.truth):
             print("warning: the drive with blinks took another path than the one planned")
-    print(f"\nseed {seed}: simulated {end_s / 60:.0f} min of driving "
-          f"({len(drive.frame_t_ns)} frames) in {time.perf_counter() - t0:.0f} s, blinks "
-          f"{'aimed at the landmarks in view' if aimed else 'round robin'}")  # fmt: skip
+    print(
+        f"\nseed {seed}: simulated {end_s / 60:.0f} min of driving "
+        f"({len(drive.frame_t_ns)} frames) in {time.perf_counter() - t0:.0f} s, blinks "
+        f"{'aimed at the landmarks in view' if aimed else 'round robin'}"
+    )
     w = wizard(drive, anchors, rng)
     print(
         "\n| drive min | located | x-y p95 mm | x-y max mm | z p95 mm | z max mm "
@@ -288,10 +309,17 @@ def lit_seed(
     from sim.lit_site import anchor_pair, anchor_sweep_then_lit, lit_site_scenario, taped_map
 
     shape: dict[str, object] = (
-        {"size_m": (6.0, 6.0), "n_landmarks": 30, "min_spacing_m": 0.75, "lens": "wide_radtan",
-         "speed_mps": 0.4, "lane_spacing_m": 1.0}
-        if held_out else {}
-    )  # fmt: skip
+        {
+            "size_m": (6.0, 6.0),
+            "n_landmarks": 30,
+            "min_spacing_m": 0.75,
+            "lens": "wide_radtan",
+            "speed_mps": 0.4,
+            "lane_spacing_m": 1.0,
+        }
+        if held_out
+        else {}
+    )
     scenario = lit_site_scenario(seed=seed, close_pairs=close_pairs, **shape)  # type: ignore[arg-type]
     anchors = anchor_pair(scenario)
     end_s = max(minutes) * 60.0
@@ -316,9 +344,10 @@ def lit_seed(
         result = solve_survey(survey_problem(sd, anchors), BundleConfig())
         t2 = time.perf_counter()
         wrong = [
-            lid for lid, e in result.landmarks.items()
+            lid
+            for lid, e in result.landmarks.items()
             if math.hypot(*(e.position - truth[lid])[:2]) > 0.1
-        ]  # fmt: skip
+        ]
         reasons: dict[str, int] = {}
         for why in result.unnamed.values():
             key = why.split(" (")[0].split(":")[0]
@@ -343,13 +372,15 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--minutes", default="2,5,10,15", help="drive times, minutes")
     p.add_argument("--seeds", default="7", help="floors, comma-separated seeds")
     p.add_argument(
-        "--round-robin", action="store_true",
+        "--round-robin",
+        action="store_true",
         help="blink every landmark in turn instead of those the robot sees",
-    )  # fmt: skip
+    )
     p.add_argument(
-        "--exact-anchors", action="store_true",
+        "--exact-anchors",
+        action="store_true",
         help="anchors surveyed without error (tests the sigmas landmark by landmark)",
-    )  # fmt: skip
+    )
     p.add_argument("--lit", action="store_true", help="no blinks: every LED lit (see above)")
     p.add_argument("--close-pairs", type=int, default=0, help="--lit: landmarks 30 cm apart")
     p.add_argument("--held-out", action="store_true", help="--lit: the site never tuned on")
@@ -374,16 +405,20 @@ def main(argv: list[str] | None = None) -> int:
             xy = sum(r["inside_xy"] for r in sel)
             z = sum(r["inside_z"] for r in sel)
             nees = sum(r["nees_xy"] for r in sel) / n
-            print(f"  {m:.0f} min: x-y {xy:.0f}/{n:.0f} ({100 * xy / n:.0f} %), "
-                  f"z {z:.0f}/{n:.0f} ({100 * z / n:.0f} %); x-y error^2 / covariance "
-                  f"{nees:.2f} on average (2: honest); sites with every landmark within: "
-                  f"{sum(r['inside_xy'] == r['n'] for r in sel)}/{len(sel)}")  # fmt: skip
+            print(
+                f"  {m:.0f} min: x-y {xy:.0f}/{n:.0f} ({100 * xy / n:.0f} %), "
+                f"z {z:.0f}/{n:.0f} ({100 * z / n:.0f} %); x-y error^2 / covariance "
+                f"{nees:.2f} on average (2: honest); sites with every landmark within: "
+                f"{sum(r['inside_xy'] == r['n'] for r in sel)}/{len(sel)}"
+            )
             if args.lit:
                 e = np.array([r["xy_p95"] for r in sel]) * 1000
-                print(f"  {m:.0f} min: named wrongly {sum(r['wrong'] for r in sel):.0f}; "
-                      f"x-y p95 per site {', '.join(f'{v:.1f}' for v in e)} mm, max "
-                      f"{1000 * max(r['xy_max'] for r in sel):.1f} mm, z max "
-                      f"{1000 * max(r['z_max'] for r in sel):.1f} mm")  # fmt: skip
+                print(
+                    f"  {m:.0f} min: named wrongly {sum(r['wrong'] for r in sel):.0f}; "
+                    f"x-y p95 per site {', '.join(f'{v:.1f}' for v in e)} mm, max "
+                    f"{1000 * max(r['xy_max'] for r in sel):.1f} mm, z max "
+                    f"{1000 * max(r['z_max'] for r in sel):.1f} mm"
+                )
     return 0
 
 

@@ -50,10 +50,12 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--seed", type=int, default=29)
     p.add_argument("--every", type=float, default=4.0, help="drive seconds between updates")
     p.add_argument(
-        "--between", type=float, default=30.0,
+        "--between",
+        type=float,
+        default=30.0,
         help="drive seconds between updates outside the minute before each mark (the bench's "
         "shortcut: the state is the same kind, the timed updates are the last minute's)",
-    )  # fmt: skip
+    )
     p.add_argument("--lag", type=float, default=IncrementalConfig().lag_s)
     p.add_argument("--no-batch", action="store_true", help="skip the whole-drive solves")
     args = p.parse_args(argv)
@@ -67,10 +69,12 @@ def main(argv: list[str] | None = None) -> int:
     )
     landmarks = taped_map(drive.map_records, anchors, np.random.default_rng(args.seed))
     truth = drive.landmarks_true
-    print(f"seed {args.seed}: {len(truth)} landmarks, anchors {anchors}; simulated "
-          f"{end_s / 60:.0f} min ({len(drive.frame_t_ns)} frames) in "
-          f"{time.perf_counter() - t0:.0f} s; an update every {args.every:.0f} s of drive, "
-          f"lag {args.lag:.0f} s")  # fmt: skip
+    print(
+        f"seed {args.seed}: {len(truth)} landmarks, anchors {anchors}; simulated "
+        f"{end_s / 60:.0f} min ({len(drive.frame_t_ns)} frames) in "
+        f"{time.perf_counter() - t0:.0f} s; an update every {args.every:.0f} s of drive, "
+        f"lag {args.lag:.0f} s"
+    )
     full = truncated(drive, end_s, landmarks)
     cfg = BundleConfig(max_iterations=12, window_iterations=4)  # the live survey's
     inc = IncrementalConfig(lag_s=args.lag)

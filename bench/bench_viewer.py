@@ -43,10 +43,18 @@ class SyntheticSite:
     def __init__(self) -> None:
         self.camera = wide_angle_camera("fisheye")
         self._lms = [
-            LandmarkState(100 + 6 * j + i, 1.2 * i, 1.2 * j, 2.5, supply_mv=2400 + 25 * (i + j),
-                          percent=30.0 + 8 * (i + j), days_left=50.0 + i)
-            for j in range(5) for i in range(6)
-        ]  # fmt: skip
+            LandmarkState(
+                100 + 6 * j + i,
+                1.2 * i,
+                1.2 * j,
+                2.5,
+                supply_mv=2400 + 25 * (i + j),
+                percent=30.0 + 8 * (i + j),
+                days_left=50.0 + i,
+            )
+            for j in range(5)
+            for i in range(6)
+        ]
         self._t0 = time.monotonic_ns()
 
     def landmarks(self) -> list[LandmarkState]:
@@ -88,9 +96,16 @@ async def _clients(port: int, n: int, seconds: float) -> list[int]:
     from websockets.typing import Subprotocol
 
     cam = _messages.ViewerCameraMessage(
-        (1.0, 0.0, 0.0, 0.0), (0.0, -8.0, 6.0), 1.0, 0.01, 100.0, 800, 1280,
-        (3.0, 2.4, 1.0), (0.0, 0.0, 1.0),
-    )  # fmt: skip
+        (1.0, 0.0, 0.0, 0.0),
+        (0.0, -8.0, 6.0),
+        1.0,
+        0.01,
+        100.0,
+        800,
+        1280,
+        (3.0, 2.4, 1.0),
+        (0.0, 0.0, 1.0),
+    )
     hello = msgspec.msgpack.encode(cam.as_serializable_dict())
     counts = [0] * n
 
@@ -134,10 +149,17 @@ def measure(
     if n_clients:
         kind = "--browser" if browsers else "--client"
         proc = subprocess.Popen(
-            [sys.executable, __file__, kind, str(viewer.port), str(n_clients),
-             str(seconds + (20 if browsers else 2))],
-            stdout=subprocess.PIPE, text=True,
-        )  # fmt: skip
+            [
+                sys.executable,
+                __file__,
+                kind,
+                str(viewer.port),
+                str(n_clients),
+                str(seconds + (20 if browsers else 2)),
+            ],
+            stdout=subprocess.PIPE,
+            text=True,
+        )
         time.sleep(15.0 if browsers else 2.0)  # connect, load, receive the initial scene
     ticks0, t0, c0 = viewer.ticks, time.monotonic(), time.process_time()
     time.sleep(seconds)

@@ -47,10 +47,10 @@ from bench.foreign.run import recording_for_case  # noqa: E402
 from bench.robustness import MATRIX_FILES, load_matrix, recording_for  # noqa: E402
 from localizer.events import MODES, NoPose, PoseEstimate  # noqa: E402
 from localizer.geometry import wrap_angle  # noqa: E402
+from localizer.types import FloatArray  # noqa: E402
 from recording.reader import read_groundtruth  # noqa: E402
 from recording.replay_cli import replay  # noqa: E402
 
-FloatArray = npt.NDArray[np.float64]
 CHI2_2DOF_95 = 5.991
 """The 95 % point of chi-square with 2 degrees of freedom."""
 GROUPS = ("matrix", "held_out", "foreign")
@@ -83,9 +83,13 @@ def frames_of(
     ]
     t = np.array([e.t_ns for e in poses], dtype=np.int64)
     unwrapped = np.unwrap(gt[:, 2])
-    truth = np.column_stack([np.interp(t, t_gt, gt[:, j]) for j in (0, 1)] + [
-        np.interp(t, t_gt, unwrapped)
-    ]) if len(t) else np.zeros((0, 3))  # fmt: skip
+    truth = (
+        np.column_stack(
+            [np.interp(t, t_gt, gt[:, j]) for j in (0, 1)] + [np.interp(t, t_gt, unwrapped)]
+        )
+        if len(t)
+        else np.zeros((0, 3))
+    )
     est = np.array([(e.x, e.y, e.theta) for e in poses], dtype=np.float64).reshape(-1, 3)
     err = est - truth
     err[:, 2] = wrap_angle(err[:, 2]) if len(err) else err[:, 2]
@@ -106,8 +110,11 @@ def run_job(job: Job) -> tuple[Job, dict[str, Any]]:
     """Localize one recording and return its frames (a worker process's job)."""
     kidnaps: list[tuple[int, int]] = []
     if job.kind == "matrix":
-        runs = {r.name: r for f, h in zip(MATRIX_FILES, (False, True), strict=True)
-                for r in load_matrix(f, held_out=h)}  # fmt: skip
+        runs = {
+            r.name: r
+            for f, h in zip(MATRIX_FILES, (False, True), strict=True)
+            for r in load_matrix(f, held_out=h)
+        }
         run = runs[job.name]
         rec, kidnaps = recording_for(run, run.build(), job.work, run.duration_s)
     else:
@@ -169,20 +176,36 @@ def summarize(per_job: list[tuple[Job, dict[str, Any]]]) -> dict[str, dict[str, 
 
 def table(summary: dict[str, dict[str, dict[str, float]]]) -> str:
     """The figures as markdown."""
-    head = ("group", "mode", "frames", "pos in 95 % ellipse", "hdg in 2 sigma",
-            "pos NEES median", "hdg NEES median", "err p95 cm", "in deviation_m",
-            "deviation_m median cm")  # fmt: skip
+    head = (
+        "group",
+        "mode",
+        "frames",
+        "pos in 95 % ellipse",
+        "hdg in 2 sigma",
+        "pos NEES median",
+        "hdg NEES median",
+        "err p95 cm",
+        "in deviation_m",
+        "deviation_m median cm",
+    )
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for group, rows in summary.items():
         for mode, r in rows.items():
             if not r.get("frames"):
                 continue
             dev = "deviation_median_cm"
-            cells = [group, mode, str(r["frames"]), f"{100 * r['pos_in_95']:.1f} %",
-                     f"{100 * r['hdg_in_2sigma']:.1f} %", f"{r['pos_nees_median']:.2f}",
-                     f"{r['hdg_nees_median']:.2f}", f"{r['err_p95_cm']:.1f}",
-                     f"{100 * r['in_deviation']:.1f} %" if "in_deviation" in r else "-",
-                     f"{r[dev]:.1f}" if dev in r else "-"]  # fmt: skip
+            cells = [
+                group,
+                mode,
+                str(r["frames"]),
+                f"{100 * r['pos_in_95']:.1f} %",
+                f"{100 * r['hdg_in_2sigma']:.1f} %",
+                f"{r['pos_nees_median']:.2f}",
+                f"{r['hdg_nees_median']:.2f}",
+                f"{r['err_p95_cm']:.1f}",
+                f"{100 * r['in_deviation']:.1f} %" if "in_deviation" in r else "-",
+                f"{r[dev]:.1f}" if dev in r else "-",
+            ]
             lines.append("| " + " | ".join(cells) + " |")
     return "\n".join(lines)
 
@@ -207,10 +230,18 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--jobs", type=int, default=2, help="worker processes (default 2)")
     p.add_argument("--json", type=Path, default=None, help="write the table's figures here")
     p.add_argument("--frames", type=Path, default=None, help="write per-frame figures (.npz)")
-    p.add_argument("--work", type=Path, default=Path(tempfile.gettempdir()) / "irloc-robustness",
-                   help="the robustness matrix's recordings (simulated when missing)")  # fmt: skip
-    p.add_argument("--foreign-work", type=Path, default=Path("/tmp/irloc-foreign"),
-                   help="the foreign recordings (generated when missing)")  # fmt: skip
+    p.add_argument(
+        "--work",
+        type=Path,
+        default=Path(tempfile.gettempdir()) / "irloc-robustness",
+        help="the robustness matrix's recordings (simulated when missing)",
+    )
+    p.add_argument(
+        "--foreign-work",
+        type=Path,
+        default=Path("/tmp/irloc-foreign"),
+        help="the foreign recordings (generated when missing)",
+    )
     p.add_argument("--foreign", action=argparse.BooleanOptionalAction, default=True)
     args = p.parse_args(argv)
     jobs = jobs_from(args)

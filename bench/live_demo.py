@@ -37,10 +37,20 @@ def main(argv: list[str]) -> int:
         key, _, value = kv.partition("=")
         env[key] = value
     data = tempfile.mkdtemp(prefix=f"live_{name}_")
-    cmd = [sys.executable, "-m", "irloc", "serve", "--no-viewer", "--port", str(port),
-           "--data-dir", data]  # fmt: skip
-    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, env=env,
-                            text=True, cwd=ROOT)  # fmt: skip
+    cmd = [
+        sys.executable,
+        "-m",
+        "irloc",
+        "serve",
+        "--no-viewer",
+        "--port",
+        str(port),
+        "--data-dir",
+        data,
+    ]
+    proc = subprocess.Popen(
+        cmd, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, env=env, text=True, cwd=ROOT
+    )
     assert proc.stdout is not None
     key = None
     while key is None:
@@ -52,8 +62,9 @@ def main(argv: list[str]) -> int:
             key = line.rsplit(": ", 1)[1].strip()
 
     def get(path: str) -> Any:
-        req = urllib.request.Request(f"http://127.0.0.1:{port}/api/v1{path}",
-                                     headers={"Authorization": f"Bearer {key}"})  # fmt: skip
+        req = urllib.request.Request(
+            f"http://127.0.0.1:{port}/api/v1{path}", headers={"Authorization": f"Bearer {key}"}
+        )
         with urllib.request.urlopen(req, timeout=10) as r:
             return json.loads(r.read())
 
@@ -90,9 +101,11 @@ def main(argv: list[str]) -> int:
         total = sum(modes[n].values())
         shares = ", ".join(f"{m} {100 * c / total:.1f} %" for m, c in modes[n].most_common())
         a = sorted(ages[n]) or [float("nan")]
-        print(f"  {n}: first fix {first.get(n, float('nan')):.1f} s, lost {lost.get(n, 0)}; "
-              f"{shares}; pose age median {a[len(a) // 2]:.3f} s, "
-              f"p95 {a[min(int(0.95 * len(a)), len(a) - 1)]:.3f} s, max {a[-1]:.3f} s")  # fmt: skip
+        print(
+            f"  {n}: first fix {first.get(n, float('nan')):.1f} s, lost {lost.get(n, 0)}; "
+            f"{shares}; pose age median {a[len(a) // 2]:.3f} s, "
+            f"p95 {a[min(int(0.95 * len(a)), len(a) - 1)]:.3f} s, max {a[-1]:.3f} s"
+        )
     return 0
 
 

@@ -96,8 +96,18 @@ def load_matrix(path: Path, *, held_out: bool) -> list[Run]:
     """
     doc = Node(yaml.safe_load(path.read_text(encoding="utf-8")), "", str(path)).mapping(("runs",))
     runs = []
-    keys = ("name", "scenario", "covers", "loop", "robot", "lens", "calibration", "seed",
-            "duration_s", "targets")  # fmt: skip
+    keys = (
+        "name",
+        "scenario",
+        "covers",
+        "loop",
+        "robot",
+        "lens",
+        "calibration",
+        "seed",
+        "duration_s",
+        "targets",
+    )
     for n in doc.child("runs", required=True).items():
         n.mapping(keys)
         scenario = path.parent / n.string("scenario")
@@ -217,9 +227,12 @@ def _live_run(run: Run, sc: Scenario, duration_s: float) -> Score:
     results = [r for r in live.results if r.t_ns in live.truth]
     rig = live.site.rig(run.robot or sc.robots[0].name)
     return score(
-        results, live.truth.__getitem__, site_truth(live.site.world, rig),
-        kidnaps=live.kidnaps, t_start_ns=live.t_start_ns,
-    )  # fmt: skip
+        results,
+        live.truth.__getitem__,
+        site_truth(live.site.world, rig),
+        kidnaps=live.kidnaps,
+        t_start_ns=live.t_start_ns,
+    )
 
 
 def execute(job: tuple[Run, Path, bool, bool]) -> dict[str, Any]:
@@ -234,9 +247,16 @@ def execute(job: tuple[Run, Path, bool, bool]) -> dict[str, Any]:
         else _replay_run(run, sc, work, duration, fresh)
     )
     out = dataclasses.asdict(s)
-    out.update(name=run.name, covers=run.covers, loop=run.loop, held_out=run.held_out,
-               duration_s=duration, wall_s=time.perf_counter() - t0,
-               failed=check_targets(s, run.targets), has_targets=bool(run.targets))  # fmt: skip
+    out.update(
+        name=run.name,
+        covers=run.covers,
+        loop=run.loop,
+        held_out=run.held_out,
+        duration_s=duration,
+        wall_s=time.perf_counter() - t0,
+        failed=check_targets(s, run.targets),
+        has_targets=bool(run.targets),
+    )
     return out
 
 
@@ -265,9 +285,24 @@ def _pct(row: dict[str, Any], mode: str) -> str:
     return f"{100 * row['modes'].get(mode, 0) / max(row['frames'], 1):.0f}"
 
 
-COLUMNS = ("run", "loop", "frames", "p95 cm", "max cm", "hdg mean deg", "hdg max deg",
-           "landmark %", "DR %", "lost %", "other %", "wrong ID", "gross", "DR > 25 cm",
-           "recover s", "targets")  # fmt: skip
+COLUMNS = (
+    "run",
+    "loop",
+    "frames",
+    "p95 cm",
+    "max cm",
+    "hdg mean deg",
+    "hdg max deg",
+    "landmark %",
+    "DR %",
+    "lost %",
+    "other %",
+    "wrong ID",
+    "gross",
+    "DR > 25 cm",
+    "recover s",
+    "targets",
+)
 
 
 def table(rows: list[dict[str, Any]]) -> str:
@@ -308,8 +343,14 @@ def comparison(rows: list[dict[str, Any]], baseline: list[dict[str, Any]]) -> st
 
     def figures(r: dict[str, Any]) -> list[str]:
         rec = " ".join("never" if v is None else f"{v:.1f}" for v in r["recover_s"]) or "-"
-        return [f"{100 * r['p95_m']:.1f}", f"{math.degrees(r['heading_mean_rad']):.3f}",
-                _pct(r, "landmark"), _pct(r, "lost"), str(r["misidentified"]), rec]  # fmt: skip
+        return [
+            f"{100 * r['p95_m']:.1f}",
+            f"{math.degrees(r['heading_mean_rad']):.3f}",
+            _pct(r, "landmark"),
+            _pct(r, "lost"),
+            str(r["misidentified"]),
+            rec,
+        ]
 
     for r in rows:
         was = before.get(r["name"])
@@ -323,22 +364,36 @@ def comparison(rows: list[dict[str, Any]], baseline: list[dict[str, Any]]) -> st
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--only", action="append", default=[], metavar="PATTERN",
-                        help="runs whose name matches this glob (repeatable)")  # fmt: skip
+    parser.add_argument(
+        "--only",
+        action="append",
+        default=[],
+        metavar="PATTERN",
+        help="runs whose name matches this glob (repeatable)",
+    )
     parser.add_argument("--quick", action="store_true", help=f"at most {QUICK_S:g} s per run")
     parser.add_argument("--jobs", type=int, default=2, help="worker processes (default 2)")
-    parser.add_argument("--held-out", action=argparse.BooleanOptionalAction, default=True,
-                        help="include the held-out runs (default yes)")  # fmt: skip
+    parser.add_argument(
+        "--held-out",
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help="include the held-out runs (default yes)",
+    )
     parser.add_argument("--json", type=Path, default=None, help="write the figures here")
     parser.add_argument(
-        "--baseline", type=Path, default=None, metavar="JSON",
+        "--baseline",
+        type=Path,
+        default=None,
+        metavar="JSON",
         help="also print the headline figures against this earlier --json (e.g. "
         "bench/robustness/results/before.json)",
-    )  # fmt: skip
+    )
     parser.add_argument(
-        "--work", type=Path, default=Path(tempfile.gettempdir()) / "irloc-robustness",
+        "--work",
+        type=Path,
+        default=Path(tempfile.gettempdir()) / "irloc-robustness",
         help="recordings are cached here",
-    )  # fmt: skip
+    )
     parser.add_argument("--fresh", action="store_true", help="simulate again, ignoring the cache")
     args = parser.parse_args(argv)
     runs = load_matrix(MATRIX_FILES[0], held_out=False)

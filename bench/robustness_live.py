@@ -115,9 +115,13 @@ class LiveRun:
 
 
 async def _run(
-    site: VirtualSite, name: str, clock: _Clock, duration_s: float, step_s: float,
+    site: VirtualSite,
+    name: str,
+    clock: _Clock,
+    duration_s: float,
+    step_s: float,
     config: LocalizerConfig | None,
-) -> LiveRun:  # fmt: skip
+) -> LiveRun:
     records = site.landmark_records()
     addresses = {int(str(r["id"])): str(r["radio"]) for r in records}
     gateway = Gateway(

@@ -101,9 +101,11 @@ class Score:
 
 
 def wrong_ids(
-    truth: SiteTruth, pose_est: tuple[float, float, float], pose_true: tuple[float, float, float],
+    truth: SiteTruth,
+    pose_est: tuple[float, float, float],
+    pose_true: tuple[float, float, float],
     landmark_ids: Sequence[int],
-) -> list[str]:  # fmt: skip
+) -> list[str]:
     """The named landmarks of one frame that are not the one truly at their spot (a short
     description of each; empty when all are right)."""
     ids = [i for i in landmark_ids if i in truth.surveyed]

@@ -68,9 +68,12 @@ def main() -> None:
     try:
         with sync_playwright() as p:
             ctx = p.chromium.launch_persistent_context(
-                tempfile.mkdtemp(), executable_path=str(CHROMIUM), headless=True, args=ARGS,
+                tempfile.mkdtemp(),
+                executable_path=str(CHROMIUM),
+                headless=True,
+                args=ARGS,
                 viewport={"width": 1280, "height": 800},
-            )  # fmt: skip
+            )
             ctx.add_init_script(script=throttle_frames(10))
             page = ctx.new_page()
             page.set_default_timeout(90_000)

@@ -137,8 +137,14 @@ async def run_site(
     def clock_ns() -> int:
         return round(loop.time() * 1e9)
 
-    site = VirtualSite(sc, seed=seed, clock_ns=clock_ns, radio_sleep=radio_sleep(settings),
-                    observe="spots", max_frame_lag_s=10.0)  # fmt: skip
+    site = VirtualSite(
+        sc,
+        seed=seed,
+        clock_ns=clock_ns,
+        radio_sleep=radio_sleep(settings),
+        observe="spots",
+        max_frame_lag_s=10.0,
+    )
     records = site.landmark_records()
     lmap = LandmarkMap.from_records(records)
     gateway = Gateway(
@@ -166,9 +172,13 @@ async def run_site(
     for name in site.robot_names:
         cam, geo = site.camera(name), site.robot_geometry(name)
         runners[name] = RobotRunner(
-            name, cam, geo, make_localizer(cam, lmap, geo, localizer_config(settings)),
-            publish=publish, request_leds=leds.request,
-        )  # fmt: skip
+            name,
+            cam,
+            geo,
+            make_localizer(cam, lmap, geo, localizer_config(settings)),
+            publish=publish,
+            request_leds=leds.request,
+        )
     if known_poses:
         rng = np.random.default_rng(0 if seed is None else seed)
         for name, runner in runners.items():
@@ -183,9 +193,13 @@ async def run_site(
     positions = np.asarray(lmap.positions, dtype=np.float64)
     if settings.led_policy == "scheduled":
         run.scheduler = make_scheduler(
-            lambda: (ids, positions), lambda: list(runners.values()), leds, clock_ns, settings,
+            lambda: (ids, positions),
+            lambda: list(runners.values()),
+            leds,
+            clock_ns,
+            settings,
             routes=site.planned_route if routes else None,
-        )  # fmt: skip
+        )
     t0 = loop.time()
     run.t0_ns, run.measure_from_s = clock_ns(), measure_from_s
     site.step(clock_ns())

@@ -190,8 +190,15 @@ class PoseMessage(_Msg):
 
     @classmethod
     def from_no_pose(cls, seq: int, out: NoPose, t_ns: int, wall_ns: int) -> PoseMessage:
-        return cls(seq=seq, t_ns=t_ns, wall_ns=wall_ns, mode=out.mode, quality=out.quality,
-                   reason=out.reason, reason_text=out.reason_text or None)  # fmt: skip
+        return cls(
+            seq=seq,
+            t_ns=t_ns,
+            wall_ns=wall_ns,
+            mode=out.mode,
+            quality=out.quality,
+            reason=out.reason,
+            reason_text=out.reason_text or None,
+        )
 
     @field_validator("spots")
     @classmethod

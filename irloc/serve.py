@@ -56,9 +56,23 @@ def ros2_agents_command(
     mqtt: str, scenario: str | None, seed: int | None, camera_rate: float
 ) -> list[str]:
     """The `irloc agent` process of the demo's ROS 2 robots."""
-    cmd = [sys.executable, "-m", "irloc", "agent", "--mqtt", mqtt, "--ros2", "--sim",
-           "--name", "all", "--start-known", "--camera-rate", str(camera_rate),
-           "--log-level", "warning"]  # fmt: skip
+    cmd = [
+        sys.executable,
+        "-m",
+        "irloc",
+        "agent",
+        "--mqtt",
+        mqtt,
+        "--ros2",
+        "--sim",
+        "--name",
+        "all",
+        "--start-known",
+        "--camera-rate",
+        str(camera_rate),
+        "--log-level",
+        "warning",
+    ]
     if scenario is not None:
         cmd += ["--scenario", scenario]
     if seed is not None:

@@ -29,9 +29,11 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--lens", choices=LENSES, default=None, help="override the lens model")
     parser.add_argument(
-        "--calibration", choices=tuple(CALIBRATION_LEVELS), default=None,
+        "--calibration",
+        choices=tuple(CALIBRATION_LEVELS),
+        default=None,
         help="override every camera's calibration error (the lens handed over vs the true one)",
-    )  # fmt: skip
+    )
     parser.add_argument("--robot", default=None, help="which robot (default: the first)")
     parser.add_argument("--force", action="store_true", help="write into a non-empty OUTDIR")
     parser.add_argument("--quiet", action="store_true", help="no progress or summary")
@@ -67,9 +69,14 @@ def main(argv: list[str]) -> int:
 
     try:
         summary = simulate_recording(
-            scenario, out, seed=args.seed, duration_s=duration, lens=args.lens,
-            robot=args.robot, progress=progress,
-        )  # fmt: skip
+            scenario,
+            out,
+            seed=args.seed,
+            duration_s=duration,
+            lens=args.lens,
+            robot=args.robot,
+            progress=progress,
+        )
     except ValueError as exc:
         print(f"irloc simulate: {exc}", file=sys.stderr)
         return 2

@@ -44,6 +44,13 @@ def simulate_recording(
         return RecordingWriter(out_dir, camera, robot_geometry, records)
 
     return offline.simulate_recording(
-        scenario, open_writer, seed=seed, duration_s=duration_s, lens=lens, robot=robot,
-        sweep=sweep, led_program=led_program, progress=progress,
-    )  # fmt: skip
+        scenario,
+        open_writer,
+        seed=seed,
+        duration_s=duration_s,
+        lens=lens,
+        robot=robot,
+        sweep=sweep,
+        led_program=led_program,
+        progress=progress,
+    )

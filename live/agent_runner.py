@@ -95,10 +95,17 @@ class AgentRunner(RobotRunner):
         if msg.floor is not None and msg.floor != self.floor and msg.x is not None:
             # on another floor's map than the site has it on (it has not taken the floor
             # it was told yet): no pose of one floor goes out as another's
-            msg = msg.model_copy(update={
-                "x": None, "y": None, "theta": None, "cov": None, "spots": None,
-                "floor": self.floor, "map_version": self.map_version,
-            })  # fmt: skip
+            msg = msg.model_copy(
+                update={
+                    "x": None,
+                    "y": None,
+                    "theta": None,
+                    "cov": None,
+                    "spots": None,
+                    "floor": self.floor,
+                    "map_version": self.map_version,
+                }
+            )
             withheld = True
         else:
             withheld = False

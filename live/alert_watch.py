@@ -108,8 +108,15 @@ class AlertWatch:
             if count != seen.agent_count:
                 seen.agent_count, seen.frame = count, now
             if not runner.connected:
-                out.append(Condition("robot_offline", name, f"agent {name} is disconnected",
-                                     robot=name, data={"source": "agent"}))  # fmt: skip
+                out.append(
+                    Condition(
+                        "robot_offline",
+                        name,
+                        f"agent {name} is disconnected",
+                        robot=name,
+                        data={"source": "agent"},
+                    )
+                )
                 unsure.update({("robot_lost", name), ("camera_stale", name)})
                 return out
         if runner.mode == "lost":
@@ -119,17 +126,24 @@ class AlertWatch:
             what = "no pose message" if isinstance(runner, AgentRunner) else "no camera frame"
             out.append(
                 Condition(
-                    "camera_stale", name,
+                    "camera_stale",
+                    name,
                     f"robot {name}: {what} for {now - last_frame:.0f} s",
-                    robot=name, data={"silent_s": round(now - last_frame, 1),
-                                      "ever": seen.frame is not None},
+                    robot=name,
+                    data={"silent_s": round(now - last_frame, 1), "ever": seen.frame is not None},
                 )
-            )  # fmt: skip
+            )
         if seen.odometry is not None and now - seen.odometry >= self.stale_s:
             silent = round(now - seen.odometry, 1)
-            out.append(Condition("odometry_stale", name,
-                                 f"robot {name}: no wheel odometry for {silent:.0f} s",
-                                 robot=name, data={"silent_s": silent}))  # fmt: skip
+            out.append(
+                Condition(
+                    "odometry_stale",
+                    name,
+                    f"robot {name}: no wheel odometry for {silent:.0f} s",
+                    robot=name,
+                    data={"silent_s": silent},
+                )
+            )
         return out
 
     def _radio(self, unsure: set[tuple[str, str | None]]) -> list[Condition]:
@@ -139,21 +153,32 @@ class AlertWatch:
         state = str(gw.transport.state)
         if state != "open":
             unsure.add(("landmark_unreachable", None))
-            return [Condition("radio_down", RADIO, f"radio link is {state}",
-                              data={"state": state})]  # fmt: skip
+            return [Condition("radio_down", RADIO, f"radio link is {state}", data={"state": state})]
         out: list[Condition] = []
         addresses = gw.landmarks
         for lid in sorted(gw.unreachable):
             address = addresses.get(lid, "?")
-            out.append(Condition("landmark_unreachable", str(lid),
-                                 f"landmark {lid} does not answer (radio {address})",
-                                 landmark_id=lid, data={"address": address}))  # fmt: skip
+            out.append(
+                Condition(
+                    "landmark_unreachable",
+                    str(lid),
+                    f"landmark {lid} does not answer (radio {address})",
+                    landmark_id=lid,
+                    data={"address": address},
+                )
+            )
         for lid in sorted(gw.batteries.low):
             reading = gw.batteries.latest(lid)
             mv = None if reading is None else reading.supply_mv
             days = None if reading is None else reading.days_left
             said = "" if mv is None else f": {mv} mV"
-            out.append(Condition("landmark_low_battery", str(lid),
-                                 f"landmark {lid} battery low{said}", landmark_id=lid,
-                                 data={"supply_mv": mv, "days_left": days}))  # fmt: skip
+            out.append(
+                Condition(
+                    "landmark_low_battery",
+                    str(lid),
+                    f"landmark {lid} battery low{said}",
+                    landmark_id=lid,
+                    data={"supply_mv": mv, "days_left": days},
+                )
+            )
         return out

@@ -300,8 +300,12 @@ def write_black_box(
             rec.add_pose(p)
     start = next((p for p in poses if isinstance(p, PoseEstimate)), None)
     if start is not None:
-        prior = {"x": float(start.x), "y": float(start.y), "theta": float(start.theta),
-                 "timestamp_ns": int(start.t_ns)}  # fmt: skip
+        prior = {
+            "x": float(start.x),
+            "y": float(start.y),
+            "theta": float(start.theta),
+            "timestamp_ns": int(start.t_ns),
+        }
         if start.deviation_m is not None and start.deviation_m > 0:
             prior["radius_m"] = float(start.deviation_m)
         (root / START_POSE_FILE).write_text(yaml.safe_dump(prior), encoding="utf-8")
@@ -315,9 +319,14 @@ def read_black_box(folder: Path) -> BlackBoxRecording | None:
         if trigger not in TRIGGERS:
             return None
         return BlackBoxRecording(
-            folder, str(meta["robot"]), trigger, meta.get("reason"), int(meta["t_ns"]),
-            str(meta["saved_at"]), folder_bytes(folder),
-        )  # fmt: skip
+            folder,
+            str(meta["robot"]),
+            trigger,
+            meta.get("reason"),
+            int(meta["t_ns"]),
+            str(meta["saved_at"]),
+            folder_bytes(folder),
+        )
     except (OSError, ValueError, KeyError, TypeError):
         return None
 

@@ -44,9 +44,11 @@ async def replace_cells(services: SiteServices, landmark_id: int, *, actor: str)
     for a landmark not in the map (nothing stored)."""
     services.map.get(landmark_id)
     services.events.emit(
-        "cells_replaced", f"landmark {landmark_id}: cells replaced by {actor}",
-        landmark_id=landmark_id, data={"actor": actor},
-    )  # fmt: skip
+        "cells_replaced",
+        f"landmark {landmark_id}: cells replaced by {actor}",
+        landmark_id=landmark_id,
+        data={"actor": actor},
+    )
     services.events.flush()  # stored before the status below reads past it
     sim = services.virtual_site
     if sim is not None and landmark_id in sim.world.landmarks:

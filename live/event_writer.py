@@ -107,9 +107,13 @@ class EventWriter:
     def _store(self, ev: PendingEvent) -> bool:
         try:
             rec = self.log.add_event(
-                ev.kind, ev.message, robot=ev.robot, landmark_id=ev.landmark_id, data=ev.data,
+                ev.kind,
+                ev.message,
+                robot=ev.robot,
+                landmark_id=ev.landmark_id,
+                data=ev.data,
                 t=ev.t,
-            )  # fmt: skip
+            )
         except Exception as exc:  # the database is down, locked or full: keep it for later
             self.store_failures += 1
             if self.problem is None:
@@ -123,8 +127,9 @@ class EventWriter:
             return False
         if self.problem is not None:
             took = time.monotonic() - (self.failing_since or time.monotonic())
-            log.warning("events are stored again (after %.1f s; %d waiting)", took,
-                        len(self._retry))  # fmt: skip
+            log.warning(
+                "events are stored again (after %.1f s; %d waiting)", took, len(self._retry)
+            )
             self.problem = self.failing_since = None
         self.written += 1
         if not ev.published:

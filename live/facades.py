@@ -203,8 +203,11 @@ class LedsAndRadio:
         try:
             self.log.add_battery(reading.landmark_id, reading.supply_mv)
         except Exception as exc:  # a failing database loses this reading, stops nothing
-            log.warning("battery reading of landmark %d not stored: %s", reading.landmark_id,
-                        str(exc).splitlines()[0][:160])  # fmt: skip
+            log.warning(
+                "battery reading of landmark %d not stored: %s",
+                reading.landmark_id,
+                str(exc).splitlines()[0][:160],
+            )
 
     def _gw(self) -> Gateway:
         if self.gateway is None:

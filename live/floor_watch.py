@@ -196,15 +196,21 @@ class FloorWatch:
         """The floor proposed for `robot` now (with its latest pose there), or None."""
         with self._lock:
             found = self._proposals.get(robot)
-            trial = next((t for t in self._trials.get(robot, []) if found and
-                          t.floor == found.floor), None)  # fmt: skip
+            trial = next(
+                (t for t in self._trials.get(robot, []) if found and t.floor == found.floor), None
+            )
             if found is None or trial is None or trial.last is None:
                 return found
             last = trial.last
             return FloorProposal(
-                robot, found.floor, float(last.x), float(last.y), float(last.theta),
-                last.t_ns, trial.fixes,
-            )  # fmt: skip
+                robot,
+                found.floor,
+                float(last.x),
+                float(last.y),
+                float(last.theta),
+                last.t_ns,
+                trial.fixes,
+            )
 
     def accept(self, robot: str, *, by: str) -> FloorProposal:
         """Move the robot to its proposed floor, near its latest pose there.
@@ -315,8 +321,12 @@ class FloorWatch:
         if trials:
             self._trials[runner.name] = trials
             self._trial_from[runner.name] = runner.floor
-            log.info("robot %s: no fix on floor %s, trying floors %s", runner.name,
-                     runner.floor, [t.floor for t in trials])  # fmt: skip
+            log.info(
+                "robot %s: no fix on floor %s, trying floors %s",
+                runner.name,
+                runner.floor,
+                [t.floor for t in trials],
+            )
 
     def _sees_landmarks(self, runner: RobotRunner) -> bool:
         """Whether the robot's latest frame shows two spots or more: a view that does not
@@ -347,8 +357,15 @@ class FloorWatch:
     def _propose(self, runner: RobotRunner, trial: _Trial) -> FloorProposal:
         assert trial.last is not None and trial.floor != runner.floor
         last = trial.last
-        prop = FloorProposal(runner.name, trial.floor, float(last.x), float(last.y),
-                             float(last.theta), last.t_ns, trial.fixes)  # fmt: skip
+        prop = FloorProposal(
+            runner.name,
+            trial.floor,
+            float(last.x),
+            float(last.y),
+            float(last.theta),
+            last.t_ns,
+            trial.fixes,
+        )
         self._proposals[runner.name] = prop
         self.events.emit(
             "floor_proposed",
@@ -356,9 +373,14 @@ class FloorWatch:
             f"{runner.floor} where the site has it: its view fits floor {trial.floor}'s map "
             f"(at {prop.x:.2f}, {prop.y:.2f}); accept or reject",
             robot=runner.name,
-            data={"floor": trial.floor, "from": runner.floor, "x": prop.x, "y": prop.y,
-                  "theta": prop.theta},
-        )  # fmt: skip
+            data={
+                "floor": trial.floor,
+                "from": runner.floor,
+                "x": prop.x,
+                "y": prop.y,
+                "theta": prop.theta,
+            },
+        )
         return prop
 
     def _end(self, name: str) -> None:

@@ -9,6 +9,9 @@ ACL is the lock, docs/fleet.md): `FleetGuard` (`live.fleet_guard`) decides which
 registered, whose LED requests are served and which poses are dropped; a map on the map
 topic that this server did not publish is replaced by the site's at once.
 
+What an agent's messages mean for its robot on the site (arrival, loss, status checks,
+LED requests) is `live.fleet_agents`; this module is the broker connection around it.
+
 Each floor's map goes on its own retained topic and each agent is told its floor, again
 when it changes floors (`live.agent_floors`); an agent's poses on another floor's map than
 the site has it on are withheld.
@@ -23,7 +26,6 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import functools
-import json
 import logging
 import time
 from concurrent.futures import ThreadPoolExecutor
@@ -54,12 +56,11 @@ from fleet.topics import (
     vda_serial_of,
 )
 from live.agent_floors import AgentFloors, Message, Near
-from live.agent_runner import AgentRunner
 from live.alerts import Notification
 from live.events import EventKind
+from live.fleet_agents import FleetAgents
 from live.fleet_guard import FleetGuard
-from live.pose_reasons import ReasonTally, mode_change_event
-from localizer.events import LedsChanged, Mode
+from localizer.events import LedsChanged
 from store.models import LandmarkPublic
 
 if TYPE_CHECKING:
@@ -105,9 +106,6 @@ class MqttBridge:
         self._task: asyncio.Task[None] | None = None
         self._led_seq = 0
         self._led_last: bytes | None = None
-        self._status: dict[str, AgentStatus] = {}
-        self._outdated_told: dict[str, int] = {}  # agent -> the old version it was told of
-        self._online: set[str] = set()
         self._gateway_listening = False
         self._events = ThreadPoolExecutor(max_workers=1, thread_name_prefix="mqtt-events")
         self.guard = FleetGuard(
@@ -119,6 +117,17 @@ class MqttBridge:
         )
         self._alerts: dict[str, bytes] = {}  # topic -> retained payload of each active alert
         self.agent_floors = AgentFloors(services, self.topics)
+        self.agents = FleetAgents(
+            services,
+            self.guard,
+            self.agent_floors,
+            self.clock,
+            emit=self._emit,
+            send_all=self._send_all,
+            send_default_map=self._send_default_map,
+            send_command=self._send_command,
+            site_from_wall=self.site_from_wall,
+        )
 
     # -- lifecycle --------------------------------------------------------------------------------
     def start(self) -> None:
@@ -164,6 +173,9 @@ class MqttBridge:
         items = landmarks if landmarks is not None else self.services.map.list()
         return self.agent_floors.map_message(self.services.floors.default(), items)
 
+    def _send_default_map(self) -> None:
+        self._send(self.topics.map, self.map_message(), QOS_STATE, True)
+
     def _send_all(self, messages: list[Message]) -> None:
         for topic, payload in messages:
             self._send(topic, payload, QOS_STATE, True)
@@ -174,7 +186,7 @@ class MqttBridge:
 
     def _on_moved(self, robot: str, floor: str, old: str, near: Near | None) -> None:
         """A robot changed floors (told, or a proposal accepted): an agent is told."""
-        if self._agent(robot) is not None:
+        if self.agents.agent(robot) is not None:
             self._send_all([self.agent_floors.assign(robot, floor, near)])
 
     def _on_map_seen(self, topic: str, payload: bytes) -> None:
@@ -311,23 +323,20 @@ class MqttBridge:
             return
         serial = vda_serial_of(topic)
         if serial is not None and topic.endswith("/connection"):
-            self._on_connection(serial, payload, retained)
+            self.agents.on_connection(serial, payload)
             return
         parts = t.agent_of(topic)
         if parts is None:
             return
         robot, leaf = parts
         if leaf == "pose":
-            runner = self._agent(robot)
-            if runner is not None:
-                msg = decode(PoseMessage, topic, payload)
-                if self.guard.inside_site(robot, msg):
-                    runner.receive(msg)
+            if self.agents.agent(robot) is not None:
+                self.agents.on_pose(robot, decode(PoseMessage, topic, payload))
         elif leaf == "status":
             if payload:
-                self._on_status(robot, decode(AgentStatus, topic, payload))
+                self.agents.on_status(robot, decode(AgentStatus, topic, payload))
         elif leaf == "led_request":
-            self._on_led_request(robot, decode(LedRequestMessage, topic, payload))
+            self.agents.on_led_request(robot, decode(LedRequestMessage, topic, payload))
 
     def _emit(
         self,
@@ -341,149 +350,6 @@ class MqttBridge:
         arriving at once must not stall the pose stream)."""
         emit = functools.partial(self.services.events.emit, robot=robot, data=data)
         self._loop.run_in_executor(self._events, emit, kind, message)
-
-    # -- agents ---------------------------------------------------------------------------------
-    def _agent(self, robot: str) -> AgentRunner | None:
-        try:
-            runner = self.services.robots.get(robot)
-        except KeyError:
-            return None
-        return runner if isinstance(runner, AgentRunner) else None
-
-    def _on_connection(self, robot: str, payload: bytes, retained: bool) -> None:
-        try:
-            state = json.loads(payload).get("connectionState")
-        except (json.JSONDecodeError, AttributeError):
-            raise PayloadError(f"connection of {robot}: not a JSON object") from None
-        emit = self._emit
-        runner = self._agent(robot)
-        if state == "ONLINE":
-            self._online.add(robot)
-            if robot in self._status:
-                self._arrive(robot, self._status[robot])
-        elif state in ("OFFLINE", "CONNECTIONBROKEN"):
-            self._online.discard(robot)
-            if runner is not None and runner.connected:
-                runner.connected = False
-                how = "went offline" if state == "OFFLINE" else "lost (connection broken)"
-                emit(
-                    "robot_disconnected",
-                    f"agent {robot} {how}; its pose is no longer updated",
-                    robot=robot,
-                    data={"source": "agent", "state": state},
-                )
-        else:
-            raise PayloadError(f"connection of {robot}: connectionState {state!r}")
-
-    def _on_status(self, robot: str, status: AgentStatus) -> None:
-        self._status[robot] = status
-        self._check_map_version(robot, status)
-        runner = self._agent(robot)
-        if runner is None:
-            if robot in self._online:
-                self._arrive(robot, status)
-            return
-        was_ok = runner.clock_within_tolerance
-        runner.update_status(status)
-        self._check_clock(runner, was_ok)
-
-    def _check_map_version(self, robot: str, status: AgentStatus) -> None:
-        """An agent holding an old version of its floor's map is told: an event
-        `agent_map_outdated` (once per version it holds) and the map published again; one
-        on another floor than the site has it on is told its floor again."""
-        runner = self._agent(robot)
-        floor = runner.floor if runner is not None else self.services.floors.default()
-        if runner is not None and status.floor is not None and status.floor != floor:
-            told = self.agent_floors.assigned(robot)
-            self._send_all([told] if told is not None else [])
-            return
-        held = status.map_version
-        if held is None:
-            return
-        current = self.services.map_versions.version(floor)
-        if held >= current or self._outdated_told.get(robot) == held:
-            return
-        self._outdated_told[robot] = held
-        self._emit(
-            "agent_map_outdated",
-            f"agent {robot} localizes on version {held} of floor {floor}'s map; the current "
-            f"one is {current}: published again",
-            robot=robot,
-            data={"floor": floor, "held": held, "current": current},
-        )
-        self._send_all([self.agent_floors.floor_map(floor)])
-        if floor == self.services.floors.default():
-            self._send(self.topics.map, self.map_message(), QOS_STATE, True)
-
-    def _arrive(self, robot: str, status: AgentStatus) -> None:
-        """Register (or mark connected again) an agent's robot; an event either way."""
-        runner = self._agent(robot)
-        if runner is None:
-            if robot in self.services.robots.names():
-                log.error("agent %s: a robot of that name is localized here; ignored", robot)
-                return
-            agents = sum(1 for r in self.services.robots.runners() if isinstance(r, AgentRunner))
-            refusal = self.guard.refusal(robot, agents)
-            if refusal is not None:
-                self.guard.refuse(robot, refusal)
-                return
-            runner = AgentRunner(
-                robot,
-                status,
-                publish=self.services.poses.publish,
-                send_command=self._send_command,
-                site_from_wall=self.site_from_wall,
-            )
-            runner.on_mode_change = functools.partial(self._on_mode_change, runner.reasons)
-            floor = self.agent_floors.start_floor(status, robot)
-            runner.floor = floor
-            runner.map_version = self.services.map_versions.version(floor)
-            self.services.robots.add(runner)
-            self._send_all([self.agent_floors.assign(robot, floor)])
-        elif runner.connected:
-            return
-        runner.connected = True
-        runner.update_status(status)
-        self._emit(
-            "robot_connected",
-            f"agent {robot} connected ({status.source})",
-            robot=robot,
-            data={"source": "agent"},
-        )
-        self._check_clock(runner, None)
-
-    def _check_clock(self, runner: AgentRunner, was_ok: bool | None) -> None:
-        est = runner.clock
-        if est is None:
-            return
-        ok = est.within(self.clock.tolerance_s)
-        runner.clock_within_tolerance = ok
-        if not ok and was_ok is not False:
-            self._emit(
-                "clock_offset",
-                f"agent {runner.name}: clock off by {est.offset_ns / 1e6:+.1f} ms "
-                f"(+- {est.error_ns / 1e6:.1f} ms), more than identification tolerates "
-                f"({self.clock.tolerance_s * 1e3:.0f} ms): LED times are corrected, but "
-                "synchronise its clock (chrony)",
-                robot=runner.name,
-                data={"offset_ns": est.offset_ns, "error_ns": est.error_ns},
-            )
-
-    def _on_mode_change(self, reasons: ReasonTally, robot: str, old: Mode, new: Mode) -> None:
-        event = mode_change_event(robot, old, new, reasons)
-        if event is not None:
-            kind, message, data = event
-            self._emit(kind, message, robot=robot, data=data or None)
-
-    def _on_led_request(self, robot: str, msg: LedRequestMessage) -> None:
-        """An admitted, connected agent's LED request goes to the coordinator; others are
-        ignored (a phantom agent must not darken the ceiling)."""
-        coordinator = self.services.leds.coordinator
-        runner = self._agent(robot)
-        if coordinator is None or runner is None or not runner.connected:
-            return
-        if self.guard.serves_led_requests(robot):
-            coordinator.request(robot, msg.request())
 
 
 def _count_failure(task: asyncio.Task[None]) -> None:

@@ -87,9 +87,16 @@ class PoseUpdate:
     def from_no_pose(
         cls, robot: str, out: NoPose, *, floor: str = DEFAULT_FLOOR, map_version: int = 0
     ) -> PoseUpdate:
-        return cls(robot, out.t_ns, out.mode, quality=out.quality, reason=out.reason,
-                   reason_text=out.reason_text, floor=floor,
-                   map_version=map_version)  # fmt: skip
+        return cls(
+            robot,
+            out.t_ns,
+            out.mode,
+            quality=out.quality,
+            reason=out.reason,
+            reason_text=out.reason_text,
+            floor=floor,
+            map_version=map_version,
+        )
 
     def estimate(self) -> PoseEstimate | None:
         """This update as the localizer's estimate; None when it carries no pose."""
@@ -97,10 +104,19 @@ class PoseUpdate:
             return None
         cov = np.zeros((3, 3)) if self.covariance is None else self.covariance
         return PoseEstimate(
-            self.t_ns, self.x, self.y, self.theta, cov, self.mode, self.landmark_ids,
-            self.expected_ids, quality=self.quality, deviation_m=self.deviation_m,
-            reason=self.reason, reason_text=self.reason_text,
-        )  # fmt: skip
+            self.t_ns,
+            self.x,
+            self.y,
+            self.theta,
+            cov,
+            self.mode,
+            self.landmark_ids,
+            self.expected_ids,
+            quality=self.quality,
+            deviation_m=self.deviation_m,
+            reason=self.reason,
+            reason_text=self.reason_text,
+        )
 
     def to_dict(self) -> dict[str, Any]:
         cov = None if self.covariance is None else self.covariance.tolist()
@@ -181,8 +197,11 @@ def pose_json(
             d.update(x=None, y=None, theta=None, covariance=None, landmark_ids=[])
             d.update(quality=0.0, deviation_m=None)
     if (stale or upd is None) and now is not None:
-        d.update(quality=now.quality if now.quality is not None else 0.0, reason=now.reason,
-                 reason_text=now.reason_text)  # fmt: skip
+        d.update(
+            quality=now.quality if now.quality is not None else 0.0,
+            reason=now.reason,
+            reason_text=now.reason_text,
+        )
     return json.dumps(d, separators=(",", ":"))
 
 

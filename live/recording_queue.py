@@ -175,8 +175,10 @@ class QueuedRecording:
             return f"it reached its duration limit ({lim.max_s:g} s)"
         free = free_bytes(self.root)
         if free < lim.min_free_bytes:
-            return f"the disk is nearly full ({free // MIB} MB free, the limit is " \
-                f"{lim.min_free_bytes // MIB} MB)"  # fmt: skip
+            return (
+                f"the disk is nearly full ({free // MIB} MB free, the limit is "
+                f"{lim.min_free_bytes // MIB} MB)"
+            )
         size = _size(self.root)
         if size > lim.max_bytes:
             return f"it reached its size limit ({size // MIB} MB of {lim.max_bytes // MIB} MB)"

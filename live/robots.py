@@ -183,9 +183,13 @@ class RobotRunner:
         if isinstance(out, PoseEstimate | NoPose) and fit is not None and fit.observe(out):
             # its view does not fit its floor's map: no pose on that map goes out
             self.latest = PoseUpdate(
-                self.name, out.t_ns, out.mode, floor=self.floor, map_version=self.map_version,
+                self.name,
+                out.t_ns,
+                out.mode,
+                floor=self.floor,
+                map_version=self.map_version,
                 floor_unknown=True,
-            )  # fmt: skip
+            )
             self._publish(self.latest)
             return
         if isinstance(out, PoseEstimate):

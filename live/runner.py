@@ -247,9 +247,14 @@ class SiteRunner:
             quality_below=s.black_box_quality_below,
             max_bytes=int(s.black_box_max_mb * 1e6),
         )
-        box = BlackBox(runner.name, runner.camera, runner.geometry,
-                       lambda: map_records(self.map, runner.floor), s.recordings_dir,
-                       config)  # fmt: skip
+        box = BlackBox(
+            runner.name,
+            runner.camera,
+            runner.geometry,
+            lambda: map_records(self.map, runner.floor),
+            s.recordings_dir,
+            config,
+        )
         box.on_saved = self._on_black_box
         return box
 
@@ -332,15 +337,22 @@ class SiteRunner:
         self.leds.start()
         if self.settings.led_policy == "scheduled":
             self.scheduler = attach_scheduler(
-                self.map, self.robots.runners, self.leds, self.clock_ns, self.settings,
+                self.map,
+                self.robots.runners,
+                self.leds,
+                self.clock_ns,
+                self.settings,
                 routes=self._routes,
-            )  # fmt: skip
+            )
         self.led_facade.attach(self.gateway, self.leds, self.scheduler)
         if self.floors is not None:
             self.floor_watch = FloorWatch(
-                self.floors, self.events, self._request_leds, self.clock_ns,
+                self.floors,
+                self.events,
+                self._request_leds,
+                self.clock_ns,
                 localizer_config(self.settings),
-            )  # fmt: skip
+            )
             self.floor_watch.start()
         loop = asyncio.get_running_loop()
         self._tasks.append(loop.create_task(self._gateway_events()))

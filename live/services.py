@@ -92,10 +92,12 @@ class SiteServices:
         self.leds = LedsAndRadio(self.map, self.log)
         max_gb = settings.recordings_max_gb
         self.recordings = Recordings(
-            settings.recordings_dir, self.robots, self.map,
+            settings.recordings_dir,
+            self.robots,
+            self.map,
             keep_days=settings.recordings_keep_days,
             max_total_bytes=None if max_gb is None else int(max_gb * 1024**3),
-        )  # fmt: skip
+        )
         self.commissioning = Commissioning(self.map, self.robots, self.leds, self.submit)
         self.survey = LiveSurvey(
             self.map, self.robots, self.leds, self.recordings, data_dir=settings.data_dir
@@ -104,9 +106,12 @@ class SiteServices:
         self.zones = ZoneStore(self.engine)
         self.pose_history = PoseHistory(self.engine)
         self.whereabouts = ZonesAndHistory(
-            self.robots, self.zones, self.pose_history, self.events.emit,
+            self.robots,
+            self.zones,
+            self.pose_history,
+            self.events.emit,
             HistoryConfig(keep_days=settings.history_keep_days),
-        )  # fmt: skip
+        )
         self.alerts = SiteAlerts(settings, self.robots.runners, self.leds, self.events)
         self.runner: SiteRunner | None = None
         self.loop: asyncio.AbstractEventLoop | None = None

@@ -188,8 +188,12 @@ class MapUpkeepService:
         for v in chosen:
             p = v.proposal
             x, y, z = p.proposed
-            evidence = {"source": "map upkeep", "kind": p.kind, "views": p.views,
-                        "chi2": round(p.statistic, 2)}  # fmt: skip
+            evidence = {
+                "source": "map upkeep",
+                "kind": p.kind,
+                "views": p.views,
+                "chi2": round(p.statistic, 2),
+            }
             self.map.update(
                 p.landmark_id,
                 LandmarkUpdate(x=x, y=y, z=z, sigma_m=p.sigma_m, evidence=evidence),

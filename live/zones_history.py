@@ -98,11 +98,19 @@ class ZonesAndHistory:
                 self._last_kept[upd.robot] = wall_s
                 cov = upd.covariance
                 sigma = None if cov is None else float(np.sqrt(max(0.0, cov[0, 0] + cov[1, 1])))
-                kept.append(PoseRecord(
-                    robot=upd.robot, t=datetime.fromtimestamp(wall_s, UTC),
-                    t_ns=upd.t_ns, x=upd.x, y=upd.y, theta=upd.theta, sigma_m=sigma,
-                    mode=upd.mode, floor=upd.floor,
-                ))  # fmt: skip
+                kept.append(
+                    PoseRecord(
+                        robot=upd.robot,
+                        t=datetime.fromtimestamp(wall_s, UTC),
+                        t_ns=upd.t_ns,
+                        x=upd.x,
+                        y=upd.y,
+                        theta=upd.theta,
+                        sigma_m=sigma,
+                        mode=upd.mode,
+                        floor=upd.floor,
+                    )
+                )
             self._zones_at(upd.robot, upd.floor, upd.x, upd.y, wall_s)
         self.history.add(kept)
         now = time.monotonic()
@@ -131,22 +139,31 @@ class ZonesAndHistory:
                     del self._inside[key]
             data = {"zone_id": zone.id, "zone": zone.name, "x": round(x, 3), "y": round(y, 3)}
             if inside and visit is None:
-                self.emit("zone_enter", f"robot {robot} entered zone {zone.name}",
-                          robot=robot, data=data)  # fmt: skip
+                self.emit(
+                    "zone_enter", f"robot {robot} entered zone {zone.name}", robot=robot, data=data
+                )
             elif not inside and visit is not None:
                 spent = wall_s - visit.since_s
-                self.emit("zone_exit", f"robot {robot} left zone {zone.name} after {spent:.0f} s",
-                          robot=robot, data={**data, "spent_s": round(spent, 1)})  # fmt: skip
+                self.emit(
+                    "zone_exit",
+                    f"robot {robot} left zone {zone.name} after {spent:.0f} s",
+                    robot=robot,
+                    data={**data, "spent_s": round(spent, 1)},
+                )
             elif (
-                inside and visit is not None and zone.dwell_s is not None and not visit.dwelt
+                inside
+                and visit is not None
+                and zone.dwell_s is not None
+                and not visit.dwelt
                 and wall_s - visit.since_s >= zone.dwell_s
-            ):  # fmt: skip
+            ):
                 visit.dwelt = True
                 self.emit(
                     "zone_dwell",
                     f"robot {robot} has stayed in zone {zone.name} over {zone.dwell_s:.0f} s",
-                    robot=robot, data={**data, "dwell_s": zone.dwell_s},
-                )  # fmt: skip
+                    robot=robot,
+                    data={**data, "dwell_s": zone.dwell_s},
+                )
 
 
 def coverage_grid(xy: np.ndarray, cell_m: float) -> tuple[tuple[float, float], np.ndarray]:

@@ -33,9 +33,15 @@ def _lens(info: Any) -> tuple[int, int, float, float, float, float, str, list[fl
     if len(k) != 9:
         raise ValueError(f"camera_info k must hold 9 numbers, got {len(k)}")
     return (
-        int(info.width), int(info.height), k[0], k[4], k[2], k[5],
-        str(info.distortion_model), [float(v) for v in info.d],
-    )  # fmt: skip
+        int(info.width),
+        int(info.height),
+        k[0],
+        k[4],
+        k[2],
+        k[5],
+        str(info.distortion_model),
+        [float(v) for v in info.d],
+    )
 
 
 def camera_info_disagreement(info: Any, camera: CameraModel) -> list[str]:
@@ -86,11 +92,17 @@ def camera_from_camera_info(
     if any(abs(v) > 0 for v in d[n:]):
         raise ValueError(f"camera_info d has {len(d)} coefficients; {model} is used with {n}")
     return CameraModel(
-        width=w, height=h, fu=fu, fv=fv, cu=cu, cv=cv,
+        width=w,
+        height=h,
+        fu=fu,
+        fv=fv,
+        cu=cu,
+        cv=cv,
         distortion_model=mapped,  # type: ignore[arg-type]
         distortion=np.asarray(coeffs, dtype=np.float64),
-        T_body_camera=T_body_camera, rate_hz=rate_hz,
-    )  # fmt: skip
+        T_body_camera=T_body_camera,
+        rate_hz=rate_hz,
+    )
 
 
 def camera_info_of(camera: CameraModel, t_ns: int, frame_id: str) -> Any:

@@ -29,17 +29,20 @@ class InitialPoseListener:
         self.settings, self.health, self.on_request = settings, health, on_request
         self.topic = settings.topic(settings.initialpose_topic)
         node.subscribe(
-            self.topic, "geometry_msgs/msg/PoseWithCovarianceStamped", self.on_message,
+            self.topic,
+            "geometry_msgs/msg/PoseWithCovarianceStamped",
+            self.on_message,
             QOS_DEFAULT,
-        )  # fmt: skip
+        )
 
     def on_message(self, msg: Any) -> None:
         frame = str(msg.header.frame_id)
         if frame != self.settings.map_frame:
             self.health.report(
-                "initialpose", "error",
+                "initialpose",
+                "error",
                 f"{self.topic} in frame {frame!r}, expected {self.settings.map_frame!r}: ignored",
-            )  # fmt: skip
+            )
             return
         near = pose2_of(msg.pose.pose)
         if not all(math.isfinite(v) for v in near):

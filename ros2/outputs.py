@@ -158,9 +158,10 @@ class Ros2Outputs:
                     continue
                 if now_wall - stamp > s.max_wait_transform_s * 1e9:
                     self.health.report(
-                        "transform", "error",
+                        "transform",
+                        "error",
                         self.odom_base.describe_gap(stamp) + ": no map -> odom for this pose",
-                    )  # fmt: skip
+                    )
                     self._waiting.popleft()
                     continue
                 break
@@ -263,24 +264,46 @@ def pose_with_covariance(
 def landmark_markers(landmark_map: LandmarkMap, frame: str, t_ns: int) -> Any:
     """One cylinder and one id label a landmark, after a DELETEALL of the namespace."""
     hdr = header(t_ns, frame)
-    color = new("std_msgs/msg/ColorRGBA", r=LANDMARK_RGBA[0], g=LANDMARK_RGBA[1],
-                b=LANDMARK_RGBA[2], a=LANDMARK_RGBA[3])  # fmt: skip
+    color = new(
+        "std_msgs/msg/ColorRGBA",
+        r=LANDMARK_RGBA[0],
+        g=LANDMARK_RGBA[1],
+        b=LANDMARK_RGBA[2],
+        a=LANDMARK_RGBA[3],
+    )
     white = new("std_msgs/msg/ColorRGBA", r=1.0, g=1.0, b=1.0, a=1.0)
     q = new("geometry_msgs/msg/Quaternion", w=1.0)
     out = [new("visualization_msgs/msg/Marker", header=hdr, ns="irloc_landmarks", action=3)]
     for lid, p in zip(landmark_map.ids.tolist(), landmark_map.positions.tolist(), strict=True):
         pos = new("geometry_msgs/msg/Point", x=p[0], y=p[1], z=p[2])
-        out.append(new(
-            "visualization_msgs/msg/Marker", header=hdr, ns="irloc_landmarks", id=int(lid),
-            type=3, action=0, color=color, frame_locked=True,
-            pose=new("geometry_msgs/msg/Pose", position=pos, orientation=q),
-            scale=new("geometry_msgs/msg/Vector3", x=0.12, y=0.12, z=0.03),
-        ))  # fmt: skip
+        out.append(
+            new(
+                "visualization_msgs/msg/Marker",
+                header=hdr,
+                ns="irloc_landmarks",
+                id=int(lid),
+                type=3,
+                action=0,
+                color=color,
+                frame_locked=True,
+                pose=new("geometry_msgs/msg/Pose", position=pos, orientation=q),
+                scale=new("geometry_msgs/msg/Vector3", x=0.12, y=0.12, z=0.03),
+            )
+        )
         label_pos = new("geometry_msgs/msg/Point", x=p[0], y=p[1], z=p[2] - 0.12)
-        out.append(new(
-            "visualization_msgs/msg/Marker", header=hdr, ns="irloc_landmark_ids", id=int(lid),
-            type=9, action=0, text=str(lid), color=white, frame_locked=True,
-            pose=new("geometry_msgs/msg/Pose", position=label_pos, orientation=q),
-            scale=new("geometry_msgs/msg/Vector3", z=0.15),
-        ))  # fmt: skip
+        out.append(
+            new(
+                "visualization_msgs/msg/Marker",
+                header=hdr,
+                ns="irloc_landmark_ids",
+                id=int(lid),
+                type=9,
+                action=0,
+                text=str(lid),
+                color=white,
+                frame_locked=True,
+                pose=new("geometry_msgs/msg/Pose", position=label_pos, orientation=q),
+                scale=new("geometry_msgs/msg/Vector3", z=0.15),
+            )
+        )
     return new("visualization_msgs/msg/MarkerArray", markers=out)

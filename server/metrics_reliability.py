@@ -26,6 +26,7 @@ from live.agent_runner import AgentRunner
 from live.alerts import ALERT_KINDS
 
 if TYPE_CHECKING:
+    from live.mqtt_bridge import MqttBridge
     from live.services import SiteServices
 
 
@@ -46,36 +47,51 @@ def edge_metrics(state: State | None) -> Iterator[Metric]:
     if edge is not None:
         for code, n in sorted(edge.by_status.items()):
             refused.add_metric([str(code)], n)
-        yield _counter("irloc_edge_bodies_too_large", "bodies over their limit (413)",
-                       edge.too_large)  # fmt: skip
-        yield _counter("irloc_edge_bodies_without_key", "bodies sent without a valid key",
-                       edge.body_without_key)  # fmt: skip
+        yield _counter(
+            "irloc_edge_bodies_too_large", "bodies over their limit (413)", edge.too_large
+        )
+        yield _counter(
+            "irloc_edge_bodies_without_key",
+            "bodies sent without a valid key",
+            edge.body_without_key,
+        )
     yield refused
     guard = getattr(state, "connection_guard", None)
     if guard is not None:
         yield _gauge("irloc_connections_open", "open HTTP connections", guard.total)
-        yield _counter("irloc_connections_closed_slow", "closed: headers not sent in time",
-                       guard.closed_slow)  # fmt: skip
-        yield _counter("irloc_connections_closed_for_cap", "closed to make room under a cap",
-                       guard.closed_for_cap)  # fmt: skip
-        yield _counter("irloc_connections_refused", "refused: a connection cap was reached",
-                       guard.refused)  # fmt: skip
+        yield _counter(
+            "irloc_connections_closed_slow", "closed: headers not sent in time", guard.closed_slow
+        )
+        yield _counter(
+            "irloc_connections_closed_for_cap",
+            "closed to make room under a cap",
+            guard.closed_for_cap,
+        )
+        yield _counter(
+            "irloc_connections_refused", "refused: a connection cap was reached", guard.refused
+        )
     throttle = getattr(state, "key_throttle", None)
-    yield _counter("irloc_bad_keys", "requests with a bad API key",
-                   0 if throttle is None else throttle.bad)  # fmt: skip
-    yield _counter("irloc_bad_keys_throttled", "answers 429 to addresses sending bad keys",
-                   0 if throttle is None else throttle.throttled)  # fmt: skip
+    yield _counter(
+        "irloc_bad_keys", "requests with a bad API key", 0 if throttle is None else throttle.bad
+    )
+    yield _counter(
+        "irloc_bad_keys_throttled",
+        "answers 429 to addresses sending bad keys",
+        0 if throttle is None else throttle.throttled,
+    )
 
 
 def storage_metrics(s: SiteServices) -> Iterator[Metric]:
     """The event writer and the live recordings' queues."""
     w = s.events.writer
     yield _counter("irloc_events_written", "site events stored", w.written)
-    yield _counter("irloc_event_store_failures", "failed attempts to store an event",
-                   w.store_failures)  # fmt: skip
+    yield _counter(
+        "irloc_event_store_failures", "failed attempts to store an event", w.store_failures
+    )
     yield _counter("irloc_events_dropped", "site events dropped (queue full)", w.dropped)
-    yield _gauge("irloc_event_store_ok", "1 while the database takes events, else 0",
-                 1 if w.healthy else 0)  # fmt: skip
+    yield _gauge(
+        "irloc_event_store_ok", "1 while the database takes events, else 0", 1 if w.healthy else 0
+    )
     labels = ["robot", "what"]
     drops = CounterMetricFamily(
         "irloc_recording_dropped",
@@ -94,30 +110,47 @@ def storage_metrics(s: SiteServices) -> Iterator[Metric]:
 def site_metrics(s: SiteServices, state: State | None) -> Iterator[Metric]:
     """The supervisor, the fleet link, the alerts."""
     site = s.runner
-    yield _counter("irloc_site_thread_restarts", "site threads started again by the supervisor",
-                   0 if site is None else site.supervisor.restarts)  # fmt: skip
-    yield _gauge("irloc_site_problems", "problems the live site reports now (/healthz)",
-                 0 if site is None else len(site.supervisor.problems()))  # fmt: skip
-    bridge = getattr(state, "mqtt_bridge", None)
+    yield _counter(
+        "irloc_site_thread_restarts",
+        "site threads started again by the supervisor",
+        0 if site is None else site.supervisor.restarts,
+    )
+    yield _gauge(
+        "irloc_site_problems",
+        "problems the live site reports now (/healthz)",
+        0 if site is None else len(site.supervisor.problems()),
+    )
+    bridge: MqttBridge | None = getattr(state, "mqtt_bridge", None)
     if bridge is not None:
+        guard = bridge.guard
         for name, doc, value in (
             ("irloc_mqtt_connects", "connections to the broker", bridge.connects),
             ("irloc_mqtt_received", "MQTT messages received", bridge.received),
-            ("irloc_mqtt_rejected", "MQTT messages that did not fit their topic",
-             bridge.rejected),
-            ("irloc_mqtt_led_requests_refused", "agents' LED requests not served",
-             bridge.led_requests_refused),
-            ("irloc_mqtt_foreign_maps", "maps on the map topic not published here",
-             bridge.foreign_maps),
-            ("irloc_mqtt_poses_outside", "agents' poses outside the site, dropped",
-             bridge.poses_outside),
-        ):  # fmt: skip
+            ("irloc_mqtt_rejected", "MQTT messages that did not fit their topic", bridge.rejected),
+            (
+                "irloc_mqtt_led_requests_refused",
+                "agents' LED requests not served",
+                guard.led_requests_refused,
+            ),
+            (
+                "irloc_mqtt_foreign_maps",
+                "maps on the map topic not published here",
+                guard.foreign_maps,
+            ),
+            (
+                "irloc_mqtt_poses_outside",
+                "agents' poses outside the site, dropped",
+                guard.poses_outside,
+            ),
+        ):
             yield _counter(name, doc, value)
-        yield _gauge("irloc_mqtt_agents_refused", "agents refused a place",
-                     len(bridge.refused_agents))  # fmt: skip
+        yield _gauge(
+            "irloc_mqtt_agents_refused", "agents refused a place", len(guard.refused_agents)
+        )
     lost = sum(r.lost_messages for r in s.robots.runners() if isinstance(r, AgentRunner))
-    yield _counter("irloc_agent_pose_messages_lost", "agents' pose messages missing (seq gaps)",
-                   lost)  # fmt: skip
+    yield _counter(
+        "irloc_agent_pose_messages_lost", "agents' pose messages missing (seq gaps)", lost
+    )
     yield from alert_metrics(s)
 
 

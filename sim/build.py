@@ -53,11 +53,13 @@ def build_world(scenario: Scenario, rng: np.random.Generator) -> World:
             p_surveyed,
             (spec.address or default_address(spec.id)).upper(),
             Battery(BatteryConfig(capacity_mah=spec.capacity_mah), charge=spec.charge),
-            radio_dead=spec.radio_dead or passive, led_on=not spec.radio_dead,
-            led_dead=spec.led_dead or passive, floor=spec.floor,
+            radio_dead=spec.radio_dead or passive,
+            led_on=not spec.radio_dead,
+            led_dead=spec.led_dead or passive,
+            floor=spec.floor,
             panel_size_m=0.0 if panel is None else max(panel.width_m, panel.length_m),
             map_sigma_m=None if panel is None else panel.map_sigma_m,
-        )  # fmt: skip
+        )
         if panel is not None:
             corners = panel.outline_xy(spec.x, spec.y)
             outline = np.column_stack([corners, np.full(len(corners), spec.z)])

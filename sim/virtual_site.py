@@ -33,10 +33,15 @@ def render_view(
     T_world_body: FloatArray,
     rng: np.random.Generator,
     config: RenderConfig,
+    *,
+    led_t_ns: int | None = None,
+    floor: str | None = None,
 ) -> ImageU8:
-    """The frame a (true) camera sees from a body pose (4, 4) in the world as it is now."""
+    """The frame a (true) camera sees from a body pose (4, 4) in the world as it is now (with
+    the LEDs as they were at world time `led_t_ns` when given), on `floor`
+    (`World.point_sources`; None: every landmark)."""
     p_cam = (T_world_body @ camera.T_body_camera)[:3, 3]
-    sources, intensities = world.point_sources(p_cam)
+    sources, intensities = world.point_sources(p_cam, t_ns=led_t_ns, floor=floor)
     return render_frame(
         camera,
         T_world_body,
@@ -175,18 +180,15 @@ class VirtualSite:
         """The frame robot `name`'s true camera sees from a body pose, with the world now
         (with the LEDs as they were at site time `t_ns` when given), on `floor` (None: the
         robot's floor now; `sim.world.IN_LIFT`: in the lift cabin)."""
-        cam = self.rig(name).camera_true
-        p_cam = (T_world_body @ cam.T_body_camera)[:3, 3]
         on = self.true_floor(name) if floor is None else floor
-        sources, intensities = self.world.point_sources(p_cam, t_ns=t_ns, floor=on)
-        return render_frame(
-            cam,
+        return render_view(
+            self.world,
+            self.rig(name).camera_true,
             T_world_body,
-            sources,
-            intensities,
-            rng=self._render_rng,
-            config=self.scenario.render,
-            extended=self.world.extended,
+            self._render_rng,
+            self.scenario.render,
+            led_t_ns=t_ns,
+            floor=on,
         )
 
     def step(self, t_ns: int) -> list[SensorSample]:

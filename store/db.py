@@ -10,14 +10,13 @@ from __future__ import annotations
 
 import os
 import sqlite3
-from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 from alembic import command
 from alembic.config import Config
 from sqlalchemy import Engine, event
-from sqlmodel import Session, create_engine
+from sqlmodel import create_engine
 
 MIGRATIONS_DIR = Path(__file__).parent / "migrations"
 
@@ -107,9 +106,3 @@ def alembic_config(engine: Engine) -> Config:
 def migrate(engine: Engine, revision: str = "head") -> None:
     """Bring the schema to `revision` (idempotent; an older database is upgraded in place)."""
     command.upgrade(alembic_config(engine), revision)
-
-
-def session_scope(engine: Engine) -> Iterator[Session]:
-    """One session per request (the FastAPI dependency wraps this)."""
-    with Session(engine, expire_on_commit=False) as session:
-        yield session

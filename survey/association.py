@@ -286,10 +286,14 @@ def name_by_association(
             entry_xy.append(np.asarray(g, dtype=np.float64)[:2])
             entry_cov.append(cfg.rough_sigma_m**2 * np.eye(2))
     named, doubt = assign(
-        pts, pcov, entry_of, np.array(entry_xy).reshape(-1, 2),
-        np.array(entry_cov).reshape(-1, 2, 2), cfg.association_gate_chi2,
+        pts,
+        pcov,
+        entry_of,
+        np.array(entry_xy).reshape(-1, 2),
+        np.array(entry_cov).reshape(-1, 2, 2),
+        cfg.association_gate_chi2,
         cfg.association_margin_chi2,
-    )  # fmt: skip
+    )
     count = 0
     for i, lid in named.items():
         rows = np.isin(obs.track, clusters[i].tracks)

@@ -250,10 +250,18 @@ def _adjust(
         n = int(same[0]) if len(same) else n
         prefix_poses, prefix_lms = previous.poses()[:n], previous.landmarks()
     poses0, est0 = initial_guess(
-        cam, deltas0, o_key, o_id, o_px, anchors, rough, zc,
-        pixel_sigma_px=cfg.pixel_sigma_px, prefix_poses=prefix_poses,
+        cam,
+        deltas0,
+        o_key,
+        o_id,
+        o_px,
+        anchors,
+        rough,
+        zc,
+        pixel_sigma_px=cfg.pixel_sigma_px,
+        prefix_poses=prefix_poses,
         prefix_landmarks=prefix_lms,
-    )  # fmt: skip
+    )
     # every landmark is an unknown, the anchors too: held near their surveyed positions by a
     # prior as tight as their survey (`anchor_sigma_m`), so that their error is part of every
     # landmark's covariance instead of being taken as exact
@@ -278,8 +286,10 @@ def _adjust(
         o_px[placed],
         o_free[placed],
     )
-    held = {**{lid: (p, cfg.rough_sigma_m) for lid, p in rough.items()},
-            **{lid: (p, cfg.anchor_sigma_m) for lid, p in anchors.items()}}  # fmt: skip
+    held = {
+        **{lid: (p, cfg.rough_sigma_m) for lid, p in rough.items()},
+        **{lid: (p, cfg.anchor_sigma_m) for lid, p in anchors.items()},
+    }
     # what the prior holds already had its own priors in the window it came from
     carried = set() if prior is None else set(prior.landmark_ids)
     prior_ids = [lid for lid in free_ids if lid in held and lid not in carried]
@@ -300,13 +310,18 @@ def _adjust(
     k1, k2 = float(cam.distortion[0]), float(cam.distortion[1])
     cam_sig = np.array(
         [
-            cfg.focal_sigma_rel, cfg.focal_sigma_rel, cfg.principal_sigma_px,
+            cfg.focal_sigma_rel,
+            cfg.focal_sigma_rel,
             cfg.principal_sigma_px,
-            cfg.mount_yaw_sigma_rad, max(cfg.distortion_sigma_rel * abs(k1), 1e-4),
-            cfg.mount_tilt_sigma_rad, cfg.mount_tilt_sigma_rad, cfg.mount_height_sigma_m,
+            cfg.principal_sigma_px,
+            cfg.mount_yaw_sigma_rad,
+            max(cfg.distortion_sigma_rel * abs(k1), 1e-4),
+            cfg.mount_tilt_sigma_rad,
+            cfg.mount_tilt_sigma_rad,
+            cfg.mount_height_sigma_m,
             max(cfg.distortion_sigma_rel * abs(k2), 1e-4),
         ]
-    )  # fmt: skip
+    )
     lens_cache: dict[tuple[float, float], CameraModel] = {(0.0, 0.0): cam}
 
     def lens(dk1: float, dk2: float) -> CameraModel:
@@ -367,12 +382,32 @@ def _adjust(
     S = sparsity(lay, o_key, o_free, len(rough_rows), rough_rows)
     gauss = None if prior is None else prior.gaussian(lay)
     res = levenberg_marquardt(
-        residuals, x0, S, lay.groups(), lay.steps(), huber_k=cfg.huber_scale,
-        max_iterations=budget, n_banded=lay.lm0, prior=gauss, central_final=True,
-    )  # fmt: skip
+        residuals,
+        x0,
+        S,
+        lay.groups(),
+        lay.steps(),
+        huber_k=cfg.huber_scale,
+        max_iterations=budget,
+        n_banded=lay.lm0,
+        prior=gauss,
+        central_final=True,
+    )
     px, valid = project(res.x)
     err = np.linalg.norm(px - o_px, axis=1)
     return Fit(
-        lay, key_t, res.x, o_key, o_id, obs.track[rows], rows, err, valid,
-        res.jacobian, res.residuals, res.iterations, res.converged, gauss,
-    )  # fmt: skip
+        lay,
+        key_t,
+        res.x,
+        o_key,
+        o_id,
+        obs.track[rows],
+        rows,
+        err,
+        valid,
+        res.jacobian,
+        res.residuals,
+        res.iterations,
+        res.converged,
+        gauss,
+    )

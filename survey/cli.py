@@ -30,28 +30,37 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
     p = argparse.ArgumentParser(prog=PROG, description=__doc__.split("\n\n")[0])
     p.add_argument("recording", type=Path, help="the survey drive's recording folder")
     p.add_argument(
-        "--anchor", type=int, action="append", default=[], metavar="ID",
+        "--anchor",
+        type=int,
+        action="append",
+        default=[],
+        metavar="ID",
         help="a landmark held at its map.json position (two or more)",
-    )  # fmt: skip
+    )
     p.add_argument("--out", type=Path, required=True, help="where to write the surveyed map")
     p.add_argument(
-        "--anchor-sigma-mm", type=float, default=1000 * BundleConfig.anchor_sigma_m,
+        "--anchor-sigma-mm",
+        type=float,
+        default=1000 * BundleConfig.anchor_sigma_m,
         metavar="MM",
         help="how well the anchors were surveyed, 1 sigma per axis, mm (default %(default)s: "
         "a total station); it is part of every landmark's sigma_m",
-    )  # fmt: skip
+    )
     p.add_argument(
-        "--rough-sigma-cm", type=float, default=100 * BundleConfig.rough_sigma_m,
+        "--rough-sigma-cm",
+        type=float,
+        default=100 * BundleConfig.rough_sigma_m,
         metavar="CM",
         help="how far map.json's rough positions may be off, 1 sigma per axis, cm (default "
         "%(default)s: up to ~30 cm); landmarks no blink names are named by where their spots "
         "sit where this tells them from their neighbours",
-    )  # fmt: skip
+    )
     p.add_argument(
-        "--allow-unseen", action="store_true",
+        "--allow-unseen",
+        action="store_true",
         help="write the map even if some landmarks could not be surveyed (they keep what "
         "map.json gave them)",
-    )  # fmt: skip
+    )
     p.add_argument("--quiet", action="store_true", help="no progress bar and no table")
     args = p.parse_args(argv)
     if not args.anchor_sigma_mm > 0:

@@ -123,9 +123,16 @@ def read_survey_drive(
     if progress is not None:
         progress(len(frames), len(frames))
     return SurveyDrive(
-        landmarks, camera, robot, np.asarray(times, dtype=np.int64), spots, odom_t, odom_v,
-        leds, unreadable,
-    )  # fmt: skip
+        landmarks,
+        camera,
+        robot,
+        np.asarray(times, dtype=np.int64),
+        spots,
+        odom_t,
+        odom_v,
+        leds,
+        unreadable,
+    )
 
 
 def frame_motions(drive: SurveyDrive) -> FloatArray:
@@ -159,13 +166,23 @@ def survey_problem(
     positioned = [lm.position[2] for lm in drive.landmarks if lm.position is not None]
     ceiling = float(np.median(positioned))
     obs = label_spot_tracks(
-        drive.camera, list(by_id), drive.frame_t_ns.tolist(), drive.frame_spots,
-        frame_motions(drive), drive.leds, ceiling_z_m=ceiling, config=tracking,
-    )  # fmt: skip
+        drive.camera,
+        list(by_id),
+        drive.frame_t_ns.tolist(),
+        drive.frame_spots,
+        frame_motions(drive),
+        drive.leds,
+        ceiling_z_m=ceiling,
+        config=tracking,
+    )
     anchor_pos = {a: by_id[a].position for a in anchor_ids}
     return SurveyProblem(
-        drive.camera, drive.robot.wheel_base, drive.frame_t_ns, obs, drive.odom_t_ns,
+        drive.camera,
+        drive.robot.wheel_base,
+        drive.frame_t_ns,
+        obs,
+        drive.odom_t_ns,
         drive.odom_v,
         {a: p for a, p in anchor_pos.items() if p is not None},
         {lm.id: lm.position for lm in drive.landmarks if lm.id not in anchor_pos},
-    )  # fmt: skip
+    )

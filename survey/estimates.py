@@ -132,16 +132,31 @@ def survey_result(
         if t.conflicts:
             flags.append(f"two spots named {lid} at once in {t.conflicts} frame(s)")
         out[lid] = LandmarkEstimate(
-            lid, np.asarray(pos, dtype=np.float64), cov, lid in anchors, t.observations,
-            t.views, t.rms_px, t.max_px, None if given is None else np.asarray(given),
+            lid,
+            np.asarray(pos, dtype=np.float64),
+            cov,
+            lid in anchors,
+            t.observations,
+            t.views,
+            t.rms_px,
+            t.max_px,
+            None if given is None else np.asarray(given),
             tuple(flags),
-        )  # fmt: skip
+        )
     unseen = tuple(sorted(set(problem.given) - set(out)))
     ok = fit.valid
     rms = float(math.sqrt(np.mean(fit.err[ok] ** 2))) if np.any(ok) else float("nan")
     notes = (f"{len(rejected)} spot track(s) set aside as not explained by the solution",)
     return SurveyResult(
-        out, unseen, fit.key_t, poses, (float(w[0]), float(w[1]), float(w[2])),
-        tuple(float(v) for v in c), rms, s0,
-        fit.nfev, fit.converged, notes,
-    )  # fmt: skip
+        out,
+        unseen,
+        fit.key_t,
+        poses,
+        (float(w[0]), float(w[1]), float(w[2])),
+        tuple(float(v) for v in c),
+        rms,
+        s0,
+        fit.nfev,
+        fit.converged,
+        notes,
+    )

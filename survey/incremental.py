@@ -92,13 +92,14 @@ def _scaled(cfg: BundleConfig, prior: WindowPrior | None) -> BundleConfig:
         return cfg
     s, o = prior.pixel_scale, prior.odometry_scale
     return dataclasses.replace(
-        cfg, pixel_sigma_px=cfg.pixel_sigma_px * s,
+        cfg,
+        pixel_sigma_px=cfg.pixel_sigma_px * s,
         odom_sigma_m_per_sqrt_m=cfg.odom_sigma_m_per_sqrt_m * o,
         odom_sigma_floor_m=cfg.odom_sigma_floor_m * o,
         odom_heading_sigma_rad_per_sqrt_m=cfg.odom_heading_sigma_rad_per_sqrt_m * o,
         odom_heading_sigma_rad_per_sqrt_rad=cfg.odom_heading_sigma_rad_per_sqrt_rad * o,
         odom_heading_floor_rad=cfg.odom_heading_floor_rad * o,
-    )  # fmt: skip
+    )
 
 
 def update(
@@ -141,9 +142,14 @@ def update(
     new_prior = marginalise(fit, cfg.huber_scale, j, prior)
     frame_j = int(np.searchsorted(problem.frame_t_ns, fit.key_t[j]))
     done = tallies(
-        problem.observations, fit, sol.labels, sol.rejected, cfg.independent_view_m,
-        keys_before=j, frames_before=frame_j,
-    )  # fmt: skip
+        problem.observations,
+        fit,
+        sol.labels,
+        sol.rejected,
+        cfg.independent_view_m,
+        keys_before=j,
+        frames_before=frame_j,
+    )
     carried = dict(state.carried)
     for lid, t in done.items():
         carried[lid] = carried[lid].plus(t, cfg.independent_view_m) if lid in carried else t
@@ -152,8 +158,10 @@ def update(
         new_prior,
         np.concatenate([state.trajectory_t_ns, fit.key_t[:j]]).astype(np.int64),
         np.concatenate([state.trajectory, poses[:j]]),
-        carried, result, state.updates + 1,
-    )  # fmt: skip
+        carried,
+        result,
+        state.updates + 1,
+    )
 
 
 def _result(
@@ -168,10 +176,11 @@ def _result(
     )
     why = unnamed_reasons(problem, cfg, sol.fit, sol.labels, set(result.landmarks), sol.doubt)
     return dataclasses.replace(
-        result, unnamed=why,
+        result,
+        unnamed=why,
         trajectory_t_ns=np.concatenate([state.trajectory_t_ns, result.trajectory_t_ns]),
         trajectory=np.concatenate([state.trajectory, result.trajectory]),
-    )  # fmt: skip
+    )
 
 
 def window_of(drive: SurveyDrive, start_ns: int | None) -> SurveyDrive:
@@ -184,6 +193,10 @@ def window_of(drive: SurveyDrive, start_ns: int | None) -> SurveyDrive:
     before = [i for i, c in enumerate(drive.leds) if c.t_ns <= start_ns]
     first_led = before[-1] if before else 0
     return dataclasses.replace(
-        drive, frame_t_ns=drive.frame_t_ns[f:], frame_spots=drive.frame_spots[f:],
-        odom_t_ns=drive.odom_t_ns[o:], odom_v=drive.odom_v[o:], leds=drive.leds[first_led:],
-    )  # fmt: skip
+        drive,
+        frame_t_ns=drive.frame_t_ns[f:],
+        frame_spots=drive.frame_spots[f:],
+        odom_t_ns=drive.odom_t_ns[o:],
+        odom_v=drive.odom_v[o:],
+        leds=drive.leds[first_led:],
+    )

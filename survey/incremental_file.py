@@ -47,41 +47,60 @@ def _result_json(r: SurveyResult) -> dict[str, object]:
     return {
         "landmarks": [
             {
-                "id": e.id, "position": e.position.tolist(), "covariance": e.covariance.tolist(),
-                "anchor": e.anchor, "observations": e.observations, "views": e.views,
-                "rms_px": e.rms_px, "max_px": e.max_px,
-                "given": None if e.given is None else e.given.tolist(), "flags": list(e.flags),
+                "id": e.id,
+                "position": e.position.tolist(),
+                "covariance": e.covariance.tolist(),
+                "anchor": e.anchor,
+                "observations": e.observations,
+                "views": e.views,
+                "rms_px": e.rms_px,
+                "max_px": e.max_px,
+                "given": None if e.given is None else e.given.tolist(),
+                "flags": list(e.flags),
             }
             for e in r.landmarks.values()
         ],
         "unseen": list(r.unseen),
         "wheels": list(r.wheel_calibration),
         "camera": list(r.camera_correction),
-        "rms_px": r.rms_px, "sigma_scale": r.sigma_scale, "iterations": r.iterations,
-        "converged": r.converged, "notes": list(r.notes),
+        "rms_px": r.rms_px,
+        "sigma_scale": r.sigma_scale,
+        "iterations": r.iterations,
+        "converged": r.converged,
+        "notes": list(r.notes),
         "unnamed": {str(k): v for k, v in r.unnamed.items()},
-    }  # fmt: skip
+    }
 
 
 def _result_from(d: dict[str, Any]) -> SurveyResult:  # JSON as `_result_json` wrote it
     lms = {}
     for e in d["landmarks"]:
         lms[int(e["id"])] = LandmarkEstimate(
-            int(e["id"]), np.array(e["position"], dtype=np.float64),
-            np.array(e["covariance"], dtype=np.float64).reshape(3, 3), bool(e["anchor"]),
-            int(e["observations"]), int(e["views"]), float(e["rms_px"]), float(e["max_px"]),
+            int(e["id"]),
+            np.array(e["position"], dtype=np.float64),
+            np.array(e["covariance"], dtype=np.float64).reshape(3, 3),
+            bool(e["anchor"]),
+            int(e["observations"]),
+            int(e["views"]),
+            float(e["rms_px"]),
+            float(e["max_px"]),
             None if e["given"] is None else np.array(e["given"], dtype=np.float64),
             tuple(str(f) for f in e["flags"]),
-        )  # fmt: skip
+        )
     return SurveyResult(
-        lms, tuple(int(i) for i in d["unseen"]),
-        np.zeros(0, dtype=np.int64), np.zeros((0, 3)),
+        lms,
+        tuple(int(i) for i in d["unseen"]),
+        np.zeros(0, dtype=np.int64),
+        np.zeros((0, 3)),
         (float(d["wheels"][0]), float(d["wheels"][1]), float(d["wheels"][2])),
         tuple(float(v) for v in d["camera"]),
-        float(d["rms_px"]), float(d["sigma_scale"]), int(d["iterations"]),
-        bool(d["converged"]), tuple(str(n) for n in d["notes"]),
+        float(d["rms_px"]),
+        float(d["sigma_scale"]),
+        int(d["iterations"]),
+        bool(d["converged"]),
+        tuple(str(n) for n in d["notes"]),
         {int(k): str(v) for k, v in d["unnamed"].items()},
-    )  # fmt: skip
+    )
 
 
 def _tally_json(t: Tally) -> dict[str, object]:
@@ -138,14 +157,17 @@ def from_arrays(arrays: dict[str, npt.NDArray[np.generic]]) -> IncrementalSurvey
                 np.asarray(arrays["prior_information"], dtype=np.float64),
                 np.asarray(arrays["prior_lead_t_ns"], dtype=np.int64),
                 np.asarray(arrays["prior_lead_poses"], dtype=np.float64).reshape(-1, 3),
-                float(sc[0]), float(sc[1]), bool(sc[2]),
-            )  # fmt: skip
+                float(sc[0]),
+                float(sc[1]),
+                bool(sc[2]),
+            )
         return IncrementalSurvey(
             prior,
             np.asarray(arrays["trajectory_t_ns"], dtype=np.int64),
             np.asarray(arrays["trajectory"], dtype=np.float64).reshape(-1, 3),
-            carried, None if meta.get("result") is None else _result_from(meta["result"]),
+            carried,
+            None if meta.get("result") is None else _result_from(meta["result"]),
             int(meta["updates"]),
-        )  # fmt: skip
+        )
     except (KeyError, TypeError, ValueError, json.JSONDecodeError) as exc:
         raise ValueError(f"not a survey state ({exc})") from None

@@ -83,9 +83,16 @@ def initial_guess(
             poses[k] = pose = prefix_poses[k]
             continue
         pose = _fix(
-            camera, ids, px, good, predicted, pixel_sigma_px, max_jump_m, max_turn_rad,
+            camera,
+            ids,
+            px,
+            good,
+            predicted,
+            pixel_sigma_px,
+            max_jump_m,
+            max_turn_rad,
             max_fix_rms_px,
-        )  # fmt: skip
+        )
         if pose is None:
             continue
         poses[k] = pose
@@ -111,13 +118,24 @@ def initial_guess(
             camera, deltas, obs_key, obs_id, obs_px, {**rough, **anchors}, pixel_sigma_px
         )
         return initial_guess(
-            camera, deltas, obs_key, obs_id, obs_px, anchors, rough, ceiling_z_m,
-            pixel_sigma_px=pixel_sigma_px, min_views=min_views, max_spread_m=max_spread_m,
-            max_jump_m=max_jump_m, max_turn_rad=max_turn_rad, max_fix_rms_px=max_fix_rms_px,
+            camera,
+            deltas,
+            obs_key,
+            obs_id,
+            obs_px,
+            anchors,
+            rough,
+            ceiling_z_m,
+            pixel_sigma_px=pixel_sigma_px,
+            min_views=min_views,
+            max_spread_m=max_spread_m,
+            max_jump_m=max_jump_m,
+            max_turn_rad=max_turn_rad,
+            max_fix_rms_px=max_fix_rms_px,
             prefix_poses=dead_reckoning(
                 (float(start[0]), float(start[1]), float(start[2])), deltas
             ),
-        )  # fmt: skip
+        )
     first = int(np.flatnonzero(np.isfinite(poses[:, 0]))[0])
     back = invert_deltas(deltas)
     for k in range(first - 1, -1, -1):
@@ -200,9 +218,11 @@ def _start_from_rough_fixes(
         if len(have) < 2:
             continue
         fix = solve_pose(
-            camera, px[have], np.array([positions[int(ids[i])] for i in have]),
+            camera,
+            px[have],
+            np.array([positions[int(ids[i])] for i in have]),
             pixel_sigma_px=pixel_sigma_px,
-        )  # fmt: skip
+        )
         if fix is None:
             continue
         # the start: the fix moved back by the dead-reckoned motion to keyframe k

@@ -87,10 +87,16 @@ class WindowPrior:
         a, b, c = info[3:, 3:], info[3:, :3], info[:3, :3]
         reduced = a - b @ np.linalg.solve(c, b.T)
         return WindowPrior(
-            t_ns, self.landmark_ids, self.mean[3:].copy(), 0.5 * (reduced + reduced.T),
-            np.zeros(0, dtype=np.int64), np.zeros((0, 3)), self.pixel_scale,
-            self.odometry_scale, has_pose=False,
-        )  # fmt: skip
+            t_ns,
+            self.landmark_ids,
+            self.mean[3:].copy(),
+            0.5 * (reduced + reduced.T),
+            np.zeros(0, dtype=np.int64),
+            np.zeros((0, 3)),
+            self.pixel_scale,
+            self.odometry_scale,
+            has_pose=False,
+        )
 
     def lead(self, key_t_ns: npt.NDArray[np.int64]) -> FloatArray:
         """Poses for the longest prefix of `key_t_ns` the prior knows (at least the first)."""
@@ -174,7 +180,12 @@ def marginalise(fit: Fit, huber_k: float, j: int, previous: WindowPrior | None) 
     scale_pix = float(np.sqrt(f_pix)) if previous is None else previous.pixel_scale
     scale_odo = float(np.sqrt(f_odo)) if previous is None else previous.odometry_scale
     return WindowPrior(
-        int(fit.key_t[j]), tuple(lay.free_ids), mean, 0.5 * (info + info.T),
-        np.asarray(fit.key_t[j:], dtype=np.int64), poses[j:].copy(),
-        float(np.clip(scale_pix, 0.2, 5.0)), float(np.clip(scale_odo, 0.2, 5.0)),
-    )  # fmt: skip
+        int(fit.key_t[j]),
+        tuple(lay.free_ids),
+        mean,
+        0.5 * (info + info.T),
+        np.asarray(fit.key_t[j:], dtype=np.int64),
+        poses[j:].copy(),
+        float(np.clip(scale_pix, 0.2, 5.0)),
+        float(np.clip(scale_odo, 0.2, 5.0)),
+    )

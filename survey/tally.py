@@ -54,13 +54,17 @@ class Tally:
             near = math.dist(self.last_view, other.first_view) < spacing_m
             views -= int(near)
         return Tally(
-            self.observations + other.observations, views,
+            self.observations + other.observations,
+            views,
             other.last_view if other.last_view is not None else self.last_view,
             self.first_view if self.first_view is not None else other.first_view,
-            self.sq_err + other.sq_err, self.n_err + other.n_err,
-            max(self.max_err, other.max_err), self.sightings + other.sightings,
-            self.set_aside + other.set_aside, max(self.conflicts, other.conflicts),
-        )  # fmt: skip
+            self.sq_err + other.sq_err,
+            self.n_err + other.n_err,
+            max(self.max_err, other.max_err),
+            self.sightings + other.sightings,
+            self.set_aside + other.set_aside,
+            max(self.conflicts, other.conflicts),
+        )
 
 
 def count_views(positions: FloatArray, spacing_m: float) -> tuple[int, FloatArray | None]:
@@ -102,10 +106,15 @@ def tallies(
         views, last = count_views(xy, spacing_m)
         all_rows = ((obs.landmark_id == lid) | (labels == lid)) & in_frames
         out[lid] = Tally(
-            len(rows), views, None if last is None else (float(last[0]), float(last[1])),
+            len(rows),
+            views,
+            None if last is None else (float(last[0]), float(last[1])),
             None if len(xy) == 0 else (float(xy[0, 0]), float(xy[0, 1])),
-            float(np.sum(e**2)), len(e), float(np.max(e)) if len(e) else 0.0,
-            int(np.sum(all_rows)), int(np.sum(all_rows & set_aside_rows)),
+            float(np.sum(e**2)),
+            len(e),
+            float(np.max(e)) if len(e) else 0.0,
+            int(np.sum(all_rows)),
+            int(np.sum(all_rows & set_aside_rows)),
             int(obs.conflicts.get(lid, 0)),
-        )  # fmt: skip
+        )
     return out

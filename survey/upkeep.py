@@ -161,8 +161,9 @@ class MapUpkeep:
         keep = [(i, self._slot[lid]) for i, lid in enumerate(ids) if lid in self._slot]
         n_old = len(self._ids)
         a = np.array([3 * i + c for i, _ in keep for c in range(3)] + [3 * n + k for k in range(r)])
-        b = np.array([3 * j + c for _, j in keep for c in range(3)]
-                     + [3 * n_old + k for k in range(r)])  # fmt: skip
+        b = np.array(
+            [3 * j + c for _, j in keep for c in range(3)] + [3 * n_old + k for k in range(r)]
+        )
         if len(a):
             old_info = self._info[np.ix_(b, b)]
             shift = np.concatenate([new[ids[i]] - self._where[j] for i, j in keep] + [np.zeros(r)])
@@ -243,8 +244,9 @@ class MapUpkeep:
         if not self.wants(robot, pose):
             return 0
         here = (float(pose.x), float(pose.y), float(pose.theta))
-        candidates = [self._slot[i] for i in {*pose.landmark_ids, *pose.expected_ids}
-                      if i in self._slot]  # fmt: skip
+        candidates = [
+            self._slot[i] for i in {*pose.landmark_ids, *pose.expected_ids} if i in self._slot
+        ]
         candidates.sort()
         if len(candidates) < 2:
             return 0
@@ -256,9 +258,14 @@ class MapUpkeep:
         fit = [k for k, r in enumerate(rows) if self._ids[r] in used]
         noise = self._noise_model(camera)
         ev = frame_evidence(
-            camera, here, px[[s for _, s in pairs]], self._where[rows],
-            [self._ids[r] for r in rows], noise.sigma_px, fit_rows=fit,
-        )  # fmt: skip
+            camera,
+            here,
+            px[[s for _, s in pairs]],
+            self._where[rows],
+            [self._ids[r] for r in rows],
+            noise.sigma_px,
+            fit_rows=fit,
+        )
         if ev is None:
             return 0
         idx = np.array([3 * r + c for r in rows for c in range(3)] + self._robot_rows(robot))
@@ -374,10 +381,15 @@ class MapUpkeep:
         old = tuple(float(v) for v in self._where[i])
         new = tuple(float(v) for v in pos[i])
         return MapProposal(
-            lid, kind, (old[0], old[1], old[2]), (new[0], new[1], new[2]),
-            _largest_sigma(cov[i] + floor), int(self._views[i]), statistic,
+            lid,
+            kind,
+            (old[0], old[1], old[2]),
+            (new[0], new[1], new[2]),
+            _largest_sigma(cov[i] + floor),
+            int(self._views[i]),
+            statistic,
             float(np.linalg.norm(pos[i] - self._where[i])),
-        )  # fmt: skip
+        )
 
 
 def _largest_sigma(cov: FloatArray) -> float:

@@ -115,15 +115,25 @@ class SiteAdapter:
             e = energy.landmark(lm.id)
             out.append(
                 LandmarkState(
-                    id=lm.id, x=lm.x, y=lm.y, z=lm.z, locked=lm.locked, radio=lm.radio,
+                    id=lm.id,
+                    x=lm.x,
+                    y=lm.y,
+                    z=lm.z,
+                    locked=lm.locked,
+                    radio=lm.radio,
                     supply_mv=None if b is None else b.supply_mv,
                     percent=None if b is None else b.percent,
                     days_left=None if b is None else b.days_left,
-                    reachable=lm.id not in unreachable, doubted=lm.id in doubted,
-                    lit=e.lit, lit_reason=e.reason, duty=e.duty, model_days=e.days_left,
-                    low=e.low, sigma_m=lm.sigma_m,
+                    reachable=lm.id not in unreachable,
+                    doubted=lm.id in doubted,
+                    lit=e.lit,
+                    lit_reason=e.reason,
+                    duty=e.duty,
+                    model_days=e.days_left,
+                    low=e.low,
+                    sigma_m=lm.sigma_m,
                 )
-            )  # fmt: skip
+            )
         return out
 
     def robots(self) -> list[RobotState]:
@@ -135,10 +145,17 @@ class SiteAdapter:
             upd = runner.latest
             pose = None if upd is None else upd.estimate()
             out.append(
-                RobotState(runner.name, runner.camera, pose, str(runner.mode),
-                           runner.last_fix_t_ns, now, runner.reasons.reason_text,
-                           runner.reasons.quality)
-            )  # fmt: skip
+                RobotState(
+                    runner.name,
+                    runner.camera,
+                    pose,
+                    str(runner.mode),
+                    runner.last_fix_t_ns,
+                    now,
+                    runner.reasons.reason_text,
+                    runner.reasons.quality,
+                )
+            )
         return out
 
     def lit(self) -> frozenset[int]:

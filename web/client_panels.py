@@ -151,9 +151,14 @@ class ClientPanels:
         self.coverage.refresh(list(landmarks))
         self.inspect.refresh()
         for panel in (
-            self.floor, self.wizard, self.survey, self.history, self.proposals,
-            self.recordings, self.zones,
-        ):  # fmt: skip
+            self.floor,
+            self.wizard,
+            self.survey,
+            self.history,
+            self.proposals,
+            self.recordings,
+            self.zones,
+        ):
             if panel is not None:
                 panel.refresh()
         for owner in (self.commission, self.history, self.floorplan):

@@ -75,11 +75,17 @@ class FloorPlanLayer:
             self.info = None
             return True
         self.scene.add_image(
-            "/floorplan", floorplan_pixels(found[0]), info.width_m, info.height_m,
-            format="jpeg", jpeg_quality=90, cast_shadow=False, receive_shadow=False,
+            "/floorplan",
+            floorplan_pixels(found[0]),
+            info.width_m,
+            info.height_m,
+            format="jpeg",
+            jpeg_quality=90,
+            cast_shadow=False,
+            receive_shadow=False,
             position=(info.center_m[0], info.center_m[1], FLOORPLAN_Z_M),
             wxyz=wxyz_about_z(info.rotation_rad),
-        )  # fmt: skip
+        )
         self.info = info
         return True
 

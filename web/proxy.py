@@ -153,9 +153,13 @@ def viewer_router(
             target = "/viewer/" + (f"?{urlencode(rest)}" if rest else "")
             resp: Response = RedirectResponse(target, status_code=303)
             resp.set_cookie(
-                COOKIE, query_key, httponly=True, samesite="strict", path="/viewer",
+                COOKIE,
+                query_key,
+                httponly=True,
+                samesite="strict",
+                path="/viewer",
                 secure=request.url.scheme == "https",
-            )  # fmt: skip
+            )
             return resp
         return HTMLResponse(index.read_bytes(), headers={"Cache-Control": "no-store"})
 
@@ -195,9 +199,12 @@ def viewer_router(
         url = f"ws://127.0.0.1:{viewer.port}/?{TICKET_PARAM}={ticket}"
         try:
             upstream = await websockets.connect(
-                url, subprotocols=[proto] if proto else None, max_size=None,  # type: ignore[list-item]
-                open_timeout=10, ping_interval=None,
-            )  # fmt: skip
+                url,
+                subprotocols=[proto] if proto else None,  # type: ignore[list-item]
+                max_size=None,
+                open_timeout=10,
+                ping_interval=None,
+            )
         except (OSError, websockets.WebSocketException) as exc:
             log.warning("viewer proxy: cannot reach viser on port %s: %s", viewer.port, exc)
             await ws.close(code=1011, reason="viewer unavailable")

@@ -18,7 +18,6 @@ covariance changed by more than `ellipse_rtol`, its rays when the landmarks used
 from __future__ import annotations
 
 import math
-from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
@@ -39,9 +38,10 @@ from web.colors import (
 )
 from web.footprint import Bounds, footprint_in_site, usable_footprint_body
 from web.geometry import ellipse_points
+from web.segments import polyline_segments, set_segments
 from web.services import LandmarkState, RobotState
+from web.trail import Trail, TrailConfig
 
-TRAIL_COLOR: RGB = (90, 90, 200)
 FOOTPRINT_COLOR: RGB = (80, 160, 200)
 RAY_COLOR: RGB = (250, 220, 90)
 CEILING_COLOR: RGB = (170, 170, 205)
@@ -80,111 +80,6 @@ def wxyz_from_heading(theta: float) -> tuple[float, float, float, float]:
     return (math.cos(theta / 2.0), 0.0, 0.0, math.sin(theta / 2.0))
 
 
-def polyline_segments(points: FloatArray) -> FloatArray:
-    """Consecutive points as line segments: (N, 3) -> (N - 1, 2, 3)."""
-    p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-    if len(p) < 2:
-        return np.zeros((0, 2, 3))
-    return np.stack([p[:-1], p[1:]], axis=1)
-
-
-def set_segments(handle: viser.LineSegmentsHandle, segments: FloatArray, color: RGB) -> None:
-    """Replace a line-segments node's segments (N, 2, 3), all in one colour (the colours
-    are only sent when their number or the colour changed; call inside `server.atomic()`
-    so that a browser applies both together)."""
-    seg = np.asarray(segments, dtype=np.float32).reshape(-1, 2, 3)
-    colors = handle.colors
-    if colors.shape != seg.shape or (len(seg) > 0 and tuple(colors[0, 0]) != tuple(color)):
-        handle.colors = np.broadcast_to(np.array(color, dtype=np.uint8), seg.shape).copy()
-    handle.points = seg
-
-
-@dataclass(frozen=True)
-class TrailConfig:
-    """How a robot's trail samples its poses.
-
-    Attributes:
-        min_step_m: a pose is added once the robot moved this far from the last point,
-            metres (a robot standing still adds nothing; the trail follows the floor, not
-            the viewer's update rate).
-        max_jump_m: two consecutive points farther apart than this are not joined, metres
-            (a gap in the poses: a busy server, a robot lost and found again; joined, they
-            would draw a chord through the walls).
-        max_gap_s: ... nor two points further apart in time than this, seconds.
-        max_points: points kept (the oldest pieces are dropped beyond it).
-        piece: points per trail piece: only the newest piece is resent.
-    """
-
-    min_step_m: float = 0.1
-    max_jump_m: float = 1.0
-    max_gap_s: float = 5.0
-    max_points: int = 600
-    piece: int = 20
-
-
-class Trail:
-    """A robot's trail as pieces of at most `piece` points, in the robot's colour: finished
-    pieces stay in the scene as they are, only the newest is resent; the oldest go beyond
-    `max_points`. A jump in distance or time starts a new piece not joined to the last."""
-
-    def __init__(
-        self,
-        scene: viser.SceneApi,
-        root: str,
-        *,
-        color: RGB = TRAIL_COLOR,
-        config: TrailConfig | None = None,
-    ) -> None:
-        self.scene, self.root, self.color = scene, root, color
-        self.config = cfg = config or TrailConfig()
-        self.piece = max(2, cfg.piece)
-        self._pieces: deque[tuple[viser.LineSegmentsHandle, int]] = deque()
-        self._points: list[tuple[float, float]] = []
-        self._last: tuple[float, float, float] | None = None  # x, y, t seconds
-        self._k = 0
-        self.shown: deque[tuple[float, float]] = deque(maxlen=cfg.max_points)
-        """The points drawn (about; for tests), oldest first."""
-
-    def append(self, x: float, y: float, t_s: float) -> bool:
-        """Offer a pose (world x, y metres at time `t_s` seconds); True when it was added
-        (it moved `min_step_m` since the last point), then the newest piece is resent."""
-        cfg = self.config
-        last = self._last
-        if last is not None:
-            step = math.hypot(x - last[0], y - last[1])
-            if step < cfg.min_step_m and t_s >= last[2]:
-                return False
-            if step > cfg.max_jump_m or abs(t_s - last[2]) > cfg.max_gap_s:
-                self._points = []  # a gap: the next piece starts here, not joined
-        self._last = (x, y, t_s)
-        if len(self._points) >= self.piece:  # finish this piece; the next starts at its end
-            self._points = self._points[-1:]
-            self._pieces.append((self._new_piece(), 0))
-        elif not self._points:
-            self._pieces.append((self._new_piece(), 0))
-        self._points.append((x, y))
-        self.shown.append((x, y))
-        handle, _ = self._pieces[-1]
-        self._pieces[-1] = (handle, len(self._points))
-        while sum(n for _, n in self._pieces) > cfg.max_points and len(self._pieces) > 1:
-            self._pieces.popleft()[0].remove()
-        p = np.array(self._points)
-        seg = polyline_segments(np.column_stack([p, np.full(len(p), 0.01)]))
-        set_segments(handle, seg, self.color)
-        return True
-
-    def _new_piece(self) -> viser.LineSegmentsHandle:
-        self._k += 1
-        return self.scene.add_line_segments(
-            f"{self.root}/{self._k}", np.zeros((0, 2, 3)), self.color, thickness=0.05
-        )
-
-    @property
-    def pieces(self) -> list[viser.LineSegmentsHandle]:
-        """The trail's nodes, oldest first."""
-        return [h for h, _ in self._pieces]
-
-
 def robot_label(name: str) -> str:
     """The text beside a robot: "robot r3" (landmark labels are bare IDs)."""
     return f"robot {name}"
@@ -212,19 +107,26 @@ class _RobotNodes:
         at = f"{root}/position"
         self.at = scene.add_frame(at, show_axes=False, visible=False)
         self.body = scene.add_box(
-            f"{at}/body", color=UNKNOWN_COLOR, dimensions=(0.45, 0.35, 0.25),
+            f"{at}/body",
+            color=UNKNOWN_COLOR,
+            dimensions=(0.45, 0.35, 0.25),
             position=(0.0, 0.0, BODY_Z_M),
-        )  # fmt: skip
+        )
         self.nose = scene.add_box(
-            f"{at}/body/nose", color=(30, 30, 30), dimensions=(0.15, 0.08, 0.05),
+            f"{at}/body/nose",
+            color=(30, 30, 30),
+            dimensions=(0.15, 0.08, 0.05),
             position=(0.25, 0.0, 0.1),
-        )  # fmt: skip
+        )
         # on the (unturned) position frame, beside the box and above the landmark labels'
         # side, and named as a robot: a bare "r3" over landmark "201" read "r301"
         self.label = scene.add_label(
-            f"{at}/label", robot_label(name), position=(0.3, 0.3, 0.35), anchor="bottom-left",
+            f"{at}/label",
+            robot_label(name),
+            position=(0.3, 0.3, 0.35),
+            anchor="bottom-left",
             font_screen_scale=1.1,
-        )  # fmt: skip
+        )
         empty = np.zeros((0, 2, 3))
         scene.add_frame(f"{root}/trail", show_axes=False)
         self.color = color
@@ -280,10 +182,18 @@ class SiteScene:
         self.bounds = (cx - w / 2.0, cx + w / 2.0, cy - h / 2.0, cy + h / 2.0)
         scene = self.server.scene
         scene.add_grid(
-            "/floor", w, h, plane="xy", position=(cx, cy, 0.0), cell_size=1.0,
-            section_size=5.0, cell_color=(215, 215, 215), section_color=(160, 160, 160),
-            fade_distance=1e4, shadow_opacity=0.0,
-        )  # fmt: skip
+            "/floor",
+            w,
+            h,
+            plane="xy",
+            position=(cx, cy, 0.0),
+            cell_size=1.0,
+            section_size=5.0,
+            cell_color=(215, 215, 215),
+            section_color=(160, 160, 160),
+            fade_distance=1e4,
+            shadow_opacity=0.0,
+        )
         bx0, bx1, by0, by1 = self.bounds
         corners = np.array(
             [[bx0, by0], [bx1, by0], [bx1, by1], [bx0, by1], [bx0, by0]], dtype=np.float64
@@ -325,13 +235,21 @@ class SiteScene:
             name = f"/landmarks/{lm.id}"
             sphere = scene.add_icosphere(name, r, color, position=pos, subdivisions=2)
             label = scene.add_label(
-                f"{name}/label", landmark_label(lm), position=(0.0, 0.0, -2.0 * r),
-                anchor="top-center", font_screen_scale=0.8,
-            )  # fmt: skip
+                f"{name}/label",
+                landmark_label(lm),
+                position=(0.0, 0.0, -2.0 * r),
+                anchor="top-center",
+                font_screen_scale=0.8,
+            )
             glow = scene.add_icosphere(
-                f"{name}/glow", 2.2 * r, LIT_COLOR, opacity=0.45, subdivisions=2,
-                visible=lm.id in lit, cast_shadow=False,
-            )  # fmt: skip
+                f"{name}/glow",
+                2.2 * r,
+                LIT_COLOR,
+                opacity=0.45,
+                subdivisions=2,
+                visible=lm.id in lit,
+                cast_shadow=False,
+            )
             self._spheres[lm.id] = (sphere, label, glow)
             self._landmarks[lm.id] = state
             for node in (sphere, glow):  # the glow (larger) is what a click hits while lit
@@ -397,8 +315,11 @@ class SiteScene:
         nodes.trail.append(pose.x, pose.y, pose.t_ns * 1e-9)
         cov = np.asarray(pose.covariance, dtype=np.float64)[:2, :2]
         old = nodes.cov
-        if mode_changed or old is None or not np.allclose(cov, old, rtol=cfg.ellipse_rtol,
-                                                          atol=1e-8):  # fmt: skip
+        if (
+            mode_changed
+            or old is None
+            or not np.allclose(cov, old, rtol=cfg.ellipse_rtol, atol=1e-8)
+        ):
             nodes.cov = cov
             c = 0.5 * (cov + cov.T) + np.eye(2) * (cfg.ellipse_min_m / cfg.ellipse_sigma) ** 2
             ring = ellipse_points((0.0, 0.0), c, n_sigma=cfg.ellipse_sigma, n_points=24)
@@ -408,10 +329,17 @@ class SiteScene:
         self._update_footprint(nodes, rb, pose.x, pose.y, pose.theta, due=rays_due)
         if not rays_due:
             return
-        cam_world = np.array([pose.x, pose.y, 0.0]) + np.array(
-            [[math.cos(pose.theta), -math.sin(pose.theta), 0.0],
-             [math.sin(pose.theta), math.cos(pose.theta), 0.0], [0.0, 0.0, 1.0]]
-        ) @ rb.camera.T_body_camera[:3, 3]  # fmt: skip
+        cam_world = (
+            np.array([pose.x, pose.y, 0.0])
+            + np.array(
+                [
+                    [math.cos(pose.theta), -math.sin(pose.theta), 0.0],
+                    [math.sin(pose.theta), math.cos(pose.theta), 0.0],
+                    [0.0, 0.0, 1.0],
+                ]
+            )
+            @ rb.camera.T_body_camera[:3, 3]
+        )
         used = [self._positions[i] for i in pose.landmark_ids if i in self._positions]
         rays = np.stack([np.stack([cam_world, p]) for p in used]) if used else np.zeros((0, 2, 3))
         set_segments(nodes.rays, rays, RAY_COLOR)
@@ -424,9 +352,10 @@ class SiteScene:
         first = nodes.footprint_body is None
         if nodes.footprint_body is None:
             foot = usable_footprint_body(
-                rb.camera, self.ceiling_z,
+                rb.camera,
+                self.ceiling_z,
                 max_off_axis_rad=self.config.footprint_max_off_axis_rad,
-            )  # fmt: skip
+            )
             foot[:, 2] -= BODY_Z_M
             nodes.footprint_body = foot
         if not (first or due):
@@ -477,9 +406,13 @@ def draw_coverage(
     scene.add_frame("/coverage", show_axes=False)
     step = float(coverage.xs[1] - coverage.xs[0]) if len(coverage.xs) > 1 else 0.25
     scene.add_point_cloud(
-        "/coverage/floor", pts, colors, point_size=0.9 * step, point_shape="square",
+        "/coverage/floor",
+        pts,
+        colors,
+        point_size=0.9 * step,
+        point_shape="square",
         point_shading="flat",
-    )  # fmt: skip
+    )
     segs = [
         (positions[f.a], positions[f.b]) for f in flags if f.a in positions and f.b in positions
     ]

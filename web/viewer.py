@@ -283,8 +283,9 @@ class Viewer:
         self.share_refusals += 1
         log.warning(
             "viewer: refused viser's share tunnel requested by client %s (%s)",
-            client_id, self.session_of(client_id) or "no session",
-        )  # fmt: skip
+            client_id,
+            self.session_of(client_id) or "no session",
+        )
 
     def session_of(self, client_id: int) -> Session | None:
         """The session of a connected browser."""
@@ -346,8 +347,10 @@ class Viewer:
             self.floorplan.refresh()
         with self._lock:
             following = [p.view for p in self._panels.values()]
+        names = [r.name for r in robots]
         for view in following:
             try:
+                view.set_robots(names)  # robots that joined since the panel was built
                 view.follow(robots, time.monotonic())
             except Exception:  # its browser went away mid-update
                 log.debug("viewer: follow failed", exc_info=True)

@@ -92,8 +92,11 @@ class ZonesLayer:
             )
             c = np.asarray(z.polygon, dtype=np.float64).mean(axis=0)
             self.scene.add_label(
-                f"/zones/{z.id}/label", zone_label(z), position=(c[0], c[1], ZONE_Z_M),
-                anchor="center-center", font_screen_scale=0.9,
-            )  # fmt: skip
+                f"/zones/{z.id}/label",
+                zone_label(z),
+                position=(c[0], c[1], ZONE_Z_M),
+                anchor="center-center",
+                font_screen_scale=0.9,
+            )
             self.shown[z.id] = (z, color)
         return True

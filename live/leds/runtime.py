@@ -285,10 +285,18 @@ class LedScheduler:
         still = 0.0 if m.still_since_ns is None else (t_ns - m.still_since_ns) * _NS
         route = () if self._routes is None else self._routes(runner.name)
         return RobotState(
-            runner.name, runner.camera, vmax, runner.mode, pose,
-            covariance=upd.covariance, pose_age_s=max((t_ns - upd.t_ns) * _NS, 0.0),
-            v=m.v, omega=m.omega, still_s=still, route=route,
-        )  # fmt: skip
+            runner.name,
+            runner.camera,
+            vmax,
+            runner.mode,
+            pose,
+            covariance=upd.covariance,
+            pose_age_s=max((t_ns - upd.t_ns) * _NS, 0.0),
+            v=m.v,
+            omega=m.omega,
+            still_s=still,
+            route=route,
+        )
 
     def step(self, t_ns: int) -> LedPlan:
         """Account the time since the last step and plan (call every `period_s`)."""

@@ -42,8 +42,9 @@ def dim_supply_v(battery: BatteryConfig | None = None) -> float:
 
 
 @functools.lru_cache(maxsize=4096)
-def _days(duty: float, messages_per_s: float, charge: float, period_s: float | None, *,
-          dim: bool) -> float:  # fmt: skip
+def _days(
+    duty: float, messages_per_s: float, charge: float, period_s: float | None, *, dim: bool
+) -> float:
     """`predict_life_days` memoised on rounded inputs (the viewer asks at a few hertz)."""
     battery = BatteryConfig(brownout_v=dim_supply_v()) if dim else None
     sleep = None if period_s is None else RadioSleep(period_s)

@@ -151,9 +151,15 @@ def attach_scheduler(
         return value
 
     return make_scheduler(
-        landmarks, runners, coordinator, clock_ns, settings, period_s=period_s, routes=routes,
+        landmarks,
+        runners,
+        coordinator,
+        clock_ns,
+        settings,
+        period_s=period_s,
+        routes=routes,
         floors=floors,
-    )  # fmt: skip
+    )
 
 
 def make_scheduler(

@@ -53,8 +53,12 @@ def accepted_edits(
             "rms_px": round(e.rms_px, 3),
         }
         update = LandmarkUpdate(
-            x=x, y=y, z=z, sigma_m=e.sigma_m, covariance=e.covariance.tolist(),
+            x=x,
+            y=y,
+            z=z,
+            sigma_m=e.sigma_m,
+            covariance=e.covariance.tolist(),
             evidence=evidence,
-        )  # fmt: skip
+        )
         edits.append((lid, update))
     return edits

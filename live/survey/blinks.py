@@ -119,10 +119,13 @@ class BlinkDriver:
         seen = () if pose is None else pose.landmark_ids
         done = self.settled()
         return blink_choice(
-            (i for i in self.ids if i not in done), expected,
-            needed_by_others(self._other_fixes(), self.others_keep), self.blinked,
-            self.anchors - done, seen,
-        )  # fmt: skip
+            (i for i in self.ids if i not in done),
+            expected,
+            needed_by_others(self._other_fixes(), self.others_keep),
+            self.blinked,
+            self.anchors - done,
+            seen,
+        )
 
     def _other_fixes(self) -> list[tuple[int, ...]]:
         """The landmarks each other robot's latest fix used."""

@@ -61,9 +61,7 @@ class RunningEstimate:
         if len(window.frame_t_ns) < 2 or len(window.odom_t_ns) == 0:
             return None
         cfg = self.config
-        self.state = self.solver.update(
-            self.state, window, anchors, cfg.bundle, cfg.incremental
-        )  # fmt: skip
+        self.state = self.solver.update(self.state, window, anchors, cfg.bundle, cfg.incremental)
         start = self.state.window_start_ns
         if start is not None and start >= 0:
             drive.forget_before(start)
@@ -105,7 +103,11 @@ def route_over(
     m = config.site_margin_m
     lo, hi = pos.min(axis=0) - m, pos.max(axis=0) + m
     route = suggest_route(
-        robot_xy, pos, sig, (float(lo[0]), float(hi[0]), float(lo[1]), float(hi[1])),
-        visited_xy=result.trajectory[:, :2], config=config.route,
-    )  # fmt: skip
+        robot_xy,
+        pos,
+        sig,
+        (float(lo[0]), float(hi[0]), float(lo[1]), float(hi[1])),
+        visited_xy=result.trajectory[:, :2],
+        config=config.route,
+    )
     return tuple((float(x), float(y)) for x, y in route)

@@ -183,11 +183,16 @@ class LiveDrive:
         (`survey.incremental.window_of`: the LED state in force then included)."""
         with self._lock:
             drive = SurveyDrive(
-                self.landmarks, self.camera, self.robot,
-                np.asarray(self._frame_t, dtype=np.int64), list(self._spots),
+                self.landmarks,
+                self.camera,
+                self.robot,
+                np.asarray(self._frame_t, dtype=np.int64),
+                list(self._spots),
                 np.asarray(self._odom_t, dtype=np.int64),
-                np.asarray(self._odom_v, dtype=np.float64).reshape(-1, 2), list(self._leds), 0,
-            )  # fmt: skip
+                np.asarray(self._odom_v, dtype=np.float64).reshape(-1, 2),
+                list(self._leds),
+                0,
+            )
         return window_of(drive, since_ns)
 
     def forget_before(self, t_ns: int) -> None:

@@ -149,8 +149,9 @@ class LiveSurvey:
             self._saved, self._resumed = None, resume is not None
             self._running.begin(resume)
             given = [SurveyLandmark(lm.id, np.array([lm.x, lm.y, lm.z]), {}) for lm in lms]
-            drive = LiveDrive(given, runner.camera, runner.geometry,
-                              queue_frames=self.live.queue_frames)  # fmt: skip
+            drive = LiveDrive(
+                given, runner.camera, runner.geometry, queue_frames=self.live.queue_frames
+            )
             runner.add_tap(drive.add)
             self._drive, self._tap = drive, (robot, drive.add)
             self._state, self._robot, self._t0, self._count = "driving", robot, time.monotonic(), 0
@@ -164,16 +165,27 @@ class LiveSurvey:
             self._stop = stop = threading.Event()  # this drive's: an old thread keeps its own
             self._solver.start()
             blinker = BlinkDriver(
-                self.leds, self.robots, robot, sorted(lm.id for lm in lms), self._settled,
-                self.blinks, self._counted, anchors,
+                self.leds,
+                self.robots,
+                robot,
+                sorted(lm.id for lm in lms),
+                self._settled,
+                self.blinks,
+                self._counted,
+                anchors,
                 frames_in_state=lambda lid, lit: drive.frames_since_switch(lid, lit=lit),
-            )  # fmt: skip
+            )
             self._threads = [
-                threading.Thread(target=blinker.run, args=(stop,), name="survey-blinks",
-                                 daemon=True),
-                threading.Thread(target=self._estimate, args=(drive, anchors, stop),
-                                 name="survey-live", daemon=True),
-            ]  # fmt: skip
+                threading.Thread(
+                    target=blinker.run, args=(stop,), name="survey-blinks", daemon=True
+                ),
+                threading.Thread(
+                    target=self._estimate,
+                    args=(drive, anchors, stop),
+                    name="survey-live",
+                    daemon=True,
+                ),
+            ]
             for t in self._threads:
                 t.start()
         log.info("survey started by %s with robot %s", actor, robot)
@@ -189,9 +201,10 @@ class LiveSurvey:
             return set()
         cfg = self.live
         return {
-            e.id for e in result.landmarks.values()
+            e.id
+            for e in result.landmarks.values()
             if landmark_state(e, cfg.converged_sigma_m) in ("anchor", "converged")
-        }  # fmt: skip
+        }
 
     def _counted(self) -> None:
         with self._lock:
@@ -354,12 +367,21 @@ class LiveSurvey:
                     for e in sorted(result.landmarks.values(), key=lambda e: e.id)
                 )
             return SurveyStatus(
-                self._state, self._robot, None if self._recording is None else str(self._recording),
-                None if self._state == "idle" else time.monotonic() - self._t0, self._count,
-                self._message, proposals, tuple(self._accepted),
-                () if result is None else result.unseen, self._drive_s, self._estimates,
-                self._route, cfg.converged_sigma_m, self._no_radio,
-            )  # fmt: skip
+                self._state,
+                self._robot,
+                None if self._recording is None else str(self._recording),
+                None if self._state == "idle" else time.monotonic() - self._t0,
+                self._count,
+                self._message,
+                proposals,
+                tuple(self._accepted),
+                () if result is None else result.unseen,
+                self._drive_s,
+                self._estimates,
+                self._route,
+                cfg.converged_sigma_m,
+                self._no_radio,
+            )
 
     def accept(
         self, landmark_ids: list[int] | None, *, actor: str, include_flagged: bool = False

@@ -87,7 +87,16 @@ def proposal(e: LandmarkEstimate, state: LandmarkSurveyState) -> Proposal:
     moved = 0.0 if e.given is None else math.dist(e.position.tolist(), e.given.tolist())
     x, y, z = (float(v) for v in e.position)
     return Proposal(
-        e.id, x, y, z, 0.0 if e.anchor else e.sigma_m, moved, e.views,
-        e.rms_px if math.isfinite(e.rms_px) else 0.0, e.anchor, e.flags,
-        (0.0, 0.0, 0.0) if e.anchor else e.ellipse(), state,
-    )  # fmt: skip
+        e.id,
+        x,
+        y,
+        z,
+        0.0 if e.anchor else e.sigma_m,
+        moved,
+        e.views,
+        e.rms_px if math.isfinite(e.rms_px) else 0.0,
+        e.anchor,
+        e.flags,
+        (0.0, 0.0, 0.0) if e.anchor else e.ellipse(),
+        state,
+    )

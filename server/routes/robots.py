@@ -71,8 +71,15 @@ class BlackBoxPublic(BaseModel):
 
     @classmethod
     def of(cls, b: BlackBoxRecording) -> BlackBoxPublic:
-        return cls(robot=b.robot, trigger=b.trigger, reason=b.reason, t_ns=b.t_ns,
-                   saved_at=b.saved_at, bytes=b.bytes, path=str(b.path))  # fmt: skip
+        return cls(
+            robot=b.robot,
+            trigger=b.trigger,
+            reason=b.reason,
+            t_ns=b.t_ns,
+            saved_at=b.saved_at,
+            bytes=b.bytes,
+            path=str(b.path),
+        )
 
 
 def _status(services: ServicesDep, name: str) -> RobotStatus:

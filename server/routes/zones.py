@@ -141,9 +141,13 @@ def update_zone(zone_id: ZoneId, body: ZoneUpdate, services: ServicesDep, _: Adm
     if body.floor:
         services.floors.check(body.floor, what="zone")
     z = services.zones.update(
-        zone_id, name=body.name, polygon=body.polygon, floor=body.floor, dwell_s=body.dwell_s,
+        zone_id,
+        name=body.name,
+        polygon=body.polygon,
+        floor=body.floor,
+        dwell_s=body.dwell_s,
         clear_dwell="dwell_s" in fields and body.dwell_s is None,
-    )  # fmt: skip
+    )
     return _zone(z)
 
 

@@ -6,13 +6,8 @@ import math
 
 import numpy as np
 
-from lighting.policy import (
-    RobotState,
-    ScheduleConfig,
-    body_pose,
-    in_view,
-    plan_leds,
-)
+from lighting.camera_view import body_pose, in_view
+from lighting.policy import RobotState, ScheduleConfig, plan_leds
 from localizer.camera import CameraModel, predict_pixels
 from sim.cameras import wide_angle_camera
 

@@ -8,7 +8,7 @@ from typing import Literal
 import numpy as np
 import pytest
 
-from lighting.policy import body_pose, project_from_poses, visible
+from lighting.camera_view import body_pose, project_from_poses, visible
 from localizer.camera import predict_pixels
 from sim.cameras import wide_angle_camera
 

@@ -7,7 +7,8 @@ import numpy as np
 import viser
 
 from tests.web.memsite import grid_site
-from web.scene import SceneConfig, SiteScene, Trail, TrailConfig
+from web.scene import SceneConfig, SiteScene
+from web.trail import Trail, TrailConfig
 
 
 def node(server: viser.ViserServer, name: str) -> Any:

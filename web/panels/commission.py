@@ -54,10 +54,11 @@ class CommissionPanel:
             self.gui_y = gui.add_number("y (m)", 0.0, step=0.01)
             self.gui_z = gui.add_number("height (m)", round(h, 3), min=0.0, step=0.01)
             self.gui_radio = gui.add_text(
-                "Radio address", "",
+                "Radio address",
+                "",
                 hint="16 hex digits, e.g. 0013A20041B2C3D4: without it the landmark cannot "
                 "be switched, identified by blinking or surveyed",
-            )  # fmt: skip
+            )
             self.gui_pick = gui.add_checkbox("Pick on ceiling", False)
             self.gui_add = gui.add_button("Add landmark")
             self.gui_move = gui.add_button("Move / set height")

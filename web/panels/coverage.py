@@ -77,9 +77,12 @@ class CoveragePanel:
             return str(exc)
         flags = spacing_flags(ids, pos)
         draw_coverage(
-            self.client.scene, cov, flags, dict(zip(ids.tolist(), pos, strict=True)),
+            self.client.scene,
+            cov,
+            flags,
+            dict(zip(ids.tolist(), pos, strict=True)),
             by="error" if by == "expected error" else "count",
-        )  # fmt: skip
+        )
         n = cov.counts.size
         dead = int(np.sum(cov.counts == 0))
         one = int(np.sum(cov.counts == 1))

@@ -82,9 +82,10 @@ def landmark_text(
     lines = [
         f"**Landmark {lm.id}**" + (" (surveyed, locked)" if lm.locked else ""),
         f"- at ({lm.x:.3f}, {lm.y:.3f}, {lm.z:.3f}) m{sigma}",
-        f"- radio {lm.radio or 'none'}" + ("" if lm.reachable else " **not answering**")
+        f"- radio {lm.radio or 'none'}"
+        + ("" if lm.reachable else " **not answering**")
         + (" - **doubted**: robots expected it but rarely used it" if lm.doubted else ""),
-    ]  # fmt: skip
+    ]
     if lm.supply_mv is None:
         lines.append("- battery: not read yet")
     else:
@@ -178,8 +179,9 @@ class InspectPanel:
             if lm is None:
                 text = f"landmark {lid} is not in the map shown"
             else:
-                text = landmark_text(lm, robots, self.last_use.of(lid), self._edits(lid),
-                                     time.time())  # fmt: skip
+                text = landmark_text(
+                    lm, robots, self.last_use.of(lid), self._edits(lid), time.time()
+                )
         if self.gui_text.content != text:
             self.gui_text.content = text
         return text

@@ -194,9 +194,13 @@ class PlaybackPanel:
             return None
         p = self.poses[min(max(index, 0), len(self.poses) - 1)]
         self.client.scene.add_box(
-            "/playback/ghost", color=GHOST_COLOR, dimensions=(0.45, 0.35, 0.25),
-            position=(p.x, p.y, 0.125), wxyz=wxyz_from_heading(p.theta), opacity=0.6,
-        )  # fmt: skip
+            "/playback/ghost",
+            color=GHOST_COLOR,
+            dimensions=(0.45, 0.35, 0.25),
+            position=(p.x, p.y, 0.125),
+            wxyz=wxyz_from_heading(p.theta),
+            opacity=0.6,
+        )
         sigma = "" if p.sigma_m is None else f", 1-sigma {100 * p.sigma_m:.1f} cm"
         self.gui_at.content = (
             f"`{local_time_text(p.t)}` at ({p.x:.2f}, {p.y:.2f}) m, "
@@ -212,9 +216,13 @@ class PlaybackPanel:
         c = self.cell_m
         pts = np.column_stack([(a[:, 0] + 0.5) * c, (a[:, 1] + 0.5) * c, np.full(len(a), 0.005)])
         self.client.scene.add_point_cloud(
-            "/playback/heatmap", pts.astype(np.float32), heat_colors(a[:, 2]),
-            point_size=0.95 * c, point_shape="square", point_shading="flat",
-        )  # fmt: skip
+            "/playback/heatmap",
+            pts.astype(np.float32),
+            heat_colors(a[:, 2]),
+            point_size=0.95 * c,
+            point_shape="square",
+            point_shading="flat",
+        )
         return f"; heatmap: {n} poses of every robot in {len(a)} cells of {c:.2f} m"
 
     def clear(self) -> None:

@@ -86,8 +86,9 @@ class ProposalsPanel:
         text = "\n".join([head, *lines])
         if self.gui_list.content != text:
             self.gui_list.content = text
-        labels = {choice_label(st, v.proposal.landmark_id): v.proposal.landmark_id
-                  for v in st.proposals}  # fmt: skip
+        labels = {
+            choice_label(st, v.proposal.landmark_id): v.proposal.landmark_id for v in st.proposals
+        }
         if labels != self._labels:
             self._labels = labels
             self.gui_choice.options = tuple(labels) or (NONE,)
@@ -119,8 +120,9 @@ class ProposalsPanel:
     def reject(self, landmark_id: int | None) -> list[int]:
         """Reject one proposal, as `POST .../reject`."""
         try:
-            done = self.upkeep.reject([] if landmark_id is None else [landmark_id],
-                                      actor=self.session.actor)  # fmt: skip
+            done = self.upkeep.reject(
+                [] if landmark_id is None else [landmark_id], actor=self.session.actor
+            )
         except ValueError as exc:
             self.notify("Refused", str(exc))
             return []

@@ -98,8 +98,9 @@ class RecordingsPanel:
         except (KeyError, ValueError) as exc:
             self.notify("Recording refused", str(exc))
             return None
-        self.notify("Recording", f"{name}: " + ("not recording" if path is None else
-                                                 f"{path.name} saved"))  # fmt: skip
+        self.notify(
+            "Recording", f"{name}: " + ("not recording" if path is None else f"{path.name} saved")
+        )
         self.refresh(every_s=0.0)
         return None if path is None else path.name
 

@@ -19,7 +19,7 @@ from live.survey.service import Proposal, SurveyStatus
 from localizer.types import FloatArray
 from web.colors import RGB, ROUTE_COLOR, SURVEY_STATE_COLORS
 from web.roles import Session
-from web.scene import polyline_segments
+from web.segments import polyline_segments
 from web.services import LandmarkState, ViewerSite
 
 MIN_RING_M = 0.15
@@ -115,8 +115,9 @@ class SurveyPanel:
             self.gui_stop = gui.add_button("Stop and solve", disabled=True)
             self.gui_cancel = gui.add_button("Cancel survey", color="red", disabled=True)
             self.gui_progress = gui.add_markdown(progress_text(site.survey_status(), 0))
-            self.gui_scale = gui.add_number("Ellipses drawn (x)", 20.0, min=1.0, max=500.0,
-                                            step=1.0)  # fmt: skip
+            self.gui_scale = gui.add_number(
+                "Ellipses drawn (x)", 20.0, min=1.0, max=500.0, step=1.0
+            )
             self.gui_route = gui.add_checkbox("Show suggested route", True)
             self.gui_id = gui.add_number("Survey landmark ID", 0, min=0, step=1)
             self.gui_accept_one = gui.add_button("Accept this landmark", disabled=True)
@@ -172,8 +173,16 @@ class SurveyPanel:
         st = self.site.survey_status()
         lms = self.site.landmarks()
         text_key = (st.state, st.blinks, st.message, st.accepted, st.drive_s, len(lms))
-        scene_key = (st.state, st.estimates, st.accepted, st.proposals, st.route, len(lms),
-                     float(self.gui_scale.value), bool(self.gui_route.value))  # fmt: skip
+        scene_key = (
+            st.state,
+            st.estimates,
+            st.accepted,
+            st.proposals,
+            st.route,
+            len(lms),
+            float(self.gui_scale.value),
+            bool(self.gui_route.value),
+        )
         if (text_key, scene_key) == self._shown and not force:
             return
         redraw = force or self._shown is None or scene_key != self._shown[1]

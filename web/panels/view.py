@@ -129,8 +129,9 @@ class ViewPanel:
         at the right: none on a phone, whose panel folds to a bar below) and show it."""
         if width_px <= 0 or height_px <= 0:
             return
-        self.top = TopView(screen_aspect=width_px / height_px,
-                           panel_share=min(0.6, panel_px / width_px))  # fmt: skip
+        self.top = TopView(
+            screen_aspect=width_px / height_px, panel_share=min(0.6, panel_px / width_px)
+        )
         apply_top_view(self.client.camera, self.bounds, self.top)
 
     def set_robots(self, names: Sequence[str]) -> None:

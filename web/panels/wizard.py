@@ -188,8 +188,14 @@ class WizardPanel:
         """Show the wizard's state (cheap when unchanged)."""
         st = self.site.wizard_status()
         m = st.measurement
-        key = (st.phase, st.index, st.prompt, None if m is None else m.position, st.can_confirm,
-               st.needs_accept_far)  # fmt: skip
+        key = (
+            st.phase,
+            st.index,
+            st.prompt,
+            None if m is None else m.position,
+            st.can_confirm,
+            st.needs_accept_far,
+        )
         if key == self._shown and not force:
             return
         self._shown = key

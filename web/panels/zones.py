@@ -104,8 +104,9 @@ class ZonesPanel:
             if self.editing:
                 self.gui_zone = gui.add_dropdown("Zone", (NEW,))
                 self.gui_name = gui.add_text("Name", "")
-                self.gui_dwell = gui.add_number("Dwell event after (s, 0: none)", 0.0, min=0.0,
-                                                max=86_400.0, step=1.0)  # fmt: skip
+                self.gui_dwell = gui.add_number(
+                    "Dwell event after (s, 0: none)", 0.0, min=0.0, max=86_400.0, step=1.0
+                )
                 self.gui_points = gui.add_text("Corners (x, y; ... m)", "")
                 self.gui_draw = gui.add_checkbox("Draw on the floor (click corners)", False)
                 self.gui_create = gui.add_button("Create zone")
@@ -217,8 +218,9 @@ class ZonesPanel:
             if zid is None:
                 raise ValueError("choose the zone to change (or Create a new one)")
             name, points, dwell = self._fields()
-            z = self.store.update(zid, name=name, polygon=points, dwell_s=dwell,
-                                  clear_dwell=dwell is None)  # fmt: skip
+            z = self.store.update(
+                zid, name=name, polygon=points, dwell_s=dwell, clear_dwell=dwell is None
+            )
         except (ValueError, ConflictError, NotFoundError) as exc:
             self._refused(str(exc))
             return None
