@@ -91,8 +91,9 @@ def accuracy(
     """
     t_gt, gt = read_groundtruth(rec)
     sweep_end = next((e.t_ns for e in read_recording(rec).leds if e.all_lit), 0)
-    result = sec_v(read_poses(poses), t_gt, gt, sweep_end_ns=sweep_end, settle_s=settle_s,
-                   frame=frame)  # fmt: skip
+    result = sec_v(
+        read_poses(poses), t_gt, gt, sweep_end_ns=sweep_end, settle_s=settle_s, frame=frame
+    )
     return result.figures | {"startup_cm": result.startup_cm, "sweep_end_s": result.sweep_end_s}
 
 
