@@ -288,8 +288,8 @@ class Localizer:
         raise TypeError(f"Localizer.handle: unknown event {type(event).__name__}")
 
     def _catch_up(self) -> None:
-        """Do what the last fused frame left to learn (`_learn_liveness`, `_self_calibrate`)
-        before anything else: after its pose was output, on the next event (an odometry
+        """Do what the last fused frame left to learn (`_learn_liveness`, `_self_calibrate`,
+        the motion model's measurement in `_motion_fixed`) before anything else: after its pose was output, on the next event (an odometry
         or IMU sample between frames, or the next frame), so that the pose's latency does
         not carry it. Any later event sees the same state as if it had been done with the
         frame; only that frame's own output precedes a calibration update it completed."""
@@ -363,8 +363,13 @@ class Localizer:
         else:
             return
         var_xy = 0.5 * float(cov[0, 0] + cov[1, 1])
-        self._motion.fixed(t_ns, x, y, th, var_xy, float(cov[2, 2]))
-        if self._model_drives(t_ns) and self.config.motion.snap_output and self._filter is not None:
+        var_th = float(cov[2, 2])
+        if not self._model_drives(t_ns):  # odometry drives: the model learns after the pose
+            motion = self._motion
+            self._after_frame.append(lambda: motion.fixed(t_ns, x, y, th, var_xy, var_th))
+            return
+        self._motion.fixed(t_ns, x, y, th, var_xy, var_th)
+        if self.config.motion.snap_output and self._filter is not None:
             # without odometry a fix's correction is mostly motion the model did not
             # foresee (a turn begun or ended): smoothing it would only make a lag
             self._filter.snap_output()
