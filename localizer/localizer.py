@@ -23,7 +23,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import numpy.typing as npt
 
 from localizer.camera import CameraModel
 from localizer.candidate_order import ViewOrdering, order_by_view
@@ -33,7 +32,6 @@ from localizer.events import (
     Event,
     FrameObserved,
     ImuMeasured,
-    LedRequest,
     LedsChanged,
     Mode,
     NoPose,
@@ -53,6 +51,7 @@ from localizer.imu_tilt import GravityTilt
 from localizer.landmark_liveness import LandmarkLiveness
 from localizer.landmark_map import LandmarkMap
 from localizer.landmark_tracker import LandmarkTracker
+from localizer.led_knowledge import LedKnowledge
 from localizer.motion_model import ConstantVelocity
 from localizer.odometry import integrate_arc
 from localizer.odometry_track import OdometryTrack
@@ -101,10 +100,7 @@ class Localizer:
         self._filter: PoseFilter | None = None
         self._mode: Mode = "identifying"
         self._latest: PoseEstimate | None = None
-        self._lit: frozenset[int] | None = None  # None: all lit (or unknown)
-        self._changing: frozenset[int] = frozenset()  # LEDs being switched (state unknown)
-        self._t_leds: int | None = None  # when the LED state last changed
-        self._frames_since_leds = 0  # frames stamped since then
+        self._leds = LedKnowledge(landmark_map)  # lit, being switched, asked for, since when
         self._odometry = OdometryTrack(
             self.robot.wheel_base,
             self.config.fusion.odometry_history_s,
@@ -123,15 +119,10 @@ class Localizer:
         self._rejections = 0  # frames in a row whose spots no fused fix explained
         self._travel_m = 0.0  # odometry travel since the last fused fix (the slip hypothesis)
         self._t_explained = 0  # the last frame whose spots a fix explained (or none predicted)
-        self._last_request: LedRequest | None = None
-        self._want_all = False
         # the sighting the candidates were last ordered from, and the raw odometry then
         ic = self.config.identification
         self._view = ViewOrdering(ic.reorder_distance_m, ic.reorder_turn_rad)
         self._frame_interval_s: float | None = None  # between the last two frames
-        self._lit_rows_memo: (
-            tuple[frozenset[int] | None, frozenset[int], LandmarkMap, npt.NDArray[np.int64]] | None
-        ) = None
         self._tracker = LandmarkTracker(camera, robot, self.config, landmark_map)
         self._passive = PassiveIdentifier(
             self.config.passive, self.config.constellation, self.config.relocalization
@@ -147,7 +138,6 @@ class Localizer:
         # what explains a frame without a fix (`pose_quality.FrameFacts`)
         self._facts: dict[str, bool | int | float] = {}
         self._typical_gap_s = 0.0  # the usual frame interval (smoothed)
-        self._t_requested: int | None = None  # the last LED request not yet confirmed
         self._lost_by_disagreement = False  # lost: the spots disagreed (not sigma's growth)
         sc = self.config.self_calibration
         self.calibration = OnlineCalibration(camera, sc) if sc.enabled else None
@@ -181,6 +171,7 @@ class Localizer:
         observations disagree with it the localizer gets lost and re-identifies); without a
         pose, identification starts over."""
         self.map = landmark_map
+        self._leds.set_map(landmark_map)
         self._tracker.set_map(landmark_map)
         # fixes the odometry disagrees with, and the last fused one they must link to
         self._fix_run = FixRun(
@@ -205,7 +196,7 @@ class Localizer:
         self._passive.set_map(landmark_map)
         self._start_identification()
         if self._filter is not None and self._mode != "lost":
-            self._sweeping = False  # keep tracking with the new map; lost if it disagrees
+            self._leds.sweeping = False  # keep tracking with the new map; lost if it disagrees
 
     def set_initial_pose(
         self,
@@ -254,14 +245,8 @@ class Localizer:
             self._on_odometry(event)
             return []
         if isinstance(event, LedsChanged):
-            lit = None if event.all_lit else frozenset(event.lit)
-            if (lit, frozenset(event.changing)) != (self._lit, self._changing):
-                self._t_leds = event.t_ns
-                self._frames_since_leds = 0
-            self._lit = lit
-            self._changing = frozenset(event.changing)
-            self._t_requested = None
-            self._identifier.led_confirmed(event.t_ns, self._known_lit())
+            self._leds.reported(event)
+            self._identifier.led_confirmed(event.t_ns, self._leds.known_lit())
             return self._requests(event.t_ns)
         if isinstance(event, RelocalizeRequested):
             self._filter = None
@@ -425,7 +410,7 @@ class Localizer:
             if self._passive.active:  # lights that cannot blink: by geometry
                 fix = self._passive_fix(t, spots)
             else:
-                lit = self._lit_for_evidence(t)
+                lit = self._leds.lit_for_evidence(t, self.config.identification)
                 self._identifier.observe(t, lit, spots.pixels, spots.intensities)
                 fix = self._fix_from_sightings(t)
             if fix is not None:
@@ -439,8 +424,8 @@ class Localizer:
                     used = self._relocalize(t, spots)
                 if used:
                     self._mode = "landmark"
-                    self._sweeping = False
-                    self._want_all = True
+                    self._leds.sweeping = False
+                    self._leds.want_all = True
         else:
             self._widen_unexplained(t)
             used = self._track(e, dt_frame)
@@ -468,7 +453,8 @@ class Localizer:
         """A tracking step (`LandmarkTracker.step`); returns the IDs fused."""
         if self._filter is None:
             return ()
-        cand = None if self._lit is None and not self._changing else self._lit_rows()
+        leds = self._leds
+        cand = None if leds.lit is None and not leds.changing else leds.lit_rows()
         fresh = self._fresh_odometry(e.t_ns)
         track = self._odometry
         since = 0.0
@@ -547,9 +533,9 @@ class Localizer:
         hypothesis set carried over frames (seeded around where it got lost, within the
         distance odometry has driven since; or around the prior); after long dead
         reckoning, one frame around the filter's pose, every `every_s`."""
-        if self._filter is None or self._changing:
+        if self._filter is None or self._leds.changing:
             return ()
-        cand = None if self._lit is None else self._lit_rows()
+        cand = None if self._leds.lit is None else self._leds.lit_rows()
         if self._mode in ("lost", "identifying"):
             odo = self._odometry.pose
             prior = None  # identifying with a prior: the filter's pose and covariance
@@ -705,43 +691,6 @@ class Localizer:
         order, fresh = self._view.ordered(anchor, odo, ranked)
         self._identifier.prefer(order, come_into_view=fresh)
 
-    def _known_lit(self) -> frozenset[int] | None:
-        """The IDs lit now (every mapped one when all are lit); None while a switch is in
-        flight (the state is unknown)."""
-        if self._changing:
-            return None
-        return self._identifier.all_lit if self._lit is None else self._lit
-
-    def _lit_for_evidence(self, t_ns: int) -> frozenset[int] | None:
-        """The LED state a frame stamped `t_ns` was surely exposed under; None (unknown) for
-        the first `IdentificationConfig.led_settle_frames` frames after a change and within
-        its `led_settle_s`."""
-        ic = self.config.identification
-        self._frames_since_leds += 1
-        if self._t_leds is not None and (
-            self._frames_since_leds <= ic.led_settle_frames
-            or (t_ns - self._t_leds) * _NS < ic.led_settle_s
-        ):
-            return None
-        return self._known_lit()
-
-    def _lit_rows(self) -> npt.NDArray[np.int64]:
-        """Map rows of the landmarks surely lit (not being switched); remembered while the
-        LED state and the map stay."""
-        memo = self._lit_rows_memo
-        if (
-            memo is not None
-            and memo[0] is self._lit
-            and memo[1] is self._changing
-            and memo[2] is self.map
-        ):
-            return memo[3]
-        lit = (self._identifier.all_lit if self._lit is None else self._lit) - self._changing
-        rows = np.array([self.map.index_of(i) for i in sorted(lit) if i in self.map], np.int64)
-        rows.setflags(write=False)
-        self._lit_rows_memo = (self._lit, self._changing, self.map, rows)
-        return rows
-
     # -- modes and outputs ---------------------------------------------------------------------
     def _check_lost(self, t_ns: int) -> None:
         if self._filter is None or self._mode in ("identifying", "lost"):
@@ -780,27 +729,18 @@ class Localizer:
             ids = [int(self.map.ids[i]) for i in np.argsort(d, kind="stable")]
         self._identifier.restart(ids)
         self._view.reset()
-        self._last_request = None
-        self._sweeping = not self._passive.active  # passive lights are never switched
+        self._leds.restart_sweep(not self._passive.active)  # passive lights are never switched
 
     def _requests(self, t_ns: int) -> list[Output]:
         """LED requests of an identification in progress (the last one lights all)."""
-        if self._want_all:
-            self._want_all = False
-            if self._lit is not None:
-                self._t_requested = t_ns
-                return [LedRequest(all_lit=True)]
-        if not self._sweeping:
+        leds = self._leds
+        req = leds.all_lit_request(t_ns)
+        if req is not None:
+            return [req]
+        if not leds.sweeping:
             return []
         self._order_by_view(t_ns)
-        req = self._identifier.next_request(t_ns)
-        if req is None or req == self._last_request:
-            return []
-        self._last_request = req
-        self._t_requested = t_ns
-        if req.all_lit and not req.dark and self._identifier.done:
-            self._sweeping = False
-        return [req]
+        return list(leds.sweep_request(t_ns, self._identifier))
 
     def _output(self, t_ns: int, used: tuple[int, ...]) -> PoseEstimate | NoPose:
         if self._filter is None:
@@ -842,9 +782,8 @@ class Localizer:
         track = self._odometry
         age = math.inf if track.t_sample_ns is None else (t_ns - track.t_sample_ns) * _NS
         ic = self.config.identification
-        awaiting = self._t_requested is not None and (
-            (t_ns - self._t_requested) * _NS <= ic.led_timeout_s
-        )
+        leds = self._leds
+        awaiting = leds.awaiting(t_ns, ic.led_timeout_s)
         in_view = lit = switching = 0
         dark: tuple[int, ...] = ()
         dead: tuple[int, ...] = ()
@@ -854,14 +793,14 @@ class Localizer:
             rows = np.flatnonzero(landmarks_in_view(self.camera, pose, self.map.positions, reach))
             ids = [int(self.map.ids[r]) for r in rows]
             in_view = len(ids)
-            switching = sum(1 for i in ids if i in self._changing)
+            switching = sum(1 for i in ids if i in leds.changing)
             dark = tuple(
                 i for i in ids
-                if self._lit is not None and i not in self._lit and i not in self._changing
+                if leds.lit is not None and i not in leds.lit and i not in leds.changing
             )  # fmt: skip
             lit_rows = [
                 r for r, i in zip(rows, ids, strict=True)
-                if i not in self._changing and i not in dark
+                if i not in leds.changing and i not in dark
             ]  # fmt: skip
             lit = len(lit_rows)
             live = self._liveness
