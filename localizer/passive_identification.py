@@ -42,9 +42,11 @@ from localizer.constellation import (
 from localizer.hypothesis_scoring import FrameView
 from localizer.hypothesis_set import HypothesisSet
 from localizer.landmark_map import LandmarkMap
+from localizer.noise_model import PixelNoiseModel
 from localizer.passive_config import PassiveConfig
 from localizer.pose import PoseFix, solve_pose
 from localizer.relocalization import RelocalizationConfig
+from localizer.spots import Spots
 from localizer.triangles import MapTriangles, map_triangles
 from localizer.types import FloatArray
 
@@ -227,6 +229,33 @@ class PassiveIdentifier:
         if self.status.pose is None or not self.status.pairs:
             return None
         return self.status.pose, self.status.pairs
+
+    def fix(
+        self,
+        t_ns: int,
+        camera: CameraModel,
+        spots: Spots,
+        noise: PixelNoiseModel,
+        odometry_pose: Pose,
+        prior: tuple[Pose, FloatArray] | None,
+    ) -> PoseFix | None:
+        """One frame's fix from passive landmarks identified by geometry (`identify`:
+        around `prior`, the filter's pose, a start pose or where it got lost; None:
+        anywhere), solved and verified by reprojection (`fix_from_pairs`, each spot's sigma
+        from `noise` and the light's map sigma); the hypotheses are forgotten once it fixes."""
+        found = self.identify(t_ns, camera, spots.pixels, odometry_pose, prior)
+        lm = self._map
+        if found is None or lm is None:
+            return None
+        pose, pairs = found
+        px = spots.pixels
+        sigma = [noise.sigma_px(float(px[s, 0]), float(px[s, 1]), lm.sigma_at(r)) for r, s in pairs]
+        fix = fix_from_pairs(
+            camera, lm, px, pairs, sigma, pose, outlier_sigma=self.config.outlier_sigma
+        )
+        if fix is not None:
+            self.clear()
+        return fix
 
     def _triangles(self, lm: LandmarkMap) -> MapTriangles:
         """The map's triangles, indexed once per map."""
