@@ -9,7 +9,7 @@ plane of height h (metres, above the map's z = 0) and world gradient g = (dh/dx,
     g_b = Rz(theta)^T g,    pitch = -atan(g_b,x),    roll = atan(g_b,y)             (1)
 
 (REP-103: + pitch is nose down, so going uphill pitches the nose up; + roll is the left side
-down; R_world_body = Rz(theta) Ry(pitch) Rx(roll), as `pose_planar` and the simulator have
+down; R_world_body = Rz(theta) Ry(pitch) Rx(roll), as `pose_tilted` and the simulator have
 it). For the slopes of a building (a few degrees) the map from g to the body tilt
 t = (roll, pitch) is, to first order, the orthogonal
 
@@ -62,7 +62,7 @@ consider state, Sigma_cal = I in the calibration's standard deviations): s's sen
 K = d s / d c, shape (3, Q), predicted as s is (K <- a F K) and taken from the fix's floor
 (in the fix's frame B K). A fix's floor is taken only where its change from the carried one
 is significant against the pixel noise and the part of the calibration's error the two do
-not share (`pose_planar.floor_change_chi2`): a lens's pseudo-tilt is fixed in the body, so
+not share (`pose_tilted.floor_change_chi2`): a lens's pseudo-tilt is fixed in the body, so
 it is shared by a fix and a floor learnt under a like view and heading, not after a turn.
 After the fusion (4) the floor holds
 
@@ -128,7 +128,7 @@ class FloorPlaneConfig:
             point) from the carried one starts the floor anew instead of being fused.
         calibration_aware: a fix estimates the floor only where its change is significant
             against the pixel noise and the calibration's error too (`solve_pose`'s
-            `calibration_jacobian`, `pose_planar.floor_change_chi2`); False: against the
+            `calibration_jacobian`, `pose_tilted.floor_change_chi2`); False: against the
             pixel noise alone (the chi-square drop).
     """
 

@@ -45,12 +45,14 @@ from localizer.landmark_map import LandmarkMap
 from localizer.noise_model import PixelNoiseModel
 from localizer.passive_config import PassiveConfig
 from localizer.pose import PoseFix, solve_pose
+from localizer.pose_config import PoseSolveConfig
 from localizer.relocalization import RelocalizationConfig
 from localizer.spots import Spots
 from localizer.triangles import MapTriangles, map_triangles
 from localizer.types import FloatArray
 
 Pose = tuple[float, float, float]
+_HUBER = PoseSolveConfig(loss="huber")  # a fix robust to a misplaced light
 _NS = 1e-9
 
 
@@ -129,7 +131,7 @@ def fix_from_pairs(
     fix = solve_pose(
         camera, px, landmark_map.positions[rows], initial=initial,
         pixel_sigma_px=list(pixel_sigmas),
-        landmark_ids=tuple(int(landmark_map.ids[r]) for r in rows), loss="huber",
+        landmark_ids=tuple(int(landmark_map.ids[r]) for r in rows), config=_HUBER,
     )  # fmt: skip
     if fix is None:
         return None
