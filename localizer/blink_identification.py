@@ -119,9 +119,15 @@ class BlinkIdentification:
         landing = integrate_arc(x, y, th, *track.speeds, lead_s, self._wheel_base)
         then = anchor.odometry or track.pose_at(anchor.t_ns)
         ranked = order_by_view(
-            camera, self.map.ids.tolist(), self.map.positions, anchor.landmark_id,
-            anchor.pixel, then, landing,
-            headings=ic.view_headings, inner_radius_px=identifier.inner_radius_px,
-        )  # fmt: skip
+            camera,
+            self.map.ids.tolist(),
+            self.map.positions,
+            anchor.landmark_id,
+            anchor.pixel,
+            then,
+            landing,
+            headings=ic.view_headings,
+            inner_radius_px=identifier.inner_radius_px,
+        )
         order, fresh = self._view.ordered(anchor, odo, ranked)
         identifier.prefer(order, come_into_view=fresh)

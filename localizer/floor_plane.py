@@ -205,8 +205,11 @@ class FloorPlane:
         d = math.hypot(dx, dy)
         a = math.exp(-d / config.level_length_m)
         F = np.array([[1.0, dx, dy], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
-        q = (config.change_sigma_m_per_sqrt_m, config.change_slope_per_sqrt_m,
-             config.change_slope_per_sqrt_m)  # fmt: skip
+        q = (
+            config.change_sigma_m_per_sqrt_m,
+            config.change_slope_per_sqrt_m,
+            config.change_slope_per_sqrt_m,
+        )
         P0 = np.diag(np.square((config.prior_sigma_m, config.prior_slope, config.prior_slope)))
         P = a * a * (F @ self.covariance @ F.T) + (1.0 - a * a) * P0 + d * np.diag(np.square(q))
         K = None if self.sensitivity is None else a * (F @ self.sensitivity)
@@ -333,14 +336,30 @@ def fix_on_floor(
     if fix.floor is None or fix.floor_covariance is None or fix.floor_cross is None:
         return fix, (0.0, 0.0, 0.0)
     e_f, P_f, reset = fused(carried, wide, fix.floor, fix.floor_covariance, reset_chi2)
-    K_f = fused_sensitivity(carried, wide, fix.floor_covariance, P_f, carried_sensitivity,
-                            fix.floor_sensitivity, reset)  # fmt: skip
+    K_f = fused_sensitivity(
+        carried, wide, fix.floor_covariance, P_f, carried_sensitivity, fix.floor_sensitivity, reset
+    )
     at = (fix.x, fix.y, fix.theta)
-    (x, y, th), C = conditioned(at, fix.covariance, fix.floor_cross, fix.floor_covariance,
-                                fix.floor, e_f)  # fmt: skip
-    (x0, y0, th0), _ = conditioned(at, fix.covariance, fix.floor_cross, fix.floor_covariance,
-                                   fix.floor, np.asarray(carried[0], dtype=np.float64))  # fmt: skip
-    out = dataclasses.replace(fix, x=x, y=y, theta=float(wrap_angle(th)), covariance=C,
-                              tilt=e_f[:2].copy(), floor=e_f, floor_covariance=P_f,
-                              floor_sensitivity=K_f)  # fmt: skip
+    (x, y, th), C = conditioned(
+        at, fix.covariance, fix.floor_cross, fix.floor_covariance, fix.floor, e_f
+    )
+    (x0, y0, th0), _ = conditioned(
+        at,
+        fix.covariance,
+        fix.floor_cross,
+        fix.floor_covariance,
+        fix.floor,
+        np.asarray(carried[0], dtype=np.float64),
+    )
+    out = dataclasses.replace(
+        fix,
+        x=x,
+        y=y,
+        theta=float(wrap_angle(th)),
+        covariance=C,
+        tilt=e_f[:2].copy(),
+        floor=e_f,
+        floor_covariance=P_f,
+        floor_sensitivity=K_f,
+    )
     return out, (x - x0, y - y0, float(wrap_angle(th - th0)))

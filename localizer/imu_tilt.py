@@ -59,8 +59,13 @@ class ImuTiltConfig:
     height_sigma_m: float = 0.02
 
     def __post_init__(self) -> None:
-        names = ("time_constant_s", "tilt_sigma_rad", "max_force_error_m_s2", "max_age_s",
-                 "height_sigma_m")  # fmt: skip
+        names = (
+            "time_constant_s",
+            "tilt_sigma_rad",
+            "max_force_error_m_s2",
+            "max_age_s",
+            "height_sigma_m",
+        )
         for name in names:
             v = getattr(self, name)
             if not math.isfinite(v) or v <= 0:

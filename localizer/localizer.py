@@ -406,9 +406,14 @@ class Localizer:
             return ()
         cand = None if self._leds.lit is None else self._leds.lit_rows()
         fix = self._recovery.relocalize(
-            self._tracker, self._filter, spots, cand,
-            mode=self._mode, t_ns=t_ns, odometry=self._odometry,
-        )  # fmt: skip
+            self._tracker,
+            self._filter,
+            spots,
+            cand,
+            mode=self._mode,
+            t_ns=t_ns,
+            odometry=self._odometry,
+        )
         if fix is None:
             return ()
         self._reset_filter(fix.x, fix.y, fix.theta, fix.covariance, t_ns)
@@ -467,10 +472,18 @@ class Localizer:
         f = self._filter
         pose = None if f is None else f.output_pose
         facts = frame_facts(
-            t_ns, pose, used, mode=self._mode, notes=self._facts, recovery=self._recovery,
-            leds=self._leds, camera=self.camera, landmark_map=self.map,
-            t_odometry_ns=self._odometry.t_sample_ns, config=self.config,
-        )  # fmt: skip
+            t_ns,
+            pose,
+            used,
+            mode=self._mode,
+            notes=self._facts,
+            recovery=self._recovery,
+            leds=self._leds,
+            camera=self.camera,
+            landmark_map=self.map,
+            t_odometry_ns=self._odometry.t_sample_ns,
+            config=self.config,
+        )
         out = frame_output(
             t_ns, f, pose, self._mode, used, self._expected, facts, self.config.quality
         )

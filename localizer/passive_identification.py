@@ -129,10 +129,14 @@ def fix_from_pairs(
     rows = [r for r, _ in pairs]
     px = spot_pixels[[s for _, s in pairs]]
     fix = solve_pose(
-        camera, px, landmark_map.positions[rows], initial=initial,
+        camera,
+        px,
+        landmark_map.positions[rows],
+        initial=initial,
         pixel_sigma_px=list(pixel_sigmas),
-        landmark_ids=tuple(int(landmark_map.ids[r]) for r in rows), config=_HUBER,
-    )  # fmt: skip
+        landmark_ids=tuple(int(landmark_map.ids[r]) for r in rows),
+        config=_HUBER,
+    )
     if fix is None:
         return None
     res = fix.residuals_px or (fix.residual_rms_px,) * len(rows)
@@ -211,8 +215,13 @@ class PassiveIdentifier:
                 self.status = ConstellationMatch(
                     "too_few_spots",
                     f"{len(spot_pixels)} spot(s) on the ceiling: a constellation needs 3 or more",
-                    None, [], np.zeros((0, 3)), -math.inf, -math.inf, 0,
-                )  # fmt: skip
+                    None,
+                    [],
+                    np.zeros((0, 3)),
+                    -math.inf,
+                    -math.inf,
+                    0,
+                )
             return None
         index = self._triangles(lm)
         self._prior = prior
@@ -225,9 +234,15 @@ class PassiveIdentifier:
             return None
         self._t_matched = t_ns
         self.status = match_constellation(
-            camera, lm.positions, spot_pixels, index, self.constellation, self.scoring,
-            landmark_sigma_m=self._sigma, prior=prior,
-        )  # fmt: skip
+            camera,
+            lm.positions,
+            spot_pixels,
+            index,
+            self.constellation,
+            self.scoring,
+            landmark_sigma_m=self._sigma,
+            prior=prior,
+        )
         if self.status.pose is None or not self.status.pairs:
             return None
         return self.status.pose, self.status.pairs
@@ -263,9 +278,10 @@ class PassiveIdentifier:
         """The map's triangles, indexed once per map."""
         if self._index is None:
             self._index = map_triangles(
-                lm.positions[:, :2], self.config.view_side_m,
+                lm.positions[:, :2],
+                self.config.view_side_m,
                 self.constellation.max_map_triangles,
-            )  # fmt: skip
+            )
         return self._index
 
     def _seed(
@@ -276,9 +292,13 @@ class PassiveIdentifier:
         if self._index is None:
             return np.zeros((0, 3)), np.zeros(0)
         return constellation_hypotheses(
-            view, self._index, self.constellation, self._sigma, self._prior,
+            view,
+            self._index,
+            self.constellation,
+            self._sigma,
+            self._prior,
             c.prior_gate_chi2,
-        )  # fmt: skip
+        )
 
     @staticmethod
     def _anywhere(lm: LandmarkMap) -> tuple[Pose, FloatArray]:

@@ -164,9 +164,15 @@ class Recovery:
                 sigma = sigma0 + math.hypot(odo[0] - odo0[0], odo[1] - odo0[1])
                 prior = ((x, y, th), np.diag([sigma**2, sigma**2, var_th]))
             return tracker.relocalize(
-                filt, spots, candidates, prior=prior, hypotheses=self.hypotheses,
-                t_ns=t_ns, odometry_pose=odo, miss_weights=self.miss_weights(),
-            )  # fmt: skip
+                filt,
+                spots,
+                candidates,
+                prior=prior,
+                hypotheses=self.hypotheses,
+                t_ns=t_ns,
+                odometry_pose=odo,
+                miss_weights=self.miss_weights(),
+            )
         every = self.config.relocalization.every_s
         if self._t_relocalized is not None and (t_ns - self._t_relocalized) * _NS < every:
             return None
@@ -196,9 +202,13 @@ class Recovery:
         x, y, th = (float(v) for v in filt.state)
         rows, px, _ = fused
         self.liveness.observe_frame(
-            camera, (x, y, th), landmark_map.positions, predicted,
-            np.asarray(rows, dtype=np.int64), np.asarray(px, dtype=np.float64).reshape(-1, 2),
-        )  # fmt: skip
+            camera,
+            (x, y, th),
+            landmark_map.positions,
+            predicted,
+            np.asarray(rows, dtype=np.int64),
+            np.asarray(px, dtype=np.float64).reshape(-1, 2),
+        )
 
     def miss_weights(self) -> FloatArray:
         """What each landmark's absence weighs against a hypothesis (`LandmarkLiveness`),
