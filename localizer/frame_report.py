@@ -33,6 +33,37 @@ from localizer.recovery import Recovery
 _NS = 1e-9
 
 
+class FrameTiming:
+    """The camera's timing: the interval between the last two frames and the usual one.
+
+    Attributes:
+        t_last_ns: the last frame's time (None: none yet).
+        interval_s: between the last two frames (at most 1 s; None: fewer than two).
+        typical_gap_s: the usual frame interval, smoothed, seconds (0: not known yet).
+    """
+
+    def __init__(self) -> None:
+        self.t_last_ns: int | None = None
+        self.interval_s: float | None = None
+        self.typical_gap_s = 0.0
+
+    def frame(self, t: int) -> tuple[float, dict[str, bool | int | float]]:
+        """A frame at `t`: the interval from the frame before (at most 1 s; 0 for the
+        first), and the frame's first notes (its gap and the usual one before it)."""
+        dt_frame = min((t - self.t_last_ns) * _NS, 1.0) if self.t_last_ns is not None else 0.0
+        if dt_frame > 0:
+            self.interval_s = dt_frame
+        notes: dict[str, bool | int | float] = {
+            "gap_s": dt_frame,
+            "typical_gap_s": self.typical_gap_s,
+        }
+        if 0 < dt_frame < 1.0:
+            g = self.typical_gap_s
+            self.typical_gap_s = dt_frame if g == 0 else min(g + 0.1 * (dt_frame - g), dt_frame)
+        self.t_last_ns = t
+        return dt_frame, notes
+
+
 def frame_output(
     t_ns: int,
     filt: PoseFilter | None,

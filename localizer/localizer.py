@@ -49,8 +49,7 @@ from localizer.events import (
     RelocalizeRequested,
     SpotsObserved,
 )
-from localizer.fix_run import FixRun
-from localizer.frame_report import frame_facts, frame_output
+from localizer.frame_report import FrameTiming, frame_facts, frame_output
 from localizer.landmark_liveness import LandmarkLiveness
 from localizer.landmark_map import LandmarkMap
 from localizer.landmark_tracker import LandmarkTracker
@@ -95,12 +94,17 @@ class Localizer:
         self._leds = LedKnowledge(landmark_map)  # lit, being switched, asked for, since when
         self._t_filter = 0  # time of the filter's state (the last sample or fused frame)
         self._commit = False  # this frame's filter is kept (a fix, a reset)
-        # rejections, where it got lost, the re-localization hypotheses, landmark liveness
-        self._recovery = Recovery(self.config, len(landmark_map.ids))
-        self._t_frame: int | None = None
+        self._timing = FrameTiming()  # the interval between frames and the usual one
         self._expected: tuple[int, ...] = ()  # lit landmarks predicted in view, this frame
-        self._frame_interval_s: float | None = None  # between the last two frames
         self._tracker = LandmarkTracker(camera, robot, self.config, landmark_map)
+        # rejections, where it got lost, re-localization, landmark liveness, runs of fixes
+        self._recovery = Recovery(
+            self.config,
+            len(landmark_map.ids),
+            max_speed_m_s=robot.max_speed,
+            max_turn_rad_s=self._tracker.max_angular_speed_rad_s,
+            spacing_m=self._tracker.spacing_m,
+        )
         self._passive = PassiveIdentifier(
             self.config.passive, self.config.constellation, self.config.relocalization
         )
@@ -112,7 +116,6 @@ class Localizer:
         self._reseeded = False  # this frame's filter was re-seeded from a run of fixes
         # what explains a frame without a fix (`pose_quality.FrameFacts`)
         self._facts: dict[str, bool | int | float] = {}
-        self._typical_gap_s = 0.0  # the usual frame interval (smoothed)
         sc = self.config.self_calibration
         self.calibration = OnlineCalibration(camera, sc) if sc.enabled else None
         self.set_map(landmark_map)
@@ -147,15 +150,8 @@ class Localizer:
         self.map = landmark_map
         self._leds.set_map(landmark_map)
         self._tracker.set_map(landmark_map)
-        # fixes the odometry disagrees with, and the last fused one they must link to
-        self._fix_run = FixRun(
-            self.config.fix_run,
-            max_speed_m_s=self.robot.max_speed,
-            max_turn_rad_s=self._tracker.max_angular_speed_rad_s,
-            spacing_m=self._tracker.spacing_m,
-        )
-        # what tracking learnt of each landmark (lit, dark): what its absence weighs
-        self._recovery.set_map(len(landmark_map.ids))
+        # nothing learnt of the new landmarks (lit, dark), no run of fixes
+        self._recovery.set_map(len(landmark_map.ids), self._tracker.spacing_m)
         self._half_diag = math.hypot(self.camera.width, self.camera.height) / 2
         self._blink.set_map(landmark_map, self.camera, self._motion_bound_px)
         self._passive.set_map(landmark_map)
@@ -246,7 +242,6 @@ class Localizer:
         if self.calibration is not None:
             self.calibration.break_track()
         self._tracker.last_matched = frozenset()
-        self._fix_run.clear()
         self._reckoning.motion.break_track()
 
     def _advance(self, t_ns: int) -> PoseFilter | None:
@@ -288,14 +283,7 @@ class Localizer:
     def _on_frame(self, e: FrameObserved | SpotsObserved) -> PoseEstimate | NoPose:
         t = e.t_ns
         base = self._advance(t)
-        dt_frame = min((t - self._t_frame) * _NS, 1.0) if self._t_frame is not None else 0.0
-        if dt_frame > 0:
-            self._frame_interval_s = dt_frame
-        self._facts = {"gap_s": dt_frame, "typical_gap_s": self._typical_gap_s}
-        if 0 < dt_frame < 1.0:
-            g = self._typical_gap_s
-            self._typical_gap_s = dt_frame if g == 0 else min(g + 0.1 * (dt_frame - g), dt_frame)
-        self._t_frame = t
+        dt_frame, self._facts = self._timing.frame(t)
         self._odometry.mark(t)
         used: tuple[int, ...] = ()
         self._expected = ()
@@ -378,7 +366,8 @@ class Localizer:
         self._facts["unexplained"] = result.unexplained
         self._facts["rejected_fix"] = result.rejected is not None
         if result.used:
-            self._fix_run.fused(e.t_ns, self._filter.pose, self._filter.covariance, result.used)
+            f = self._filter
+            self._recovery.fix_run.fused(e.t_ns, f.pose, f.covariance, result.used)
         elif not reacquire and result.rejected is not None:
             result = result._replace(used=self._reseed(e.t_ns, result.rejected))
         self._recovery.tracked(e.t_ns, result.used, result.unexplained)
@@ -388,11 +377,11 @@ class Localizer:
         """A good fix the filter rejected: when it completes (or continues) a run of such
         fixes that form one track the robot could have driven by itself (`fix_run`: the
         odometry is what is wrong, a stall, a spinning wheel, a bump), the filter is re-seeded
-        at it; returns its IDs (empty: not taken). The odometry's track is broken there, so
-        the self-calibration starts a new one."""
-        if self._filter is None or not self._fix_run.offer(t_ns, fix):
+        at it (`Recovery.reseed`); returns its IDs (empty: not taken). The odometry's track
+        is broken there, so the self-calibration starts a new one."""
+        if self._filter is None:
             return ()
-        used = self._tracker.adopt_rejected(self._filter)
+        used = self._recovery.reseed(t_ns, fix, self._tracker, self._filter)
         if used:
             self._reseeded = True
             if self.calibration is not None:
@@ -449,7 +438,6 @@ class Localizer:
         self._start_identification()
         self._commit = True
         self._recovery.lose(self._filter, sigma, self._odometry.pose)
-        self._fix_run.clear()
 
     def _start_identification(self) -> None:
         f = self._filter
@@ -464,7 +452,7 @@ class Localizer:
             return [req]
         if not leds.sweeping:
             return []
-        self._blink.order_by_view(t_ns, self.camera, self._frame_interval_s)
+        self._blink.order_by_view(t_ns, self.camera, self._timing.interval_s)
         return list(leds.sweep_request(t_ns, self._blink.identifier))
 
     def _output(self, t_ns: int, used: tuple[int, ...]) -> PoseEstimate | NoPose:

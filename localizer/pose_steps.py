@@ -60,6 +60,21 @@ class Rays:
     def n(self) -> int:
         return len(self.pl)
 
+    def tilted_fit(
+        self,
+        start: tuple[float, ...],
+        sigma_px: float | Sequence[float],
+        tilt_sigma_rad: float | None,
+        max_iterations: int,
+        *,
+        floor_prior: tuple[tuple[float, float, float], FloatArray] | None = None,
+    ) -> tuple[list[float], FloatArray, float, list[float]] | None:
+        """`solve_tilted` on these rays (the same arguments after the rays)."""
+        m, A, z, P, T = self.m, self.A, self.heights, self.P_xy, self.T_body_camera
+        return solve_tilted(
+            m, A, z, P, T, start, sigma_px, tilt_sigma_rad, max_iterations, floor_prior=floor_prior
+        )
+
 
 @dataclass(slots=True)
 class Fit:
@@ -197,18 +212,8 @@ def fit_on_carried_floor(
         for r, si in zip(res, sig, strict=True)
     ]
     sig_w = [si / math.sqrt(wi) for si, wi in zip(sig, w, strict=True)]
-    tilted = solve_tilted(
-        rays.m,
-        rays.A,
-        rays.heights,
-        rays.P_xy,
-        rays.T_body_camera,
-        (fit.x, fit.y, fit.theta, *e0),
-        sig_w,
-        None,
-        max_iterations,
-        floor_prior=floor_prior,
-    )
+    start = (fit.x, fit.y, fit.theta, *e0)
+    tilted = rays.tilted_fit(start, sig_w, None, max_iterations, floor_prior=floor_prior)
     if tilted is None:
         return fit
     params, cov_full, rms_t, res_t = tilted
@@ -254,17 +259,8 @@ def fit_zero_mean_tilt(
     n = rays.n
     sigma_px = math.sqrt(sum([si * si for si in fit.sigmas]) / n)
     roll0, pitch0 = (float(v) for v in tilt0)
-    tilted = solve_tilted(
-        rays.m,
-        rays.A,
-        rays.heights,
-        rays.P_xy,
-        rays.T_body_camera,
-        (fit.x, fit.y, fit.theta, roll0, pitch0),
-        sigma_px,
-        tilt_sigma_rad,
-        max_iterations,
-    )
+    start = (fit.x, fit.y, fit.theta, roll0, pitch0)
+    tilted = rays.tilted_fit(start, sigma_px, tilt_sigma_rad, max_iterations)
     if tilted is None:
         return fit
     params, cov_full, rms_tilted, _ = tilted

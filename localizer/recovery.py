@@ -12,6 +12,9 @@ that its pose no longer explains the ceiling, and to find itself again without L
   `RelocalizationConfig.every_s`.
 - What tracking learnt of each landmark (lit, dark: `LandmarkLiveness`) weighs a
   landmark's absence against a hypothesis.
+- Fixes the odometry disagrees with (`FixRun`): once a run of them forms one track the robot
+  could have driven by itself, the odometry is what is wrong (a stall, a spinning wheel, a
+  bump) and the filter is re-seeded at the last one.
 
 docs/localizer-recovery.md describes the method. Sans-I/O: time arrives as an argument.
 """
@@ -25,6 +28,7 @@ import numpy as np
 from localizer.camera import CameraModel
 from localizer.config import LocalizerConfig
 from localizer.events import Mode
+from localizer.fix_run import FixRun
 from localizer.handoff import position_sigma_m
 from localizer.hypothesis_set import HypothesisSet
 from localizer.landmark_liveness import LandmarkLiveness
@@ -53,9 +57,18 @@ class Recovery:
         lost_at: where it got lost (`LostAt`).
         hypotheses: the re-localization hypotheses carried over frames while lost.
         liveness: what tracking learnt of each landmark (lit, dark), per map row.
+        fix_run: fixes the odometry disagrees with, and the last fused one they must link to.
     """
 
-    def __init__(self, config: LocalizerConfig, n_landmarks: int) -> None:
+    def __init__(
+        self,
+        config: LocalizerConfig,
+        n_landmarks: int,
+        *,
+        max_speed_m_s: float,
+        max_turn_rad_s: float,
+        spacing_m: float,
+    ) -> None:
         self.config = config
         self.rejections = 0
         self.travel_m = 0.0
@@ -64,10 +77,18 @@ class Recovery:
         self.lost_at: LostAt = (0.0, 0.0, 0.0, 0.0, 0.0, (0.0, 0.0, 0.0))
         self.hypotheses = HypothesisSet(config.relocalization)
         self._t_relocalized: int | None = None  # the last one-frame re-localization
-        self.set_map(n_landmarks)
+        self._max_speed_m_s, self._max_turn_rad_s = max_speed_m_s, max_turn_rad_s
+        self.set_map(n_landmarks, spacing_m)
 
-    def set_map(self, n_landmarks: int) -> None:
-        """A new map: nothing learnt of its landmarks yet."""
+    def set_map(self, n_landmarks: int, spacing_m: float) -> None:
+        """A new map (`spacing_m`: its landmarks' spacing): nothing learnt of its landmarks
+        yet, no run of fixes."""
+        self.fix_run = FixRun(
+            self.config.fix_run,
+            max_speed_m_s=self._max_speed_m_s,
+            max_turn_rad_s=self._max_turn_rad_s,
+            spacing_m=spacing_m,
+        )
         self.liveness = LandmarkLiveness(n_landmarks, self.config.relocalization)
         self._t_liveness: int | None = None
 
@@ -77,6 +98,7 @@ class Recovery:
         self.travel_m = 0.0
         self.t_explained_ns = t_ns
         self.hypotheses.clear()
+        self.fix_run.clear()
 
     def tracked(self, t_ns: int, used: tuple[int, ...], unexplained: bool) -> None:
         """A tracking step's outcome: a fix fused (`used`), or spots no fix explained."""
@@ -139,6 +161,7 @@ class Recovery:
         sigma0 = max(position_sigma_m(filt.covariance_rows), fc.lost_sigma_m)
         self.lost_at = (x, y, th, sigma0, var_th, odometry_pose)
         self.hypotheses.clear()
+        self.fix_run.clear()
 
     def relocalize(
         self,
@@ -178,6 +201,17 @@ class Recovery:
             return None
         self._t_relocalized = t_ns
         return tracker.relocalize(filt, spots, candidates, miss_weights=self.miss_weights())
+
+    def reseed(
+        self, t_ns: int, fix: PoseFix, tracker: LandmarkTracker, filt: PoseFilter
+    ) -> tuple[int, ...]:
+        """A good fix the filter rejected: when it completes (or continues) a run of such
+        fixes that form one track the robot could have driven by itself (`fix_run`), the
+        filter is re-seeded at it (`LandmarkTracker.adopt_rejected`); returns its IDs
+        (empty: not taken)."""
+        if not self.fix_run.offer(t_ns, fix):
+            return ()
+        return tracker.adopt_rejected(filt)
 
     def learn_liveness(
         self,
