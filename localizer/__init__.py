@@ -23,8 +23,10 @@ from localizer.identification import IdentificationConfig, Identifier
 from localizer.landmark_map import LandmarkMap
 from localizer.localizer import Localizer
 from localizer.passive_config import PassiveConfig
-from localizer.pose import PoseFix, pose_from_landmark_pair, solve_pose
+from localizer.pose import PoseFix, solve_pose
+from localizer.pose_config import PoseSolveConfig
 from localizer.pose_filter import PoseFilter
+from localizer.pose_paper import pose_from_landmark_pair
 from localizer.robot import RobotGeometry
 from localizer.spot_windows import detect_spots_in_windows
 from localizer.spots import DetectionConfig, Spots, detect_spots
@@ -56,6 +58,7 @@ __all__ = [
     "PoseEstimate",
     "PoseFilter",
     "PoseFix",
+    "PoseSolveConfig",
     "RelocalizeRequested",
     "RobotGeometry",
     "Spots",

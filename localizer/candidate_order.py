@@ -107,9 +107,14 @@ def order_by_view(
     anchor = P[list(ids).index(anchor_id)]
     others = [k for k, i in enumerate(ids) if i != anchor_id]
     frac = view_fractions(
-        camera, anchor, anchor_pixel, body_motion(odo_then, odo_now), P[others],
-        headings=headings, inner_radius_px=inner_radius_px,
-    )  # fmt: skip
+        camera,
+        anchor,
+        anchor_pixel,
+        body_motion(odo_then, odo_now),
+        P[others],
+        headings=headings,
+        inner_radius_px=inner_radius_px,
+    )
     dist = np.hypot(P[others, 0] - anchor[0], P[others, 1] - anchor[1])
     rank = np.lexsort((dist, -frac))
     return [(int(ids[others[k]]), float(frac[k])) for k in rank]

@@ -15,6 +15,7 @@ from localizer.imu_tilt import ImuTiltConfig
 from localizer.motion_model import MotionModelConfig
 from localizer.noise_model import PixelNoiseConfig
 from localizer.passive_config import PassiveConfig
+from localizer.pose_planar import RobustLoss
 from localizer.pose_quality import QualityConfig
 from localizer.relocalization import RelocalizationConfig
 from localizer.self_calibration import SelfCalibrationConfig
@@ -86,7 +87,7 @@ class FusionConfig:
 
     pixel_sigma_px: float = 1.0
     max_residual_px: float = 2.0
-    robust_loss: str | None = "huber"
+    robust_loss: RobustLoss | None = "huber"
     robust_scale: float = 2.0
     outlier_sigma: float = 4.0
     max_chi2_per_dof: float = 9.0

@@ -181,9 +181,13 @@ def constellation_hypotheses(
     """
     tris = spot_triangles(view.q, view.anchors, config.min_side_m, config.max_spot_triangles)
     hyps = triangle_hypotheses(
-        view.q, tris, view.positions[:, :2], index,
-        config.tolerance_m(landmark_sigma_m), config.tolerance_frac,
-    )  # fmt: skip
+        view.q,
+        tris,
+        view.positions[:, :2],
+        index,
+        config.tolerance_m(landmark_sigma_m),
+        config.tolerance_frac,
+    )
     if prior is None:
         m2 = np.zeros(len(hyps))
     else:
@@ -230,9 +234,15 @@ def match_constellation(
     if view is None or len(view.anchors) < 3:
         n = len(spot_pixels)
         return ConstellationMatch(
-            "too_few_spots", f"{n} spot(s) on the ceiling: a constellation needs 3 or more",
-            None, [], none, -math.inf, -math.inf, 0,
-        )  # fmt: skip
+            "too_few_spots",
+            f"{n} spot(s) on the ceiling: a constellation needs 3 or more",
+            None,
+            [],
+            none,
+            -math.inf,
+            -math.inf,
+            0,
+        )
     hyps, m2 = constellation_hypotheses(
         view, index, config, landmark_sigma_m, prior, scoring.prior_gate_chi2
     )
@@ -243,8 +253,13 @@ def match_constellation(
             f"no triangle of the {len(view.anchors)} central spots matches one of the map's "
             f"{len(index.vertices)} {where} (tolerance "
             f"{config.tolerance_m(landmark_sigma_m) * 100:.0f} cm)",
-            None, [], none, -math.inf, -math.inf, 0,
-        )  # fmt: skip
+            None,
+            [],
+            none,
+            -math.inf,
+            -math.inf,
+            0,
+        )
     offset = None if prior is None else -0.5 * m2
     hyps, score, counts, done = frame_log_lr(
         camera, view, hyps, scoring, offset=offset, cutoff=config.margin
@@ -259,8 +274,13 @@ def match_constellation(
             "no_match",
             f"the best pose {_pose_text(hyps[best])} explains {int(counts[best])} of "
             f"{len(view.sub)} spots (needs {math.ceil(need)})",
-            pose, [], hyps[best : best + 1], float(score[best]), second, len(hyps),
-        )  # fmt: skip
+            pose,
+            [],
+            hyps[best : best + 1],
+            float(score[best]),
+            second,
+            len(hyps),
+        )
     tied = score >= score[best] - config.margin
     cand = hyps[tied][unique_hypotheses(hyps[tied], score[tied], scoring)]  # best first
     if score[best] - second < config.margin:
@@ -271,16 +291,27 @@ def match_constellation(
             f"(best {_pose_text(cand[0])}, next {_pose_text(cand[1])}, "
             f"{float(far[0]) if len(far) else 0.0:.2f} m apart): a regular layout; "
             "give a start pose or drive until the map's edge or an irregularity is in view",
-            pose, [], cand, float(score[best]), second, len(hyps),
-        )  # fmt: skip
+            pose,
+            [],
+            cand,
+            float(score[best]),
+            second,
+            len(hyps),
+        )
     pairs = inlier_pairs(view, hyps[best], scoring)
     return ConstellationMatch(
         "unique",
         f"{len(pairs)} of {len(view.sub)} spots identified; the next distinct pose scores "
-        f"{score[best] - second:.0f} lower" if math.isfinite(second) else
-        f"{len(pairs)} of {len(view.sub)} spots identified; no other pose explains them",
-        pose, pairs, hyps[best : best + 1], float(score[best]), second, len(hyps),
-    )  # fmt: skip
+        f"{score[best] - second:.0f} lower"
+        if math.isfinite(second)
+        else f"{len(pairs)} of {len(view.sub)} spots identified; no other pose explains them",
+        pose,
+        pairs,
+        hyps[best : best + 1],
+        float(score[best]),
+        second,
+        len(hyps),
+    )
 
 
 __all__ = [

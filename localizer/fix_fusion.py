@@ -27,6 +27,7 @@ from localizer.handoff import predict_landmarks
 from localizer.landmark_map import LandmarkMap
 from localizer.noise_model import PixelNoiseModel
 from localizer.pose import PoseFix, solve_pose
+from localizer.pose_config import PoseSolveConfig
 from localizer.pose_filter import PoseFilter
 from localizer.types import FloatArray, Pose
 
@@ -299,16 +300,18 @@ class FixFusion:
             self.camera,
             px,
             [self._positions[r] for r in rows],
+            config=PoseSolveConfig(
+                estimate_tilt=tilt and fc.tilt_from_landmarks and len(rows) >= 3,
+                tilt_sigma_rad=fc.tilt_sigma_rad,
+                loss=fc.robust_loss if robust else None,
+                loss_scale=fc.robust_scale,
+            ),
             initial=initial,
-            estimate_tilt=tilt and fc.tilt_from_landmarks and len(rows) >= 3,
-            tilt_sigma_rad=fc.tilt_sigma_rad,
             floor_prior=floor_prior,
             calibration_jacobian=self.noise.calibration_jacobian if aware else None,
             floor_sensitivity=sensitivity,
             pixel_sigma_px=sig,
             landmark_ids=tuple([self._ids[r] for r in rows]),
-            loss=fc.robust_loss if robust else None,
-            loss_scale=fc.robust_scale,
         )
         if carried is None or fix is None:
             return fix

@@ -199,8 +199,9 @@ class FixRun:
         c = self.config
         if not c.enabled or self._anchor is None:
             return False
-        point = TrackPoint(t_ns, (fix.x, fix.y, fix.theta), fix.covariance,
-                           frozenset(fix.landmark_ids))  # fmt: skip
+        point = TrackPoint(
+            t_ns, (fix.x, fix.y, fix.theta), fix.covariance, frozenset(fix.landmark_ids)
+        )
         before = self._run[-1] if self._run else self._anchor
         if fix.n_landmarks < c.min_landmarks or not self._linked(before, point):
             # The track is broken: a later fix may still link to the anchor (if within an
@@ -219,6 +220,10 @@ class FixRun:
 
     def _linked(self, a: TrackPoint, b: TrackPoint) -> bool:
         return fixes_linked(
-            a, b, max_speed_m_s=self.max_speed_m_s, max_turn_rad_s=self.max_turn_rad_s,
-            spacing_m=self.spacing_m, config=self.config,
-        )  # fmt: skip
+            a,
+            b,
+            max_speed_m_s=self.max_speed_m_s,
+            max_turn_rad_s=self.max_turn_rad_s,
+            spacing_m=self.spacing_m,
+            config=self.config,
+        )

@@ -9,7 +9,7 @@ plane of height h (metres, above the map's z = 0) and world gradient g = (dh/dx,
     g_b = Rz(theta)^T g,    pitch = -atan(g_b,x),    roll = atan(g_b,y)             (1)
 
 (REP-103: + pitch is nose down, so going uphill pitches the nose up; + roll is the left side
-down; R_world_body = Rz(theta) Ry(pitch) Rx(roll), as `pose_planar` and the simulator have
+down; R_world_body = Rz(theta) Ry(pitch) Rx(roll), as `pose_tilted` and the simulator have
 it). For the slopes of a building (a few degrees) the map from g to the body tilt
 t = (roll, pitch) is, to first order, the orthogonal
 
@@ -62,7 +62,7 @@ consider state, Sigma_cal = I in the calibration's standard deviations): s's sen
 K = d s / d c, shape (3, Q), predicted as s is (K <- a F K) and taken from the fix's floor
 (in the fix's frame B K). A fix's floor is taken only where its change from the carried one
 is significant against the pixel noise and the part of the calibration's error the two do
-not share (`pose_planar.floor_change_chi2`): a lens's pseudo-tilt is fixed in the body, so
+not share (`pose_tilted.floor_change_chi2`): a lens's pseudo-tilt is fixed in the body, so
 it is shared by a fix and a floor learnt under a like view and heading, not after a turn.
 After the fusion (4) the floor holds
 
@@ -128,7 +128,7 @@ class FloorPlaneConfig:
             point) from the carried one starts the floor anew instead of being fused.
         calibration_aware: a fix estimates the floor only where its change is significant
             against the pixel noise and the calibration's error too (`solve_pose`'s
-            `calibration_jacobian`, `pose_planar.floor_change_chi2`); False: against the
+            `calibration_jacobian`, `pose_tilted.floor_change_chi2`); False: against the
             pixel noise alone (the chi-square drop).
     """
 
@@ -205,8 +205,11 @@ class FloorPlane:
         d = math.hypot(dx, dy)
         a = math.exp(-d / config.level_length_m)
         F = np.array([[1.0, dx, dy], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
-        q = (config.change_sigma_m_per_sqrt_m, config.change_slope_per_sqrt_m,
-             config.change_slope_per_sqrt_m)  # fmt: skip
+        q = (
+            config.change_sigma_m_per_sqrt_m,
+            config.change_slope_per_sqrt_m,
+            config.change_slope_per_sqrt_m,
+        )
         P0 = np.diag(np.square((config.prior_sigma_m, config.prior_slope, config.prior_slope)))
         P = a * a * (F @ self.covariance @ F.T) + (1.0 - a * a) * P0 + d * np.diag(np.square(q))
         K = None if self.sensitivity is None else a * (F @ self.sensitivity)
@@ -333,14 +336,30 @@ def fix_on_floor(
     if fix.floor is None or fix.floor_covariance is None or fix.floor_cross is None:
         return fix, (0.0, 0.0, 0.0)
     e_f, P_f, reset = fused(carried, wide, fix.floor, fix.floor_covariance, reset_chi2)
-    K_f = fused_sensitivity(carried, wide, fix.floor_covariance, P_f, carried_sensitivity,
-                            fix.floor_sensitivity, reset)  # fmt: skip
+    K_f = fused_sensitivity(
+        carried, wide, fix.floor_covariance, P_f, carried_sensitivity, fix.floor_sensitivity, reset
+    )
     at = (fix.x, fix.y, fix.theta)
-    (x, y, th), C = conditioned(at, fix.covariance, fix.floor_cross, fix.floor_covariance,
-                                fix.floor, e_f)  # fmt: skip
-    (x0, y0, th0), _ = conditioned(at, fix.covariance, fix.floor_cross, fix.floor_covariance,
-                                   fix.floor, np.asarray(carried[0], dtype=np.float64))  # fmt: skip
-    out = dataclasses.replace(fix, x=x, y=y, theta=float(wrap_angle(th)), covariance=C,
-                              tilt=e_f[:2].copy(), floor=e_f, floor_covariance=P_f,
-                              floor_sensitivity=K_f)  # fmt: skip
+    (x, y, th), C = conditioned(
+        at, fix.covariance, fix.floor_cross, fix.floor_covariance, fix.floor, e_f
+    )
+    (x0, y0, th0), _ = conditioned(
+        at,
+        fix.covariance,
+        fix.floor_cross,
+        fix.floor_covariance,
+        fix.floor,
+        np.asarray(carried[0], dtype=np.float64),
+    )
+    out = dataclasses.replace(
+        fix,
+        x=x,
+        y=y,
+        theta=float(wrap_angle(th)),
+        covariance=C,
+        tilt=e_f[:2].copy(),
+        floor=e_f,
+        floor_covariance=P_f,
+        floor_sensitivity=K_f,
+    )
     return out, (x - x0, y - y0, float(wrap_angle(th - th0)))

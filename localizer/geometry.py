@@ -62,19 +62,6 @@ def T_world_body_from_pose(x: float, y: float, theta: float) -> FloatArray:
     return T
 
 
-def T_body_world_from_pose(x: float, y: float, theta: float) -> FloatArray:
-    """Inverse of `T_world_body_from_pose` (world points into the body frame), shape (4, 4)."""
-    c, s = math.cos(theta), math.sin(theta)
-    return np.array(
-        [
-            [c, s, 0.0, -(c * x + s * y)],
-            [-s, c, 0.0, s * x - c * y],
-            [0.0, 0.0, 1.0, 0.0],
-            [0.0, 0.0, 0.0, 1.0],
-        ]
-    )
-
-
 def pose_from_T_world_body(T_world_body: FloatArray) -> tuple[float, float, float]:
     """Planar pose (x, y, theta) of a (4, 4) transform, heading from its x axis."""
     theta = float(np.arctan2(T_world_body[1, 0], T_world_body[0, 0]))

@@ -185,10 +185,12 @@ class FrameView(NamedTuple):
 
 
 def frame_view(
-    camera: CameraModel, positions: FloatArray, spot_pixels: FloatArray,
+    camera: CameraModel,
+    positions: FloatArray,
+    spot_pixels: FloatArray,
     config: RelocalizationConfig,
     miss_weights: FloatArray | None = None,
-) -> FrameView | None:  # fmt: skip
+) -> FrameView | None:
     """The frame's spots as ceiling points (see `FrameView`); None with fewer than two
     usable spots or landmarks. `miss_weights` (N,) defaults to `config.miss_log_lr` each
     (nothing known of any landmark)."""
@@ -205,11 +207,16 @@ def frame_view(
     cam_xy = camera.T_body_camera[:2, 3]
     radial_m = np.where(ok, np.hypot(q[:, 0] - cam_xy[0], q[:, 1] - cam_xy[1]), 0.0)
     return FrameView(
-        positions, spot_pixels, np.where(ok[:, None], q, 1e6), radial_m,
-        np.array(order[: config.score_spots], dtype=np.int64), order[: config.anchor_spots],
-        cKDTree(positions[:, :2]), cKDTree(spot_pixels),
+        positions,
+        spot_pixels,
+        np.where(ok[:, None], q, 1e6),
+        radial_m,
+        np.array(order[: config.score_spots], dtype=np.int64),
+        order[: config.anchor_spots],
+        cKDTree(positions[:, :2]),
+        cKDTree(spot_pixels),
         np.full(len(positions), config.miss_log_lr) if miss_weights is None else miss_weights,
-    )  # fmt: skip
+    )
 
 
 def inliers_needed(view: FrameView, config: RelocalizationConfig) -> float:
@@ -273,9 +280,15 @@ def frame_log_lr(
             counts[idx] = score_hypotheses(hyps[idx], q, radial, tree, config)[0]
         sub = None if counted is None else counted[idx]
         misses = missing_landmarks(
-            camera, view.positions, hyps[idx], view.spot_tree, config, reach_m=reach,
-            counted=sub, weights=view.miss_weights,
-        )  # fmt: skip
+            camera,
+            view.positions,
+            hyps[idx],
+            view.spot_tree,
+            config,
+            reach_m=reach,
+            counted=sub,
+            weights=view.miss_weights,
+        )
         if counted is not None and sub is not None:
             counted[idx] = sub
         score[idx] = config.inlier_log_lr * counts[idx] + off[idx] - misses
@@ -291,9 +304,12 @@ def inlier_pairs(
     """(landmark row, spot index) of every spot the pose explains, one spot per landmark
     (the nearest of the spots that chose it), sorted by row."""
     _, nearest, inl = score_hypotheses(
-        np.asarray(pose, dtype=np.float64).reshape(1, 3), view.q, view.radial_m,
-        view.landmark_tree, config,
-    )  # fmt: skip
+        np.asarray(pose, dtype=np.float64).reshape(1, 3),
+        view.q,
+        view.radial_m,
+        view.landmark_tree,
+        config,
+    )
     pairs: dict[int, int] = {}
     for j in np.nonzero(inl[0])[0]:
         pairs.setdefault(int(nearest[0, j]), int(j))

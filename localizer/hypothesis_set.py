@@ -134,13 +134,11 @@ class HypothesisSet:
             odometry, shape (R, 3); `retired_lr` their log-likelihood ratio then, (R,). The
             evidence against them is not forgotten: seeded again, they start from it.
         sustained: scored frames in a row on which the best was unambiguous.
-        seeded: how many times the set was seeded afresh.
     """
 
     def __init__(self, config: RelocalizationConfig, seeder: Seeder = seed_hypotheses) -> None:
         self.config = config
         self.seeder = seeder
-        self.seeded = 0
         self.clear()
 
     def __len__(self) -> int:
@@ -210,7 +208,6 @@ class HypothesisSet:
             or self._t_born is None
             or ((t_ns - self._t_born) * _NS >= c.birth_every_s)
         ):
-            self.seeded += not len(self.poses)
             frame, counts = self._births(seed, frame, counts)
             self._t_born = t_ns
         if not len(self.poses):
@@ -281,9 +278,14 @@ class HypothesisSet:
         clip = c.frame_clip
         counted = np.zeros((len(hyps), len(seed.view.positions)), dtype=bool)
         hyps, score, n_in, done = frame_log_lr(
-            seed.camera, seed.view, hyps, c, offset=-0.5 * m2 if first else None, cutoff=clip,
+            seed.camera,
+            seed.view,
+            hyps,
+            c,
+            offset=-0.5 * m2 if first else None,
+            cutoff=clip,
             counted=counted,
-        )  # fmt: skip
+        )
         f_live = float(np.max(frame)) if len(frame) else -math.inf
         f_all = max(f_live, float(np.max(score[done])) if np.any(done) else -math.inf)
         if first:

@@ -4,7 +4,7 @@ A 1.5-2 deg floor bump tilts the camera: a fix from a pair of landmarks then mov
 (ceiling - camera) x tilt, 11-13 cm at 2.5 m, although the robot did not move; two landmarks
 cannot tell a tilt from a translation (docs/localizer-models.md, "The floor under the
 robot"). An accelerometer at rest measures the specific force f = R^T (0, 0, g): with
-R_tilt = Ry(pitch) Rx(roll) (as `pose_planar.level_mounting`),
+R_tilt = Ry(pitch) Rx(roll) (as `pose_tilted.level_mounting`),
 
     f = g (-sin pitch, sin roll cos pitch, cos roll cos pitch)
     roll = atan2(f_y, f_z),   pitch = atan2(-f_x, sqrt(f_y^2 + f_z^2)).
@@ -59,8 +59,13 @@ class ImuTiltConfig:
     height_sigma_m: float = 0.02
 
     def __post_init__(self) -> None:
-        names = ("time_constant_s", "tilt_sigma_rad", "max_force_error_m_s2", "max_age_s",
-                 "height_sigma_m")  # fmt: skip
+        names = (
+            "time_constant_s",
+            "tilt_sigma_rad",
+            "max_force_error_m_s2",
+            "max_age_s",
+            "height_sigma_m",
+        )
         for name in names:
             v = getattr(self, name)
             if not math.isfinite(v) or v <= 0:

@@ -108,11 +108,6 @@ class LandmarkMap:
         position: FloatArray = self.positions[self.index_of(landmark_id)]
         return position
 
-    @property
-    def any_passive(self) -> bool:
-        """Whether the map has a passive landmark."""
-        return self.passive is not None and bool(np.any(self.passive))
-
     @classmethod
     def from_records(
         cls, records: Iterable[Mapping[str, Any]], *, source: str = "map"
@@ -155,8 +150,9 @@ class LandmarkMap:
             sizes.append(_optional_metres(rec, "size_m", lid, source, 0.0))
             flag = rec.get("passive", False)
             if not isinstance(flag, bool):
-                raise ValueError(f"{source}: landmark {lid}: 'passive' must be true or false, "
-                                 f"got {flag!r}")  # fmt: skip
+                raise ValueError(
+                    f"{source}: landmark {lid}: 'passive' must be true or false, got {flag!r}"
+                )
             passive.append(flag)
         sig = np.array(sigmas, dtype=np.float64)
         return cls(
@@ -172,8 +168,11 @@ class LandmarkMap:
         out: list[dict[str, float | int | bool]] = []
         for row, (i, p) in enumerate(zip(self.ids, self.positions, strict=True)):
             rec: dict[str, float | int | bool] = {
-                "id": int(i), "x": float(p[0]), "y": float(p[1]), "z": float(p[2])
-            }  # fmt: skip
+                "id": int(i),
+                "x": float(p[0]),
+                "y": float(p[1]),
+                "z": float(p[2]),
+            }
             sigma = self.sigma_at(row)
             if sigma is not None:
                 rec["sigma_m"] = sigma

@@ -16,25 +16,31 @@ Pipeline per frame (docs/localizer.md):
    normalised innovation, fused by `PoseFilter.update_fix`.
 Modes: identifying -> landmark <-> dead_reckoning; lost when the uncertainty grows past a
 bound or the observations keep disagreeing with the map (then it re-identifies).
+
+`Localizer` coordinates; the state lives in objects named for what they hold: the LEDs
+(`led_knowledge`), odometry and the motion model (`dead_reckoning`), identification by
+blinking (`blink_identification`) or by geometry (`passive_identification`), tracking
+(`landmark_tracker`), getting lost and re-localizing (`recovery`), the online
+self-calibration (`calibration_feed`) and the frame's output (`frame_report`).
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 
 import numpy as np
-import numpy.typing as npt
 
+from localizer.after_frame import AfterFrame
+from localizer.blink_identification import BlinkIdentification
+from localizer.calibration_feed import feed_self_calibration
 from localizer.camera import CameraModel
-from localizer.candidate_order import ViewOrdering, order_by_view
 from localizer.config import LocalizerConfig
 from localizer.constellation import ConstellationMatch
+from localizer.dead_reckoning import DeadReckoning
 from localizer.events import (
     Event,
     FrameObserved,
     ImuMeasured,
-    LedRequest,
     LedsChanged,
     Mode,
     NoPose,
@@ -44,32 +50,16 @@ from localizer.events import (
     RelocalizeRequested,
     SpotsObserved,
 )
-from localizer.first_fix import first_fix
-from localizer.fix_run import FixRun
-from localizer.geometry import wrap_angle
-from localizer.handoff import position_sigma_m, visible_radius_m
-from localizer.hypothesis_set import HypothesisSet
-from localizer.identification import Identifier
-from localizer.imu_tilt import GravityTilt
+from localizer.frame_report import FrameTiming, frame_facts, frame_output
 from localizer.landmark_liveness import LandmarkLiveness
 from localizer.landmark_map import LandmarkMap
 from localizer.landmark_tracker import LandmarkTracker
-from localizer.motion_model import ConstantVelocity
-from localizer.odometry import integrate_arc
-from localizer.odometry_track import OdometryTrack
+from localizer.led_knowledge import LedKnowledge
 from localizer.online_calibration import OnlineCalibration
-from localizer.passive_identification import PassiveIdentifier, fix_from_pairs, passive_settings
-from localizer.pose import PoseFix, solve_pose
+from localizer.passive_identification import PassiveIdentifier, passive_settings
+from localizer.pose import PoseFix
 from localizer.pose_filter import PoseFilter
-from localizer.pose_quality import (
-    FrameFacts,
-    deviation_radius_m,
-    landmarks_in_view,
-    published_covariance,
-    quality_from_deviation,
-    reason_for,
-    reason_text,
-)
+from localizer.recovery import Recovery
 from localizer.robot import RobotGeometry
 from localizer.spots import Spots
 from localizer.types import FloatArray
@@ -102,58 +92,34 @@ class Localizer:
         self._filter: PoseFilter | None = None
         self._mode: Mode = "identifying"
         self._latest: PoseEstimate | None = None
-        self._lit: frozenset[int] | None = None  # None: all lit (or unknown)
-        self._changing: frozenset[int] = frozenset()  # LEDs being switched (state unknown)
-        self._t_leds: int | None = None  # when the LED state last changed
-        self._frames_since_leds = 0  # frames stamped since then
-        self._odometry = OdometryTrack(
-            self.robot.wheel_base,
-            self.config.fusion.odometry_history_s,
-            interval_mean=self.config.fusion.odometry_interval_mean,
-        )
+        self._leds = LedKnowledge(landmark_map)  # lit, being switched, asked for, since when
         self._t_filter = 0  # time of the filter's state (the last sample or fused frame)
         self._commit = False  # this frame's filter is kept (a fix, a reset)
-        self._t_relocalized: int | None = None  # the last re-localization attempt
-        self._hypotheses = HypothesisSet(self.config.relocalization)  # kept alive while lost
-        # where it got lost: pose, position sigma (m), heading variance, raw odometry pose
-        self._lost_at: tuple[float, float, float, float, float, tuple[float, float, float]] = (
-            0.0, 0.0, 0.0, 0.0, 0.0, (0.0, 0.0, 0.0)
-        )  # fmt: skip
-        self._t_frame: int | None = None
+        self._timing = FrameTiming()  # the interval between frames and the usual one
         self._expected: tuple[int, ...] = ()  # lit landmarks predicted in view, this frame
-        self._rejections = 0  # frames in a row whose spots no fused fix explained
-        self._travel_m = 0.0  # odometry travel since the last fused fix (the slip hypothesis)
-        self._t_explained = 0  # the last frame whose spots a fix explained (or none predicted)
-        self._last_request: LedRequest | None = None
-        self._want_all = False
-        # the sighting the candidates were last ordered from, and the raw odometry then
-        ic = self.config.identification
-        self._view = ViewOrdering(ic.reorder_distance_m, ic.reorder_turn_rad)
-        self._frame_interval_s: float | None = None  # between the last two frames
-        self._lit_rows_memo: (
-            tuple[frozenset[int] | None, frozenset[int], LandmarkMap, npt.NDArray[np.int64]] | None
-        ) = None
         self._tracker = LandmarkTracker(camera, robot, self.config, landmark_map)
+        # rejections, where it got lost, re-localization, landmark liveness, runs of fixes
+        self._recovery = Recovery(
+            self.config,
+            len(landmark_map.ids),
+            max_speed_m_s=robot.max_speed,
+            max_turn_rad_s=self._tracker.max_angular_speed_rad_s,
+            spacing_m=self._tracker.spacing_m,
+        )
         self._passive = PassiveIdentifier(
             self.config.passive, self.config.constellation, self.config.relocalization
         )
-        # speed and turn rate for frames without odometry (constant velocity and turn)
-        self._motion = ConstantVelocity(
-            self.config.motion,
-            max_speed_m_s=robot.max_speed,
-            max_turn_rad_s=self._tracker.max_angular_speed_rad_s,
-        )
-        self._gravity = GravityTilt(self.config.imu)  # the body's tilt from an IMU
+        # odometry, or without it the motion model; the body's tilt from an IMU
+        self._reckoning = DeadReckoning(self.config, robot, self._tracker.max_angular_speed_rad_s)
+        self._odometry = self._reckoning.odometry  # the raw track (the same object)
+        # the identifier, the candidates' order by view, the first fix
+        self._blink = BlinkIdentification(self.config, self._odometry, robot.wheel_base)
         self._reseeded = False  # this frame's filter was re-seeded from a run of fixes
         # what explains a frame without a fix (`pose_quality.FrameFacts`)
         self._facts: dict[str, bool | int | float] = {}
-        self._typical_gap_s = 0.0  # the usual frame interval (smoothed)
-        self._t_requested: int | None = None  # the last LED request not yet confirmed
-        self._lost_by_disagreement = False  # lost: the spots disagreed (not sigma's growth)
         sc = self.config.self_calibration
         self.calibration = OnlineCalibration(camera, sc) if sc.enabled else None
-        # a fused frame's learning (liveness, self-calibration), done after its pose is out
-        self._after_frame: list[Callable[[], None]] = []
+        self._after = AfterFrame()  # a fused frame's learning, done after its pose is out
         self.set_map(landmark_map)
 
     # -- public API ----------------------------------------------------------------------------
@@ -165,7 +131,7 @@ class Localizer:
     @property
     def liveness(self) -> LandmarkLiveness:
         """What tracking learnt of each landmark (lit, dark), per map row."""
-        return self._liveness
+        return self._recovery.liveness
 
     @property
     def latest(self) -> PoseEstimate | None:
@@ -183,33 +149,18 @@ class Localizer:
         """Use a new map. The pose is kept and tracking goes on with the new map (if the
         observations disagree with it the localizer gets lost and re-identifies); without a
         pose, identification starts over."""
-        self._catch_up()
+        self._after.run()
         self.map = landmark_map
+        self._leds.set_map(landmark_map)
         self._tracker.set_map(landmark_map)
-        # fixes the odometry disagrees with, and the last fused one they must link to
-        self._fix_run = FixRun(
-            self.config.fix_run,
-            max_speed_m_s=self.robot.max_speed,
-            max_turn_rad_s=self._tracker.max_angular_speed_rad_s,
-            spacing_m=self._tracker.spacing_m,
-        )
-        # what tracking learnt of each landmark (lit, dark): what its absence weighs
-        self._liveness = LandmarkLiveness(len(landmark_map.ids), self.config.relocalization)
-        self._t_liveness: int | None = None
+        # nothing learnt of the new landmarks (lit, dark), no run of fixes
+        self._recovery.set_map(len(landmark_map.ids), self._tracker.spacing_m)
         self._half_diag = math.hypot(self.camera.width, self.camera.height) / 2
-        self._identifier = Identifier(
-            self.config.identification,
-            landmark_map.ids.tolist(),
-            positions=landmark_map.positions,
-            image_size=(self.camera.width, self.camera.height),
-            principal_point=(self.camera.cu, self.camera.cv),
-            motion_px=self._motion_bound_px,
-            odometry_at=self._odometry.pose_at,
-        )
+        self._blink.set_map(landmark_map, self.camera, self._motion_bound_px)
         self._passive.set_map(landmark_map)
         self._start_identification()
         if self._filter is not None and self._mode != "lost":
-            self._sweeping = False  # keep tracking with the new map; lost if it disagrees
+            self._leds.sweeping = False  # keep tracking with the new map; lost if it disagrees
 
     def set_initial_pose(
         self,
@@ -229,7 +180,7 @@ class Localizer:
                 `FusionConfig.initial_sigma_m`.
             sigma_rad: heading standard deviation; None: `FusionConfig.initial_sigma_rad`.
         """
-        self._catch_up()
+        self._after.run()
         f = self.config.fusion
         for name, v in (("x", x), ("y", y), ("theta", theta)):
             if not math.isfinite(v):
@@ -244,8 +195,8 @@ class Localizer:
 
     def skip_frame(self, t_ns: int) -> PoseEstimate | NoPose:
         """A frame that could not be read: the pose at `t_ns` from odometry alone."""
-        self._catch_up()
-        base = self._advance(t_ns, *self._odometry.speeds)
+        self._after.run()
+        base = self._advance(t_ns)
         self._expected = ()
         if self._filter is not None and self._mode == "landmark":
             self._mode = "dead_reckoning"
@@ -256,19 +207,13 @@ class Localizer:
 
     def handle(self, event: Event) -> list[Output]:
         """Process one event; returns the outputs (see the module docstring)."""
-        self._catch_up()
+        self._after.run()
         if isinstance(event, OdometryMeasured):
             self._on_odometry(event)
             return []
         if isinstance(event, LedsChanged):
-            lit = None if event.all_lit else frozenset(event.lit)
-            if (lit, frozenset(event.changing)) != (self._lit, self._changing):
-                self._t_leds = event.t_ns
-                self._frames_since_leds = 0
-            self._lit = lit
-            self._changing = frozenset(event.changing)
-            self._t_requested = None
-            self._identifier.led_confirmed(event.t_ns, self._known_lit())
+            self._leds.reported(event)
+            self._blink.identifier.led_confirmed(event.t_ns, self._leds.known_lit())
             return self._requests(event.t_ns)
         if isinstance(event, RelocalizeRequested):
             self._filter = None
@@ -280,21 +225,12 @@ class Localizer:
                 self._start_identification()
             return self._requests(event.t_ns)
         if isinstance(event, ImuMeasured):
-            self._on_imu(event)
+            self._reckoning.imu(event)
             return []
         if isinstance(event, FrameObserved | SpotsObserved):
             out: list[Output] = [self._on_frame(event)]
             return out + self._requests(event.t_ns)
         raise TypeError(f"Localizer.handle: unknown event {type(event).__name__}")
-
-    def _catch_up(self) -> None:
-        """Do what the last fused frame left to learn (`_learn_liveness`, `_self_calibrate`,
-        the motion model's measurement in `_motion_fixed`) before anything else: after its pose was output, on the next event (an odometry
-        or IMU sample between frames, or the next frame), so that the pose's latency does
-        not carry it. Any later event sees the same state as if it had been done with the
-        frame; only that frame's own output precedes a calibration update it completed."""
-        while self._after_frame:
-            self._after_frame.pop(0)()
 
     # -- odometry and the filter ---------------------------------------------------------------
     def _reset_filter(self, x: float, y: float, theta: float, cov: FloatArray, t_ns: int) -> None:
@@ -308,147 +244,67 @@ class Localizer:
         self._odometry.t_state_ns = t_ns if t_state is None else max(t_state, t_ns)
         self._t_filter = max(self._t_filter, t_ns)
         self._commit = True
-        self._rejections = 0
-        self._travel_m = 0.0
-        self._t_explained = t_ns
+        self._recovery.reset(t_ns)
         if self.calibration is not None:
             self.calibration.break_track()
-        self._hypotheses.clear()
         self._tracker.last_matched = frozenset()
-        self._fix_run.clear()
-        self._motion.break_track()
+        self._reckoning.motion.break_track()
 
-    def _advance(self, t_ns: int, v_left: float, v_right: float) -> PoseFilter | None:
+    def _advance(self, t_ns: int) -> PoseFilter | None:
         """Extrapolate odometry (raw, and a copy of the filter) from the last state time to
-        `t_ns` at the given speeds; returns the committed filter (None: none), which stays
-        as it was: the frame works on the copy (`self._filter`), kept only on `_settle`.
-        Without odometry (`_model_drives`) the motion model's speed and turn rate drive
-        both instead, with its process noise."""
-        model = self._model_drives(t_ns)
-        if model:
-            self._motion.predict(t_ns)
-            v_left, v_right = self._motion.wheel_speeds(self.robot.wheel_base)
-        self._odometry.step(t_ns, v_left, v_right)
+        `t_ns` (`DeadReckoning.extrapolate`); returns the committed filter (None: none),
+        which stays as it was: the frame works on the copy (`self._filter`), kept only on
+        `_settle`."""
         base = self._filter
-        if base is None:
-            return None
-        work = base.copy()
-        dt = (t_ns - self._t_filter) * _NS
-        if dt > 0 and model:
-            q = self._motion.process_noise(dt)
-            work.predict_motion(self._motion.v, self._motion.w, dt, q.var_xy_m2, q.var_theta_rad2)
-        elif dt > 0:
-            work.predict(v_left, v_right, dt)
-        self._filter = work
+        work = self._reckoning.extrapolate(t_ns, base, self._t_filter)
+        if work is not None:
+            self._filter = work
         return base
-
-    def _model_drives(self, t_ns: int) -> bool:
-        """Whether the motion model predicts instead of the odometry: it is on and no
-        odometry sample arrived within `MotionModelConfig.silent_odometry_s` (or ever)."""
-        mc = self.config.motion
-        t_sample = self._odometry.t_sample_ns
-        return mc.enabled and (t_sample is None or (t_ns - t_sample) * _NS > mc.silent_odometry_s)
-
-    def _motion_fixed(self, t_ns: int, used: tuple[int, ...]) -> None:
-        """A frame fused a fix: the motion model measures the speed and turn rate from it
-        and the one before (the fix's own pose and covariance; after a reset, the filter's,
-        which is the fix's)."""
-        fused = self._tracker.last_fused
-        if fused is not None and tuple(fused[2].landmark_ids) == tuple(used):
-            fix = fused[2]
-            x, y, th, cov = fix.x, fix.y, fix.theta, fix.covariance
-        elif self._filter is not None:
-            x, y, th = self._filter.pose
-            cov = self._filter.covariance
-        else:
-            return
-        var_xy = 0.5 * float(cov[0, 0] + cov[1, 1])
-        var_th = float(cov[2, 2])
-        if not self._model_drives(t_ns):  # odometry drives: the model learns after the pose
-            motion = self._motion
-            self._after_frame.append(lambda: motion.fixed(t_ns, x, y, th, var_xy, var_th))
-            return
-        self._motion.fixed(t_ns, x, y, th, var_xy, var_th)
-        if self.config.motion.snap_output and self._filter is not None:
-            # without odometry a fix's correction is mostly motion the model did not
-            # foresee (a turn begun or ended): smoothing it would only make a lag
-            self._filter.snap_output()
 
     def _settle(self, t_ns: int, base: PoseFilter | None) -> None:
         """End of a frame: keep its filter when it took a fix (or was reset, or odometry is
         stale), else go back to the committed one: the next odometry sample says what the
         wheels did since the last one, better than the extrapolation."""
-        keep = self._commit or base is None or not self._fresh_odometry(t_ns)
+        keep = self._commit or base is None or not self._reckoning.fresh(t_ns)
         self._commit = False
         if keep:
             self._t_filter = max(self._t_filter, t_ns)
         else:
             self._filter = base
 
-    def _fresh_odometry(self, t_ns: int) -> bool:
-        t_sample = self._odometry.t_sample_ns
-        return (
-            t_sample is not None and (t_ns - t_sample) * _NS < self.config.fusion.odometry_stale_s
-        )
-
     def _on_odometry(self, e: OdometryMeasured) -> None:
         vl, vr, step_s = self._odometry.add_sample(e.t_ns, e.v_left, e.v_right)
-        self._travel_m += 0.5 * (abs(vl) + abs(vr)) * step_s
+        self._recovery.travel_m += 0.5 * (abs(vl) + abs(vr)) * step_s
         dt = (e.t_ns - self._t_filter) * _NS
         if self._filter is not None and dt > 0:
             self._filter.predict(vl, vr, dt)
         self._t_filter = max(self._t_filter, e.t_ns)
 
-    def _on_imu(self, e: ImuMeasured) -> None:
-        """An IMU sample: its heading rate drives the motion model (without odometry); its
-        gravity direction gives the body's tilt to the fixes (`imu_tilt`)."""
-        self._motion.gyro(e.t_ns, e.gyro[2])
-        # The body's own acceleration must come out of the specific force: only measured
-        # wheel speeds say it (the motion model's speed moves in steps at each fix, and its
-        # differences read as degrees of pitch), so without odometry the tilt is not used.
-        if self.config.imu.enabled and not self._model_drives(e.t_ns):
-            speed = 0.5 * (self._odometry.speeds[0] + self._odometry.speeds[1])
-            self._gravity.sample(e.t_ns, e.accel, speed, e.gyro[2])
-
     def _motion_bound_px(self, t0_ns: int, t1_ns: int) -> float:
-        """Bound on a spot's image motion between two times: from odometry (with 20 % slack)
-        when there is any, else from the maximum speed and turn rate."""
-        track = self._odometry
+        """Bound on a spot's image motion between two times (`DeadReckoning`), pixels."""
         scale = self._tracker.scale_px_per_m
-        if track.t_sample_ns is None:
-            dt = abs(t1_ns - t0_ns) * _NS
-            speed, omega = self.robot.max_speed, self._tracker.max_angular_speed_rad_s
-            if self.config.motion.enabled:  # the motion model's bounds (from rest at start)
-                speed, omega = self._motion.speed_bounds(max(t0_ns, t1_ns))
-            return dt * (speed * scale + omega * self._half_diag)
-        a, b = track.pose_at(t0_ns), track.pose_at(t1_ns)
-        move = math.hypot(b[0] - a[0], b[1] - a[1]) * scale
-        turn = abs(float(wrap_angle(b[2] - a[2]))) * self._half_diag
-        return 1.2 * (move + turn) + 1.0
+        return self._reckoning.motion_bound_px(t0_ns, t1_ns, scale, self._half_diag)
 
     # -- frames --------------------------------------------------------------------------------
     def _on_frame(self, e: FrameObserved | SpotsObserved) -> PoseEstimate | NoPose:
         t = e.t_ns
-        base = self._advance(t, *self._odometry.speeds)
-        dt_frame = min((t - self._t_frame) * _NS, 1.0) if self._t_frame is not None else 0.0
-        if dt_frame > 0:
-            self._frame_interval_s = dt_frame
-        self._facts = {"gap_s": dt_frame, "typical_gap_s": self._typical_gap_s}
-        if 0 < dt_frame < 1.0:
-            g = self._typical_gap_s
-            self._typical_gap_s = dt_frame if g == 0 else min(g + 0.1 * (dt_frame - g), dt_frame)
-        self._t_frame = t
+        base = self._advance(t)
+        dt_frame, self._facts = self._timing.frame(t)
         self._odometry.mark(t)
         used: tuple[int, ...] = ()
         self._expected = ()
         if self._filter is None or self._mode in ("identifying", "lost"):
             spots = self._tracker.full_spots(e)
             if self._passive.active:  # lights that cannot blink: by geometry
-                fix = self._passive_fix(t, spots)
+                prior = (
+                    None if self._filter is None else (self._filter.pose, self._filter.covariance)
+                )
+                odo = self._odometry.pose
+                fix = self._passive.fix(t, self.camera, spots, self._tracker.noise, odo, prior)
             else:
-                lit = self._lit_for_evidence(t)
-                self._identifier.observe(t, lit, spots.pixels, spots.intensities)
-                fix = self._fix_from_sightings(t)
+                lit = self._leds.lit_for_evidence(t, self.config.identification)
+                self._blink.identifier.observe(t, lit, spots.pixels, spots.intensities)
+                fix = self._blink.first_fix(t, self.camera)
             if fix is not None:
                 self._reset_filter(fix.x, fix.y, fix.theta, fix.covariance, t)
                 self._mode = "landmark"
@@ -460,19 +316,29 @@ class Localizer:
                     used = self._relocalize(t, spots)
                 if used:
                     self._mode = "landmark"
-                    self._sweeping = False
-                    self._want_all = True
+                    self._leds.sweeping = False
+                    self._leds.want_all = True
         else:
-            self._widen_unexplained(t)
+            self._recovery.widen_unexplained(self._filter, t, self._tracker.spacing_m)
             used = self._track(e, dt_frame)
             self._mode = "landmark" if used else "dead_reckoning"
             if used:
-                self._learn_liveness(t)
+                self._recovery.learn_liveness(
+                    t,
+                    self.camera,
+                    self.map,
+                    self._expected,
+                    self._tracker,
+                    self._filter,
+                    self._after,
+                )
             if used and self.calibration is not None and not self._reseeded:
                 self._self_calibrate(t)
         self._commit = self._commit or bool(used)
         if used:
-            self._motion_fixed(t, used)
+            fused = self._tracker.last_fused
+            fix = None if fused is None else fused[2]
+            self._reckoning.fixed(t, used, fix, self._filter, self._after)
         self._check_lost(t)
         out = self._output(t, used)
         self._settle(t, base)
@@ -489,17 +355,13 @@ class Localizer:
         """A tracking step (`LandmarkTracker.step`); returns the IDs fused."""
         if self._filter is None:
             return ()
-        cand = None if self._lit is None and not self._changing else self._lit_rows()
-        fresh = self._fresh_odometry(e.t_ns)
-        track = self._odometry
-        since = 0.0
-        if fresh and track.t_sample_ns is not None:
-            since = (e.t_ns - track.t_sample_ns) * _NS
-            since = min(since, 1.5 * (track.interval_s or since))
-        self._tracker.imu_tilt = self._gravity.at(e.t_ns) if self.config.imu.enabled else None
-        unpredicted = None
-        if self._model_drives(e.t_ns):
-            unpredicted = self._motion.unpredicted_bounds()
+        leds = self._leds
+        cand = None if leds.lit is None and not leds.changing else leds.lit_rows()
+        reckoning = self._reckoning
+        fresh = reckoning.fresh(e.t_ns)
+        since = reckoning.since_sample_s(e.t_ns, fresh)
+        self._tracker.imu_tilt = reckoning.tilt_at(e.t_ns)
+        unpredicted = reckoning.unpredicted_bounds(e.t_ns)
         result = self._tracker.step(
             self._filter,
             e,
@@ -507,7 +369,7 @@ class Localizer:
             fresh_odometry=fresh,
             unpredicted_bounds=unpredicted,
             since_sample_s=since,
-            travel_since_fix_m=self._travel_m,
+            travel_since_fix_m=self._recovery.travel_m,
             candidates=cand,
             spots=spots,
             reacquire=reacquire,
@@ -517,420 +379,130 @@ class Localizer:
         self._facts["unexplained"] = result.unexplained
         self._facts["rejected_fix"] = result.rejected is not None
         if result.used:
-            self._fix_run.fused(e.t_ns, self._filter.pose, self._filter.covariance, result.used)
+            f = self._filter
+            self._recovery.fix_run.fused(e.t_ns, f.pose, f.covariance, result.used)
         elif not reacquire and result.rejected is not None:
             result = result._replace(used=self._reseed(e.t_ns, result.rejected))
-        if result.used:
-            self._rejections = 0
-            self._travel_m = 0.0
-        elif result.unexplained:
-            self._rejections += 1
-        if not result.unexplained:
-            self._t_explained = e.t_ns
+        self._recovery.tracked(e.t_ns, result.used, result.unexplained)
         return result.used
 
     def _reseed(self, t_ns: int, fix: PoseFix) -> tuple[int, ...]:
         """A good fix the filter rejected: when it completes (or continues) a run of such
         fixes that form one track the robot could have driven by itself (`fix_run`: the
         odometry is what is wrong, a stall, a spinning wheel, a bump), the filter is re-seeded
-        at it; returns its IDs (empty: not taken). The odometry's track is broken there, so
-        the self-calibration starts a new one."""
-        if self._filter is None or not self._fix_run.offer(t_ns, fix):
+        at it (`Recovery.reseed`); returns its IDs (empty: not taken). The odometry's track
+        is broken there, so the self-calibration starts a new one."""
+        if self._filter is None:
             return ()
-        used = self._tracker.adopt_rejected(self._filter)
+        used = self._recovery.reseed(t_ns, fix, self._tracker, self._filter)
         if used:
             self._reseeded = True
             if self.calibration is not None:
                 self.calibration.break_track()
         return used
 
-    def _widen_unexplained(self, t_ns: int) -> None:
-        """After frames whose spots no fix explained, the robot may have been moved without
-        its odometry knowing (a kidnap): once `carry_speed_m_s` x the time since the last
-        explained frame reaches half the landmark spacing (a shorter stretch, a bump or a
-        glint, cannot pair a spot with another landmark's prediction and is tracked through
-        as before), this frame's spots are matched with the position sigma widened to it
-        (the frame's copy of the filter; kept only with a fix). Past `reacquire_sigma_m` a
-        match needs the geometric check, which on a regular grid finds the pose one spacing
-        away as good as the old one and takes neither."""
-        if self._filter is None or self._rejections == 0:
-            return
-        sigma = self.config.fusion.carry_speed_m_s * (t_ns - self._t_explained) * _NS
-        if sigma < 0.5 * self._tracker.spacing_m:
-            return  # too short a carry to pair a spot with another landmark's prediction
-        P = self._filter.covariance_rows
-        var = sigma * sigma - min(P[0][0], P[1][1])
-        if var > 0:
-            self._filter.inflate(var, 0.0)
-
     def _relocalize(self, t_ns: int, spots: Spots) -> tuple[int, ...]:
-        """Re-localization without LEDs: while lost (or identifying from a prior), the
-        hypothesis set carried over frames (seeded around where it got lost, within the
-        distance odometry has driven since; or around the prior); after long dead
-        reckoning, one frame around the filter's pose, every `every_s`."""
-        if self._filter is None or self._changing:
+        """Re-localization without LEDs (`Recovery.relocalize`); returns the IDs of the fix
+        the filter was reset at (empty: none)."""
+        if self._filter is None or self._leds.changing:
             return ()
-        cand = None if self._lit is None else self._lit_rows()
-        if self._mode in ("lost", "identifying"):
-            odo = self._odometry.pose
-            prior = None  # identifying with a prior: the filter's pose and covariance
-            if self._mode == "lost":
-                x, y, th, sigma0, var_th, odo0 = self._lost_at
-                sigma = sigma0 + math.hypot(odo[0] - odo0[0], odo[1] - odo0[1])
-                prior = ((x, y, th), np.diag([sigma**2, sigma**2, var_th]))
-            fix = self._tracker.relocalize(
-                self._filter, spots, cand, prior=prior, hypotheses=self._hypotheses,
-                t_ns=t_ns, odometry_pose=odo, miss_weights=self._miss_weights(),
-            )  # fmt: skip
-        else:
-            every = self.config.relocalization.every_s
-            if self._t_relocalized is not None and (t_ns - self._t_relocalized) * _NS < every:
-                return ()
-            self._t_relocalized = t_ns
-            fix = self._tracker.relocalize(
-                self._filter, spots, cand, miss_weights=self._miss_weights()
-            )
+        cand = None if self._leds.lit is None else self._leds.lit_rows()
+        fix = self._recovery.relocalize(
+            self._tracker,
+            self._filter,
+            spots,
+            cand,
+            mode=self._mode,
+            t_ns=t_ns,
+            odometry=self._odometry,
+        )
         if fix is None:
             return ()
         self._reset_filter(fix.x, fix.y, fix.theta, fix.covariance, t_ns)
         return fix.landmark_ids
 
-    def _learn_liveness(self, t_ns: int) -> None:
-        """A fused frame (at most every `score_every_s`): which landmarks predicted well in
-        view were detected (`LandmarkLiveness.observe_frame`); learnt after the frame's
-        pose is out (`_catch_up`)."""
-        every = self.config.relocalization.score_every_s
+    def _self_calibrate(self, t_ns: int) -> None:
+        """Feed the fused fix to the online self-calibration (`feed_self_calibration`)
+        after the frame's pose is out (`AfterFrame`); when it hands back a corrected camera,
+        use it from then on (the pose moved to where the frame's spots put it through the
+        corrected lens)."""
         fused = self._tracker.last_fused
-        if fused is None or self._filter is None:
+        if self.calibration is None or self._filter is None or fused is None:
             return
-        if self._t_liveness is not None and (t_ns - self._t_liveness) * _NS < every:
-            return
-        self._t_liveness = t_ns
-        x, y, th = (float(v) for v in self._filter.state)
-        camera, positions, expected = self.camera, self.map.positions, self._expected
-        index, liveness = self.map.index_of, self._liveness
+        calibration, odometry = self.calibration, self._odometry.pose_at(t_ns)
 
         def learn() -> None:
-            rows, px, _ = fused
-            liveness.observe_frame(
-                camera,
-                (x, y, th),
-                positions,
-                np.array([index(i) for i in expected], dtype=np.int64),
-                np.asarray(rows, dtype=np.int64),
-                np.asarray(px, dtype=np.float64).reshape(-1, 2),
+            if self._filter is None:
+                return
+            noise = self._tracker.noise
+            camera = feed_self_calibration(
+                calibration, t_ns, fused, noise, self._filter, self.map, odometry
             )
+            if camera is None:
+                return
+            self.camera = camera
+            self._tracker.camera = camera
+            self._tracker.set_map(self.map)  # scale, reach and the noise model of the new lens
 
-        self._after_frame.append(learn)
-
-    def _miss_weights(self) -> FloatArray:
-        """What each landmark's absence weighs against a hypothesis (`LandmarkLiveness`),
-        one per map row; fixed while lost (nothing is learnt then)."""
-        return self._liveness.miss_log_lr()
-
-    def _self_calibrate(self, t_ns: int) -> None:
-        """Feed the fused fix to the online self-calibration (`_calibrate`), after the
-        frame's pose is out (`_catch_up`)."""
-        fused = self._tracker.last_fused
-        if self.calibration is None or fused is None or self._filter is None:
-            return
-        odometry = self._odometry.pose_at(t_ns)
-        self._after_frame.append(lambda: self._calibrate(t_ns, fused, odometry))
-
-    def _calibrate(
-        self,
-        t_ns: int,
-        fused: tuple[list[int], list[list[float]], PoseFix],
-        odometry: tuple[float, float, float],
-    ) -> None:
-        """One fused fix to the online self-calibration; when it hands back a corrected
-        camera, use it from now on, and move the pose to where the fix's spots put it
-        through the corrected camera (the filter's belief stays, read through the better
-        lens)."""
-        if self.calibration is None or self._filter is None:
-            return
-        rows, px, fix = fused
-        completed = self.calibration.wants(t_ns, len(rows)) and self.calibration.observe(
-            t_ns,
-            px,
-            self.map.positions[rows],
-            (fix.x, fix.y, fix.theta),
-            odometry,
-            fix.floor,
-        )
-        if not completed:  # a completed window's work goes on a step a frame, not all at once
-            self.calibration.step()
-        update = self.calibration.take_update()
-        if update is None:
-            return
-        P = self.map.positions[rows]
-        pose = (fix.x, fix.y, fix.theta)
-        sigma = [self._tracker.noise.sigma_px(u, v) for u, v in px]
-        # on the floor the fix stood on (its tilt and height), not the map's level one
-        on = None if fix.floor is None else (
-            (float(fix.floor[0]), float(fix.floor[1]), float(fix.floor[2])), np.eye(3) * 1e-12
-        )  # fmt: skip
-        moved = solve_pose(update.camera, px, P, initial=pose, pixel_sigma_px=sigma,
-                           floor_prior=on)  # fmt: skip
-        if moved is not None:
-            self._filter.shift(moved.x - fix.x, moved.y - fix.y,
-                               float(wrap_angle(moved.theta - fix.theta)))  # fmt: skip
-        self.camera = update.camera
-        self._tracker.camera = update.camera
-        self._tracker.set_map(self.map)  # scale, reach and the noise model of the new lens
-
-    def _passive_fix(self, t_ns: int, spots: Spots) -> PoseFix | None:
-        """Passive landmarks identified by geometry (`PassiveIdentifier`: around the
-        filter's pose when there is one, a start pose or where it got lost; else anywhere),
-        solved and verified by reprojection."""
-        prior = None if self._filter is None else (self._filter.pose, self._filter.covariance)
-        odo = self._odometry.pose
-        found = self._passive.identify(t_ns, self.camera, spots.pixels, odo, prior)
-        if found is None:
-            return None
-        pose, pairs = found
-        px, noise = spots.pixels, self._tracker.noise
-        sigma = [
-            noise.sigma_px(float(px[s, 0]), float(px[s, 1]), self.map.sigma_at(r)) for r, s in pairs
-        ]
-        fix = fix_from_pairs(self.camera, self.map, spots.pixels, pairs, sigma, pose,
-                             outlier_sigma=self.config.passive.outlier_sigma)  # fmt: skip
-        if fix is not None:
-            self._passive.clear()
-        return fix
-
-    def _fix_from_sightings(self, t_ns: int) -> PoseFix | None:
-        """First fix from identified landmarks, each carried by odometry to the frame time."""
-        sightings = list(self._identifier.sightings.values())
-        if len(sightings) < self.config.identification.landmarks_needed:
-            return None
-        fc = self.config.fusion
-        fix = first_fix(
-            self.camera,
-            self.map,
-            sightings,
-            self._odometry.pose_at,
-            t_ns,
-            pixel_sigma_px=fc.pixel_sigma_px,
-            max_residual_px=fc.max_residual_px,
-        )
-        if fix is None:
-            # Inconsistent sightings: keep the newest (a fresh one, near the robot), find
-            # another in view of it.
-            self._identifier.keep_newest()
-            self._view.reset()
-        return fix
-
-    def _order_by_view(self, t_ns: int) -> None:
-        """With one landmark identified (or showing itself), probe first the candidates in
-        view of where the robot can be when the next probe lands (`order_by_view`: the
-        sighting's ray from its odometry pose, the odometry since, extrapolated at the
-        current wheel speeds over the measured command latency and the frames a probe
-        needs); again once odometry has moved `reorder_distance_m` or turned
-        `reorder_turn_rad` since the last ordering."""
-        anchor = self._identifier.anchor
-        if anchor is None or anchor.landmark_id not in self.map:
-            return
-        ic = self.config.identification
-        odo = self._odometry.pose_at(t_ns)
-        if not self._view.due(anchor, odo):
-            return
-        frame_s = self._frame_interval_s or 0.0
-        lead_s = self._identifier.probes.latency_s + ic.frames_per_led * frame_s
-        x, y, th = self._odometry.pose
-        landing = integrate_arc(x, y, th, *self._odometry.speeds, lead_s, self.robot.wheel_base)
-        then = anchor.odometry or self._odometry.pose_at(anchor.t_ns)
-        ranked = order_by_view(
-            self.camera, self.map.ids.tolist(), self.map.positions, anchor.landmark_id,
-            anchor.pixel, then, landing,
-            headings=ic.view_headings, inner_radius_px=self._identifier.inner_radius_px,
-        )  # fmt: skip
-        order, fresh = self._view.ordered(anchor, odo, ranked)
-        self._identifier.prefer(order, come_into_view=fresh)
-
-    def _known_lit(self) -> frozenset[int] | None:
-        """The IDs lit now (every mapped one when all are lit); None while a switch is in
-        flight (the state is unknown)."""
-        if self._changing:
-            return None
-        return self._identifier.all_lit if self._lit is None else self._lit
-
-    def _lit_for_evidence(self, t_ns: int) -> frozenset[int] | None:
-        """The LED state a frame stamped `t_ns` was surely exposed under; None (unknown) for
-        the first `IdentificationConfig.led_settle_frames` frames after a change and within
-        its `led_settle_s`."""
-        ic = self.config.identification
-        self._frames_since_leds += 1
-        if self._t_leds is not None and (
-            self._frames_since_leds <= ic.led_settle_frames
-            or (t_ns - self._t_leds) * _NS < ic.led_settle_s
-        ):
-            return None
-        return self._known_lit()
-
-    def _lit_rows(self) -> npt.NDArray[np.int64]:
-        """Map rows of the landmarks surely lit (not being switched); remembered while the
-        LED state and the map stay."""
-        memo = self._lit_rows_memo
-        if (
-            memo is not None
-            and memo[0] is self._lit
-            and memo[1] is self._changing
-            and memo[2] is self.map
-        ):
-            return memo[3]
-        lit = (self._identifier.all_lit if self._lit is None else self._lit) - self._changing
-        rows = np.array([self.map.index_of(i) for i in sorted(lit) if i in self.map], np.int64)
-        rows.setflags(write=False)
-        self._lit_rows_memo = (self._lit, self._changing, self.map, rows)
-        return rows
+        self._after.defer(learn)
 
     # -- modes and outputs ---------------------------------------------------------------------
     def _check_lost(self, t_ns: int) -> None:
+        """Lost when the uncertainty grew past its bound or the spots kept disagreeing
+        (`Recovery.lost_sigma`): identification starts over (around the pose)."""
         if self._filter is None or self._mode in ("identifying", "lost"):
             return
-        fc = self.config.fusion
-        sigma = position_sigma_m(self._filter.covariance_rows)
-        if sigma > fc.lost_sigma_m or self._rejections >= fc.lost_after_rejections:
-            self._mode = "lost"
-            if self.calibration is not None:
-                self.calibration.break_track()
-            self._start_identification()
-            self._commit = True
-            self._lost_by_disagreement = sigma <= fc.lost_sigma_m
-            if sigma < fc.lost_sigma_m or self._rejections > 0:
-                # The observations disagree with the pose (a kidnapped robot, put down
-                # anywhere, facing anywhere): widen its uncertainty so that a map-consistent
-                # re-acquisition can correct it.
-                x, y, th = (float(v) for v in self._filter.state)
-                cov = self._filter.covariance
-                cov[:2, :2] = np.eye(2) * max(fc.lost_sigma_m, sigma) ** 2
-                cov[:2, 2] = cov[2, :2] = 0.0
-                cov[2, 2] = max(float(cov[2, 2]), fc.lost_sigma_rad**2)
-                self._filter.reset(x, y, th, cov)
-            x, y, th = (float(v) for v in self._filter.state)
-            var_th = float(self._filter.covariance[2, 2])
-            sigma0 = max(position_sigma_m(self._filter.covariance_rows), fc.lost_sigma_m)
-            self._lost_at = (x, y, th, sigma0, var_th, self._odometry.pose)
-            self._hypotheses.clear()
-            self._fix_run.clear()
+        sigma = self._recovery.lost_sigma(self._filter)
+        if sigma is None:
+            return
+        self._mode = "lost"
+        if self.calibration is not None:
+            self.calibration.break_track()
+        self._start_identification()
+        self._commit = True
+        self._recovery.lose(self._filter, sigma, self._odometry.pose)
 
     def _start_identification(self) -> None:
-        ids = self.map.ids.tolist()
-        if self._filter is not None:
-            x, y = float(self._filter.state[0]), float(self._filter.state[1])
-            d = np.hypot(self.map.positions[:, 0] - x, self.map.positions[:, 1] - y)
-            ids = [int(self.map.ids[i]) for i in np.argsort(d, kind="stable")]
-        self._identifier.restart(ids)
-        self._view.reset()
-        self._last_request = None
-        self._sweeping = not self._passive.active  # passive lights are never switched
+        f = self._filter
+        self._blink.restart(None if f is None else (float(f.state[0]), float(f.state[1])))
+        self._leds.restart_sweep(not self._passive.active)  # passive lights are never switched
 
     def _requests(self, t_ns: int) -> list[Output]:
         """LED requests of an identification in progress (the last one lights all)."""
-        if self._want_all:
-            self._want_all = False
-            if self._lit is not None:
-                self._t_requested = t_ns
-                return [LedRequest(all_lit=True)]
-        if not self._sweeping:
+        leds = self._leds
+        req = leds.all_lit_request(t_ns)
+        if req is not None:
+            return [req]
+        if not leds.sweeping:
             return []
-        self._order_by_view(t_ns)
-        req = self._identifier.next_request(t_ns)
-        if req is None or req == self._last_request:
-            return []
-        self._last_request = req
-        self._t_requested = t_ns
-        if req.all_lit and not req.dark and self._identifier.done:
-            self._sweeping = False
-        return [req]
+        self._blink.order_by_view(t_ns, self.camera, self._timing.interval_s)
+        return list(leds.sweep_request(t_ns, self._blink.identifier))
 
     def _output(self, t_ns: int, used: tuple[int, ...]) -> PoseEstimate | NoPose:
-        if self._filter is None:
-            facts = self._frame_facts(t_ns, None, used)
-            code = reason_for(facts)
-            text = "" if code is None else reason_text(code, facts)
-            return NoPose(t_ns, self._mode, reason=code, reason_text=text)
-        x, y, theta = self._filter.output_pose
-        sx, sy, sth = self._filter.pose
-        offset = (x - sx, y - sy, float(wrap_angle(theta - sth)))
-        qc = self.config.quality
-        cov = published_covariance(self._filter.covariance, self._mode, offset, qc)
-        deviation = deviation_radius_m(cov)
-        if used and self._mode == "landmark":  # a landmark fix: no reason to give
-            code, text = None, ""
-        else:
-            facts = self._frame_facts(t_ns, (x, y, theta), used)
-            code = reason_for(facts)
-            text = "" if code is None else reason_text(code, facts)
-        est = PoseEstimate(
-            t_ns=t_ns,
-            x=x,
-            y=y,
-            theta=theta,
-            covariance=cov,
-            mode=self._mode,
-            landmark_ids=used,
-            expected_ids=self._expected,
-            quality=quality_from_deviation(deviation, qc),
-            deviation_m=deviation,
-            reason=code,
-            reason_text=text,
-        )
-        self._latest = est
-        return est
-
-    def _frame_facts(
-        self, t_ns: int, pose: tuple[float, float, float] | None, used: tuple[int, ...]
-    ) -> FrameFacts:
-        """What explains this frame's lack of a fix (`pose_quality.reason_for`); the ceiling
-        in view is worked out only for a pose without a fix."""
-        f = self._facts
-        track = self._odometry
-        age = math.inf if track.t_sample_ns is None else (t_ns - track.t_sample_ns) * _NS
-        ic = self.config.identification
-        awaiting = self._t_requested is not None and (
-            (t_ns - self._t_requested) * _NS <= ic.led_timeout_s
-        )
-        in_view = lit = switching = 0
-        dark: tuple[int, ...] = ()
-        dead: tuple[int, ...] = ()
-        if pose is not None and not used and self._mode in ("landmark", "dead_reckoning"):
-            heights = self.map.positions[:, 2] - float(self.camera.T_body_camera[2, 3])
-            reach = visible_radius_m(self.camera, float(np.max(heights, initial=0.0)))
-            rows = np.flatnonzero(landmarks_in_view(self.camera, pose, self.map.positions, reach))
-            ids = [int(self.map.ids[r]) for r in rows]
-            in_view = len(ids)
-            switching = sum(1 for i in ids if i in self._changing)
-            dark = tuple(
-                i for i in ids
-                if self._lit is not None and i not in self._lit and i not in self._changing
-            )  # fmt: skip
-            lit_rows = [
-                r for r, i in zip(rows, ids, strict=True)
-                if i not in self._changing and i not in dark
-            ]  # fmt: skip
-            lit = len(lit_rows)
-            live = self._liveness
-            dead = tuple(
-                int(self.map.ids[r]) for r in lit_rows if not live.lit[r] and live.unseen[r] >= 3
+        """The frame's output (`frame_report`); remembered as `latest` when a pose."""
+        f = self._filter
+        pose = None if f is None else f.output_pose
+        fixed = bool(used) and self._mode == "landmark"  # a landmark fix: no reason to give
+        facts = (
+            None
+            if fixed
+            else frame_facts(
+                t_ns,
+                pose,
+                used,
+                mode=self._mode,
+                notes=self._facts,
+                recovery=self._recovery,
+                leds=self._leds,
+                camera=self.camera,
+                landmark_map=self.map,
+                t_odometry_ns=self._odometry.t_sample_ns,
+                config=self.config,
             )
-        return FrameFacts(
-            mode=self._mode,
-            fused=bool(used),
-            lost_by_disagreement=self._lost_by_disagreement,
-            in_view=in_view,
-            lit_in_view=lit,
-            switching_in_view=switching,
-            dark_ids=dark,
-            dead_ids=dead,
-            unexplained=bool(f.get("unexplained", False)),
-            rejected_fix=bool(f.get("rejected_fix", False)),
-            rejections=self._rejections,
-            gap_s=float(f.get("gap_s", 0.0)),
-            typical_gap_s=float(f.get("typical_gap_s", 0.0)),
-            skipped=bool(f.get("skipped", False)),
-            odometry_age_s=age,
-            odometry_stale_s=self.config.fusion.odometry_stale_s,
-            awaiting_leds=awaiting,
         )
+        out = frame_output(
+            t_ns, f, pose, self._mode, used, self._expected, facts, self.config.quality
+        )
+        if isinstance(out, PoseEstimate):
+            self._latest = out
+        return out

@@ -42,13 +42,17 @@ from localizer.constellation import (
 from localizer.hypothesis_scoring import FrameView
 from localizer.hypothesis_set import HypothesisSet
 from localizer.landmark_map import LandmarkMap
+from localizer.noise_model import PixelNoiseModel
 from localizer.passive_config import PassiveConfig
 from localizer.pose import PoseFix, solve_pose
+from localizer.pose_config import PoseSolveConfig
 from localizer.relocalization import RelocalizationConfig
+from localizer.spots import Spots
 from localizer.triangles import MapTriangles, map_triangles
 from localizer.types import FloatArray
 
 Pose = tuple[float, float, float]
+_HUBER = PoseSolveConfig(loss="huber")  # a fix robust to a misplaced light
 _NS = 1e-9
 
 
@@ -125,10 +129,14 @@ def fix_from_pairs(
     rows = [r for r, _ in pairs]
     px = spot_pixels[[s for _, s in pairs]]
     fix = solve_pose(
-        camera, px, landmark_map.positions[rows], initial=initial,
+        camera,
+        px,
+        landmark_map.positions[rows],
+        initial=initial,
         pixel_sigma_px=list(pixel_sigmas),
-        landmark_ids=tuple(int(landmark_map.ids[r]) for r in rows), loss="huber",
-    )  # fmt: skip
+        landmark_ids=tuple(int(landmark_map.ids[r]) for r in rows),
+        config=_HUBER,
+    )
     if fix is None:
         return None
     res = fix.residuals_px or (fix.residual_rms_px,) * len(rows)
@@ -207,8 +215,13 @@ class PassiveIdentifier:
                 self.status = ConstellationMatch(
                     "too_few_spots",
                     f"{len(spot_pixels)} spot(s) on the ceiling: a constellation needs 3 or more",
-                    None, [], np.zeros((0, 3)), -math.inf, -math.inf, 0,
-                )  # fmt: skip
+                    None,
+                    [],
+                    np.zeros((0, 3)),
+                    -math.inf,
+                    -math.inf,
+                    0,
+                )
             return None
         index = self._triangles(lm)
         self._prior = prior
@@ -221,20 +234,54 @@ class PassiveIdentifier:
             return None
         self._t_matched = t_ns
         self.status = match_constellation(
-            camera, lm.positions, spot_pixels, index, self.constellation, self.scoring,
-            landmark_sigma_m=self._sigma, prior=prior,
-        )  # fmt: skip
+            camera,
+            lm.positions,
+            spot_pixels,
+            index,
+            self.constellation,
+            self.scoring,
+            landmark_sigma_m=self._sigma,
+            prior=prior,
+        )
         if self.status.pose is None or not self.status.pairs:
             return None
         return self.status.pose, self.status.pairs
+
+    def fix(
+        self,
+        t_ns: int,
+        camera: CameraModel,
+        spots: Spots,
+        noise: PixelNoiseModel,
+        odometry_pose: Pose,
+        prior: tuple[Pose, FloatArray] | None,
+    ) -> PoseFix | None:
+        """One frame's fix from passive landmarks identified by geometry (`identify`:
+        around `prior`, the filter's pose, a start pose or where it got lost; None:
+        anywhere), solved and verified by reprojection (`fix_from_pairs`, each spot's sigma
+        from `noise` and the light's map sigma); the hypotheses are forgotten once it fixes."""
+        found = self.identify(t_ns, camera, spots.pixels, odometry_pose, prior)
+        lm = self._map
+        if found is None or lm is None:
+            return None
+        pose, pairs = found
+        px = spots.pixels
+        sigma = [noise.sigma_px(float(px[s, 0]), float(px[s, 1]), lm.sigma_at(r)) for r, s in pairs]
+        fix = fix_from_pairs(
+            camera, lm, px, pairs, sigma, pose, outlier_sigma=self.config.outlier_sigma
+        )
+        if fix is not None:
+            self.clear()
+        return fix
 
     def _triangles(self, lm: LandmarkMap) -> MapTriangles:
         """The map's triangles, indexed once per map."""
         if self._index is None:
             self._index = map_triangles(
-                lm.positions[:, :2], self.config.view_side_m,
+                lm.positions[:, :2],
+                self.config.view_side_m,
                 self.constellation.max_map_triangles,
-            )  # fmt: skip
+            )
         return self._index
 
     def _seed(
@@ -245,9 +292,13 @@ class PassiveIdentifier:
         if self._index is None:
             return np.zeros((0, 3)), np.zeros(0)
         return constellation_hypotheses(
-            view, self._index, self.constellation, self._sigma, self._prior,
+            view,
+            self._index,
+            self.constellation,
+            self._sigma,
+            self._prior,
             c.prior_gate_chi2,
-        )  # fmt: skip
+        )
 
     @staticmethod
     def _anywhere(lm: LandmarkMap) -> tuple[Pose, FloatArray]:

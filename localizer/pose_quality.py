@@ -47,8 +47,12 @@ _K95_LIST: list[float] = _K95.tolist()  # read per pose: plain floats
 
 def _per_mode(landmark: float, dead_reckoning: float, lost: float) -> dict[str, float]:
     """A per-mode value; identifying (a prior without a fix yet) as dead reckoning."""
-    return {"landmark": landmark, "dead_reckoning": dead_reckoning,
-            "identifying": dead_reckoning, "lost": lost}  # fmt: skip
+    return {
+        "landmark": landmark,
+        "dead_reckoning": dead_reckoning,
+        "identifying": dead_reckoning,
+        "lost": lost,
+    }
 
 
 MODES = tuple(_per_mode(0.0, 0.0, 0.0))
@@ -346,8 +350,10 @@ def landmarks_in_view(
     px, valid = predict_pixels(camera, T_world_body_from_pose(*pose), P[near])
     inside = (
         valid
-        & (px[:, 0] >= 0) & (px[:, 0] < camera.width)
-        & (px[:, 1] >= 0) & (px[:, 1] < camera.height)
-    )  # fmt: skip
+        & (px[:, 0] >= 0)
+        & (px[:, 0] < camera.width)
+        & (px[:, 1] >= 0)
+        & (px[:, 1] < camera.height)
+    )
     out[np.flatnonzero(near)[inside]] = True
     return out

@@ -242,10 +242,13 @@ def unique_hypotheses(hyps: FloatArray, rank: FloatArray, config: Relocalization
     """Indices of one hypothesis per pose cell (`distinct_m`, `distinct_rad`), the one of
     highest `rank` in each, best first."""
     order = np.argsort(-rank, kind="stable")
-    cell = np.column_stack([
-        np.round(hyps[order, 0] / config.distinct_m), np.round(hyps[order, 1] / config.distinct_m),
-        np.round(wrap_angle(hyps[order, 2]) / config.distinct_rad),
-    ])  # fmt: skip
+    cell = np.column_stack(
+        [
+            np.round(hyps[order, 0] / config.distinct_m),
+            np.round(hyps[order, 1] / config.distinct_m),
+            np.round(wrap_angle(hyps[order, 2]) / config.distinct_rad),
+        ]
+    )
     _, first = np.unique(cell, axis=0, return_index=True)
     out: IntArray = order[np.sort(first)]
     return out

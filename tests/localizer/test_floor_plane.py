@@ -25,7 +25,8 @@ from localizer.floor_plane import (
 from localizer.geometry import T_world_body_from_pose
 from localizer.noise_model import PixelNoiseConfig, PixelNoiseModel
 from localizer.pose import solve_pose
-from localizer.pose_planar import floor_change_chi2, rotation_world_body, solve_tilted
+from localizer.pose_config import PoseSolveConfig
+from localizer.pose_tilted import floor_change_chi2, rotation_world_body, solve_tilted
 from localizer.tracking import scale_px_per_m
 from tests.localizer.cameras import make_camera
 from tests.localizer.cases import (
@@ -36,6 +37,8 @@ from tests.localizer.cases import (
 )
 
 CFG = FloorPlaneConfig()
+TILT = PoseSolveConfig(estimate_tilt=True)  # a tilt taken when the spots demand it
+ALWAYS_TILT = PoseSolveConfig(estimate_tilt=True, tilt_min_chi2_drop=0.0)
 # a 4 x 4 grid 0.8 m apart at about 2.5 m (uneven), around (2, 2)
 GRID = np.array(
     [[0.8 + 0.8 * i, 0.8 + 0.8 * j, 2.5 + 0.03 * ((i * 3 + j) % 4 - 1.5)]
@@ -88,7 +91,7 @@ def test_the_fix_recovers_tilt_and_height_from_spots(lens: str) -> None:
     px = observe(cam, pose, GRID, tilt, dz)
     prior = FloorPlane.level(CFG).prior(pose, CFG)
     # noise-free spots at a 0.01 px sigma: the prior's pull is negligible
-    fix = solve_pose(cam, px, GRID, initial=(2.0, 2.0, 0.35), estimate_tilt=True,
+    fix = solve_pose(cam, px, GRID, initial=(2.0, 2.0, 0.35), config=TILT,
                      pixel_sigma_px=0.01, floor_prior=prior)  # fmt: skip
     assert fix is not None and fix.floor is not None and fix.floor_covariance is not None
     np.testing.assert_allclose([fix.x, fix.y, fix.theta], pose, atol=1e-5)
@@ -108,7 +111,7 @@ def test_a_pair_is_solved_on_the_carried_floor_and_leaves_it_as_it_was() -> None
     P = GRID[[5, 6]]
     px = observe(cam, pose, P, tilt, dz)
     prior = ((tilt[0], tilt[1], dz), np.diag([1e-4, 1e-4, 1e-4]))
-    fix = solve_pose(cam, px, P, initial=pose, estimate_tilt=True, floor_prior=prior)
+    fix = solve_pose(cam, px, P, initial=pose, config=TILT, floor_prior=prior)
     assert fix is not None and fix.floor is not None
     np.testing.assert_allclose([fix.x, fix.y, fix.theta], pose, atol=1e-6)  # on that floor
     np.testing.assert_array_equal(fix.floor, prior[0])
@@ -137,7 +140,7 @@ def test_the_carried_floor_learns_a_ramp_and_turns_its_tilt_with_the_heading() -
         tilt, dz = on_plane(h0, g, pose[0], pose[1], pose[2])
         px = observe(cam, pose, GRID, tilt, dz) + rng.normal(0.0, 0.3, (len(GRID), 2))
         wide = floor.widened(floor.prior(pose, CFG), CFG)
-        fix = solve_pose(cam, px, GRID, initial=pose, estimate_tilt=True,
+        fix = solve_pose(cam, px, GRID, initial=pose, config=TILT,
                          pixel_sigma_px=0.3, floor_prior=wide)  # fmt: skip
         assert fix is not None and fix.floor is not None
         if fix.floor_covariance is None:  # the carried floor explains them: solved on it
@@ -275,7 +278,7 @@ def test_a_miscalibrated_dense_view_keeps_the_carried_floor_and_a_real_one_is_st
             for key, cj in (("noise only", None), ("with calibration", noise.calibration_jacobian)):
                 if dz and key == "noise only":
                     continue
-                fix = solve_pose(cam, px, P[inside], initial=pose, estimate_tilt=True,
+                fix = solve_pose(cam, px, P[inside], initial=pose, config=TILT,
                                  pixel_sigma_px=sig, floor_prior=wide,
                                  calibration_jacobian=cj)  # fmt: skip
                 assert fix is not None and fix.floor is not None
@@ -345,10 +348,10 @@ def test_the_fixs_floor_sensitivity_is_the_derivative_of_its_floor_in_the_calibr
     K0 = np.random.default_rng(0).normal(0.0, 0.002, (3, len(sigmas)))
 
     def floor_of(cam: CameraModel, prior_mean: np.ndarray):
-        fix = solve_pose(cam, px, P, initial=pose, estimate_tilt=True, pixel_sigma_px=sig,
+        fix = solve_pose(cam, px, P, initial=pose, config=ALWAYS_TILT, pixel_sigma_px=sig,
                          floor_prior=(tuple(prior_mean), wide[1]),
                          calibration_jacobian=noise.calibration_jacobian,
-                         floor_sensitivity=K0, tilt_min_chi2_drop=0.0)  # fmt: skip
+                         floor_sensitivity=K0)  # fmt: skip
         assert fix is not None and fix.floor is not None
         return fix
 

@@ -278,11 +278,11 @@ def _triangle_seen() -> tuple[Localizer, FloatArray, tuple[float, float, float]]
 
 def test_inconsistent_sightings_keep_the_newest_and_probe_in_view_of_it() -> None:
     loc, px, _ = _triangle_seen()
-    ident = loc._identifier
+    ident = loc._blink.identifier
     good = Sighting(1, 10_000_000, (float(px[0, 0]), float(px[0, 1])))
     wrong = Sighting(2, 20_000_000, (float(px[1, 0]) + 90.0, float(px[1, 1]) - 70.0))
     ident.sightings = {1: good, 2: wrong}
-    assert loc._fix_from_sightings(30_000_000) is None
+    assert loc._blink.first_fix(30_000_000, loc.camera) is None
     assert ident.sightings == {2: wrong}  # the newest is kept, identification goes on
     (req,) = loc._requests(31_000_000)
     assert isinstance(req, LedRequest) and req.all_lit and req.dark  # a probe, not all lit
@@ -290,14 +290,14 @@ def test_inconsistent_sightings_keep_the_newest_and_probe_in_view_of_it() -> Non
 
 def test_an_inconsistent_stale_sighting_does_not_restart_a_good_pair() -> None:
     loc, px, pose = _triangle_seen()
-    ident = loc._identifier
+    ident = loc._blink.identifier
     stale = Sighting(2, 10_000_000, (float(px[1, 0]) + 90.0, float(px[1, 1]) - 70.0))
     fresh = Sighting(1, 20_000_000, (float(px[0, 0]), float(px[0, 1])))
     ident.sightings = {2: stale, 1: fresh}
-    assert loc._fix_from_sightings(30_000_000) is None
+    assert loc._blink.first_fix(30_000_000, loc.camera) is None
     assert ident.sightings == {1: fresh}  # not restarted: the fresh one stays
     ident.sightings[3] = Sighting(3, 40_000_000, (float(px[2, 0]), float(px[2, 1])))
-    fix = loc._fix_from_sightings(50_000_000)
+    fix = loc._blink.first_fix(50_000_000, loc.camera)
     assert fix is not None and set(fix.landmark_ids) == {1, 3}
     np.testing.assert_allclose([fix.x, fix.y, fix.theta], pose, atol=1e-3)
 

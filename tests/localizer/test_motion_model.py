@@ -149,4 +149,4 @@ def test_tracking_at_speed_with_a_turn_in_place_without_odometry() -> None:
 def test_a_gyro_sample_reaches_the_model() -> None:
     loc = Localizer(wide_angle_camera("pinhole"), TRIANGLE, RobotGeometry(0.36, 1.0))
     assert loc.handle(ImuMeasured(10, (0.0, 0.0, 0.4), (0.0, 0.0, 9.81))) == []
-    assert loc._motion.w == pytest.approx(0.4, abs=1e-3)
+    assert loc._reckoning.motion.w == pytest.approx(0.4, abs=1e-3)

@@ -1,25 +1,28 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
 
 from localizer.camera import CameraModel, T_body_camera_upward, predict_pixels
 from localizer.geometry import T_world_body_from_pose, wrap_angle
-from localizer.pose import (
-    PoseFix,
+from localizer.pose import PoseFix, solve_pose
+from localizer.pose_config import PoseSolveConfig
+from localizer.pose_paper import (
     heading_from_paper_angle,
     pixels_from_pose_paper,
     pose_from_landmark_pair,
-    solve_pose,
 )
-from localizer.pose_planar import rotation_world_body
+from localizer.pose_tilted import rotation_world_body
 from tests.localizer.cameras import LENSES, MOUNTINGS, make_camera
 
 # Four landmarks at different heights around the robot's position (1.5, 2.3).
 LANDMARKS = np.array([[1.0, 2.0, 2.5], [2.2, 2.0, 2.62], [1.6, 3.0, 2.45], [2.0, 1.6, 2.55]])
 HEADINGS = [0.3, -1.9, math.pi, math.pi - 1e-4, -math.pi + 1e-4]
+TILT = PoseSolveConfig(estimate_tilt=True)  # a tilt taken when the spots demand it
+ALWAYS_TILT = PoseSolveConfig(estimate_tilt=True, tilt_min_chi2_drop=0.0)
 
 
 def observe(
@@ -148,7 +151,7 @@ def test_solve_pose_estimates_the_body_tilt(lens: str, n: int) -> None:
     cam = make_camera(lens, "offset-yaw90")
     pose, tilt = (1.5, 2.3, 2.5), (0.03, -0.04)  # ~2 deg: a floor bump
     px = observe(cam, pose, LANDMARKS[:n], tilt)
-    fix = solve_pose(cam, px, LANDMARKS[:n], estimate_tilt=True, tilt_min_chi2_drop=0.0)
+    fix = solve_pose(cam, px, LANDMARKS[:n], config=ALWAYS_TILT)
     assert_pose(fix, pose, 1e-5)  # the solver stops at 1 % of a standard deviation
     assert fix is not None
     np.testing.assert_allclose(fix.tilt, tilt, atol=1e-6)  # stops at 1 % of a sigma
@@ -163,14 +166,12 @@ def test_tilt_needs_three_landmarks_and_a_prior_pulls_it_to_zero() -> None:
     cam = make_camera()
     pose = (1.5, 2.3, 0.3)
     px = observe(cam, pose, LANDMARKS[:2])
-    fix = solve_pose(cam, px, LANDMARKS[:2], estimate_tilt=True)
+    fix = solve_pose(cam, px, LANDMARKS[:2], config=TILT)
     assert fix is not None
     np.testing.assert_array_equal(fix.tilt, [0.0, 0.0])
     px4 = observe(cam, pose, LANDMARKS, (0.02, 0.0))
-    free = solve_pose(cam, px4, LANDMARKS, estimate_tilt=True, tilt_min_chi2_drop=0.0)
-    tight = solve_pose(
-        cam, px4, LANDMARKS, estimate_tilt=True, tilt_sigma_rad=1e-4, tilt_min_chi2_drop=0.0
-    )
+    free = solve_pose(cam, px4, LANDMARKS, config=ALWAYS_TILT)
+    tight = solve_pose(cam, px4, LANDMARKS, config=replace(ALWAYS_TILT, tilt_sigma_rad=1e-4))
     assert free is not None and tight is not None
     assert abs(tight.tilt[0]) < 0.5 * abs(free.tilt[0])
 
@@ -184,10 +185,10 @@ def test_tilt_is_used_only_when_the_spots_demand_it() -> None:
     flat_tilted, bump_err, bump_level_err = 0, [], []
     for _ in range(40):
         noise = rng.normal(0, 0.3, level_px.shape)
-        flat = solve_pose(cam, level_px + noise, LANDMARKS, estimate_tilt=True)
+        flat = solve_pose(cam, level_px + noise, LANDMARKS, config=TILT)
         assert flat is not None
         flat_tilted += bool(np.any(flat.tilt != 0.0))
-        bump = solve_pose(cam, tilted_px + noise, LANDMARKS, estimate_tilt=True)
+        bump = solve_pose(cam, tilted_px + noise, LANDMARKS, config=TILT)
         level = solve_pose(cam, tilted_px + noise, LANDMARKS)
         assert bump is not None and level is not None
         bump_err.append(math.hypot(bump.x - pose[0], bump.y - pose[1]))
@@ -209,10 +210,17 @@ def test_covariance_matches_monte_carlo_scatter(n: int, tilt: bool) -> None:
     errors = []
     for _ in range(300):
         noisy = px + rng.normal(0, 0.3, px.shape)
-        fix = solve_pose(cam, noisy, LANDMARKS[:n], estimate_tilt=tilt, tilt_min_chi2_drop=0.0)
+        fix = solve_pose(
+            cam,
+            noisy,
+            LANDMARKS[:n],
+            config=PoseSolveConfig(estimate_tilt=tilt, tilt_min_chi2_drop=0.0),
+        )
         assert fix is not None
         errors.append([fix.x - pose[0], fix.y - pose[1], wrap_angle(fix.theta - pose[2])])
-    reported = solve_pose(cam, px, LANDMARKS[:n], estimate_tilt=tilt, tilt_min_chi2_drop=0.0)
+    reported = solve_pose(
+        cam, px, LANDMARKS[:n], config=PoseSolveConfig(estimate_tilt=tilt, tilt_min_chi2_drop=0.0)
+    )
     assert reported is not None
     ratio = np.std(errors, axis=0) / np.sqrt(np.diag(reported.covariance))
     assert np.all((ratio > 1 / 1.5) & (ratio < 1.5)), ratio
@@ -271,7 +279,7 @@ def test_nested_lists_give_the_same_fix_as_arrays_and_are_checked_alike() -> Non
     pose = (1.5, 2.3, 0.3)
     px = observe(cam, pose, LANDMARKS) + np.array([[0.3, -0.2], [-0.1, 0.4], [0.2, 0.1], [0, 0]])
     kw = {"initial": (1.49, 2.31, 0.31), "pixel_sigma_px": [0.3, 0.25, 0.4, 0.3],
-          "loss": "huber", "estimate_tilt": True}  # fmt: skip
+          "config": PoseSolveConfig(loss="huber", estimate_tilt=True)}  # fmt: skip
     a = solve_pose(cam, px, LANDMARKS, **kw)
     b = solve_pose(cam, px.tolist(), LANDMARKS.tolist(), **kw)
     assert a is not None and b is not None

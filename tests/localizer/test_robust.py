@@ -17,6 +17,7 @@ from localizer.landmark_map import LandmarkMap
 from localizer.landmark_tracker import LandmarkTracker
 from localizer.noise_model import PixelNoiseConfig, PixelNoiseModel, calibration_sigma_table
 from localizer.pose import solve_pose
+from localizer.pose_config import PoseSolveConfig
 from localizer.pose_filter import PoseFilter
 from localizer.pose_planar import cauchy_weight, huber_weight
 from localizer.relocalization import RelocalizationConfig, relocalize
@@ -47,7 +48,9 @@ def test_one_bad_spot_pulls_a_robust_fix_far_less_than_least_squares(loss: str) 
     bad = px.copy()
     bad[3] += (15.0, -10.0)  # a glint taken for landmark 3
     plain = solve_pose(CAM, bad, RING, pixel_sigma_px=0.5)
-    robust = solve_pose(CAM, bad, RING, pixel_sigma_px=0.5, loss=loss, loss_scale=2.0)
+    robust = solve_pose(
+        CAM, bad, RING, pixel_sigma_px=0.5, config=PoseSolveConfig(loss=loss, loss_scale=2.0)
+    )
     assert plain is not None and robust is not None
     err = lambda f: math.hypot(f.x - pose[0], f.y - pose[1])  # noqa: E731
     assert err(plain) > 4e-3  # least squares spreads the bad spot over the pose

@@ -12,7 +12,7 @@ import pytest
 
 from localizer.camera import CameraModel, predict_pixels
 from localizer.geometry import T_world_body_from_pose
-from localizer.pose_planar import rotation_world_body
+from localizer.pose_tilted import rotation_world_body
 from localizer.self_calibration import (
     SelfCalibration,
     SelfCalibrationConfig,
