@@ -118,8 +118,13 @@ def carry_bias(C: Rows, R_old: Rows, R_bias: Rows, rho: float, dx_m: float, dy_m
             u0 = x0 * i00 + x1 * i01 + x2 * i02
             u1 = x0 * i01 + x1 * i11 + x2 * i12
             u2 = x0 * i02 + x1 * i12 + x2 * i22
-            shrunk.append([u0 * b00 + u1 * b01 + u2 * b02, u0 * b01 + u1 * b11 + u2 * b12,
-                           u0 * b02 + u1 * b12 + u2 * b22])  # fmt: skip
+            shrunk.append(
+                [
+                    u0 * b00 + u1 * b01 + u2 * b02,
+                    u0 * b01 + u1 * b11 + u2 * b12,
+                    u0 * b02 + u1 * b12 + u2 * b22,
+                ]
+            )
         return shrunk
     R_c = [[r00, r01, r02], [r01, r11, r12], [r02, r12, f]]
     L = _cholesky_3x3(R_c)
@@ -134,16 +139,27 @@ def carry_bias(C: Rows, R_old: Rows, R_bias: Rows, rho: float, dx_m: float, dy_m
     # M = K R_bias K^T
     kb0 = (k00 * b00, k00 * b01, k00 * b02)
     kb1 = (k10 * b00 + k11 * b01, k10 * b01 + k11 * b11, k10 * b02 + k11 * b12)
-    kb2 = (k20 * b00 + k21 * b01 + k22 * b02, k20 * b01 + k21 * b11 + k22 * b12,
-          k20 * b02 + k21 * b12 + k22 * b22)  # fmt: skip
-    n00, n01, n02, n11, n12, n22 = clipped_to_unit_3x3_sym([
-        kb0[0] * k00, kb0[0] * k10 + kb0[1] * k11, kb0[0] * k20 + kb0[1] * k21 + kb0[2] * k22,
-        kb1[0] * k10 + kb1[1] * k11, kb1[0] * k20 + kb1[1] * k21 + kb1[2] * k22,
-        kb2[0] * k20 + kb2[1] * k21 + kb2[2] * k22,
-    ])  # fmt: skip
+    kb2 = (
+        k20 * b00 + k21 * b01 + k22 * b02,
+        k20 * b01 + k21 * b11 + k22 * b12,
+        k20 * b02 + k21 * b12 + k22 * b22,
+    )
+    n00, n01, n02, n11, n12, n22 = clipped_to_unit_3x3_sym(
+        [
+            kb0[0] * k00,
+            kb0[0] * k10 + kb0[1] * k11,
+            kb0[0] * k20 + kb0[1] * k21 + kb0[2] * k22,
+            kb1[0] * k10 + kb1[1] * k11,
+            kb1[0] * k20 + kb1[1] * k21 + kb1[2] * k22,
+            kb2[0] * k20 + kb2[1] * k21 + kb2[2] * k22,
+        ]
+    )
     # A^T = K^T N L^T, N = Q diag(min(1, lambda)) Q^T; C' = rows A^T
-    t0 = (k00 * n00 + k10 * n01 + k20 * n02, k00 * n01 + k10 * n11 + k20 * n12,
-          k00 * n02 + k10 * n12 + k20 * n22)  # fmt: skip
+    t0 = (
+        k00 * n00 + k10 * n01 + k20 * n02,
+        k00 * n01 + k10 * n11 + k20 * n12,
+        k00 * n02 + k10 * n12 + k20 * n22,
+    )
     t1 = (k11 * n01 + k21 * n02, k11 * n11 + k21 * n12, k11 * n12 + k21 * n22)
     t2 = (k22 * n02, k22 * n12, k22 * n22)
     g = [
@@ -243,9 +259,13 @@ def consider_update(
         G.append((g0, g1, g2))
         K.append((k0, k1, k2))
         dX.append(k0 * y0 + k1 * y1 + k2 * y2)
-        C_new.append([x0 - (k0 * m00 + k1 * m10 + k2 * m20),
-                      x1 - (k0 * m01 + k1 * m11 + k2 * m21),
-                      x2 - (k0 * m02 + k1 * m12 + k2 * m22)])  # fmt: skip
+        C_new.append(
+            [
+                x0 - (k0 * m00 + k1 * m10 + k2 * m20),
+                x1 - (k0 * m01 + k1 * m11 + k2 * m21),
+                x2 - (k0 * m02 + k1 * m12 + k2 * m22),
+            ]
+        )
     # P - K S K^T = P - G K^T (K S = G; G S^-1 G^T is symmetric: its upper triangle,
     # mirrored: row j gets its entries left of the diagonal from the rows above it)
     n = len(P)
@@ -260,6 +280,10 @@ def consider_update(
                 P_new[j].append(v)
         if Ri[i] <= 0.0:
             return None
-    nis = (i00 * y0 * y0 + i11 * y1 * y1 + i22 * y2 * y2
-           + 2.0 * (i01 * y0 * y1 + i02 * y0 * y2 + i12 * y1 * y2))  # fmt: skip
+    nis = (
+        i00 * y0 * y0
+        + i11 * y1 * y1
+        + i22 * y2 * y2
+        + 2.0 * (i01 * y0 * y1 + i02 * y0 * y2 + i12 * y1 * y2)
+    )
     return dX, P_new, C_new, nis

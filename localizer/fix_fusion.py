@@ -119,8 +119,11 @@ class FixFusion:
         res = fix.residuals_px
         keep = list(range(len(rows)))
         if res:
-            keep = [i for i, (r, si) in enumerate(zip(res, sig, strict=True))
-                    if r <= fc.outlier_sigma * si]  # fmt: skip
+            keep = [
+                i
+                for i, (r, si) in enumerate(zip(res, sig, strict=True))
+                if r <= fc.outlier_sigma * si
+            ]
         elif len(rows) >= 4 and self._chi2_per_dof(fix, sig) > fc.max_chi2_per_dof:
             # A tilted fit (it returns no per-spot residuals) that the chi-square test will
             # refuse may have taken a bad pair in: a tilt moves every spot alike, so it soaks
@@ -132,8 +135,11 @@ class FixFusion:
             lres = level.residuals_px if level is not None else ()
             if lres:
                 bar = 3.0 * float(np.median(lres))
-                keep = [i for i, (r, si) in enumerate(zip(lres, sig, strict=True))
-                        if r <= max(fc.outlier_sigma * si, bar)]  # fmt: skip
+                keep = [
+                    i
+                    for i, (r, si) in enumerate(zip(lres, sig, strict=True))
+                    if r <= max(fc.outlier_sigma * si, bar)
+                ]
         if len(keep) < len(rows):
             if len(keep) < 2:
                 return ()
@@ -189,9 +195,9 @@ class FixFusion:
         """The carried floor takes a fused fix's posterior of tilt and height (3+ landmarks:
         with fewer the fix kept the prior's, which holds nothing new)."""
         if fix.floor is not None and fix.floor_covariance is not None and fix.n_landmarks >= 3:
-            self.floor = self.floor.updated((fix.x, fix.y, fix.theta), fix.floor,
-                                            fix.floor_covariance,
-                                            fix.floor_sensitivity)  # fmt: skip
+            self.floor = self.floor.updated(
+                (fix.x, fix.y, fix.theta), fix.floor, fix.floor_covariance, fix.floor_sensitivity
+            )
 
     @staticmethod
     def _chi2_per_dof(fix: PoseFix, sig: list[float]) -> float:
@@ -244,8 +250,15 @@ class FixFusion:
             return set()
         zero = ([0.0] * 3, [0.0] * 3, [0.0] * 3)
         cand = np.array([rows[i] for i in near], dtype=np.int64)
-        pred = predict_landmarks(self.camera, pose, zero, self.map.positions, candidates=cand,
-                                 scale_px_per_m=self.scale_px_per_m, reach_m=1e9)  # fmt: skip
+        pred = predict_landmarks(
+            self.camera,
+            pose,
+            zero,
+            self.map.positions,
+            candidates=cand,
+            scale_px_per_m=self.scale_px_per_m,
+            reach_m=1e9,
+        )
         at = dict(zip(pred.row_list, pred.pixel_list, strict=True))
         out = set()
         b = self.config.tracking.border_px
@@ -315,6 +328,7 @@ class FixFusion:
         )
         if carried is None or fix is None:
             return fix
-        fix, self._floor_shift = fix_on_floor(fix, carried, self.floor.widened(carried, cfg),
-                                              cfg.reset_chi2, sensitivity)  # fmt: skip
+        fix, self._floor_shift = fix_on_floor(
+            fix, carried, self.floor.widened(carried, cfg), cfg.reset_chi2, sensitivity
+        )
         return fix

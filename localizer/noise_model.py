@@ -73,9 +73,16 @@ class PixelNoiseConfig:
     consider_reuse_rad: float = 0.1
 
     def __post_init__(self) -> None:
-        for name in ("centroid_sigma_px", "survey_sigma_m", "focal_rel", "principal_px",
-                     "distortion_rel", "adapt_gain", "consider_reuse_m",
-                     "consider_reuse_rad"):  # fmt: skip
+        for name in (
+            "centroid_sigma_px",
+            "survey_sigma_m",
+            "focal_rel",
+            "principal_px",
+            "distortion_rel",
+            "adapt_gain",
+            "consider_reuse_m",
+            "consider_reuse_rad",
+        ):
             v = getattr(self, name)
             if not math.isfinite(v) or v < 0:
                 raise ValueError(f"PixelNoiseConfig: {name} must be >= 0, got {v!r}")
@@ -98,8 +105,15 @@ def calibration_sigma_table(
         (radii shape (samples,), sigma_cal shape (samples,)), pixels.
     """
     cu, cv = camera.cu, camera.cv
-    corners = np.array([[0, 0], [camera.width - 1, 0], [0, camera.height - 1],
-                        [camera.width - 1, camera.height - 1]], float)  # fmt: skip
+    corners = np.array(
+        [
+            [0, 0],
+            [camera.width - 1, 0],
+            [0, camera.height - 1],
+            [camera.width - 1, camera.height - 1],
+        ],
+        float,
+    )
     r_max = float(np.max(np.hypot(corners[:, 0] - cu, corners[:, 1] - cv)))
     radii = np.linspace(0.0, r_max, samples)
     dirs = (corners - [cu, cv]) / np.hypot(*(corners - [cu, cv]).T)[:, None]
@@ -109,8 +123,11 @@ def calibration_sigma_table(
     good = np.all(np.isfinite(rays), axis=1)
     rays[~good] = (0.0, 0.0, 1.0)
     var = np.full(len(px), float(config.principal_px) ** 2)
-    perturbed = [dataclasses.replace(camera, fu=camera.fu * (1 + config.focal_rel),
-                                     fv=camera.fv * (1 + config.focal_rel))]  # fmt: skip
+    perturbed = [
+        dataclasses.replace(
+            camera, fu=camera.fu * (1 + config.focal_rel), fv=camera.fv * (1 + config.focal_rel)
+        )
+    ]
     for i, k in enumerate(camera.distortion):
         if k != 0.0:
             d = camera.distortion.copy()

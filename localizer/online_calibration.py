@@ -99,8 +99,7 @@ def reprojection_chi2_steps(
         if floors is not None:
             r, p, dz = (float(v) for v in floors[k])
             on = ((r, p, dz), np.eye(3) * 1e-12)
-        fix = solve_pose(camera, px, P, initial=pose, pixel_sigma_px=pixel_sigma_px,
-                         floor_prior=on)  # fmt: skip
+        fix = solve_pose(camera, px, P, initial=pose, pixel_sigma_px=pixel_sigma_px, floor_prior=on)
         if fix is None:
             return float("inf")
         total += fix.n_landmarks * (fix.residual_rms_px / pixel_sigma_px) ** 2

@@ -380,8 +380,11 @@ class PoseFilter:
         R_white = white.tolist()
         (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = fix.covariance.tolist()
         (w00, w01, w02), (w10, w11, w12), (w20, w21, w22) = R_white
-        R_bias = [[r00 - w00, r01 - w01, r02 - w02], [r10 - w10, r11 - w11, r12 - w12],
-                  [r20 - w20, r21 - w21, r22 - w22]]  # fmt: skip
+        R_bias = [
+            [r00 - w00, r01 - w01, r02 - w02],
+            [r10 - w10, r11 - w11, r12 - w12],
+            [r20 - w20, r21 - w21, r22 - w22],
+        ]
         rho = carried_correlation(self._bias_ids, ids)
         C = None
         if self._C is not None and rho > 0.0:

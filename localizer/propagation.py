@@ -94,17 +94,25 @@ class DeferredPropagation:
         (p0, p1, p2), (q0, q1, q2), (r0, r1, r2) = C3, C4, C5
         # (written out: the consider update carries C on every frame)
         return [
-            [u0 + a * w0 + e00 * p0 + e01 * q0 + e02 * r0,
-             u1 + a * w1 + e00 * p1 + e01 * q1 + e02 * r1,
-             u2 + a * w2 + e00 * p2 + e01 * q2 + e02 * r2],
-            [v0 + b * w0 + e10 * p0 + e11 * q0 + e12 * r0,
-             v1 + b * w1 + e10 * p1 + e11 * q1 + e12 * r1,
-             v2 + b * w2 + e10 * p2 + e11 * q2 + e12 * r2],
-            [w0 + e20 * p0 + e21 * q0 + e22 * r0,
-             w1 + e20 * p1 + e21 * q1 + e22 * r1,
-             w2 + e20 * p2 + e21 * q2 + e22 * r2],
-            C3, C4, C5,
-        ]  # fmt: skip
+            [
+                u0 + a * w0 + e00 * p0 + e01 * q0 + e02 * r0,
+                u1 + a * w1 + e00 * p1 + e01 * q1 + e02 * r1,
+                u2 + a * w2 + e00 * p2 + e01 * q2 + e02 * r2,
+            ],
+            [
+                v0 + b * w0 + e10 * p0 + e11 * q0 + e12 * r0,
+                v1 + b * w1 + e10 * p1 + e11 * q1 + e12 * r1,
+                v2 + b * w2 + e10 * p2 + e11 * q2 + e12 * r2,
+            ],
+            [
+                w0 + e20 * p0 + e21 * q0 + e22 * r0,
+                w1 + e20 * p1 + e21 * q1 + e22 * r1,
+                w2 + e20 * p2 + e21 * q2 + e22 * r2,
+            ],
+            C3,
+            C4,
+            C5,
+        ]
 
     def apply(self, P: Rows) -> Rows:
         """The propagated covariance (6 x 6 nested lists) of `P`; clears the batch.

@@ -120,9 +120,7 @@ class SelfCalibrationConfig:
     odometry_turn_frac: float = 0.005
     odometry_curvature_sigma_rad_per_m: float = 0.05
     odometry_turn_scale_sigma: float = 0.05
-    prior_sigma: tuple[float, float, float, float, float, float] = (
-        1.0, 1.0, 0.1, 0.1, 0.004, 0.02
-    )  # fmt: skip
+    prior_sigma: tuple[float, float, float, float, float, float] = (1.0, 1.0, 0.1, 0.1, 0.004, 0.02)
     converge_fraction: float = 0.25
     max_prior_sigmas: float = 3.0
     min_improvement: float = 0.02
@@ -182,9 +180,15 @@ def corrected_camera(camera: CameraModel, c: npt.ArrayLike) -> CameraModel:
     d[1] *= 1.0 + dk2
     T = camera.T_body_camera.copy()
     T[:3, :3] = _rz(yaw) @ T[:3, :3]
-    return dataclasses.replace(camera, fu=camera.fu * (1.0 + df), fv=camera.fv * (1.0 + df),
-                               cu=camera.cu + dcu, cv=camera.cv + dcv, distortion=d,
-                               T_body_camera=T)  # fmt: skip
+    return dataclasses.replace(
+        camera,
+        fu=camera.fu * (1.0 + df),
+        fv=camera.fv * (1.0 + df),
+        cu=camera.cu + dcu,
+        cv=camera.cv + dcv,
+        distortion=d,
+        T_body_camera=T,
+    )
 
 
 def _rz(a: float) -> FloatArray:
@@ -266,8 +270,13 @@ def project_with_jacobians(
     jf = jf.reshape(n, 2, 2)
     d_c[:, :, 4] = jf[:, :, 0] * camera.fu + jf[:, :, 1] * camera.fv
     # yaw: p_cam = (Rz(yaw) R0)^T p_body, d/dyaw = R0^T Rz'(yaw)^T p_body
-    dRz = np.array([[-math.sin(yaw), -math.cos(yaw), 0.0], [math.cos(yaw), -math.sin(yaw), 0.0],
-                    [0.0, 0.0, 0.0]])  # fmt: skip
+    dRz = np.array(
+        [
+            [-math.sin(yaw), -math.cos(yaw), 0.0],
+            [math.cos(yaw), -math.sin(yaw), 0.0],
+            [0.0, 0.0, 0.0],
+        ]
+    )
     dp_yaw = p_body @ (dRz @ camera.T_body_camera[:3, :3])
     d_c[:, :, 5] = np.einsum("nij,nj->ni", jp, dp_yaw)
     # pose: p_body = Rz(-th) (P - t) - t_bc
@@ -417,8 +426,7 @@ class SelfCalibration:
         Hpk = H[n_c:, 6:8].reshape(M, 3, 2)
         yield
         for _ in range(cfg.iterations):
-            pred, d_c, d_pose = project_with_jacobians(self.camera, c[:6], poses, P, frame,
-                                                       floors)  # fmt: skip
+            pred, d_c, d_pose = project_with_jacobians(self.camera, c[:6], poses, P, frame, floors)
             r = pred - px  # (N, 2), pixels
             e = np.hypot(r[:, 0], r[:, 1]) / cfg.pixel_sigma_px
             k = cfg.huber_sigmas
@@ -442,8 +450,10 @@ class SelfCalibration:
             # reads it: turn (1 + beta) + kappa d, the chord turned left by half the extra
             rel, Ja, Jb = _relative_jacobians_many(poses[:-1], poses[1:])
             extra = c[6] * d + c[7] * rel[:, 2]
-            ro = np.column_stack([rel[:, 0], rel[:, 1] + 0.5 * rel[:, 0] * extra,
-                                  rel[:, 2] + extra]) - odo  # fmt: skip
+            ro = (
+                np.column_stack([rel[:, 0], rel[:, 1] + 0.5 * rel[:, 0] * extra, rel[:, 2] + extra])
+                - odo
+            )
             ro[:, 2] = wrap_angle(ro[:, 2])
             Jk = np.zeros((M - 1, 3, 2))  # d ro / d (kappa, beta)
             Jk[:, 1, 0], Jk[:, 1, 1] = 0.5 * rel[:, 0] * d, 0.5 * rel[:, 0] * rel[:, 2]
@@ -491,8 +501,10 @@ class SelfCalibration:
         yaw_ok = bool(sig[YAW] < frac * prior[YAW])
         rel, _, _ = _relative_jacobians_many(poses[:-1], poses[1:])
         extra = c[6] * d + c[7] * rel[:, 2]
-        ro = np.column_stack([rel[:, 0], rel[:, 1] + 0.5 * rel[:, 0] * extra,
-                              rel[:, 2] + extra]) - odo  # fmt: skip
+        ro = (
+            np.column_stack([rel[:, 0], rel[:, 1] + 0.5 * rel[:, 0] * extra, rel[:, 2] + extra])
+            - odo
+        )
         ro[:, 2] = wrap_angle(ro[:, 2])
         odo_chi2 = float(np.sum(w_odo * ro * ro)) / max(3 * (M - 1), 1)
         self.estimate = CalibrationEstimate(
