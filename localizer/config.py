@@ -69,9 +69,6 @@ class FusionConfig:
             is not fused; landmarks darkened since, as an LED schedule does, are not missing).
         initial_sigma_m: position standard deviation of `set_initial_pose`, metres.
         initial_sigma_rad: heading standard deviation of `set_initial_pose`, radians.
-        full_frame_every_s: in landmark or dead-reckoning mode with no tracked landmark,
-            search the whole frame for new landmarks at most this often, seconds (0: every
-            frame).
         odometry_history_s: how much raw odometry is kept to carry identification sightings
             to the current frame, seconds.
         odometry_interval_mean: an odometry sample is each wheel's mean speed over the
@@ -101,7 +98,6 @@ class FusionConfig:
     min_matched_fraction: float = 0.25
     initial_sigma_m: float = 0.5
     initial_sigma_rad: float = 0.3
-    full_frame_every_s: float = 0.0
     odometry_history_s: float = 5.0
     odometry_interval_mean: bool = True
     odometry_stale_s: float = 0.2

@@ -3,7 +3,8 @@
 Pure: the caller reads the file. Every key is checked against the dataclasses: an unknown
 key, a value of the wrong type or one a sub-config's own check refuses raises `ConfigError`
 naming the key by its dotted path (`fusion.pixel_sigma_px`) and the bad value. Keys left out
-keep their defaults, so a file holds only what it changes:
+keep their defaults, so a file holds only what it changes; a retired key (`RETIRED`) that an
+older settings file still names is ignored:
 
     detection: {max_area_px: 2000, max_elongation: 4}
     tracking: {sigma_gate: 3.5}
@@ -62,6 +63,13 @@ def config_to_dict(config: object) -> dict[str, Any]:
     return out
 
 
+# Settings retired from the config and ignored where a settings file still names them
+# (`irloc replay` writes every setting beside its poses): dotted path -> why.
+RETIRED: dict[str, str] = {
+    "fusion.full_frame_every_s": "no step of the localizer read it",
+}
+
+
 def _build(cls: type[T], data: object, path: str) -> T:
     if not isinstance(data, Mapping):
         raise ConfigError(path, f"expected a mapping of settings, got {data!r}")
@@ -70,6 +78,8 @@ def _build(cls: type[T], data: object, path: str) -> T:
     kwargs: dict[str, object] = {}
     for key, value in data.items():
         where = f"{path}.{key}" if path else str(key)
+        if where in RETIRED:
+            continue
         if key not in fields:
             known = ", ".join(sorted(fields))
             raise ConfigError(where, f"unknown setting (known here: {known})")
