@@ -5,7 +5,8 @@ CDR samples and decodes them with `rosbags`' ROS 2 definitions; it can publish a
 /initialpose at a given time the same way (serialized by rosbags).
 
     python tests/ros2/ros2_listener.py --domain 42 --seconds 20 --out seen.json \
-        --topic /tf --topic /r1/irloc/pose ... [--initialpose /r1/initialpose@8:x,y,yaw]
+        --topic /tf --topic /r1/irloc/pose ... [--initialpose /r1/initialpose@8:x,y,yaw \
+        [--linger 12]]
 
 Output (JSON): {"types": {topic: DDS type name}, "messages": {topic: [decoded, ...]}}.
 """
@@ -97,6 +98,11 @@ def main() -> None:
         "or at SECONDS at the latest)",
     )  # fmt: skip
     ap.add_argument("--truth-topic", help="nav_msgs/Odometry of the true pose")
+    ap.add_argument(
+        "--linger", type=float, default=math.inf,
+        help="stop this many seconds after the last --initialpose was sent (at --seconds at "
+        "the latest)",
+    )  # fmt: skip
     args = ap.parse_args()
     _domain = Domain(args.domain, LOOPBACK)
     dp = DomainParticipant(args.domain)
@@ -119,7 +125,8 @@ def main() -> None:
     seen: dict[str, list[Any]] = {t: [] for t in args.topic}
     sent: list[dict[str, Any]] = []
     start = time.monotonic()
-    while time.monotonic() - start < args.seconds:
+    end = start + args.seconds
+    while time.monotonic() < end:
         for s in pubs.take(N=100):
             name = getattr(s, "topic_name", None)
             if name in wanted and name not in readers and s.type_id is not None:
@@ -169,6 +176,8 @@ def main() -> None:
                     "when_lost": lost,
                 })  # fmt: skip
                 plans.remove(plan)
+                if not plans:
+                    end = min(end, time.monotonic() + args.linger)
         time.sleep(0.02)
     with open(args.out, "w", encoding="utf-8") as f:
         json.dump({"types": types, "messages": seen, "sent": sent}, f)

@@ -29,7 +29,8 @@ pytestmark = [
     ),
 ]
 ROOT = Path(__file__).resolve().parents[2]
-LISTEN_S = 42.0
+LISTEN_S = 42.0  # at most: the listener stops LINGER_S after its /initialpose
+LINGER_S = 12.0  # the relocalized poses (`test_initialpose_relocalizes_the_kidnapped_robot`)
 TOLERANCE_NS = 1_000_000_000  # the agent's transform_tolerance_s (map -> odom post-dated)
 
 
@@ -74,6 +75,7 @@ def run(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Run]:
                 subprocess.run(
                     [sys.executable, str(ROOT / "tests/ros2/ros2_listener.py"),
                      "--domain", env["ROS_DOMAIN_ID"], "--seconds", str(LISTEN_S),
+                     "--linger", str(LINGER_S),
                      "--out", str(out),
                      "--topic", "/tf", "--topic", "/r1/irloc/pose", "--topic", "/diagnostics",
                      "--topic", "/r1/irloc/landmarks", "--topic", "/r1/ground_truth",

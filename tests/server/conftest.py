@@ -4,12 +4,13 @@ from __future__ import annotations
 
 import time
 import warnings
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Collection, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import pytest
+import yaml
 
 with warnings.catch_warnings():
     # starlette 1.x warns that its TestClient will move from httpx to httpx2; not our concern
@@ -69,6 +70,19 @@ def role_keys(services: SiteServices) -> dict[str, str]:
     for role in ("operator", "viewer"):
         keys[role], _ = services.keys.create(role, name=f"test {role}")
     return keys
+
+
+def demo_with_robots(path: Path, robots: Collection[str]) -> Path:
+    """The demo scenario with only `robots` of its three (same world, so the same map and
+    landmarks), written to `path` for `Settings.scenario`: a live test that watches some
+    robots leaves out the others, whose cameras and localizers would take CPU from it."""
+    import sim.scenarios
+
+    demo = yaml.safe_load((Path(sim.scenarios.__file__).parent / "demo.yaml").read_text())
+    demo["robots"] = [r for r in demo["robots"] if r["name"] in robots]
+    assert {r["name"] for r in demo["robots"]} == set(robots), robots
+    path.write_text(yaml.safe_dump(demo))
+    return path
 
 
 def start_api(data_dir: Path, **settings: object) -> Iterator[Api]:

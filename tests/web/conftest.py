@@ -4,6 +4,7 @@ site left running takes most of a core from the tests after it)."""
 
 from __future__ import annotations
 
+import os
 import threading
 import time
 from collections.abc import Iterator
@@ -73,9 +74,26 @@ def server() -> Iterator[viser.ViserServer]:
         s.stop()
 
 
+def without_image_based_lighting(app: Any) -> None:
+    """Turn off viser's environment map (its default image-based lighting) in the served
+    site's scene, unless the README pictures are being made (`IRLOC_UPDATE_DOC_IMAGES=1`:
+    they show the viewer as staff see it).
+
+    Headless Chromium draws WebGL in software: each page that loads the environment map
+    prefilters it (PMREM) on the page's main thread, which then answers nothing for 10 s or
+    more on a busy 2-core machine, and every browser test opens a page or more. What the
+    tests check (scene nodes, panels, the colours of trails, zones and the floor plan's
+    walls) comes from the same nodes and materials without it: the default lights still
+    light the scene, its colours only come out less washed out.
+    """
+    if os.environ.get("IRLOC_UPDATE_DOC_IMAGES") != "1":
+        app.state.viewer.server.scene.configure_environment_map(None)
+
+
 @pytest.fixture(scope="module")
 def live_site(tmp_path_factory: pytest.TempPathFactory) -> Iterator[ServedSite]:
     with running_site(tmp_path_factory.mktemp("irloc-data")) as (app, port):
+        without_image_based_lighting(app)
         services = app.state.services
         keys = {
             role: services.keys.create(role, f"test-{role}")[0]

@@ -22,7 +22,7 @@ ARGS = [
     "--headless=new", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
     "--disable-background-networking", "--disable-component-update", "--disable-sync",
 ]  # fmt: skip
-FRAME_RATE_HZ = 10  # the pages' animation frames: software WebGL, see `throttle_frames`
+FRAME_RATE_HZ = 3  # the pages' animation frames: software WebGL, see `throttle_frames`
 LANDMARKS_IN_SCENE = (  # a JS expression: the number of /landmarks/<id> scene nodes
     "Object.keys((window.__viserMutable || {}).nodeRefFromName || {})"
     ".filter(k => /^\\/landmarks\\/\\d+$/.test(k)).length"
@@ -46,7 +46,9 @@ def throttle_frames(hz: float) -> str:
     The viewer redraws on every scene change (the robots move at 30 Hz), and headless
     Chromium draws WebGL in software (SwiftShader): uncapped, the page takes a core or more
     of a 2-core machine from the site and from the test, and the page's main thread, busy
-    drawing, answers each Playwright query late. Fewer frames show the same scene.
+    drawing, answers each Playwright query late. Fewer frames show the same scene. Each
+    frame holds the page's main thread until it is drawn: at 10 frames a second a loaded
+    machine kept it busy all the time and a click took 2-4 s; at 3, about a third of that.
     """
     return f"""(() => {{
   const minGapMs = 1000 / {hz};
