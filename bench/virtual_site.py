@@ -45,20 +45,35 @@ STEP_S = 0.01
 
 
 class VirtualTimeLoop(asyncio.SelectorEventLoop):
-    """An event loop whose `time()` is virtual: when no callback is ready, it jumps to the
-    earliest timer (so `asyncio.sleep(5)` takes no wall time)."""
+    """An event loop whose `time()` is virtual: when no callback is ready and no work handed
+    to a thread (`run_in_executor`, `asyncio.to_thread`) is still running, it jumps to the
+    earliest timer (so `asyncio.sleep(5)` takes no wall time). While a thread works, virtual
+    time stands still, as if the work took none: a loaded machine slows the run, never
+    what it computes (the LED planner's thread cannot fall behind the site)."""
 
     def __init__(self) -> None:
         super().__init__()
         self._virtual_s = 0.0
+        self._in_flight = 0  # executor work not yet landed back on the loop
 
     def time(self) -> float:
         return self._virtual_s
 
+    def run_in_executor(  # type: ignore[override]
+        self, executor: Any, func: Any, *args: Any
+    ) -> asyncio.Future[Any]:
+        future = super().run_in_executor(executor, func, *args)
+        self._in_flight += 1
+        future.add_done_callback(self._landed)
+        return future
+
+    def _landed(self, _future: asyncio.Future[Any]) -> None:
+        self._in_flight -= 1
+
     def _run_once(self) -> None:
         ready: collections.deque[Any] = self._ready  # type: ignore[attr-defined]
         scheduled: list[Any] = self._scheduled  # type: ignore[attr-defined]
-        if not ready and scheduled:
+        if not ready and scheduled and not self._in_flight:
             head = (
                 min(h for h in scheduled if not h.cancelled())
                 if any(not h.cancelled() for h in scheduled)

@@ -75,5 +75,5 @@ def test_the_quality_modes_are_the_localizers() -> None:
 def test_a_retired_key_of_an_older_settings_file_is_ignored_and_a_misspelt_one_is_not() -> None:
     older = {"fusion": {"full_frame_every_s": 0.0, "nis_gate": 12.0}}
     assert config_from_dict(older).fusion.nis_gate == 12.0
-    with pytest.raises(ConfigError, match="fusion.full_frame_every"):
+    with pytest.raises(ConfigError, match=r"fusion\.full_frame_every"):
         config_from_dict({"fusion": {"full_frame_every": 0.0}})
