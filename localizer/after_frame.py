@@ -28,6 +28,3 @@ class AfterFrame:
         """Do the queued work, oldest first."""
         while self._work:
             self._work.pop(0)()
-
-    def __len__(self) -> int:
-        return len(self._work)

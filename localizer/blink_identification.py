@@ -17,9 +17,11 @@ import numpy as np
 from localizer.camera import CameraModel
 from localizer.candidate_order import ViewOrdering, order_by_view
 from localizer.config import LocalizerConfig
+from localizer.events import LedRequest
 from localizer.first_fix import first_fix
 from localizer.identification import Identifier
 from localizer.landmark_map import LandmarkMap
+from localizer.led_knowledge import LedKnowledge
 from localizer.odometry import integrate_arc
 from localizer.odometry_track import OdometryTrack
 from localizer.pose import PoseFix
@@ -96,6 +98,19 @@ class BlinkIdentification:
             self.identifier.keep_newest()
             self._view.reset()
         return fix
+
+    def requests(
+        self, t_ns: int, leds: LedKnowledge, camera: CameraModel, frame_interval_s: float | None
+    ) -> list[LedRequest]:
+        """LED requests of an identification in progress (the last one lights all): the
+        next probe of the sweep `leds` keeps, its candidates first ordered by view."""
+        req = leds.all_lit_request(t_ns)
+        if req is not None:
+            return [req]
+        if not leds.sweeping:
+            return []
+        self.order_by_view(t_ns, camera, frame_interval_s)
+        return list(leds.sweep_request(t_ns, self.identifier))
 
     def order_by_view(self, t_ns: int, camera: CameraModel, frame_interval_s: float | None) -> None:
         """With one landmark identified (or showing itself), probe first the candidates in

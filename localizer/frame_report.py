@@ -22,6 +22,7 @@ from localizer.pose_quality import (
     FrameFacts,
     QualityConfig,
     deviation_radius_m,
+    is_landmark_fix,
     landmarks_in_view,
     published_covariance,
     quality_from_deviation,
@@ -116,9 +117,10 @@ def frame_facts(
     landmark_map: LandmarkMap,
     t_odometry_ns: int | None,
     config: LocalizerConfig,
-) -> FrameFacts:
-    """What explains this frame's lack of a fix (`pose_quality.reason_for`); the ceiling
-    in view is worked out only for a pose without a fix.
+) -> FrameFacts | None:
+    """What explains this frame's lack of a fix (`pose_quality.reason_for`; None for a
+    landmark fix, `is_landmark_fix`: nothing to explain); the ceiling in view is worked out
+    only for a pose without a fix.
 
     Args:
         pose: the output pose (None: none yet).
@@ -127,6 +129,8 @@ def frame_facts(
             rejected_fix, skipped).
         t_odometry_ns: the last odometry sample's time (None: none yet).
     """
+    if is_landmark_fix(mode, bool(used)):
+        return None
     f = notes
     age = math.inf if t_odometry_ns is None else (t_ns - t_odometry_ns) * _NS
     ic = config.identification

@@ -468,37 +468,25 @@ class Localizer:
         self._leds.restart_sweep(not self._passive.active)  # passive lights are never switched
 
     def _requests(self, t_ns: int) -> list[Output]:
-        """LED requests of an identification in progress (the last one lights all)."""
-        leds = self._leds
-        req = leds.all_lit_request(t_ns)
-        if req is not None:
-            return [req]
-        if not leds.sweeping:
-            return []
-        self._blink.order_by_view(t_ns, self.camera, self._timing.interval_s)
-        return list(leds.sweep_request(t_ns, self._blink.identifier))
+        """LED requests of an identification in progress (`BlinkIdentification.requests`)."""
+        return list(self._blink.requests(t_ns, self._leds, self.camera, self._timing.interval_s))
 
     def _output(self, t_ns: int, used: tuple[int, ...]) -> PoseEstimate | NoPose:
         """The frame's output (`frame_report`); remembered as `latest` when a pose."""
         f = self._filter
         pose = None if f is None else f.output_pose
-        fixed = bool(used) and self._mode == "landmark"  # a landmark fix: no reason to give
-        facts = (
-            None
-            if fixed
-            else frame_facts(
-                t_ns,
-                pose,
-                used,
-                mode=self._mode,
-                notes=self._facts,
-                recovery=self._recovery,
-                leds=self._leds,
-                camera=self.camera,
-                landmark_map=self.map,
-                t_odometry_ns=self._odometry.t_sample_ns,
-                config=self.config,
-            )
+        facts = frame_facts(
+            t_ns,
+            pose,
+            used,
+            mode=self._mode,
+            notes=self._facts,
+            recovery=self._recovery,
+            leds=self._leds,
+            camera=self.camera,
+            landmark_map=self.map,
+            t_odometry_ns=self._odometry.t_sample_ns,
+            config=self.config,
         )
         out = frame_output(
             t_ns, f, pose, self._mode, used, self._expected, facts, self.config.quality

@@ -287,12 +287,17 @@ def camera_stale(gap_s: float, typical_gap_s: float) -> bool:
     return typical_gap_s > 0 and gap_s > max(3.0 * typical_gap_s, 0.2)
 
 
+def is_landmark_fix(mode: str, fused: bool) -> bool:
+    """A frame that fused a landmark fix in landmark mode: it has no reason to give."""
+    return fused and mode == "landmark"
+
+
 def reason_for(facts: FrameFacts) -> ReasonCode | None:
     """The reason a frame had no landmark fix (None: it had one), the most telling first:
     the mode, then a sensor's fault, then spots that did not fit, then what the ceiling
     showed."""
     f = facts
-    if f.fused and f.mode == "landmark":
+    if is_landmark_fix(f.mode, f.fused):
         return None
     if f.mode == "identifying":
         return "waiting_for_radio" if f.awaiting_leds or f.switching_in_view else "identifying"
