@@ -37,6 +37,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from localizer.calibrated_camera import corrected_camera
 from localizer.camera import CameraModel
 from localizer.pose import solve_pose
 from localizer.self_calibration import (
@@ -46,7 +47,6 @@ from localizer.self_calibration import (
     CalibrationEstimate,
     SelfCalibration,
     SelfCalibrationConfig,
-    corrected_camera,
     run_steps,
 )
 from localizer.types import FloatArray, Pose

@@ -8,6 +8,7 @@ import math
 
 import numpy as np
 
+from localizer.calibrated_camera import corrected_camera
 from localizer.camera import CameraModel, predict_pixels
 from localizer.config import FusionConfig, LocalizerConfig
 from localizer.events import OdometryMeasured, PoseEstimate, SpotsObserved
@@ -15,7 +16,7 @@ from localizer.geometry import T_world_body_from_pose
 from localizer.landmark_map import LandmarkMap
 from localizer.localizer import Localizer
 from localizer.robot import RobotGeometry
-from localizer.self_calibration import SelfCalibrationConfig, corrected_camera
+from localizer.self_calibration import SelfCalibrationConfig
 from tests.localizer.cases import grid_positions, strong_radtan_camera
 
 GRID = grid_positions(7, 5, 0.6, 2.5)

@@ -10,15 +10,11 @@ import math
 import numpy as np
 import pytest
 
+from localizer.calibrated_camera import corrected_camera, project_with_jacobians
 from localizer.camera import CameraModel, predict_pixels
 from localizer.geometry import T_world_body_from_pose
 from localizer.pose_tilted import rotation_world_body
-from localizer.self_calibration import (
-    SelfCalibration,
-    SelfCalibrationConfig,
-    corrected_camera,
-    project_with_jacobians,
-)
+from localizer.self_calibration import SelfCalibration, SelfCalibrationConfig
 from localizer.types import Pose
 from tests.localizer.cases import fisheye_camera, grid_positions, strong_radtan_camera
 
