@@ -6,7 +6,9 @@ Time order: a frame must meet every LED state of its time. LED states travel ove
 network, frames do not, so sensor samples wait `hold_s` (`reorder_hold_s`) in a reorder
 buffer and are fed with the LED states merged in time order; the simulated source is stepped
 that far behind real time too. A state that arrives later than that is fed at once and
-counted (`late_leds`).
+counted (`late_leds`). A sensor stream that falls behind (its thread or its transport
+stalled) holds the feeding back, up to `input_wait_s`, so that what it delivers late is
+still fed in order rather than dropped (`SensorSource.complete_until`).
 
 Thread-safety: `on_*` methods may be called from the network thread while `tick` runs on the
 sensor thread; they only queue.
@@ -81,6 +83,11 @@ class SensorSource(Protocol):
     @property
     def geometry(self) -> RobotGeometry: ...
     def step(self, t_ns: int) -> list[Event]: ...
+    def complete_until(self, t_ns: int, max_wait_ns: int) -> int:
+        """`t_ns`, or earlier while one of its streams, less than `max_wait_ns` behind, has
+        not delivered up to it yet."""
+        ...
+
     def apply_leds(self, t_ns: int, lit: frozenset[int] | None) -> None: ...
     def true_pose_at(self, t_ns: int) -> tuple[float, float, float] | None: ...
     @property
@@ -97,6 +104,9 @@ class AgentConfig:
         source: what feeds it ("sim", "sim-light", "camera").
         reorder_hold_s: how long sensor samples wait for LED states of their time, seconds
             (more than the network's one-way delay to the broker and back).
+        input_wait_s: how long a sensor stream that fell behind is waited for, seconds
+            (its samples are then fed in order when they arrive; a stream further behind
+            is taken for stopped and is no longer waited for).
         pose_rate_hz: irloc pose messages per second at most (a mode change always goes at
             once); 0: one per frame.
         visualization_rate_hz: VDA 5050 visualization messages per second at most.
@@ -117,6 +127,7 @@ class AgentConfig:
     manufacturer: str = "irloc"
     source: AgentSource = "sim"
     reorder_hold_s: float = 0.03
+    input_wait_s: float = 1.0
     pose_rate_hz: float = 10.0
     visualization_rate_hz: float = 1.0
     start_known: bool = False
@@ -198,10 +209,11 @@ class AgentCore:
 
     # -- the sensor loop ------------------------------------------------------------------------
     def tick(self, now_mono_ns: int) -> list[Outgoing]:
-        """Take what arrived, step the sensors to `now - hold`, feed the localizer in time
-        order; the messages to send."""
+        """Take what arrived, step the sensors to `now - hold` (or as far as every sensor
+        stream delivered), feed the localizer in time order; the messages to send."""
         hold_ns = round(self.config.reorder_hold_s * NS)
-        horizon = now_mono_ns - hold_ns
+        wait_ns = round(self.config.input_wait_s * NS)
+        horizon = self.source.complete_until(now_mono_ns - hold_ns, wait_ns)
         with self._inbox_lock:
             inbox, self._inbox = self._inbox, []
         for msg in inbox:

@@ -103,6 +103,10 @@ class HardwareSource:
         for s in self._sources:
             s.stop()
 
+    def complete_until(self, t_ns: int, max_wait_ns: int) -> int:
+        """How far the camera and the wheels both delivered (`EventBuffer.complete_until`)."""
+        return self._buffer.complete_until(t_ns, max_wait_ns)
+
     def step(self, t_ns: int) -> list[Event]:
         """The samples taken up to `t_ns` (the agent's monotonic clock), in time order."""
         return list(self._buffer.take_due(t_ns))

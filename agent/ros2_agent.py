@@ -42,8 +42,9 @@ DEFAULT_HOLD_S = 0.1
 class Ros2SensorSource:
     """The agent's sensor source on ROS 2: the robot's camera and odometry
     (`sensors.ros2.Ros2Source`, a `FrameSource` pushing into an `EventBuffer`) and its
-    `/initialpose`, taken in time order by the agent's tick. An input that arrives after the
-    tick already went past its time is dropped and reported (fed late, it would reach the
+    `/initialpose`, taken in time order by the agent's tick. A topic that falls behind holds
+    the tick back (up to the agent's `input_wait_s`); an input that arrives after the tick
+    went past its time all the same is dropped and reported (fed late, it would reach the
     localizer out of order).
 
     Attributes:
@@ -90,6 +91,12 @@ class Ros2SensorSource:
         with self._lock:
             self._requests.append(near)
 
+    def complete_until(self, t_ns: int, max_wait_ns: int) -> int:
+        """How far the image and odometry topics both delivered: a reader thread or a
+        transport that stalled holds the agent back rather than having its samples dropped
+        (`EventBuffer.complete_until`)."""
+        return self._buffer.complete_until(t_ns, max_wait_ns)
+
     def step(self, t_ns: int) -> list[Event]:
         """The inputs stamped up to `t_ns` (monotonic), in time order; then the requests."""
         due: list[Event] = []
@@ -101,7 +108,8 @@ class Ros2SensorSource:
                     kind,
                     "warn",
                     f"arrived {(self._released_ns - e.t_ns) / 1e6:.0f} ms after the agent passed "
-                    "its time (raise --hold above the transport latency): dropped",
+                    "its time (its topic was silent for longer than the agent waits, or started "
+                    "after the others): dropped",
                 )
                 continue
             due.append(e)

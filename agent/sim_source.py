@@ -93,6 +93,10 @@ class SimRobotSource:
             if lm.reachable:
                 self.world.set_led(lm.id, lit_set is None or lm.id in lit_set)
 
+    def complete_until(self, t_ns: int, max_wait_ns: int) -> int:
+        """A simulated robot's samples are rendered when stepped: never behind."""
+        return t_ns
+
     def step(self, t_ns: int) -> list[Event]:
         """Drive to `t_ns` (the agent's clock); the samples due, in time order."""
         if self._t0_ns is None:

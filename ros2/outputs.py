@@ -6,8 +6,9 @@
   ellipse (docs/quality.md);
 - `/tf` `map -> odom`: the pose composed with the robot's own `odom -> base_link` at that
   same stamp (REP-105), stamped `transform_tolerance_s` later as AMCL does; a pose whose
-  `odom -> base_link` does not arrive within `max_wait_transform_s` gives no transform and
-  a diagnostic (never a transform built from the wrong odometry);
+  `odom -> base_link` does not arrive within `max_wait_transform_s` of the pose (a reader
+  that stalled catches up) gives no transform and a diagnostic (never a transform built
+  from the wrong odometry);
 - `/diagnostics` (`diagnostic_msgs/DiagnosticArray`, 1/s and at each mode change): the
   mode, the pose's `quality`, `deviation_m` (95 % radius) and `reason` code, the landmarks
   in use and expected, why there is no fix (the reason's sentence), each input problem;
@@ -99,7 +100,7 @@ class Ros2Outputs:
         self.last_output: PoseEstimate | NoPose | None = None  # with a pose or without
         self.poses = 0
         self.transforms = 0
-        self._waiting: deque[tuple[int, PoseEstimate]] = deque()
+        self._waiting: deque[tuple[int, PoseEstimate, int]] = deque()  # stamp, pose, queued
         self._lock = threading.Lock()
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name=f"ros2-out-{name}", daemon=True)
@@ -135,7 +136,7 @@ class Ros2Outputs:
             self.poses += 1
             if self.settings.publish_tf:
                 with self._lock:
-                    self._waiting.append((stamp, output))
+                    self._waiting.append((stamp, output, time.monotonic_ns()))
                 self._flush_transforms()
         if changed:
             self.publish_diagnostics()
@@ -145,18 +146,18 @@ class Ros2Outputs:
         """Publish `map -> odom` for the poses whose `odom -> base_link` is known (the newest
         wins), report those that waited too long."""
         s = self.settings
-        now_wall = time.time_ns()
+        now = time.monotonic_ns()
         latest: tuple[int, tuple[float, float, float]] | None = None
         with self._lock:
             while self._waiting:
-                stamp, est = self._waiting[0]
+                stamp, est, queued = self._waiting[0]
                 T_odom_base = self.odom_base.at(stamp)
                 if T_odom_base is not None:
                     T_map_base = (est.x, est.y, est.theta)
                     latest = (stamp, compose(T_map_base, inverse(T_odom_base)))
                     self._waiting.popleft()
                     continue
-                if now_wall - stamp > s.max_wait_transform_s * 1e9:
+                if now - queued > s.max_wait_transform_s * 1e9:
                     self.health.report(
                         "transform",
                         "error",

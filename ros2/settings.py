@@ -13,7 +13,7 @@ import dataclasses
 import re
 from dataclasses import dataclass, field
 
-from ros2.transport import QOS_DEFAULT, QOS_LATCHED, QOS_SENSOR_DATA, QosProfile
+from ros2.transport import QOS_DEFAULT, QOS_LATCHED, QosProfile
 
 _NAME = re.compile(r"^/?[A-Za-z_][A-Za-z0-9_]*(/[A-Za-z_][A-Za-z0-9_]*)*$")
 
@@ -44,10 +44,15 @@ class Ros2Settings:
         markers_topic: the landmark map, `visualization_msgs/MarkerArray` (transient local).
         diagnostics_topic, tf_topic: absolute as ROS tools expect.
         map_frame, odom_frame, base_frame: REP-105 frames (odom and base get the namespace).
+        image_qos, odom_qos: the readers' QoS, best effort (matches best-effort and reliable
+            drivers) with room for a second of 10 Hz images and 100 Hz odometry: a reader
+            thread that stalls that long loses no odometry (the agent waits for it,
+            `AgentConfig.input_wait_s`).
         transform_tolerance_s: `map -> odom` is stamped this much after the frame it was
             computed from (AMCL's `transform_tolerance`: a tf lookup at "now" finds it).
         future_tolerance_s: an input stamped further ahead of this machine's clock is refused.
-        max_wait_transform_s: how long a pose waits for `odom -> base_link` at its stamp.
+        max_wait_transform_s: how long a pose waits for `odom -> base_link` at its stamp
+            (from when the pose was computed).
         camera_height_m: optical centre above the floor when the lens comes from camera_info
             (no sensor.yaml): an upward camera on the robot's centre.
         publish_tf: publish `map -> odom` (off when robot_localization fuses the pose topic
@@ -73,8 +78,8 @@ class Ros2Settings:
     map_frame: str = "map"
     odom_frame: str = "odom"
     base_frame: str = "base_link"
-    image_qos: QosProfile = field(default=QOS_SENSOR_DATA)
-    odom_qos: QosProfile = field(default=QOS_SENSOR_DATA)
+    image_qos: QosProfile = field(default=QosProfile("best_effort", "volatile", 10))
+    odom_qos: QosProfile = field(default=QosProfile("best_effort", "volatile", 100))
     pose_qos: QosProfile = field(default=QOS_DEFAULT)
     tf_qos: QosProfile = field(default=QosProfile("reliable", "volatile", 100))
     markers_qos: QosProfile = field(default=QOS_LATCHED)

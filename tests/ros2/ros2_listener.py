@@ -95,7 +95,8 @@ def main() -> None:
         help="TOPIC@WHEN:x,y,yaw, or TOPIC@WHEN:truth+dx,dy,dyaw (the latest pose on "
         "--truth-topic moved by dx, dy, dyaw: an operator clicking where the robot is); WHEN: "
         "seconds after the start, or `lost[,SECONDS]` (when /diagnostics first says mode lost, "
-        "or at SECONDS at the latest)",
+        "or at SECONDS at the latest); the start is the first message on --truth-topic (the "
+        "robot's, whatever its process took to start), else the listener's",
     )  # fmt: skip
     ap.add_argument("--truth-topic", help="nav_msgs/Odometry of the true pose")
     ap.add_argument(
@@ -125,6 +126,7 @@ def main() -> None:
     seen: dict[str, list[Any]] = {t: [] for t in args.topic}
     sent: list[dict[str, Any]] = []
     start = time.monotonic()
+    robot_start: float | None = None
     end = start + args.seconds
     while time.monotonic() < end:
         for s in pubs.take(N=100):
@@ -153,7 +155,12 @@ def main() -> None:
                 if info.valid_data:
                     msg = STORE.deserialize_cdr(bytes(data), rtype)
                     seen[wanted[name]].append(summary(rtype, msg))
-        elapsed = time.monotonic() - start
+        if args.truth_topic and seen.get(args.truth_topic) and robot_start is None:
+            robot_start = time.monotonic()
+        if args.truth_topic and robot_start is None:
+            time.sleep(0.02)
+            continue  # the robot has not started: nothing is due
+        elapsed = time.monotonic() - (start if robot_start is None else robot_start)
         for plan in list(plans):
             topic, at, (x, y, th), relative = plan
             if relative:

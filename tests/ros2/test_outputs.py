@@ -87,6 +87,7 @@ def test_a_missing_transform_gives_a_diagnostic_not_a_transform(node: Ros2Partic
     history.add(t - 400_000_000, (0.0, 0.0, 0.0))  # the latest is 400 ms older than the frame
     out.on_pose(estimate(t, (1.0, 1.0, 0.0)))
     assert len(poses.wait(1)) == 1  # the pose itself is right: it goes out
+    time.sleep(S.max_wait_transform_s + 0.02)
     out._flush_transforms()
     problem = out.health.problem("transform")
     assert problem is not None and problem.level == "error"
@@ -95,6 +96,21 @@ def test_a_missing_transform_gives_a_diagnostic_not_a_transform(node: Ros2Partic
     assert not [x for m in tfs.items for x in m.transforms if x.child_frame_id == "a2/odom"]
     level, message, _ = out.status()
     assert level == "error" and "a2/odom" in message
+
+
+def test_a_transform_that_arrives_late_still_gives_map_to_odom(node: Ros2Participant) -> None:
+    """A reader thread that stalled delivers the pose's frame and the robot's odom -> base_link
+    late: the pose, already older than `max_wait_transform_s`, still waits that long for the
+    transform, and gets it."""
+    out, history, poses, tfs = outputs(node, "a4")
+    t = time.time_ns() - 600_000_000  # a frame from before the stall
+    history.add(t - 10_000_000, (1.0, 0.0, 0.0))
+    out.on_pose(estimate(t, (3.0, 4.0, 1.0)))
+    history.add(t + 10_000_000, (1.2, 0.2, 0.2))  # the odometry after the frame, caught up
+    out._flush_transforms()
+    tf = next(x for m in tfs.wait(1) for x in m.transforms if x.child_frame_id == "a4/odom")
+    assert compose(pose2_of(tf.transform), (1.1, 0.1, 0.1)) == pytest.approx((3.0, 4.0, 1.0))
+    assert out.health.problem("transform") is None
 
 
 def test_nothing_is_published_while_lost(node: Ros2Participant) -> None:

@@ -29,7 +29,7 @@ pytestmark = [
     ),
 ]
 ROOT = Path(__file__).resolve().parents[2]
-LISTEN_S = 42.0  # at most: the listener stops LINGER_S after its /initialpose
+LISTEN_S = 75.0  # at most: the listener stops LINGER_S after its /initialpose
 LINGER_S = 12.0  # the relocalized poses (`test_initialpose_relocalizes_the_kidnapped_robot`)
 TOLERANCE_NS = 1_000_000_000  # the agent's transform_tolerance_s (map -> odom post-dated)
 
@@ -120,6 +120,22 @@ def composed_errors(seen: dict[str, Any], robot: str = "r1") -> list[tuple[int, 
     return out
 
 
+def timeline(seen: dict[str, Any]) -> str:
+    """What the diagnostics said, one line per change of mode or problem (seconds after the
+    robot's first ground truth): the story of a failed run."""
+    t0 = min(g["t"] for g in seen["messages"]["/r1/ground_truth"])
+    lines, last = [], None
+    for msg in seen["messages"]["/diagnostics"]:
+        for s in msg:
+            problems = {k: v for k, v in s["values"].items() if k.startswith("problem.")}
+            key = (s["values"]["mode"], s["message"], tuple(problems))
+            if key != last:
+                lines.append(f"{s['values']['mode']}: {s['message']} {problems or ''}")
+            last = key
+    sent = [f"/initialpose at {(p['t'] - t0) / 1e9:.1f} s" for p in seen["sent"]]
+    return "\n".join([*lines, *sent])
+
+
 def test_a_ros2_participant_sees_ros2_types(run: Run) -> None:
     assert run.seen["types"] == {
         "/tf": "tf2_msgs::msg::dds_::TFMessage_",
@@ -150,7 +166,9 @@ def test_map_to_odom_puts_the_robot_within_2_cm_of_the_truth(run: Run) -> None:
     pose_stamps = [p["t"] for p in run.seen["messages"]["/r1/irloc/pose"]]
     before = [e for t, e in errors if t < kidnapped_at(run.seen)]  # on its route
     assert len(before) > 20, errors
-    assert max(before) < 0.02
+    t0 = min(g["t"] for g in run.seen["messages"]["/r1/ground_truth"])
+    far = [(round((t - t0) / 1e9, 1), round(e, 3)) for t, e in errors if e >= 0.02]
+    assert max(before) < 0.02, (far[:10], timeline(run.seen))
     assert all(p["frame"] == "map" for p in run.seen["messages"]["/r1/irloc/pose"])
     assert len(pose_stamps) == len(set(pose_stamps))
 
@@ -164,11 +182,11 @@ def test_initialpose_relocalizes_the_kidnapped_robot(run: Run) -> None:
     sent = run.seen["sent"][0]["t"]
     kidnap = kidnapped_at(run.seen)
     modes = [s["values"]["mode"] for s in statuses]
-    assert modes[-1] == "landmark" and {"dead_reckoning", "lost"} & set(modes)
+    assert modes[-1] == "landmark" and {"dead_reckoning", "lost"} & set(modes), timeline(run.seen)
     lost = [s for s in statuses if s["values"]["mode"] == "lost"]
     if run.seen["sent"][0]["when_lost"]:
         assert lost and lost[0]["level"] >= 1 and "initialpose" in lost[0]["message"]
     assert sent > kidnap
     after = [e for t, e in composed_errors(run.seen) if t > sent + 3e9]
-    assert len(after) > 20
-    assert max(after) < 0.02
+    assert len(after) > 20, timeline(run.seen)
+    assert max(after) < 0.02, timeline(run.seen)

@@ -20,7 +20,7 @@ from ros2.settings import Ros2Settings
 from ros2.transport import Ros2Participant
 from sensors.event_buffer import EventBuffer
 from sensors.ros2 import Ros2Source, wall_minus_mono_ns
-from tests.ros2.dds import CAMERA, participant
+from tests.ros2.dds import CAMERA, image, odometry, participant
 
 SETTINGS = Ros2Settings(namespace="r1")
 
@@ -35,29 +35,6 @@ def source(node: Ros2Participant) -> Ros2Source:
     src = Ros2Source("r1", node, SETTINGS, RobotGeometry(0.4, 1.0), camera=CAMERA)
     src.start(EventBuffer())
     return src
-
-
-def image(t_ns: int, encoding: str = "mono8", data: bytes | None = None, step: int = 64) -> object:
-    data = bytes(64 * 48) if data is None else data
-    return new(
-        "sensor_msgs/msg/Image", header=header(t_ns, "r1/camera"), height=48, width=64,
-        encoding=encoding, step=step, data=data,
-    )  # fmt: skip
-
-
-def odometry(t_ns: int, v: float = 0.5, w: float = 0.2, frame: str = "r1/odom") -> object:
-    twist = new(
-        "geometry_msgs/msg/TwistWithCovariance",
-        twist=new(
-            "geometry_msgs/msg/Twist",
-            linear=new("geometry_msgs/msg/Vector3", x=v),
-            angular=new("geometry_msgs/msg/Vector3", z=w),
-        ),
-    )
-    return new(
-        "nav_msgs/msg/Odometry", header=header(t_ns, frame), child_frame_id="r1/base_link",
-        twist=twist,
-    )  # fmt: skip
 
 
 def now_ros() -> int:
