@@ -98,7 +98,9 @@ def test_inputs_come_in_time_order_and_a_late_one_is_dropped(source: Ros2SensorS
     source.inputs.on_odometry(odometry(now - 10_000_000))  # newer, but the agent went past it
     assert source.step(time.monotonic_ns()) == []
     problem = source.health.problem("odom")
-    assert problem is not None and problem.level == "warn" and "silent for longer" in problem.message
+    assert (
+        problem is not None and problem.level == "warn" and "silent for longer" in problem.message
+    )
     assert source.late == 1
 
 

@@ -102,7 +102,7 @@ def test_a_transform_that_arrives_late_still_gives_map_to_odom(node: Ros2Partici
     """A reader thread that stalled delivers the pose's frame and the robot's odom -> base_link
     late: the pose, already older than `max_wait_transform_s`, still waits that long for the
     transform, and gets it."""
-    out, history, poses, tfs = outputs(node, "a4")
+    out, history, _, tfs = outputs(node, "a4")
     t = time.time_ns() - 600_000_000  # a frame from before the stall
     history.add(t - 10_000_000, (1.0, 0.0, 0.0))
     out.on_pose(estimate(t, (3.0, 4.0, 1.0)))
