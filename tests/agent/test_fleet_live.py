@@ -24,6 +24,7 @@ from tests.fleet.mosquitto import Mosquitto, mosquitto_binary
 from tests.fleet.recorder import Recorder
 from tests.fleet.vda import validate_vda
 from tests.server.conftest import Api, start_api
+from tests.server.test_reliability_metrics import scrape
 
 pytestmark = pytest.mark.skipif(
     mosquitto_binary() is None,
@@ -147,6 +148,18 @@ def test_agents_localize_on_the_sites_leds_and_appear_as_robots(fleet: Fleet) ->
         err = landmark_errors(fleet.truth[name])
         assert len(err) >= 5, name
         assert np.median(err) < 0.03 and err.max() < 0.15, (name, np.median(err), err.max())
+
+
+def test_metrics_count_the_fleet_link(fleet: Fleet) -> None:
+    """/metrics with the MQTT bridge running: its connection and message counters, and the
+    refusals its guard keeps (admitted agents by name: none refused here)."""
+    wait_until(lambda: "a1" in fleet.api.services.robots.names(), 30.0, "a1 joined")
+    got = scrape(fleet.api)
+    assert got[("irloc_mqtt_connects_total", ())] >= 1
+    assert got[("irloc_mqtt_received_total", ())] > 0
+    for name in ("led_requests_refused", "foreign_maps", "poses_outside"):
+        assert got[(f"irloc_mqtt_{name}_total", ())] == 0, name
+    assert got[("irloc_mqtt_agents_refused", ())] == 0
 
 
 def test_vda5050_messages_validate_against_the_official_schemas(fleet: Fleet) -> None:
