@@ -135,9 +135,11 @@ class ViewPanel:
         apply_top_view(self.client.camera, self.bounds, self.top)
 
     def set_robots(self, names: Sequence[str]) -> None:
+        """The robots to follow and in the legend (one that joined since: an agent, say)."""
         options = (NOBODY, *names)
         if tuple(self.gui_follow.options) != options:
             self.gui_follow.options = options
+            self.gui_legend.content = legend_html(names)
 
     def follow(self, robots: Sequence[RobotState], now_s: float) -> None:
         """Keep the followed robot under the camera's look-at point (at `follow_hz`)."""
