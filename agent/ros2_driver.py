@@ -20,7 +20,7 @@ from agent.sim_source import SimRobotSource
 from localizer.events import FrameObserved, OdometryMeasured, SpotsObserved
 from localizer.odometry import integrate_odometry
 from ros2.camera_info import camera_info_of
-from ros2.messages import covariance6, header, new, pose_msg, transform_stamped
+from ros2.messages import covariance6, header, new, pose_msg, transform_stamped, twist_msg
 from ros2.settings import Ros2Settings
 from ros2.transport import QOS_SENSOR_DATA, Ros2Participant
 from sensors.ros2 import wall_minus_mono_ns
@@ -123,14 +123,6 @@ class SimRos2Driver:
         self._last_odom_ns = e.t_ns
         v = 0.5 * (e.v_left + e.v_right)
         w = (e.v_right - e.v_left) / wheel_base
-        twist = new(
-            "geometry_msgs/msg/TwistWithCovariance",
-            twist=new(
-                "geometry_msgs/msg/Twist",
-                linear=new("geometry_msgs/msg/Vector3", x=v),
-                angular=new("geometry_msgs/msg/Vector3", z=w),
-            ),
-        )
         pose = new(
             "geometry_msgs/msg/PoseWithCovariance",
             pose=pose_msg(self.odom_pose),
@@ -142,7 +134,7 @@ class SimRos2Driver:
                 header=header(stamp, s.odom),
                 child_frame_id=s.base,
                 pose=pose,
-                twist=twist,
+                twist=twist_msg(v, w),
             )
         )
         tf = transform_stamped(stamp, s.odom, s.base, self.odom_pose)

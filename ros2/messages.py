@@ -108,6 +108,19 @@ def pose_msg(p: Pose2, z: float = 0.0) -> Any:
     )
 
 
+def twist_msg(v: float, w: float) -> Any:
+    """geometry_msgs/msg/TwistWithCovariance of a planar motion: forward `v` m/s, turning `w`
+    rad/s (covariance unknown: zeros)."""
+    return new(
+        "geometry_msgs/msg/TwistWithCovariance",
+        twist=new(
+            "geometry_msgs/msg/Twist",
+            linear=new("geometry_msgs/msg/Vector3", x=v),
+            angular=new("geometry_msgs/msg/Vector3", z=w),
+        ),
+    )
+
+
 def pose2_of(pose: Any) -> Pose2:
     """The planar pose of a geometry_msgs/msg/Pose (or Transform: translation, rotation)."""
     p = pose.position if hasattr(pose, "position") else pose.translation

@@ -10,7 +10,7 @@ from collections.abc import Iterator
 import numpy as np
 
 from localizer.camera import CameraModel, T_body_camera_upward
-from ros2.messages import header, new
+from ros2.messages import header, new, twist_msg
 from ros2.transport import Ros2Participant
 
 DOMAIN_ID = 100 + os.getpid() % 100
@@ -40,15 +40,7 @@ def image(t_ns: int, encoding: str = "mono8", data: bytes | None = None, step: i
 
 def odometry(t_ns: int, v: float = 0.5, w: float = 0.2, frame: str = "r1/odom") -> object:
     """r1's `nav_msgs/Odometry` stamped `t_ns` (ROS time), moving at (v, w)."""
-    twist = new(
-        "geometry_msgs/msg/TwistWithCovariance",
-        twist=new(
-            "geometry_msgs/msg/Twist",
-            linear=new("geometry_msgs/msg/Vector3", x=v),
-            angular=new("geometry_msgs/msg/Vector3", z=w),
-        ),
-    )
     return new(
         "nav_msgs/msg/Odometry", header=header(t_ns, frame), child_frame_id="r1/base_link",
-        twist=twist,
+        twist=twist_msg(v, w),
     )  # fmt: skip
