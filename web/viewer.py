@@ -305,9 +305,16 @@ class Viewer:
             return
         with self._lock:
             self._sessions[client.client_id] = session
-        panels = ClientPanels(self, client, session)
-        with self._lock:
-            self._panels[client.client_id] = panels
+        panels = None
+        try:
+            panels = ClientPanels(self, client, session)
+        finally:
+            assert self.server is not None  # started
+            with self._lock:
+                if panels is not None and client.client_id in self.server.get_clients():
+                    self._panels[client.client_id] = panels
+                else:  # it left while its panels were built (or building failed): forget it
+                    self._sessions.pop(client.client_id, None)
 
     def _on_disconnect(self, client: viser.ClientHandle) -> None:
         with self._lock:
