@@ -305,11 +305,15 @@ class Viewer:
             return
         with self._lock:
             self._sessions[client.client_id] = session
+        assert self.server is not None  # started
         panels = None
         try:
             panels = ClientPanels(self, client, session)
+        except Exception:
+            if client.client_id in self.server.get_clients():
+                raise  # a bug in a panel, not a browser that left
+            log.debug("viewer: client %s left while its panels were built", client.client_id)
         finally:
-            assert self.server is not None  # started
             with self._lock:
                 if panels is not None and client.client_id in self.server.get_clients():
                     self._panels[client.client_id] = panels
