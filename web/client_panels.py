@@ -8,6 +8,7 @@ calibration, floor plan), the Survey tab, and editing zones.
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Callable, Sequence
 from contextlib import nullcontext
 from typing import TYPE_CHECKING
@@ -57,9 +58,26 @@ class ClientPanels:
             gui.add_folder("Panels", expand_by_default=False) if kind == "phone" else nullcontext()
         ):
             self._build(viewer, client, session, notify)
-        if width > 0:  # the top view fitted to this window, beside (or above) the panel
-            panel_px = {"phone": 0.0, "wide": self.layout.config.wide_panel_px}.get(kind, 320.0)
-            self.view.fit_window(width, client.camera.image_height, panel_px)
+        # the top view fitted to this window, beside (or above) the panel; a browser whose
+        # size came later than the wait (a loaded machine) is fitted when it comes
+        self._fitted = False
+        self._fit_lock = threading.Lock()
+        client.camera.on_update(self._fit_view_once)
+        if wait_for_width(client, timeout_s=0.0) > 0:
+            self._fit_view_once(client.camera)
+
+    def _fit_view_once(self, camera: viser.CameraHandle) -> None:
+        """Fit the top view to the window the first time its size is known."""
+        width = int(camera.image_width)
+        if width <= 0:
+            return
+        with self._fit_lock:
+            if self._fitted:
+                return
+            self._fitted = True
+        kind = window_class(width)
+        panel_px = {"phone": 0.0, "wide": self.layout.config.wide_panel_px}.get(kind, 320.0)
+        self.view.fit_window(width, camera.image_height, panel_px)
 
     def _build(
         self,
