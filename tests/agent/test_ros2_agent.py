@@ -64,7 +64,7 @@ def test_a_stalled_topic_holds_the_agent_back_and_its_samples_come_in_order(
     source.inputs.on_odometry(odometry(now - 690 * MS))
     assert len(source.step(source.complete_until(time.monotonic_ns(), WAIT_NS))) == 2
     for k in range(1, 6):
-        source.inputs.on_image(image(now - 700 * MS + k * 100 * MS))  # up to now - 200 ms
+        source.inputs.on_image(image(now - 695 * MS + k * 100 * MS))  # up to now - 195 ms
     due = source.step(source.complete_until(time.monotonic_ns(), WAIT_NS))
     assert [type(e) for e in due] == [OdometryMeasured]  # the images wait for their odometry
     for k in range(1, 51):
