@@ -147,7 +147,7 @@ def heading_figure(stops: Sequence[StopScore]) -> Figure:
     ax.set_ylabel("heading error (deg)")
     ax.set_title("heading error against heading, parked (Fig. 10)")
     ax.grid(alpha=0.3)
-    ax.legend(fontsize=8)
+    ax.legend(fontsize=8, loc="upper right")  # not "best": slow on many points
     return fig
 
 
@@ -187,7 +187,7 @@ def jitter_figure(jitters: Sequence[tuple[int, int, float, float]]) -> Figure:
     for a in (ax_p, ax_h):
         a.set_xlabel("parked stop")
         a.set_yscale("log")
-        a.legend(fontsize=8)
+        a.legend(fontsize=8, loc="upper right")
         a.grid(alpha=0.3, which="both")
     fig.suptitle("jitter while parked")
     return fig
@@ -239,6 +239,6 @@ def timing_figure(cpu_s: FloatArray, modes: Sequence[str]) -> Figure:
     ax.set_xlabel("per-frame processing time (ms, CPU time of the localizer thread)")
     ax.set_ylabel("frames")
     ax.set_yscale("log")
-    ax.legend(fontsize=8)
+    ax.legend(fontsize=8, loc="upper right")
     ax.grid(alpha=0.3)
     return fig

@@ -61,6 +61,12 @@ class TopView:
         return 0.5 * self.panel_share * visible_w * self.screen_aspect
 
 
+INITIAL_TOP_VIEW = TopView(screen_aspect=390 / 844, panel_share=0.0)
+"""The top view every browser starts from, until the one fitted to its own window
+(`ViewPanel.fit_window`) lands, and if viser's initial camera reaches the browser after
+that one: the whole site in any window, a portrait phone's included (a desktop sees it
+smaller, centred clear of the panel)."""
+
 OBLIQUE_FOV_DEG = 60.0
 
 

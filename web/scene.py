@@ -200,9 +200,9 @@ class SiteScene:
         )
         ring = np.column_stack([corners, np.full(5, ceiling_z)])
         scene.add_line_segments("/ceiling", polyline_segments(ring), CEILING_COLOR, thickness=0.03)
-        from web.camera_views import apply_top_view  # the default: near-orthographic top
+        from web.camera_views import INITIAL_TOP_VIEW, apply_top_view  # near-orthographic
 
-        apply_top_view(self.server.initial_camera, self.bounds)
+        apply_top_view(self.server.initial_camera, self.bounds, INITIAL_TOP_VIEW)
 
     # -- landmarks ---------------------------------------------------------------------------
     def update_landmarks(self, landmarks: list[LandmarkState], lit: frozenset[int]) -> None:

@@ -7,7 +7,13 @@ import math
 import numpy as np
 import pytest
 
-from web.camera_views import TopView, apply_oblique_view, apply_top_view, follow
+from web.camera_views import (
+    INITIAL_TOP_VIEW,
+    TopView,
+    apply_oblique_view,
+    apply_top_view,
+    follow,
+)
 
 
 class Camera:
@@ -42,6 +48,22 @@ def test_top_view_fits_the_site_beside_the_panel_nearly_without_parallax() -> No
     assert cam.near >= 1.0 and cam.far > d
     apply_oblique_view(cam, bounds, 2.5)  # type: ignore[arg-type]
     assert cam.fov == pytest.approx(math.radians(60.0)) and cam.near < 0.1
+
+
+@pytest.mark.parametrize("aspect", [390 / 844, 1.0, 1.6, 2.4])
+def test_the_initial_view_shows_the_whole_site_in_any_window(aspect: float) -> None:
+    """Before (or instead of) the view fitted to a browser's window: a portrait phone and a
+    wide screen alike see the whole site, centred (a desktop's panel at the right covers
+    none of it)."""
+    bounds = (-2.0, 26.0, -2.0, 9.5)
+    cam = Camera()
+    look = apply_top_view(cam, bounds, INITIAL_TOP_VIEW)  # type: ignore[arg-type]
+    assert look[:2] == pytest.approx((12.0, 3.75))
+    half_h = float(cam.position[2]) * math.tan(math.radians(INITIAL_TOP_VIEW.fov_deg) / 2)
+    half_w = half_h * aspect
+    assert half_w >= 14.0 and half_h >= 5.75  # the site's half extents
+    if aspect >= 1.6:  # clear of a quarter-width panel at the right
+        assert look[0] + 14.0 <= look[0] + half_w * (1 - 2 * 0.25)
 
 
 def test_following_moves_camera_and_look_at_together_onto_the_robot() -> None:
